@@ -1,0 +1,66 @@
+#version 460
+// shade: lights the hit. The normal comes from the height field at the hit uv (central
+// differences), the light is directional (Lambert + Blinn-Phong), the albedo is a stone
+// colour darkened with depth (a cheap cavity term that makes the relief readable).
+// Output: rgba8 (sRGB-encoded values in a UNORM storage image).
+#include "frame.glsl"
+
+layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
+
+layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
+layout(set = 0, binding = 1) uniform sampler2D u_normal;
+layout(set = 0, binding = 2) uniform sampler2D u_tangent;
+layout(set = 0, binding = 3) uniform sampler2D u_height;
+layout(set = 0, binding = 4, rgba8) uniform writeonly image2D u_color;
+
+layout(push_constant) uniform ShadeParams {
+    mat4 inv_view_proj;  // clip -> world
+    vec4 camera_pos;     // xyz
+    vec4 light_dir;      // xyz: unit vector towards the light; w: intensity
+    uvec2 frame_size;
+    uvec2 map_size;
+    float depth_scale;
+    float ambient;
+    float specular;
+    float shininess;
+} pc;
+
+#include "heightfield.glsl"
+
+vec3 srgb_encode(vec3 c) {
+    c = clamp(c, 0.0, 1.0);
+    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+}
+
+void main() {
+    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
+        return;
+    }
+    // View direction from the pixel alone (no depth needed).
+    vec2 ndc = (vec2(pixel) + 0.5) / vec2(pc.frame_size) * 2.0 - 1.0;
+    vec4 far_point = pc.inv_view_proj * vec4(ndc, 0.5, 1.0);
+    vec3 V = normalize(far_point.xyz / far_point.w - pc.camera_pos.xyz);
+
+    vec4 hit = imageLoad(u_hit, pixel);
+    if (hit.z < 0.0) {
+        // Sky: a vertical gradient.
+        float t = clamp(0.5 - 0.5 * V.y, 0.0, 1.0);
+        imageStore(u_color, pixel, vec4(srgb_encode(mix(vec3(0.45, 0.6, 0.8), vec3(0.85, 0.9, 0.95), t)), 1.0));
+        return;
+    }
+    vec3 N = texelFetch(u_normal, pixel, 0).xyz;
+    vec4 t4 = texelFetch(u_tangent, pixel, 0);
+    vec3 T = t4.xyz;
+    vec3 B = t4.w * cross(N, T);
+    vec3 n_ts = height_normal(hit.xy, vec2(pc.map_size), pc.depth_scale);
+    vec3 n = normalize(n_ts.x * T + n_ts.y * B + n_ts.z * N);
+
+    vec3 L = pc.light_dir.xyz;
+    vec3 H = normalize(L - V);
+    float diffuse = max(dot(n, L), 0.0);
+    float spec = diffuse > 0.0 ? pc.specular * pow(max(dot(n, H), 0.0), pc.shininess) : 0.0;
+    vec3 albedo = vec3(0.62, 0.55, 0.47) * mix(0.35, 1.0, hit.z);
+    vec3 color = albedo * (pc.ambient + pc.light_dir.w * diffuse) + vec3(spec * pc.light_dir.w);
+    imageStore(u_color, pixel, vec4(srgb_encode(color), 1.0));
+}

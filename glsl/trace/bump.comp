@@ -1,0 +1,12 @@
+#version 460
+// bump: the cost floor. One height fetch at the entry point; the hit is the surface point
+// below uv0 (uv0, H(uv0)), i.e. no parallax at all, shaded with the normal at uv0 as in
+// plain bump mapping. Also the far-LOD fallback of the methods that blend to it.
+#include "trace.glsl"
+
+Hit trace_ray(Ray ray) {
+    if (leaves_domain(ray.uv0)) {
+        return miss(ray, 0u);
+    }
+    return Hit(ray.uv0, height_at(ray.uv0), 1u);
+}

@@ -1,0 +1,245 @@
+//! `#[repr(C)]` mirrors of the structs shared with GLSL (push-constant blocks).
+//!
+//! Each struct's layout is tested against the compiled SPIR-V itself: the tests read the
+//! `Offset` decorations of the block with the same name in the shader and compare them
+//! with `offset_of!`, and the struct size with the block's end. No GPU needed.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec4};
+
+/// `ADDRESSING_REPEAT` in `glsl/common/frame.glsl`.
+pub const ADDRESSING_REPEAT: u32 = 0;
+/// `ADDRESSING_CLAMP` in `glsl/common/frame.glsl`.
+pub const ADDRESSING_CLAMP: u32 = 1;
+/// `NO_HIT_HEIGHT` in `glsl/common/frame.glsl`: the hit height of a miss.
+pub const NO_HIT_HEIGHT: f32 = -1.0;
+
+/// `TraceParams` in `glsl/common/trace.glsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TraceParams {
+    /// Frame size in pixels.
+    pub frame_size: [u32; 2],
+    /// Height-map size in texels.
+    pub map_size: [u32; 2],
+    /// Linear steps over the full depth.
+    pub steps: u32,
+    /// Binary-search steps after the linear march.
+    pub refine_steps: u32,
+    /// `ADDRESSING_*`.
+    pub addressing: u32,
+    /// Reserved, 0.
+    pub flags: u32,
+}
+
+/// `GBufferParams` in `glsl/common/gbuffer.glsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GBufferParams {
+    /// World to clip (reverse-Z, Vulkan y down).
+    pub view_proj: Mat4,
+    /// Eye position (xyz).
+    pub camera_pos: Vec4,
+    /// x0, z0, x1, z1 of the quad on the y = 0 plane.
+    pub world_rect: Vec4,
+    /// u0, v0, u1, v1 at the quad's corners.
+    pub uv_rect: Vec4,
+    /// Displacement depth in tile units.
+    pub depth_scale: f32,
+    /// Lower bound of `-V.z` (keeps the parallax vector finite at grazing angles).
+    pub min_cos: f32,
+    /// `ADDRESSING_*`.
+    pub addressing: u32,
+    /// Padding.
+    pub pad: u32,
+}
+
+/// `ShadeParams` in `glsl/shade.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ShadeParams {
+    /// Clip to world.
+    pub inv_view_proj: Mat4,
+    /// Eye position (xyz).
+    pub camera_pos: Vec4,
+    /// Unit vector towards the light (xyz) and intensity (w).
+    pub light_dir: Vec4,
+    /// Frame size in pixels.
+    pub frame_size: [u32; 2],
+    /// Height-map size in texels.
+    pub map_size: [u32; 2],
+    /// Displacement depth in tile units.
+    pub depth_scale: f32,
+    /// Ambient term.
+    pub ambient: f32,
+    /// Specular strength.
+    pub specular: f32,
+    /// Blinn-Phong exponent.
+    pub shininess: f32,
+}
+
+#[cfg(test)]
+pub(crate) mod spirv_layout {
+    //! Minimal SPIR-V reader: member offsets of a named block.
+    use std::collections::HashMap;
+
+    const OP_NAME: u32 = 5;
+    const OP_MEMBER_NAME: u32 = 6;
+    const OP_MEMBER_DECORATE: u32 = 72;
+    const DECORATION_OFFSET: u32 = 35;
+
+    fn string(words: &[u32]) -> String {
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let end = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
+        String::from_utf8_lossy(&bytes[..end]).into_owned()
+    }
+
+    /// `(member name, offset)` of the struct type named `block`, in member order.
+    pub fn block_offsets(words: &[u32], block: &str) -> Vec<(String, u32)> {
+        let mut type_id = None;
+        let mut names: HashMap<u32, String> = HashMap::new();
+        let mut offsets: HashMap<u32, u32> = HashMap::new();
+        let mut member_names: Vec<(u32, u32, String)> = Vec::new();
+        let mut member_offsets: Vec<(u32, u32, u32)> = Vec::new();
+        let mut i = 5; // header
+        while i < words.len() {
+            let op = words[i] & 0xffff;
+            let count = (words[i] >> 16) as usize;
+            let operands = &words[i + 1..i + count.max(1)];
+            match op {
+                OP_NAME => {
+                    names.insert(operands[0], string(&operands[1..]));
+                }
+                OP_MEMBER_NAME => {
+                    member_names.push((operands[0], operands[1], string(&operands[2..])));
+                }
+                OP_MEMBER_DECORATE if operands[2] == DECORATION_OFFSET => {
+                    member_offsets.push((operands[0], operands[1], operands[3]));
+                }
+                _ => {}
+            }
+            i += count.max(1);
+        }
+        for (id, name) in &names {
+            if name == block {
+                type_id = Some(*id);
+            }
+        }
+        let id = type_id.unwrap_or_else(|| panic!("block {block} not in the SPIR-V"));
+        for (t, m, off) in member_offsets {
+            if t == id {
+                offsets.insert(m, off);
+            }
+        }
+        let mut members: Vec<_> = member_names
+            .into_iter()
+            .filter(|(t, _, _)| *t == id)
+            .map(|(_, m, n)| (m, n))
+            .collect();
+        members.sort();
+        members
+            .into_iter()
+            .map(|(m, n)| {
+                let off = *offsets.get(&m).expect("member without Offset");
+                (n, off)
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spirv_layout::block_offsets;
+    use super::*;
+    use crate::shaders;
+    use std::mem::{offset_of, size_of};
+
+    /// Checks Rust offsets against the shader's, member by member, and the total size.
+    fn check(shader: &shaders::Shader, block: &str, rust: &[(&str, usize)], size: usize) {
+        let words = shader.words().unwrap();
+        let glsl = block_offsets(&words, block);
+        let glsl_names: Vec<&str> = glsl.iter().map(|(n, _)| n.as_str()).collect();
+        let rust_names: Vec<&str> = rust.iter().map(|(n, _)| *n).collect();
+        assert_eq!(glsl_names, rust_names, "{block}: member names/order differ");
+        for ((name, off), (_, rust_off)) in glsl.iter().zip(rust) {
+            assert_eq!(*off as usize, *rust_off, "{block}.{name} offset");
+        }
+        assert_eq!(
+            size % 16,
+            0,
+            "{block}: push-constant size should be 16-byte aligned"
+        );
+        assert!(
+            size <= 128,
+            "{block}: over the guaranteed push-constant size"
+        );
+    }
+
+    #[test]
+    fn trace_params_layout() {
+        check(
+            &shaders::TRACE_RELIEF_COMP,
+            "TraceParams",
+            &[
+                ("frame_size", offset_of!(TraceParams, frame_size)),
+                ("map_size", offset_of!(TraceParams, map_size)),
+                ("steps", offset_of!(TraceParams, steps)),
+                ("refine_steps", offset_of!(TraceParams, refine_steps)),
+                ("addressing", offset_of!(TraceParams, addressing)),
+                ("flags", offset_of!(TraceParams, flags)),
+            ],
+            size_of::<TraceParams>(),
+        );
+        assert_eq!(size_of::<TraceParams>(), 32);
+    }
+
+    #[test]
+    fn gbuffer_params_layout() {
+        check(
+            &shaders::GBUFFER_VERT,
+            "GBufferParams",
+            &[
+                ("view_proj", offset_of!(GBufferParams, view_proj)),
+                ("camera_pos", offset_of!(GBufferParams, camera_pos)),
+                ("world_rect", offset_of!(GBufferParams, world_rect)),
+                ("uv_rect", offset_of!(GBufferParams, uv_rect)),
+                ("depth_scale", offset_of!(GBufferParams, depth_scale)),
+                ("min_cos", offset_of!(GBufferParams, min_cos)),
+                ("addressing", offset_of!(GBufferParams, addressing)),
+                ("pad", offset_of!(GBufferParams, pad)),
+            ],
+            size_of::<GBufferParams>(),
+        );
+        assert_eq!(size_of::<GBufferParams>(), 128);
+    }
+
+    #[test]
+    fn shade_params_layout() {
+        check(
+            &shaders::SHADE_COMP,
+            "ShadeParams",
+            &[
+                ("inv_view_proj", offset_of!(ShadeParams, inv_view_proj)),
+                ("camera_pos", offset_of!(ShadeParams, camera_pos)),
+                ("light_dir", offset_of!(ShadeParams, light_dir)),
+                ("frame_size", offset_of!(ShadeParams, frame_size)),
+                ("map_size", offset_of!(ShadeParams, map_size)),
+                ("depth_scale", offset_of!(ShadeParams, depth_scale)),
+                ("ambient", offset_of!(ShadeParams, ambient)),
+                ("specular", offset_of!(ShadeParams, specular)),
+                ("shininess", offset_of!(ShadeParams, shininess)),
+            ],
+            size_of::<ShadeParams>(),
+        );
+        assert_eq!(size_of::<ShadeParams>(), 128);
+    }
+
+    #[test]
+    fn every_trace_method_shares_the_block() {
+        for s in shaders::ALL.iter().filter(|s| s.name.starts_with("trace/")) {
+            let words = s.words().unwrap();
+            let offs = block_offsets(&words, "TraceParams");
+            assert_eq!(offs.len(), 6, "{}", s.name);
+        }
+    }
+}

@@ -1,0 +1,783 @@
+//! The Vulkan context: instance, physical device, device, one queue and the allocator.
+//!
+//! Two ways in, one code path:
+//! * [`Context::headless`] creates everything itself (the CLI, tests and benchmarks): it
+//!   loads the Vulkan library, creates an instance (with `VK_LAYER_KHRONOS_validation`
+//!   and synchronization validation when `DISPMAP_VALIDATION=1`, and a debug messenger
+//!   that counts and logs warning and error messages), picks a device, creates the
+//!   device and a `gpu_allocator` allocator, then hands them to the same assembly step
+//!   as the host path.
+//! * [`Context::from_handles`] wraps a host engine's instance, physical device, device,
+//!   queue and allocator. It never creates or destroys those handles.
+//!
+//! Device choice: `DISPMAP_DEVICE` (or the CLI's `--device`) selects by index in
+//! enumeration order or by a case-insensitive substring of the name; otherwise a discrete
+//! GPU is preferred, then integrated, virtual, and the CPU (lavapipe) last. Devices that
+//! lack what dispmap needs (see [`requirements`]) are skipped with a logged reason.
+
+use crate::error::{Error, Result, VkContext};
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use std::ffi::{CStr, CString, c_void};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// The validation layer's name.
+pub const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+/// Environment variable that switches validation on (`1`, `true`, `on`).
+pub const ENV_VALIDATION: &str = "DISPMAP_VALIDATION";
+/// Environment variable that selects the device (index or name substring).
+pub const ENV_DEVICE: &str = "DISPMAP_DEVICE";
+
+/// What dispmap needs from a device, checked before it is used.
+pub mod requirements {
+    use ash::vk;
+    use std::ffi::CStr;
+
+    /// Minimum Vulkan API version (dynamic rendering and synchronization2 are core in 1.3).
+    pub const API_VERSION: u32 = vk::API_VERSION_1_3;
+    /// Device extensions: push descriptors let passes bind per recording, so a host can
+    /// record frame N+1 while frame N runs without per-frame descriptor pools.
+    pub const DEVICE_EXTENSIONS: &[&CStr] = &[ash::khr::push_descriptor::NAME];
+    /// Formats and the features each needs (`format`, `optimal tiling features`).
+    pub const FORMATS: &[(vk::Format, vk::FormatFeatureFlags)] = &[
+        (
+            vk::Format::R32G32B32A32_SFLOAT,
+            vk::FormatFeatureFlags::from_raw(
+                vk::FormatFeatureFlags::COLOR_ATTACHMENT.as_raw()
+                    | vk::FormatFeatureFlags::STORAGE_IMAGE.as_raw()
+                    | vk::FormatFeatureFlags::SAMPLED_IMAGE.as_raw(),
+            ),
+        ),
+        (
+            vk::Format::R16G16B16A16_SFLOAT,
+            vk::FormatFeatureFlags::from_raw(
+                vk::FormatFeatureFlags::COLOR_ATTACHMENT.as_raw()
+                    | vk::FormatFeatureFlags::SAMPLED_IMAGE.as_raw(),
+            ),
+        ),
+        (
+            vk::Format::D32_SFLOAT,
+            vk::FormatFeatureFlags::from_raw(
+                vk::FormatFeatureFlags::DEPTH_STENCIL_ATTACHMENT.as_raw()
+                    | vk::FormatFeatureFlags::SAMPLED_IMAGE.as_raw(),
+            ),
+        ),
+        (
+            vk::Format::R8G8B8A8_UNORM,
+            vk::FormatFeatureFlags::STORAGE_IMAGE,
+        ),
+        (
+            vk::Format::R8_UNORM,
+            vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR,
+        ),
+        (
+            vk::Format::R16_UNORM,
+            vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR,
+        ),
+        (
+            vk::Format::R32_SFLOAT,
+            vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR,
+        ),
+    ];
+}
+
+/// How to build a standalone context.
+#[derive(Clone, Debug, Default)]
+pub struct ContextOptions {
+    /// Switch on the validation layer (with synchronization validation).
+    /// `None` reads `DISPMAP_VALIDATION`.
+    pub validation: Option<bool>,
+    /// Device index or name substring. `None` reads `DISPMAP_DEVICE`, then picks the best.
+    pub device: Option<String>,
+}
+
+/// Facts about the chosen device, for reports.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DeviceInfo {
+    /// `deviceName`.
+    pub name: String,
+    /// Device type, e.g. `CPU` or `DISCRETE_GPU`.
+    pub device_type: String,
+    /// Driver name and info, e.g. `llvmpipe: Mesa 22.3.6 (LLVM 15.0.6)`.
+    pub driver: String,
+    /// API version as `major.minor.patch`.
+    pub api_version: String,
+    /// Nanoseconds per timestamp tick.
+    pub timestamp_period_ns: f32,
+    /// Valid bits of timestamps on the queue used.
+    pub timestamp_valid_bits: u32,
+    /// `maxImageDimension2D`.
+    pub max_image_dimension_2d: u32,
+    /// Queue family index used.
+    pub queue_family_index: u32,
+}
+
+/// Counts validation (debug messenger) messages of warning and error severity.
+#[derive(Debug, Default)]
+pub struct MessageCounter {
+    warnings: AtomicU64,
+    errors: AtomicU64,
+}
+
+impl MessageCounter {
+    /// Warnings seen so far.
+    pub fn warnings(&self) -> u64 {
+        self.warnings.load(Ordering::SeqCst)
+    }
+    /// Errors seen so far.
+    pub fn errors(&self) -> u64 {
+        self.errors.load(Ordering::SeqCst)
+    }
+    /// Warnings plus errors.
+    pub fn total(&self) -> u64 {
+        self.warnings() + self.errors()
+    }
+}
+
+/// Handles a host engine hands to [`Context::from_handles`].
+pub struct HostHandles {
+    /// The host's loader entry.
+    pub entry: ash::Entry,
+    /// The host's instance.
+    pub instance: ash::Instance,
+    /// The physical device behind `device`.
+    pub physical_device: vk::PhysicalDevice,
+    /// The host's device (created with the [`requirements`]).
+    pub device: ash::Device,
+    /// A queue family with graphics and compute.
+    pub queue_family_index: u32,
+    /// A queue of that family (used only by the standalone helpers, never on the host path).
+    pub queue: vk::Queue,
+    /// The host's allocator.
+    pub allocator: Arc<Mutex<Allocator>>,
+}
+
+/// Device, queue and allocator, with the extension loaders dispmap uses.
+pub struct Context {
+    entry: ash::Entry,
+    instance: ash::Instance,
+    physical_device: vk::PhysicalDevice,
+    device: ash::Device,
+    queue_family_index: u32,
+    queue: vk::Queue,
+    allocator: Option<Arc<Mutex<Allocator>>>,
+    push_descriptor: ash::khr::push_descriptor::Device,
+    debug_utils: Option<ash::ext::debug_utils::Device>,
+    messenger: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    messages: Arc<MessageCounter>,
+    info: DeviceInfo,
+    owns_handles: bool,
+}
+
+impl Context {
+    /// Creates a standalone headless context (instance, device, queue, allocator).
+    pub fn headless(options: &ContextOptions) -> Result<Self> {
+        // SAFETY: loading the system Vulkan loader runs its initialisation code; it is the
+        // documented way to get an entry and nothing else in this process races it.
+        let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))?;
+        let validation = options.validation.unwrap_or_else(validation_from_env);
+        let messages = Arc::new(MessageCounter::default());
+        let instance_exts = enumerate_instance_extensions(&entry)?;
+        let has_debug_utils = instance_exts
+            .iter()
+            .any(|e| e == ash::ext::debug_utils::NAME);
+        if validation && !validation_layer_present(&entry)? {
+            return Err(Error::NoDevice(format!(
+                "{ENV_VALIDATION} is set but {} is not installed (apt-get install vulkan-validationlayers)",
+                VALIDATION_LAYER.to_string_lossy()
+            )));
+        }
+        let instance = create_instance(&entry, validation, has_debug_utils, &messages)?;
+        let messenger = if has_debug_utils {
+            let loader = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            let info = messenger_info(&messages);
+            // SAFETY: `instance` is valid and was created with VK_EXT_debug_utils; the
+            // callback's user data points into `messages`, which the context keeps alive
+            // until the messenger is destroyed in `Drop`.
+            let handle = unsafe { loader.create_debug_utils_messenger(&info, None) }
+                .vk("vkCreateDebugUtilsMessengerEXT")?;
+            Some((loader, handle))
+        } else {
+            None
+        };
+        let result = Self::create_device(&entry, &instance, options);
+        let (physical_device, device, queue_family_index, queue) = match result {
+            Ok(v) => v,
+            Err(e) => {
+                // SAFETY: nothing else was created from this instance yet.
+                unsafe {
+                    if let Some((loader, handle)) = &messenger {
+                        loader.destroy_debug_utils_messenger(*handle, None);
+                    }
+                    instance.destroy_instance(None);
+                }
+                return Err(e);
+            }
+        };
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device,
+            debug_settings: {
+                let mut settings = gpu_allocator::AllocatorDebugSettings::default();
+                settings.log_leaks_on_shutdown = true;
+                settings
+            },
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        })
+        .map_err(|source| Error::Allocation {
+            name: "allocator".into(),
+            source,
+        })?;
+        let handles = HostHandles {
+            entry,
+            instance,
+            physical_device,
+            device,
+            queue_family_index,
+            queue,
+            allocator: Arc::new(Mutex::new(allocator)),
+        };
+        // SAFETY: the handles were created above, from one another, and are owned by
+        // the returned context (`owns_handles`), which destroys them in `Drop`.
+        let mut ctx = unsafe { Self::assemble(handles, messages, messenger, has_debug_utils) }?;
+        ctx.owns_handles = true;
+        ctx.set_name(ctx.device.handle(), "dispmap.device");
+        ctx.set_name(ctx.queue, "dispmap.queue");
+        Ok(ctx)
+    }
+
+    /// Wraps a host engine's handles. dispmap never destroys them.
+    ///
+    /// Debug names are set only if the host's instance enabled `VK_EXT_debug_utils`
+    /// (tell it with `debug_utils_enabled`).
+    ///
+    /// # Safety
+    /// All handles must be valid, created from one another (`device` from
+    /// `physical_device` of `instance`, `queue` from `device` in `queue_family_index`,
+    /// `allocator` for `device`), and outlive the context and everything created from
+    /// it. The device must have been created with everything [`Context::check_device`]
+    /// asks for: it is checked here and a missing feature is an error.
+    pub unsafe fn from_handles(handles: HostHandles, debug_utils_enabled: bool) -> Result<Self> {
+        // SAFETY: forwarded from this function's contract.
+        unsafe {
+            Self::assemble(
+                handles,
+                Arc::new(MessageCounter::default()),
+                None,
+                debug_utils_enabled,
+            )
+        }
+    }
+
+    /// The shared assembly step of both constructors.
+    ///
+    /// # Safety
+    /// As [`Context::from_handles`].
+    unsafe fn assemble(
+        handles: HostHandles,
+        messages: Arc<MessageCounter>,
+        messenger: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+        debug_utils_enabled: bool,
+    ) -> Result<Self> {
+        let HostHandles {
+            entry,
+            instance,
+            physical_device,
+            device,
+            queue_family_index,
+            queue,
+            allocator,
+        } = handles;
+        Self::check_device(&instance, physical_device).map_err(|missing| Error::Unsupported {
+            device: device_name(&instance, physical_device),
+            what: missing,
+        })?;
+        let info = device_info(&instance, physical_device, queue_family_index);
+        let push_descriptor = ash::khr::push_descriptor::Device::new(&instance, &device);
+        let debug_utils =
+            debug_utils_enabled.then(|| ash::ext::debug_utils::Device::new(&instance, &device));
+        Ok(Context {
+            entry,
+            instance,
+            physical_device,
+            device,
+            queue_family_index,
+            queue,
+            allocator: Some(allocator),
+            push_descriptor,
+            debug_utils,
+            messenger,
+            messages,
+            info,
+            owns_handles: false,
+        })
+    }
+
+    /// Checks a physical device against the [`requirements`]; the error lists what is missing.
+    pub fn check_device(
+        instance: &ash::Instance,
+        physical_device: vk::PhysicalDevice,
+    ) -> std::result::Result<(), String> {
+        let mut missing = Vec::new();
+        // SAFETY: `physical_device` was enumerated from `instance` (caller's contract).
+        let props = unsafe { instance.get_physical_device_properties(physical_device) };
+        if props.api_version < requirements::API_VERSION {
+            missing.push(format!(
+                "Vulkan 1.3 (has {})",
+                version_string(props.api_version)
+            ));
+        }
+        // SAFETY: as above.
+        let exts = unsafe { instance.enumerate_device_extension_properties(physical_device) }
+            .unwrap_or_default();
+        for want in requirements::DEVICE_EXTENSIONS {
+            if !exts
+                .iter()
+                .any(|e| e.extension_name_as_c_str().ok() == Some(*want))
+            {
+                missing.push(want.to_string_lossy().into_owned());
+            }
+        }
+        let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
+        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
+        // SAFETY: as above; the chain is valid for the duration of the call.
+        unsafe { instance.get_physical_device_features2(physical_device, &mut f2) };
+        if f13.dynamic_rendering == vk::FALSE {
+            missing.push("dynamicRendering".into());
+        }
+        if f13.synchronization2 == vk::FALSE {
+            missing.push("synchronization2".into());
+        }
+        if props.limits.timestamp_compute_and_graphics == vk::FALSE {
+            missing.push("timestampComputeAndGraphics".into());
+        }
+        for (format, features) in requirements::FORMATS {
+            // SAFETY: as above.
+            let fp =
+                unsafe { instance.get_physical_device_format_properties(physical_device, *format) };
+            if !fp.optimal_tiling_features.contains(*features) {
+                missing.push(format!("{format:?} with {features:?}"));
+            }
+        }
+        if missing.is_empty() {
+            Ok(())
+        } else {
+            Err(missing.join(", "))
+        }
+    }
+
+    fn create_device(
+        entry: &ash::Entry,
+        instance: &ash::Instance,
+        options: &ContextOptions,
+    ) -> Result<(vk::PhysicalDevice, ash::Device, u32, vk::Queue)> {
+        let _ = entry;
+        // SAFETY: `instance` is a valid instance.
+        let devices =
+            unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+        if devices.is_empty() {
+            return Err(Error::NoDevice(
+                "the Vulkan loader reports no devices (install mesa-vulkan-drivers for lavapipe)"
+                    .into(),
+            ));
+        }
+        let selector = options
+            .device
+            .clone()
+            .or_else(|| std::env::var(ENV_DEVICE).ok().filter(|s| !s.is_empty()));
+        let physical_device = pick_device(instance, &devices, selector.as_deref())?;
+        let queue_family_index = graphics_compute_family(instance, physical_device)
+            .ok_or_else(|| Error::NoDevice("no queue family with graphics and compute".into()))?;
+        let priorities = [1.0];
+        let queue_info = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family_index)
+            .queue_priorities(&priorities)];
+        let ext_names: Vec<_> = requirements::DEVICE_EXTENSIONS
+            .iter()
+            .map(|e| e.as_ptr())
+            .collect();
+        let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
+            .dynamic_rendering(true)
+            .synchronization2(true);
+        let info = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queue_info)
+            .enabled_extension_names(&ext_names)
+            .push_next(&mut f13);
+        // SAFETY: the physical device passed `check_device`, so the extensions and
+        // features requested exist; all pointers in `info` outlive the call.
+        let device =
+            unsafe { instance.create_device(physical_device, &info, None) }.vk("vkCreateDevice")?;
+        // SAFETY: the queue family and index 0 were requested at device creation.
+        let queue = unsafe { device.get_device_queue(queue_family_index, 0) };
+        Ok((physical_device, device, queue_family_index, queue))
+    }
+
+    /// The loader entry.
+    pub fn entry(&self) -> &ash::Entry {
+        &self.entry
+    }
+    /// The instance.
+    pub fn instance(&self) -> &ash::Instance {
+        &self.instance
+    }
+    /// The physical device.
+    pub fn physical_device(&self) -> vk::PhysicalDevice {
+        self.physical_device
+    }
+    /// The logical device.
+    pub fn device(&self) -> &ash::Device {
+        &self.device
+    }
+    /// The queue family used for every pass.
+    pub fn queue_family_index(&self) -> u32 {
+        self.queue_family_index
+    }
+    /// The queue (standalone submissions only).
+    pub fn queue(&self) -> vk::Queue {
+        self.queue
+    }
+    /// The shared allocator.
+    pub fn allocator(&self) -> &Arc<Mutex<Allocator>> {
+        self.allocator
+            .as_ref()
+            .expect("the allocator exists until the context is dropped")
+    }
+    /// `VK_KHR_push_descriptor` functions.
+    pub fn push_descriptor(&self) -> &ash::khr::push_descriptor::Device {
+        &self.push_descriptor
+    }
+    /// Facts about the device.
+    pub fn info(&self) -> &DeviceInfo {
+        &self.info
+    }
+    /// Validation messages counted so far (standalone contexts with a messenger).
+    pub fn messages(&self) -> &Arc<MessageCounter> {
+        &self.messages
+    }
+    /// Whether a debug messenger is installed (validation or debug utils available).
+    pub fn has_messenger(&self) -> bool {
+        self.messenger.is_some()
+    }
+
+    /// Gives a Vulkan object a debug name (no-op without `VK_EXT_debug_utils`).
+    pub fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
+        if let Some(du) = &self.debug_utils {
+            let Ok(cname) = CString::new(name.replace('\0', " ")) else {
+                return;
+            };
+            let info = vk::DebugUtilsObjectNameInfoEXT::default()
+                .object_handle(handle)
+                .object_name(&cname);
+            // SAFETY: the handle belongs to this device and `info` outlives the call. A
+            // failure only loses a debug name.
+            if let Err(e) = unsafe { du.set_debug_utils_object_name(&info) } {
+                log::debug!("cannot name {name}: {e}");
+            }
+        }
+    }
+
+    /// Opens a debug label region in `cmd` (shows up in captures and validation messages).
+    pub fn begin_label(&self, cmd: vk::CommandBuffer, name: &str) {
+        if let Some(du) = &self.debug_utils {
+            let Ok(cname) = CString::new(name) else {
+                return;
+            };
+            let label = vk::DebugUtilsLabelEXT::default().label_name(&cname);
+            // SAFETY: `cmd` is in the recording state (caller's contract for every pass).
+            unsafe { du.cmd_begin_debug_utils_label(cmd, &label) };
+        }
+    }
+
+    /// Closes the region opened by [`Context::begin_label`].
+    pub fn end_label(&self, cmd: vk::CommandBuffer) {
+        if let Some(du) = &self.debug_utils {
+            // SAFETY: pairs with `begin_label` on the same recording command buffer.
+            unsafe { du.cmd_end_debug_utils_label(cmd) };
+        }
+    }
+}
+
+impl Drop for Context {
+    fn drop(&mut self) {
+        if !self.owns_handles {
+            return;
+        }
+        // SAFETY: the context created these handles and everything made from them must
+        // have been destroyed by now (their `destroy` methods take `&Context`, so they
+        // cannot outlive it in safe code). Waiting for idle makes GPU work finish first.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+        }
+        if let Some(allocator) = self.allocator.take() {
+            match Arc::try_unwrap(allocator) {
+                Ok(mutex) => drop(mutex), // reports leaks through `log` on drop
+                Err(_) => log::error!("allocator still shared at context drop: leaking it"),
+            }
+        }
+        // SAFETY: as above; the allocator is gone, nothing else uses the device.
+        unsafe {
+            self.device.destroy_device(None);
+            if let Some((loader, handle)) = self.messenger.take() {
+                loader.destroy_debug_utils_messenger(handle, None);
+            }
+            self.instance.destroy_instance(None);
+        }
+    }
+}
+
+fn validation_from_env() -> bool {
+    std::env::var(ENV_VALIDATION)
+        .map(|v| matches!(v.to_ascii_lowercase().as_str(), "1" | "true" | "on" | "yes"))
+        .unwrap_or(false)
+}
+
+fn enumerate_instance_extensions(entry: &ash::Entry) -> Result<Vec<CString>> {
+    // SAFETY: plain query on a loaded entry.
+    let props = unsafe { entry.enumerate_instance_extension_properties(None) }
+        .vk("vkEnumerateInstanceExtensionProperties")?;
+    Ok(props
+        .iter()
+        .filter_map(|p| p.extension_name_as_c_str().ok().map(CStr::to_owned))
+        .collect())
+}
+
+fn validation_layer_present(entry: &ash::Entry) -> Result<bool> {
+    // SAFETY: plain query on a loaded entry.
+    let layers = unsafe { entry.enumerate_instance_layer_properties() }
+        .vk("vkEnumerateInstanceLayerProperties")?;
+    Ok(layers
+        .iter()
+        .any(|l| l.layer_name_as_c_str().ok() == Some(VALIDATION_LAYER)))
+}
+
+fn create_instance(
+    entry: &ash::Entry,
+    validation: bool,
+    debug_utils: bool,
+    messages: &Arc<MessageCounter>,
+) -> Result<ash::Instance> {
+    let app = vk::ApplicationInfo::default()
+        .application_name(c"dispmap")
+        .application_version(1)
+        .engine_name(c"dispmap")
+        .api_version(requirements::API_VERSION);
+    let layers = if validation {
+        vec![VALIDATION_LAYER.as_ptr()]
+    } else {
+        vec![]
+    };
+    let mut exts = Vec::new();
+    if debug_utils {
+        exts.push(ash::ext::debug_utils::NAME.as_ptr());
+    }
+    let enables = [
+        vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION,
+        vk::ValidationFeatureEnableEXT::BEST_PRACTICES,
+    ];
+    let enables = if best_practices_from_env() {
+        &enables[..]
+    } else {
+        &enables[..1]
+    };
+    let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(enables);
+    // Messages during instance creation/destruction go to the same counter.
+    let mut messenger = messenger_info(messages);
+    let mut info = vk::InstanceCreateInfo::default()
+        .application_info(&app)
+        .enabled_layer_names(&layers)
+        .enabled_extension_names(&exts);
+    if debug_utils {
+        info = info.push_next(&mut messenger);
+    }
+    if validation {
+        info = info.push_next(&mut features);
+    }
+    // SAFETY: every pointer in `info` outlives the call; the messenger's user data points
+    // into `messages`, kept alive by the context.
+    unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")
+}
+
+fn best_practices_from_env() -> bool {
+    std::env::var("DISPMAP_VALIDATION_BEST_PRACTICES").is_ok_and(|v| v == "1")
+}
+
+fn messenger_info(messages: &Arc<MessageCounter>) -> vk::DebugUtilsMessengerCreateInfoEXT<'static> {
+    vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                | vk::DebugUtilsMessageSeverityFlagsEXT::INFO,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+        )
+        .pfn_user_callback(Some(debug_callback))
+        .user_data(Arc::as_ptr(messages) as *mut c_void)
+}
+
+unsafe extern "system" fn debug_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    kind: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    // SAFETY: the layer passes a valid callback-data pointer for the duration of the call.
+    let message = unsafe { data.as_ref() }
+        .and_then(|d| {
+            // SAFETY: `p_message` is a NUL-terminated string owned by the layer.
+            (!d.p_message.is_null()).then(|| unsafe { CStr::from_ptr(d.p_message) })
+        })
+        .map(|m| m.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    // SAFETY: `user` is `Arc::as_ptr` of the context's MessageCounter, alive while the
+    // messenger exists (destroyed before the counter is dropped).
+    let counter = unsafe { (user as *const MessageCounter).as_ref() };
+    if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
+        if let Some(c) = counter {
+            c.errors.fetch_add(1, Ordering::SeqCst);
+        }
+        log::error!("[vulkan {kind:?}] {message}");
+    } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
+        if let Some(c) = counter {
+            c.warnings.fetch_add(1, Ordering::SeqCst);
+        }
+        log::warn!("[vulkan {kind:?}] {message}");
+    } else {
+        log::debug!("[vulkan {kind:?}] {message}");
+    }
+    vk::FALSE
+}
+
+fn device_name(instance: &ash::Instance, pd: vk::PhysicalDevice) -> String {
+    // SAFETY: `pd` was enumerated from `instance`.
+    let props = unsafe { instance.get_physical_device_properties(pd) };
+    props
+        .device_name_as_c_str()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|_| "<unnamed>".into())
+}
+
+fn pick_device(
+    instance: &ash::Instance,
+    devices: &[vk::PhysicalDevice],
+    selector: Option<&str>,
+) -> Result<vk::PhysicalDevice> {
+    let names: Vec<String> = devices.iter().map(|&d| device_name(instance, d)).collect();
+    let listing = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| format!("{i}: {n}"))
+        .collect::<Vec<_>>()
+        .join("; ");
+    if let Some(sel) = selector {
+        let chosen = match sel.parse::<usize>() {
+            Ok(i) => devices.get(i).copied().ok_or_else(|| {
+                Error::NoDevice(format!(
+                    "device index {i} out of range (devices: {listing})"
+                ))
+            })?,
+            Err(_) => {
+                let lower = sel.to_lowercase();
+                let i = names
+                    .iter()
+                    .position(|n| n.to_lowercase().contains(&lower))
+                    .ok_or_else(|| {
+                        Error::NoDevice(format!(
+                            "no device name contains '{sel}' (devices: {listing})"
+                        ))
+                    })?;
+                devices[i]
+            }
+        };
+        Context::check_device(instance, chosen).map_err(|missing| Error::Unsupported {
+            device: device_name(instance, chosen),
+            what: missing,
+        })?;
+        return Ok(chosen);
+    }
+    let rank = |t: vk::PhysicalDeviceType| match t {
+        vk::PhysicalDeviceType::DISCRETE_GPU => 0,
+        vk::PhysicalDeviceType::INTEGRATED_GPU => 1,
+        vk::PhysicalDeviceType::VIRTUAL_GPU => 2,
+        vk::PhysicalDeviceType::CPU => 3,
+        _ => 4,
+    };
+    let mut reasons = Vec::new();
+    let mut best: Option<(u32, vk::PhysicalDevice)> = None;
+    for (&d, name) in devices.iter().zip(&names) {
+        if let Err(missing) = Context::check_device(instance, d) {
+            log::info!("skipping device {name}: lacks {missing}");
+            reasons.push(format!("{name}: lacks {missing}"));
+            continue;
+        }
+        if graphics_compute_family(instance, d).is_none() {
+            reasons.push(format!("{name}: no graphics+compute queue"));
+            continue;
+        }
+        // SAFETY: `d` was enumerated from `instance`.
+        let t = unsafe { instance.get_physical_device_properties(d) }.device_type;
+        if best.is_none_or(|(r, _)| rank(t) < r) {
+            best = Some((rank(t), d));
+        }
+    }
+    best.map(|(_, d)| d)
+        .ok_or_else(|| Error::NoDevice(reasons.join("; ")))
+}
+
+fn graphics_compute_family(instance: &ash::Instance, pd: vk::PhysicalDevice) -> Option<u32> {
+    // SAFETY: `pd` was enumerated from `instance`.
+    let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
+    families
+        .iter()
+        .position(|f| {
+            f.queue_flags
+                .contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE)
+                && f.timestamp_valid_bits > 0
+        })
+        .map(|i| i as u32)
+}
+
+fn device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, family: u32) -> DeviceInfo {
+    let mut driver = vk::PhysicalDeviceDriverProperties::default();
+    let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+    // SAFETY: `pd` was enumerated from `instance`; the chain outlives the call.
+    unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
+    let props = props2.properties;
+    // SAFETY: as above.
+    let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
+    let cstr = |r: std::result::Result<&CStr, _>| {
+        r.map(|s: &CStr| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    DeviceInfo {
+        name: cstr(props.device_name_as_c_str()),
+        device_type: format!("{:?}", props.device_type),
+        driver: format!(
+            "{}: {}",
+            cstr(driver.driver_name_as_c_str()),
+            cstr(driver.driver_info_as_c_str())
+        ),
+        api_version: version_string(props.api_version),
+        timestamp_period_ns: props.limits.timestamp_period,
+        timestamp_valid_bits: families
+            .get(family as usize)
+            .map(|f| f.timestamp_valid_bits)
+            .unwrap_or(0),
+        max_image_dimension_2d: props.limits.max_image_dimension2_d,
+        queue_family_index: family,
+    }
+}
+
+fn version_string(v: u32) -> String {
+    format!(
+        "{}.{}.{}",
+        vk::api_version_major(v),
+        vk::api_version_minor(v),
+        vk::api_version_patch(v)
+    )
+}

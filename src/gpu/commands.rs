@@ -1,0 +1,277 @@
+//! Standalone submissions: a command pool, one command buffer and a fence, plus the
+//! upload and read-back copies built on them. Hosts never use this (they own their
+//! command buffers); the CLI, tests and benchmarks do.
+
+use super::sync::{self, Access};
+use super::{Buffer, Image};
+use crate::context::Context;
+use crate::error::{Error, Result, VkContext};
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// A reusable command buffer submitted on the context's queue and waited for.
+pub struct OneShot {
+    pool: vk::CommandPool,
+    /// The command buffer.
+    pub cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+}
+
+impl OneShot {
+    /// Creates the pool, the command buffer and the fence, named after `name`.
+    pub fn new(ctx: &Context, name: &str) -> Result<Self> {
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(ctx.queue_family_index())
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: valid device and create info.
+        let pool =
+            unsafe { ctx.device().create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: `pool` is valid; one primary buffer.
+        let cmd = unsafe { ctx.device().allocate_command_buffers(&alloc) }
+            .vk("vkAllocateCommandBuffers")?[0];
+        // SAFETY: valid device.
+        let fence = unsafe {
+            ctx.device()
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+        }
+        .vk("vkCreateFence")?;
+        ctx.set_name(pool, &format!("{name}.pool"));
+        ctx.set_name(cmd, &format!("{name}.cmd"));
+        ctx.set_name(fence, &format!("{name}.fence"));
+        Ok(OneShot { pool, cmd, fence })
+    }
+
+    /// Resets the command buffer and begins recording.
+    pub fn begin(&self, ctx: &Context) -> Result<vk::CommandBuffer> {
+        // SAFETY: the previous submission (if any) was waited for in `submit_and_wait`.
+        unsafe {
+            ctx.device()
+                .reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
+                .vk("vkResetCommandBuffer")?;
+            ctx.device()
+                .begin_command_buffer(
+                    self.cmd,
+                    &vk::CommandBufferBeginInfo::default()
+                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                )
+                .vk("vkBeginCommandBuffer")?;
+        }
+        Ok(self.cmd)
+    }
+
+    /// Ends recording, submits, and waits for the GPU to finish.
+    pub fn submit_and_wait(&self, ctx: &Context) -> Result<()> {
+        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(self.cmd)];
+        let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
+        // SAFETY: the buffer was begun by `begin`; the fence is unsignalled (reset below
+        // after each wait); the queue is only used from this thread in standalone mode.
+        unsafe {
+            ctx.device()
+                .end_command_buffer(self.cmd)
+                .vk("vkEndCommandBuffer")?;
+            ctx.device()
+                .queue_submit2(ctx.queue(), &submit, self.fence)
+                .vk("vkQueueSubmit2")?;
+            ctx.device()
+                .wait_for_fences(&[self.fence], true, u64::MAX)
+                .vk("vkWaitForFences")?;
+            ctx.device()
+                .reset_fences(&[self.fence])
+                .vk("vkResetFences")?;
+        }
+        Ok(())
+    }
+
+    /// Destroys the pool (and its buffer) and the fence. Nothing may be pending.
+    pub fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: `submit_and_wait` always waits, so nothing is pending.
+        unsafe {
+            ctx.device().destroy_fence(self.fence, None);
+            ctx.device().destroy_command_pool(self.pool, None);
+        }
+        self.fence = vk::Fence::null();
+        self.pool = vk::CommandPool::null();
+    }
+}
+
+fn level_extent(image: &Image, level: u32) -> vk::Extent3D {
+    vk::Extent3D {
+        width: (image.extent.width >> level).max(1),
+        height: (image.extent.height >> level).max(1),
+        depth: 1,
+    }
+}
+
+fn texel_bytes(image: &Image) -> Result<u64> {
+    super::image::texel_size(image.format)
+        .map(u64::from)
+        .ok_or_else(|| {
+            Error::invalid(
+                image.name(),
+                format!("no texel size for {:?}", image.format),
+            )
+        })
+}
+
+/// Uploads tightly packed `bytes` into mip level 0 of `image` and leaves it in `after`.
+pub fn upload_image(
+    ctx: &Context,
+    shot: &OneShot,
+    image: &Image,
+    bytes: &[u8],
+    after: Access,
+) -> Result<()> {
+    let extent = level_extent(image, 0);
+    let expected = texel_bytes(image)? * extent.width as u64 * extent.height as u64;
+    if bytes.len() as u64 != expected {
+        return Err(Error::invalid(
+            image.name(),
+            format!("upload of {} bytes, expected {expected}", bytes.len()),
+        ));
+    }
+    let mut staging = Buffer::new(
+        ctx,
+        &format!("{}.staging", image.name()),
+        expected,
+        vk::BufferUsageFlags::TRANSFER_SRC,
+        MemoryLocation::CpuToGpu,
+    )?;
+    let result = (|| {
+        staging
+            .mapped_mut()
+            .ok_or_else(|| Error::invalid(image.name(), "staging buffer is not mapped"))?
+            .copy_from_slice(bytes);
+        let cmd = shot.begin(ctx)?;
+        let range = vk::ImageSubresourceRange {
+            level_count: 1,
+            ..image.range()
+        };
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                image.raw,
+                range,
+                Access::UNDEFINED,
+                Access::TRANSFER_WRITE,
+            )],
+        );
+        let region = vk::BufferImageCopy::default()
+            .image_subresource(vk::ImageSubresourceLayers {
+                aspect_mask: range.aspect_mask,
+                mip_level: 0,
+                base_array_layer: 0,
+                layer_count: 1,
+            })
+            .image_extent(extent);
+        // SAFETY: `cmd` is recording; buffer and image are alive and sized for the copy.
+        unsafe {
+            ctx.device().cmd_copy_buffer_to_image(
+                cmd,
+                staging.raw,
+                image.raw,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &[region],
+            )
+        };
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                image.raw,
+                range,
+                Access::TRANSFER_WRITE,
+                after,
+            )],
+        );
+        shot.submit_and_wait(ctx)
+    })();
+    staging.destroy(ctx);
+    result
+}
+
+/// Reads mip level 0 of `image`, currently in `current`, back to tightly packed bytes;
+/// the image is returned to `current` afterwards.
+pub fn read_image(
+    ctx: &Context,
+    shot: &OneShot,
+    image: &Image,
+    current: Access,
+) -> Result<Vec<u8>> {
+    let extent = level_extent(image, 0);
+    let size = texel_bytes(image)? * extent.width as u64 * extent.height as u64;
+    let mut staging = Buffer::new(
+        ctx,
+        &format!("{}.readback", image.name()),
+        size,
+        vk::BufferUsageFlags::TRANSFER_DST,
+        MemoryLocation::GpuToCpu,
+    )?;
+    let result = (|| {
+        let cmd = shot.begin(ctx)?;
+        let range = vk::ImageSubresourceRange {
+            level_count: 1,
+            ..image.range()
+        };
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                image.raw,
+                range,
+                current,
+                Access::TRANSFER_READ,
+            )],
+        );
+        let region = vk::BufferImageCopy::default()
+            .image_subresource(vk::ImageSubresourceLayers {
+                aspect_mask: range.aspect_mask,
+                mip_level: 0,
+                base_array_layer: 0,
+                layer_count: 1,
+            })
+            .image_extent(extent);
+        // SAFETY: `cmd` is recording; buffer and image are alive and sized for the copy.
+        unsafe {
+            ctx.device().cmd_copy_image_to_buffer(
+                cmd,
+                image.raw,
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                staging.raw,
+                &[region],
+            )
+        };
+        // Back to where the caller had it, and the copy made visible to the host.
+        let to_host = [vk::BufferMemoryBarrier2::default()
+            .buffer(staging.raw)
+            .size(vk::WHOLE_SIZE)
+            .src_stage_mask(vk::PipelineStageFlags2::COPY)
+            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+            .dst_stage_mask(vk::PipelineStageFlags2::HOST)
+            .dst_access_mask(vk::AccessFlags2::HOST_READ)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)];
+        let back = [sync::image_barrier(
+            image.raw,
+            range,
+            Access::TRANSFER_READ,
+            current,
+        )];
+        let dep = vk::DependencyInfo::default()
+            .buffer_memory_barriers(&to_host)
+            .image_memory_barriers(&back);
+        // SAFETY: `cmd` is recording; the buffer and image are alive.
+        unsafe { ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
+        shot.submit_and_wait(ctx)?;
+        staging
+            .mapped()
+            .map(<[u8]>::to_vec)
+            .ok_or_else(|| Error::invalid(image.name(), "read-back buffer is not mapped"))
+    })();
+    staging.destroy(ctx);
+    result
+}

@@ -1,0 +1,181 @@
+//! 2-D images with one view, backed by gpu-allocator memory.
+
+use crate::context::Context;
+use crate::error::{Error, Result, VkContext};
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+
+/// A 2-D image, its memory and a view of all its mip levels.
+pub struct Image {
+    /// The Vulkan image.
+    pub raw: vk::Image,
+    /// A view of every mip level.
+    pub view: vk::ImageView,
+    /// Pixel format.
+    pub format: vk::Format,
+    /// Size of mip level 0.
+    pub extent: vk::Extent2D,
+    /// Number of mip levels.
+    pub mip_levels: u32,
+    allocation: Option<Allocation>,
+    name: String,
+}
+
+/// The aspect a view of `format` covers.
+pub fn aspect_of(format: vk::Format) -> vk::ImageAspectFlags {
+    match format {
+        vk::Format::D32_SFLOAT | vk::Format::D16_UNORM => vk::ImageAspectFlags::DEPTH,
+        _ => vk::ImageAspectFlags::COLOR,
+    }
+}
+
+/// Bytes per texel of the formats dispmap uses.
+pub fn texel_size(format: vk::Format) -> Option<u32> {
+    Some(match format {
+        vk::Format::R8_UNORM => 1,
+        vk::Format::R16_UNORM | vk::Format::R16_SFLOAT => 2,
+        vk::Format::R32_SFLOAT
+        | vk::Format::D32_SFLOAT
+        | vk::Format::R8G8B8A8_UNORM
+        | vk::Format::R8G8B8A8_SRGB => 4,
+        vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_SFLOAT => 8,
+        vk::Format::R32G32B32A32_SFLOAT => 16,
+        _ => return None,
+    })
+}
+
+impl Image {
+    /// Creates an image named `name` with `mip_levels` levels in device-local memory.
+    pub fn new(
+        ctx: &Context,
+        name: &str,
+        format: vk::Format,
+        extent: vk::Extent2D,
+        mip_levels: u32,
+        usage: vk::ImageUsageFlags,
+    ) -> Result<Self> {
+        let max = ctx.info().max_image_dimension_2d;
+        if extent.width == 0 || extent.height == 0 || extent.width > max || extent.height > max {
+            return Err(Error::invalid(
+                name,
+                format!(
+                    "{}x{} is outside what the device allows (1..={max} per side)",
+                    extent.width, extent.height
+                ),
+            ));
+        }
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D {
+                width: extent.width,
+                height: extent.height,
+                depth: 1,
+            })
+            .mip_levels(mip_levels)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: valid device and create info; the format's features were checked by
+        // `Context::check_device`.
+        let raw = unsafe { ctx.device().create_image(&info, None) }.vk("vkCreateImage")?;
+        // SAFETY: `raw` was just created on this device.
+        let requirements = unsafe { ctx.device().get_image_memory_requirements(raw) };
+        let allocation = ctx
+            .allocator()
+            .lock()
+            .map_err(|_| Error::invalid("allocator", "mutex poisoned"))?
+            .allocate(&AllocationCreateDesc {
+                name,
+                requirements,
+                location: MemoryLocation::GpuOnly,
+                linear: false,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            });
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(source) => {
+                // SAFETY: not bound or used yet.
+                unsafe { ctx.device().destroy_image(raw, None) };
+                return Err(Error::Allocation {
+                    name: name.into(),
+                    source,
+                });
+            }
+        };
+        // SAFETY: memory and offset come from the allocator for these requirements.
+        unsafe {
+            ctx.device()
+                .bind_image_memory(raw, allocation.memory(), allocation.offset())
+        }
+        .vk("vkBindImageMemory")?;
+        let view_info = vk::ImageViewCreateInfo::default()
+            .image(raw)
+            .view_type(vk::ImageViewType::TYPE_2D)
+            .format(format)
+            .subresource_range(full_range(format, mip_levels));
+        // SAFETY: the image is bound to memory and the view matches its format and levels.
+        let view =
+            unsafe { ctx.device().create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
+        ctx.set_name(raw, name);
+        ctx.set_name(view, &format!("{name}.view"));
+        Ok(Image {
+            raw,
+            view,
+            format,
+            extent,
+            mip_levels,
+            allocation: Some(allocation),
+            name: name.into(),
+        })
+    }
+
+    /// The debug name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Every mip level of the image.
+    pub fn range(&self) -> vk::ImageSubresourceRange {
+        full_range(self.format, self.mip_levels)
+    }
+
+    /// Destroys view, image and memory. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        if let Some(allocation) = self.allocation.take() {
+            // SAFETY: caller guarantees the GPU no longer uses the image.
+            unsafe {
+                ctx.device().destroy_image_view(self.view, None);
+                ctx.device().destroy_image(self.raw, None);
+            }
+            if let Ok(mut a) = ctx.allocator().lock() {
+                let _ = a.free(allocation);
+            }
+            self.raw = vk::Image::null();
+            self.view = vk::ImageView::null();
+        }
+    }
+}
+
+impl Drop for Image {
+    fn drop(&mut self) {
+        if self.allocation.is_some() {
+            log::warn!("image '{}' dropped without destroy(): leaked", self.name);
+        }
+    }
+}
+
+/// All levels and the one layer of an image of `format`.
+pub fn full_range(format: vk::Format, mip_levels: u32) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange {
+        aspect_mask: aspect_of(format),
+        base_mip_level: 0,
+        level_count: mip_levels,
+        base_array_layer: 0,
+        layer_count: 1,
+    }
+}

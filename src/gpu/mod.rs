@@ -1,0 +1,18 @@
+//! Thin, named wrappers over Vulkan objects: buffers, images, compute pipelines with push
+//! descriptors, barriers and one-shot submissions for the standalone path.
+//!
+//! Every object gets a debug name at creation. Objects are destroyed explicitly with
+//! `destroy(&Context)`; dropping one that still owns GPU memory logs a warning (a leak).
+
+pub mod buffer;
+pub mod commands;
+pub mod height_texture;
+pub mod image;
+pub mod pipeline;
+pub mod sync;
+
+pub use buffer::Buffer;
+pub use commands::OneShot;
+pub use height_texture::HeightTexture;
+pub use image::Image;
+pub use pipeline::ComputePipeline;

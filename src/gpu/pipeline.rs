@@ -1,0 +1,147 @@
+//! Compute pipelines whose resources are bound with push descriptors.
+
+use crate::context::Context;
+use crate::error::{Result, VkContext};
+use crate::shaders::Shader;
+use ash::vk;
+
+/// A compute pipeline, its layout and its push-descriptor set layout.
+pub struct ComputePipeline {
+    /// The pipeline.
+    pub pipeline: vk::Pipeline,
+    /// Its layout (set 0: push descriptors; push constants for the compute stage).
+    pub layout: vk::PipelineLayout,
+    /// Set 0's layout.
+    pub set_layout: vk::DescriptorSetLayout,
+    /// Workgroup size in x and y (from the shader's `local_size`, fixed at 8x8).
+    pub local_size: [u32; 2],
+}
+
+/// Workgroup size every dispmap compute shader declares (`glsl/common/frame.glsl`).
+pub const LOCAL_SIZE: [u32; 2] = [8, 8];
+
+impl ComputePipeline {
+    /// Builds a pipeline from `shader` whose set 0 has one binding per entry of
+    /// `bindings` (binding `i` has type `bindings[i]`) and `push_constant_size` bytes of
+    /// push constants.
+    pub fn new(
+        ctx: &Context,
+        name: &str,
+        shader: &Shader,
+        bindings: &[vk::DescriptorType],
+        push_constant_size: u32,
+    ) -> Result<Self> {
+        let dev = ctx.device();
+        let binding_info: Vec<_> = bindings
+            .iter()
+            .enumerate()
+            .map(|(i, &ty)| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(i as u32)
+                    .descriptor_type(ty)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            })
+            .collect();
+        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
+            .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+            .bindings(&binding_info);
+        // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
+        let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
+            .vk("vkCreateDescriptorSetLayout")?;
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            .size(push_constant_size)];
+        let set_layouts = [set_layout];
+        let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
+        if push_constant_size > 0 {
+            layout_info = layout_info.push_constant_ranges(&ranges);
+        }
+        // SAFETY: valid device and set layout.
+        let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
+            .vk("vkCreatePipelineLayout")?;
+        let module = shader.module(ctx)?;
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main");
+        let info = [vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(layout)];
+        // SAFETY: module and layout are valid; the module was built by build.rs for
+        // Vulkan 1.3 and matches the layout (checked by validation in tests).
+        let result =
+            unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        // SAFETY: the module is no longer needed once the pipeline exists.
+        unsafe { dev.destroy_shader_module(module, None) };
+        let pipeline = result.map_err(|(_, e)| e).vk("vkCreateComputePipelines")?[0];
+        ctx.set_name(pipeline, name);
+        ctx.set_name(layout, &format!("{name}.layout"));
+        ctx.set_name(set_layout, &format!("{name}.set_layout"));
+        Ok(ComputePipeline {
+            pipeline,
+            layout,
+            set_layout,
+            local_size: LOCAL_SIZE,
+        })
+    }
+
+    /// Binds the pipeline, pushes `writes` as set 0 and `push` as push constants, and
+    /// dispatches enough workgroups to cover `width x height` invocations.
+    pub fn dispatch(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        writes: &[vk::WriteDescriptorSet],
+        push: &[u8],
+        width: u32,
+        height: u32,
+    ) {
+        let dev = ctx.device();
+        // SAFETY: `cmd` is recording (caller's contract); the descriptors reference live
+        // resources in the layouts the pass documents.
+        unsafe {
+            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
+            ctx.push_descriptor().cmd_push_descriptor_set(
+                cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                self.layout,
+                0,
+                writes,
+            );
+            if !push.is_empty() {
+                dev.cmd_push_constants(cmd, self.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+            }
+            dev.cmd_dispatch(
+                cmd,
+                width.div_ceil(self.local_size[0]),
+                height.div_ceil(self.local_size[1]),
+                1,
+            );
+        }
+    }
+
+    /// Destroys pipeline and layouts. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: caller guarantees no pending use.
+        unsafe {
+            ctx.device().destroy_pipeline(self.pipeline, None);
+            ctx.device().destroy_pipeline_layout(self.layout, None);
+            ctx.device()
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+        self.pipeline = vk::Pipeline::null();
+    }
+}
+
+/// A descriptor write for binding `binding` of an image (sampled or storage).
+pub fn image_write(
+    binding: u32,
+    ty: vk::DescriptorType,
+    info: &[vk::DescriptorImageInfo],
+) -> vk::WriteDescriptorSet<'_> {
+    vk::WriteDescriptorSet::default()
+        .dst_binding(binding)
+        .descriptor_type(ty)
+        .image_info(info)
+}

@@ -1,0 +1,102 @@
+//! Image barriers (synchronization2).
+
+use crate::context::Context;
+use ash::vk;
+
+/// One side of a barrier: the pipeline stage, access and layout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Access {
+    /// Pipeline stage(s).
+    pub stage: vk::PipelineStageFlags2,
+    /// Memory access(es).
+    pub access: vk::AccessFlags2,
+    /// Image layout.
+    pub layout: vk::ImageLayout,
+}
+
+impl Access {
+    /// Nothing before: the contents are discarded.
+    pub const UNDEFINED: Access = Access {
+        stage: vk::PipelineStageFlags2::NONE,
+        access: vk::AccessFlags2::NONE,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
+    /// Written as a colour attachment.
+    pub const COLOR_ATTACHMENT_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT,
+        access: vk::AccessFlags2::COLOR_ATTACHMENT_WRITE,
+        layout: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+    };
+    /// Tested and written as a depth attachment.
+    pub const DEPTH_ATTACHMENT_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::from_raw(
+            vk::PipelineStageFlags2::EARLY_FRAGMENT_TESTS.as_raw()
+                | vk::PipelineStageFlags2::LATE_FRAGMENT_TESTS.as_raw(),
+        ),
+        access: vk::AccessFlags2::from_raw(
+            vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_READ.as_raw()
+                | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE.as_raw(),
+        ),
+        layout: vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL,
+    };
+    /// Sampled (texelFetch / texture) by compute shaders.
+    pub const COMPUTE_SAMPLED: Access = Access {
+        stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
+        access: vk::AccessFlags2::SHADER_SAMPLED_READ,
+        layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+    };
+    /// Written as a storage image by compute shaders.
+    pub const COMPUTE_STORAGE_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
+        access: vk::AccessFlags2::SHADER_STORAGE_WRITE,
+        layout: vk::ImageLayout::GENERAL,
+    };
+    /// Read as a storage image by compute shaders.
+    pub const COMPUTE_STORAGE_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
+        access: vk::AccessFlags2::SHADER_STORAGE_READ,
+        layout: vk::ImageLayout::GENERAL,
+    };
+    /// Source of a copy.
+    pub const TRANSFER_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::COPY,
+        access: vk::AccessFlags2::TRANSFER_READ,
+        layout: vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+    };
+    /// Destination of a copy.
+    pub const TRANSFER_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::COPY,
+        access: vk::AccessFlags2::TRANSFER_WRITE,
+        layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+    };
+}
+
+/// An image barrier from `before` to `after` over `range`.
+pub fn image_barrier(
+    image: vk::Image,
+    range: vk::ImageSubresourceRange,
+    before: Access,
+    after: Access,
+) -> vk::ImageMemoryBarrier2<'static> {
+    vk::ImageMemoryBarrier2::default()
+        .image(image)
+        .subresource_range(range)
+        .src_stage_mask(before.stage)
+        .src_access_mask(before.access)
+        .old_layout(before.layout)
+        .dst_stage_mask(after.stage)
+        .dst_access_mask(after.access)
+        .new_layout(after.layout)
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+}
+
+/// Records `barriers` in one `vkCmdPipelineBarrier2`.
+pub fn record(ctx: &Context, cmd: vk::CommandBuffer, barriers: &[vk::ImageMemoryBarrier2]) {
+    if barriers.is_empty() {
+        return;
+    }
+    let dep = vk::DependencyInfo::default().image_memory_barriers(barriers);
+    // SAFETY: `cmd` is recording (every caller's contract) and the images are alive.
+    unsafe { ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
+}

@@ -1,0 +1,386 @@
+//! Height fields: loading, conventions and the values the GPU and the reference see.
+//!
+//! A [`HeightField`] always stores *heights* (`1` = the macro surface, `0` = the deepest
+//! point), whatever convention the file used: a depth map is inverted exactly at load
+//! time (`255 - v`, `65535 - v`, `1 - v`), so the GPU texture and the CPU reference read
+//! the same numbers. The precision of the file is kept: 8-bit files become `R8_UNORM`,
+//! 16-bit files `R16_UNORM`, float files (OpenEXR) `R32_SFLOAT`. RGB files are reduced
+//! to luminance (Rec. 709 weights); maps with three equal channels are read exactly.
+//!
+//! Texel `(i, j)` sits at `uv = ((i + 0.5) / W, (j + 0.5) / H)`; row 0 is the first row of
+//! the file (the top of the picture), which is `v = 0`.
+
+use crate::error::{Error, Result};
+use ash::vk;
+use image::DynamicImage;
+use std::path::Path;
+
+/// How a file encodes heights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Convention {
+    /// White is high (the macro surface), black is the deepest point.
+    Height,
+    /// White is deep, black is the macro surface.
+    Depth,
+}
+
+impl std::str::FromStr for Convention {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "height" => Ok(Convention::Height),
+            "depth" => Ok(Convention::Depth),
+            other => Err(Error::invalid(
+                "convention",
+                format!("'{other}' is not one of: height, depth"),
+            )),
+        }
+    }
+}
+
+/// How UVs outside `[0, 1]²` are treated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Addressing {
+    /// Tiled surface: the height field repeats.
+    Repeat,
+    /// A single decal: a ray that leaves `[0, 1]²` before it hits is discarded.
+    Clamp,
+}
+
+/// Texel storage at the file's precision (already in the height convention).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Texels {
+    /// 8-bit UNORM.
+    R8(Vec<u8>),
+    /// 16-bit UNORM.
+    R16(Vec<u16>),
+    /// 32-bit float, expected in `[0, 1]`.
+    R32F(Vec<f32>),
+}
+
+/// A height field in the height convention, at the precision it was loaded with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeightField {
+    width: u32,
+    height: u32,
+    texels: Texels,
+    label: String,
+}
+
+impl HeightField {
+    /// Loads PNG (8/16-bit), JPEG or OpenEXR; `convention` says how the file encodes heights.
+    pub fn load(path: &Path, convention: Convention) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| Error::Image {
+                path: path.to_owned(),
+                message: e.to_string(),
+            })?;
+        if reader.format().is_none() {
+            return Err(Error::Image {
+                path: path.to_owned(),
+                message: "not a PNG, JPEG or OpenEXR image".into(),
+            });
+        }
+        let image = reader.decode().map_err(|e| Error::Image {
+            path: path.to_owned(),
+            message: format!("cannot decode: {e}"),
+        })?;
+        let label = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| path.display().to_string());
+        Self::from_image(image, convention, label).map_err(|e| match e {
+            Error::InvalidInput { message, .. } => Error::Image {
+                path: path.to_owned(),
+                message,
+            },
+            other => other,
+        })
+    }
+
+    /// Decodes an in-memory PNG, JPEG or OpenEXR file (e.g. a bundled map).
+    pub fn decode(bytes: &[u8], convention: Convention, label: &str) -> Result<Self> {
+        let image = image::load_from_memory(bytes).map_err(|e| Error::Image {
+            path: label.into(),
+            message: format!("cannot decode: {e}"),
+        })?;
+        Self::from_image(image, convention, label.to_owned())
+    }
+
+    /// Converts a decoded image, keeping its precision.
+    pub fn from_image(image: DynamicImage, convention: Convention, label: String) -> Result<Self> {
+        let (width, height) = (image.width(), image.height());
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(&label, "the image has no pixels"));
+        }
+        let invert = convention == Convention::Depth;
+        let texels = match image {
+            DynamicImage::ImageLuma8(img) => Texels::R8(
+                img.into_raw()
+                    .into_iter()
+                    .map(|v| if invert { 255 - v } else { v })
+                    .collect(),
+            ),
+            DynamicImage::ImageLuma16(img) => Texels::R16(
+                img.into_raw()
+                    .into_iter()
+                    .map(|v| if invert { 65535 - v } else { v })
+                    .collect(),
+            ),
+            DynamicImage::ImageLumaA8(_)
+            | DynamicImage::ImageRgb8(_)
+            | DynamicImage::ImageRgba8(_) => {
+                let rgb = image.to_rgb8();
+                Texels::R8(
+                    rgb.pixels()
+                        .map(|p| {
+                            let l = luminance8(p.0);
+                            if invert { 255 - l } else { l }
+                        })
+                        .collect(),
+                )
+            }
+            DynamicImage::ImageLumaA16(_)
+            | DynamicImage::ImageRgb16(_)
+            | DynamicImage::ImageRgba16(_) => {
+                let rgb = image.to_rgb16();
+                Texels::R16(
+                    rgb.pixels()
+                        .map(|p| {
+                            let l = luminance16(p.0);
+                            if invert { 65535 - l } else { l }
+                        })
+                        .collect(),
+                )
+            }
+            other => {
+                // Float images (OpenEXR): luminance in f32, must lie in [0, 1].
+                let rgb = other.to_rgb32f();
+                let mut values = Vec::with_capacity(rgb.len() / 3);
+                for p in rgb.pixels() {
+                    let [r, g, b] = p.0;
+                    let l = if r == g && g == b {
+                        r
+                    } else {
+                        0.2126 * r + 0.7152 * g + 0.0722 * b
+                    };
+                    if !l.is_finite() || !(0.0..=1.0).contains(&l) {
+                        return Err(Error::invalid(
+                            &label,
+                            format!("float height {l} outside [0, 1]"),
+                        ));
+                    }
+                    values.push(if invert { 1.0 - l } else { l });
+                }
+                Texels::R32F(values)
+            }
+        };
+        Ok(HeightField {
+            width,
+            height,
+            texels,
+            label,
+        })
+    }
+
+    /// A float height field from values in the height convention (tests, procedural maps).
+    pub fn from_heights(width: u32, height: u32, values: Vec<f32>, label: &str) -> Result<Self> {
+        if width == 0 || height == 0 || values.len() != width as usize * height as usize {
+            return Err(Error::invalid(
+                label,
+                format!(
+                    "{} values do not make a {width}x{height} height field",
+                    values.len()
+                ),
+            ));
+        }
+        if let Some(bad) = values
+            .iter()
+            .find(|v| !v.is_finite() || !(0.0..=1.0).contains(*v))
+        {
+            return Err(Error::invalid(
+                label,
+                format!("height {bad} outside [0, 1]"),
+            ));
+        }
+        Ok(HeightField {
+            width,
+            height,
+            texels: Texels::R32F(values),
+            label: label.to_owned(),
+        })
+    }
+
+    /// A height field sampled from `f(u, v)` at texel centres.
+    pub fn from_fn(
+        width: u32,
+        height: u32,
+        label: &str,
+        f: impl Fn(f32, f32) -> f32,
+    ) -> Result<Self> {
+        let values = (0..height)
+            .flat_map(|j| (0..width).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                f(
+                    (i as f32 + 0.5) / width as f32,
+                    (j as f32 + 0.5) / height as f32,
+                )
+            })
+            .collect();
+        Self::from_heights(width, height, values, label)
+    }
+
+    /// Width in texels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in texels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Where the field came from (a file name or a procedural label).
+    pub fn label(&self) -> &str {
+        &self.label
+    }
+
+    /// The stored texels.
+    pub fn texels(&self) -> &Texels {
+        &self.texels
+    }
+
+    /// Height of texel `(i, j)` in `[0, 1]`, exactly as the GPU's UNORM/float read sees it.
+    #[inline]
+    pub fn texel(&self, i: u32, j: u32) -> f32 {
+        let k = j as usize * self.width as usize + i as usize;
+        match &self.texels {
+            Texels::R8(v) => v[k] as f32 / 255.0,
+            Texels::R16(v) => v[k] as f32 / 65535.0,
+            Texels::R32F(v) => v[k],
+        }
+    }
+
+    /// The Vulkan format that keeps the stored precision.
+    pub fn format(&self) -> vk::Format {
+        match self.texels {
+            Texels::R8(_) => vk::Format::R8_UNORM,
+            Texels::R16(_) => vk::Format::R16_UNORM,
+            Texels::R32F(_) => vk::Format::R32_SFLOAT,
+        }
+    }
+
+    /// Raw bytes for upload, row by row, tightly packed.
+    pub fn bytes(&self) -> &[u8] {
+        match &self.texels {
+            Texels::R8(v) => v,
+            Texels::R16(v) => bytemuck::cast_slice(v),
+            Texels::R32F(v) => bytemuck::cast_slice(v),
+        }
+    }
+
+    /// Mean height (reports and tests).
+    pub fn mean(&self) -> f64 {
+        let n = self.width as usize * self.height as usize;
+        let sum: f64 = (0..self.height)
+            .flat_map(|j| (0..self.width).map(move |i| (i, j)))
+            .map(|(i, j)| self.texel(i, j) as f64)
+            .sum();
+        sum / n as f64
+    }
+}
+
+fn luminance8([r, g, b]: [u8; 3]) -> u8 {
+    if r == g && g == b {
+        r
+    } else {
+        (0.2126 * r as f32 + 0.7152 * g as f32 + 0.0722 * b as f32).round() as u8
+    }
+}
+
+fn luminance16([r, g, b]: [u16; 3]) -> u16 {
+    if r == g && g == b {
+        r
+    } else {
+        (0.2126 * r as f32 + 0.7152 * g as f32 + 0.0722 * b as f32).round() as u16
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn asset(name: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("assets/heightmaps")
+            .join(name)
+    }
+
+    #[test]
+    fn loads_bundled_maps_at_their_precision() {
+        let rocks = HeightField::load(&asset("rocks_depth.jpg"), Convention::Depth).unwrap();
+        assert_eq!((rocks.width(), rocks.height()), (1024, 1024));
+        assert_eq!(rocks.format(), vk::Format::R8_UNORM);
+        // SOURCES.md: mean height 0.52 after inverting.
+        assert!((rocks.mean() - 0.52).abs() < 0.02, "{}", rocks.mean());
+
+        let mountains =
+            HeightField::load(&asset("mountains_height16.png"), Convention::Height).unwrap();
+        assert_eq!((mountains.width(), mountains.height()), (1025, 1025));
+        assert_eq!(mountains.format(), vk::Format::R16_UNORM);
+        assert!(
+            (mountains.mean() - 0.13).abs() < 0.02,
+            "{}",
+            mountains.mean()
+        );
+
+        let shapes = HeightField::load(&asset("shapes_depth.png"), Convention::Depth).unwrap();
+        assert_eq!((shapes.width(), shapes.height()), (348, 348));
+        let bricks = HeightField::load(&asset("bricks_depth.jpg"), Convention::Depth).unwrap();
+        assert_eq!((bricks.width(), bricks.height()), (1000, 1000));
+        assert!((bricks.mean() - 0.76).abs() < 0.02, "{}", bricks.mean());
+    }
+
+    #[test]
+    fn depth_inversion_is_exact() {
+        let img = image::GrayImage::from_raw(2, 1, vec![0, 200]).unwrap();
+        let h = HeightField::from_image(img.into(), Convention::Depth, "t".into()).unwrap();
+        assert_eq!(h.texels(), &Texels::R8(vec![255, 55]));
+        let img16 = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(1, 1, vec![1u16]).unwrap();
+        let h = HeightField::from_image(img16.into(), Convention::Depth, "t".into()).unwrap();
+        assert_eq!(h.texels(), &Texels::R16(vec![65534]));
+    }
+
+    #[test]
+    fn bad_files_name_the_file() {
+        let err = HeightField::load(Path::new("/nonexistent/x.png"), Convention::Height)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("/nonexistent/x.png"), "{err}");
+        let dir = std::env::temp_dir().join("dispmap-heightfield-test");
+        std::fs::create_dir_all(&dir).unwrap();
+        let junk = dir.join("junk.png");
+        std::fs::write(&junk, b"definitely not an image").unwrap();
+        let err = HeightField::load(&junk, Convention::Height)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("junk.png"), "{err}");
+    }
+
+    #[test]
+    fn float_maps_out_of_range_are_rejected() {
+        assert!(HeightField::from_heights(1, 1, vec![1.5], "t").is_err());
+        assert!(HeightField::from_heights(1, 1, vec![f32::NAN], "t").is_err());
+        assert!(HeightField::from_heights(2, 1, vec![0.5], "t").is_err());
+        let h = HeightField::from_heights(1, 1, vec![0.25], "t").unwrap();
+        assert_eq!(h.texel(0, 0), 0.25);
+        assert_eq!(h.format(), vk::Format::R32_SFLOAT);
+    }
+}

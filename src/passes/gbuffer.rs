@@ -1,0 +1,241 @@
+//! The `gbuffer` pass: rasterises the macro geometry into the attachments the later
+//! passes read.
+//!
+//! | attachment | format | contents |
+//! |---|---|---|
+//! | `ray` | `R32G32B32A32_SFLOAT` | entry `uv0` (tile-local for repeat addressing) and parallax vector `P` |
+//! | `normal` | `R16G16B16A16_SFLOAT` | world normal `N`, `w = 1` |
+//! | `tangent` | `R16G16B16A16_SFLOAT` | world tangent `T = dP/du`, `w` = handedness (`B = w N x T`) |
+//! | `depth` | `D32_SFLOAT` | reverse-Z depth, cleared to 0: 0 means no geometry |
+//!
+//! `record` expects every attachment in `COLOR_ATTACHMENT_OPTIMAL` /
+//! `DEPTH_ATTACHMENT_OPTIMAL` (contents may be discarded: it clears them) and leaves them
+//! there, written.
+
+use crate::abi::GBufferParams;
+use crate::context::Context;
+use crate::error::{Result, VkContext};
+use crate::gpu::Image;
+use crate::shaders;
+use ash::vk;
+
+/// Format of the `ray` attachment.
+pub const RAY_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+/// Format of the `normal` and `tangent` attachments.
+pub const FRAME_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+/// Format of the depth attachment.
+pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+/// The G-buffer images of one frame size.
+pub struct GBuffer {
+    /// `uv0.xy, P.xy`.
+    pub ray: Image,
+    /// World normal.
+    pub normal: Image,
+    /// World tangent and handedness.
+    pub tangent: Image,
+    /// Reverse-Z depth.
+    pub depth: Image,
+}
+
+impl GBuffer {
+    /// Creates the four images for a `extent` frame.
+    pub fn new(ctx: &Context, extent: vk::Extent2D) -> Result<Self> {
+        let color = vk::ImageUsageFlags::COLOR_ATTACHMENT
+            | vk::ImageUsageFlags::SAMPLED
+            | vk::ImageUsageFlags::TRANSFER_SRC;
+        Ok(GBuffer {
+            ray: Image::new(ctx, "gbuffer.ray", RAY_FORMAT, extent, 1, color)?,
+            normal: Image::new(ctx, "gbuffer.normal", FRAME_FORMAT, extent, 1, color)?,
+            tangent: Image::new(ctx, "gbuffer.tangent", FRAME_FORMAT, extent, 1, color)?,
+            depth: Image::new(
+                ctx,
+                "gbuffer.depth",
+                DEPTH_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+                    | vk::ImageUsageFlags::SAMPLED
+                    | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?,
+        })
+    }
+
+    /// The colour attachments in binding order.
+    pub fn colors(&self) -> [&Image; 3] {
+        [&self.ray, &self.normal, &self.tangent]
+    }
+
+    /// Destroys the images.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.ray.destroy(ctx);
+        self.normal.destroy(ctx);
+        self.tangent.destroy(ctx);
+        self.depth.destroy(ctx);
+    }
+}
+
+/// The graphics pipeline of the G-buffer pass.
+pub struct GBufferPass {
+    pipeline: vk::Pipeline,
+    layout: vk::PipelineLayout,
+}
+
+impl GBufferPass {
+    /// Builds the pipeline (dynamic rendering: no render pass object).
+    pub fn new(ctx: &Context) -> Result<Self> {
+        let dev = ctx.device();
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
+            .size(std::mem::size_of::<GBufferParams>() as u32)];
+        let layout_info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
+        // SAFETY: valid device and create info.
+        let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
+            .vk("vkCreatePipelineLayout")?;
+        let vert = shaders::GBUFFER_VERT.module(ctx)?;
+        let frag = shaders::GBUFFER_FRAG.module(ctx)?;
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::VERTEX)
+                .module(vert)
+                .name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(frag)
+                .name(c"main"),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default()
+            .viewport_count(1)
+            .scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(true)
+            .depth_write_enable(true)
+            .depth_compare_op(vk::CompareOp::GREATER);
+        let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
+            .color_write_mask(vk::ColorComponentFlags::RGBA); 3];
+        let blend =
+            vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let color_formats = [RAY_FORMAT, FRAME_FORMAT, FRAME_FORMAT];
+        let mut rendering = vk::PipelineRenderingCreateInfo::default()
+            .color_attachment_formats(&color_formats)
+            .depth_attachment_format(DEPTH_FORMAT);
+        let info = [vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(layout)
+            .push_next(&mut rendering)];
+        // SAFETY: every referenced state lives until the call returns; dynamic rendering
+        // is enabled on the device (requirements).
+        let result =
+            unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+        // SAFETY: the modules are not needed after pipeline creation.
+        unsafe {
+            dev.destroy_shader_module(vert, None);
+            dev.destroy_shader_module(frag, None);
+        }
+        let pipeline = result.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0];
+        ctx.set_name(pipeline, "gbuffer.pipeline");
+        ctx.set_name(layout, "gbuffer.layout");
+        Ok(GBufferPass { pipeline, layout })
+    }
+
+    /// Records the pass: clears the G-buffer and draws the geometry (two triangles).
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        target: &GBuffer,
+        params: &GBufferParams,
+    ) {
+        let extent = target.ray.extent;
+        let color_attachments: Vec<_> = target
+            .colors()
+            .iter()
+            .map(|image| {
+                vk::RenderingAttachmentInfo::default()
+                    .image_view(image.view)
+                    .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .store_op(vk::AttachmentStoreOp::STORE)
+                    .clear_value(vk::ClearValue {
+                        color: vk::ClearColorValue { float32: [0.0; 4] },
+                    })
+            })
+            .collect();
+        let depth_attachment = vk::RenderingAttachmentInfo::default()
+            .image_view(target.depth.view)
+            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+            .load_op(vk::AttachmentLoadOp::CLEAR)
+            .store_op(vk::AttachmentStoreOp::STORE)
+            .clear_value(vk::ClearValue {
+                depth_stencil: vk::ClearDepthStencilValue {
+                    depth: 0.0,
+                    stencil: 0,
+                },
+            });
+        let area = vk::Rect2D {
+            offset: vk::Offset2D::default(),
+            extent,
+        };
+        let rendering = vk::RenderingInfo::default()
+            .render_area(area)
+            .layer_count(1)
+            .color_attachments(&color_attachments)
+            .depth_attachment(&depth_attachment);
+        let viewport = vk::Viewport {
+            x: 0.0,
+            y: 0.0,
+            width: extent.width as f32,
+            height: extent.height as f32,
+            min_depth: 0.0,
+            max_depth: 1.0,
+        };
+        let dev = ctx.device();
+        // SAFETY: `cmd` is recording outside a render pass; the attachments are in the
+        // layouts documented above (the caller's barrier) and alive.
+        unsafe {
+            dev.cmd_begin_rendering(cmd, &rendering);
+            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+            dev.cmd_set_viewport(cmd, 0, &[viewport]);
+            dev.cmd_set_scissor(cmd, 0, &[area]);
+            dev.cmd_push_constants(
+                cmd,
+                self.layout,
+                vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                0,
+                bytemuck::bytes_of(params),
+            );
+            dev.cmd_draw(cmd, 6, 1, 0, 0);
+            dev.cmd_end_rendering(cmd);
+        }
+    }
+
+    /// Destroys the pipeline. The GPU must be done with it.
+    pub fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: caller guarantees no pending use.
+        unsafe {
+            ctx.device().destroy_pipeline(self.pipeline, None);
+            ctx.device().destroy_pipeline_layout(self.layout, None);
+        }
+        self.pipeline = vk::Pipeline::null();
+    }
+}

@@ -1,0 +1,137 @@
+//! The `shade` pass: lights each pixel's hit and writes an RGBA8 image.
+//!
+//! Bindings (set 0, push descriptors), mirrored by `glsl/shade.comp`:
+//!
+//! | binding | resource | layout on entry |
+//! |---|---|---|
+//! | 0 | hit buffer (storage, read) | `GENERAL` |
+//! | 1 | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 2 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 4 | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
+
+use crate::abi::ShadeParams;
+use crate::context::Context;
+use crate::error::Result;
+use crate::gpu::pipeline::image_write;
+use crate::gpu::{ComputePipeline, HeightTexture, Image};
+use crate::passes::gbuffer::GBuffer;
+use crate::shaders;
+use ash::vk;
+
+/// Format of the colour output.
+pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
+
+const BINDINGS: [vk::DescriptorType; 5] = [
+    vk::DescriptorType::STORAGE_IMAGE,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::STORAGE_IMAGE,
+];
+
+/// The images the shade pass reads and writes (layouts in the module docs).
+#[derive(Clone, Copy)]
+pub struct ShadeInputs<'a> {
+    /// The hit buffer (read).
+    pub hit: &'a Image,
+    /// The G-buffer (normal and tangent are read).
+    pub gbuffer: &'a GBuffer,
+    /// The height field.
+    pub height: &'a HeightTexture,
+    /// The colour output (written).
+    pub color: &'a Image,
+}
+
+/// The shade pass.
+pub struct ShadePass {
+    pipeline: ComputePipeline,
+    fetch_sampler: vk::Sampler,
+}
+
+impl ShadePass {
+    /// Builds the pipeline.
+    pub fn new(ctx: &Context) -> Result<Self> {
+        let mut pipeline = ComputePipeline::new(
+            ctx,
+            "shade",
+            &shaders::SHADE_COMP,
+            &BINDINGS,
+            std::mem::size_of::<ShadeParams>() as u32,
+        )?;
+        let fetch_sampler = match crate::passes::sampler(
+            ctx,
+            "shade.fetch_sampler",
+            vk::Filter::NEAREST,
+            vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        ) {
+            Ok(s) => s,
+            Err(e) => {
+                pipeline.destroy(ctx);
+                return Err(e);
+            }
+        };
+        Ok(ShadePass {
+            pipeline,
+            fetch_sampler,
+        })
+    }
+
+    /// Records the dispatch over the whole frame.
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: ShadeInputs,
+        params: &ShadeParams,
+    ) {
+        let ShadeInputs {
+            hit,
+            gbuffer,
+            height,
+            color,
+        } = inputs;
+        let storage = |image: &Image| {
+            [vk::DescriptorImageInfo {
+                sampler: vk::Sampler::null(),
+                image_view: image.view,
+                image_layout: vk::ImageLayout::GENERAL,
+            }]
+        };
+        let fetch = |image: &Image| {
+            [vk::DescriptorImageInfo {
+                sampler: self.fetch_sampler,
+                image_view: image.view,
+                image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+            }]
+        };
+        let hits = storage(hit);
+        let normal = fetch(&gbuffer.normal);
+        let tangent = fetch(&gbuffer.tangent);
+        let heights = [height.descriptor()];
+        let colors = storage(color);
+        let writes = [
+            image_write(0, BINDINGS[0], &hits),
+            image_write(1, BINDINGS[1], &normal),
+            image_write(2, BINDINGS[2], &tangent),
+            image_write(3, BINDINGS[3], &heights),
+            image_write(4, BINDINGS[4], &colors),
+        ];
+        self.pipeline.dispatch(
+            ctx,
+            cmd,
+            &writes,
+            bytemuck::bytes_of(params),
+            color.extent.width,
+            color.extent.height,
+        );
+    }
+
+    /// Destroys the pipeline and sampler.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+        // SAFETY: caller guarantees no pending use.
+        unsafe { ctx.device().destroy_sampler(self.fetch_sampler, None) };
+        self.fetch_sampler = vk::Sampler::null();
+    }
+}

@@ -1,0 +1,554 @@
+//! The standalone renderer: owns the images and passes of one frame size and runs
+//! `gbuffer -> trace -> shade` on the context's queue, each pass between timestamps.
+//!
+//! Barriers and layouts per frame (the contract each pass documents):
+//!
+//! 1. G-buffer images: discarded (`UNDEFINED`, after last frame's compute reads) ->
+//!    attachment layouts; `gbuffer` clears and writes them.
+//! 2. G-buffer -> `SHADER_READ_ONLY_OPTIMAL` for compute; hit buffer: discarded ->
+//!    `GENERAL` for storage writes; `trace` writes the hits.
+//! 3. Hit buffer: storage write -> storage read (`GENERAL`); colour: discarded ->
+//!    `GENERAL`; `shade` writes the colour.
+//!
+//! After a frame the hit buffer is in `GENERAL` (last access: storage read), the colour
+//! in `GENERAL` (last access: storage write) and the G-buffer in
+//! `SHADER_READ_ONLY_OPTIMAL`; the read-back helpers use exactly those states.
+
+use crate::context::Context;
+use crate::error::{Error, Result};
+use crate::gpu::commands::{read_image, upload_image};
+use crate::gpu::sync::{self, Access};
+use crate::gpu::{HeightTexture, Image, OneShot};
+use crate::heightfield::HeightField;
+use crate::method::{Method, MethodParams};
+use crate::metrics::{self, ErrorMetrics, HitTexel, MapGeometry};
+use crate::passes::gbuffer::{GBuffer, GBufferPass};
+use crate::passes::shade::{COLOR_FORMAT, ShadeInputs, ShadePass};
+use crate::passes::trace::{HIT_FORMAT, TraceInputs, TracePass};
+use crate::reference::{Hit, Ray, Reference};
+use crate::scene::Scene;
+use crate::timing::GpuTimer;
+use ash::vk;
+
+/// Largest frame side the CLI accepts (a sanity bound; the device's limit applies too).
+pub const MAX_FRAME_SIDE: u32 = 16384;
+
+/// What to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Frame width in pixels.
+    pub width: u32,
+    /// Frame height in pixels.
+    pub height: u32,
+    /// The intersection method.
+    pub method: Method,
+    /// Its parameters.
+    pub params: MethodParams,
+    /// Camera, light, geometry, depth scale.
+    pub scene: Scene,
+}
+
+impl RenderSettings {
+    /// Checks every value; the error names the option.
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0
+            || self.height == 0
+            || self.width > MAX_FRAME_SIDE
+            || self.height > MAX_FRAME_SIDE
+        {
+            return Err(Error::invalid(
+                "size",
+                format!(
+                    "{}x{} is outside 1..={MAX_FRAME_SIDE} per side",
+                    self.width, self.height
+                ),
+            ));
+        }
+        self.params.validate()?;
+        self.scene.validate()
+    }
+}
+
+/// Per-pass GPU milliseconds of one frame, in pass order.
+pub type PassTimes = Vec<(&'static str, f64)>;
+
+/// Discarded contents, after compute reads or copies of an earlier frame.
+const DISCARD: Access = Access {
+    stage: vk::PipelineStageFlags2::from_raw(
+        vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw() | vk::PipelineStageFlags2::COPY.as_raw(),
+    ),
+    access: vk::AccessFlags2::NONE,
+    layout: vk::ImageLayout::UNDEFINED,
+};
+
+/// The reference for one frame: rays read from the G-buffer, exact hits, and those
+/// hits shaded by the same `shade` pass.
+pub struct FrameReference {
+    /// Each pixel's ray (`None`: no geometry).
+    pub rays: Vec<Option<Ray>>,
+    /// The exact first intersections.
+    pub hits: Vec<Option<Hit>>,
+    /// The reference hits shaded (RGBA8).
+    pub color: Vec<u8>,
+}
+
+/// Images, passes and a command buffer for one frame size.
+pub struct Renderer<'a> {
+    ctx: &'a Context,
+    settings: RenderSettings,
+    shot: OneShot,
+    timer: GpuTimer,
+    height: HeightTexture,
+    gbuffer: GBuffer,
+    hit: Image,
+    color: Image,
+    gbuffer_pass: GBufferPass,
+    trace: TracePass,
+    shade: ShadePass,
+}
+
+impl<'a> Renderer<'a> {
+    /// Uploads `field` and builds what `settings` needs.
+    pub fn new(ctx: &'a Context, field: &HeightField, settings: RenderSettings) -> Result<Self> {
+        settings.validate()?;
+        let max = ctx.info().max_image_dimension_2d;
+        if field.width() > max || field.height() > max {
+            return Err(Error::invalid(
+                field.label(),
+                format!(
+                    "{}x{} exceeds the device's maxImageDimension2D ({max})",
+                    field.width(),
+                    field.height()
+                ),
+            ));
+        }
+        let extent = vk::Extent2D {
+            width: settings.width,
+            height: settings.height,
+        };
+        // Build in order; if a step fails, `parts` destroys what exists when dropped.
+        let mut parts = Parts {
+            ctx,
+            shot: None,
+            timer: None,
+            height: None,
+            gbuffer: None,
+            hit: None,
+            color: None,
+            gbuffer_pass: None,
+            trace: None,
+            shade: None,
+        };
+        let shot = parts.shot.insert(OneShot::new(ctx, "renderer")?);
+        parts.height = Some(HeightTexture::upload(
+            ctx,
+            shot,
+            field,
+            settings.scene.addressing(),
+        )?);
+        parts.timer = Some(GpuTimer::new(ctx, "renderer.timestamps", 8)?);
+        parts.gbuffer = Some(GBuffer::new(ctx, extent)?);
+        parts.hit = Some(Image::new(
+            ctx,
+            "hits",
+            HIT_FORMAT,
+            extent,
+            1,
+            vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::TRANSFER_SRC
+                | vk::ImageUsageFlags::TRANSFER_DST,
+        )?);
+        parts.color = Some(Image::new(
+            ctx,
+            "color",
+            COLOR_FORMAT,
+            extent,
+            1,
+            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+        )?);
+        parts.gbuffer_pass = Some(GBufferPass::new(ctx)?);
+        parts.trace = Some(TracePass::new(ctx, settings.method)?);
+        parts.shade = Some(ShadePass::new(ctx)?);
+        let built = "every part was built above";
+        Ok(Renderer {
+            ctx,
+            settings,
+            shot: parts.shot.take().expect(built),
+            timer: parts.timer.take().expect(built),
+            height: parts.height.take().expect(built),
+            gbuffer: parts.gbuffer.take().expect(built),
+            hit: parts.hit.take().expect(built),
+            color: parts.color.take().expect(built),
+            gbuffer_pass: parts.gbuffer_pass.take().expect(built),
+            trace: parts.trace.take().expect(built),
+            shade: parts.shade.take().expect(built),
+        })
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// Switches the method (and its parameters); the G-buffer and map stay.
+    pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {
+        params.validate()?;
+        if method != self.trace.method() {
+            let new = TracePass::new(self.ctx, method)?;
+            let mut old = std::mem::replace(&mut self.trace, new);
+            old.destroy(self.ctx);
+        }
+        self.settings.method = method;
+        self.settings.params = params;
+        Ok(())
+    }
+
+    /// Changes camera, light or depth scale (the geometry and addressing must stay).
+    pub fn set_scene(&mut self, scene: Scene) -> Result<()> {
+        scene.validate()?;
+        if scene.addressing() != self.height.addressing {
+            return Err(Error::invalid(
+                "geometry",
+                "changing the addressing needs a new renderer",
+            ));
+        }
+        self.settings.scene = scene;
+        Ok(())
+    }
+
+    fn frame_size(&self) -> [u32; 2] {
+        [self.settings.width, self.settings.height]
+    }
+
+    /// Renders one frame and returns its per-pass GPU times.
+    pub fn render(&mut self) -> Result<PassTimes> {
+        let ctx = self.ctx;
+        let scene = self.settings.scene;
+        let camera = scene.frame_camera(self.settings.width, self.settings.height);
+        let gbuffer_params = scene.gbuffer_params(&camera);
+        let shade_params = scene.shade_params(&camera, self.frame_size(), self.height.size());
+        let cmd = self.shot.begin(ctx)?;
+        self.timer.reset(ctx, cmd);
+
+        let colors = self.gbuffer.colors();
+        let mut to_attachments: Vec<_> = colors
+            .iter()
+            .map(|i| sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE))
+            .collect();
+        to_attachments.push(sync::image_barrier(
+            self.gbuffer.depth.raw,
+            self.gbuffer.depth.range(),
+            DISCARD,
+            Access::DEPTH_ATTACHMENT_WRITE,
+        ));
+        sync::record(ctx, cmd, &to_attachments);
+        ctx.begin_label(cmd, "gbuffer");
+        self.timer.begin(ctx, cmd, "gbuffer")?;
+        self.gbuffer_pass
+            .record(ctx, cmd, &self.gbuffer, &gbuffer_params);
+        self.timer.end(ctx, cmd);
+        ctx.end_label(cmd);
+
+        let mut to_trace: Vec<_> = colors
+            .iter()
+            .map(|i| {
+                sync::image_barrier(
+                    i.raw,
+                    i.range(),
+                    Access::COLOR_ATTACHMENT_WRITE,
+                    Access::COMPUTE_SAMPLED,
+                )
+            })
+            .collect();
+        to_trace.push(sync::image_barrier(
+            self.gbuffer.depth.raw,
+            self.gbuffer.depth.range(),
+            Access::DEPTH_ATTACHMENT_WRITE,
+            Access::COMPUTE_SAMPLED,
+        ));
+        to_trace.push(sync::image_barrier(
+            self.hit.raw,
+            self.hit.range(),
+            DISCARD,
+            Access::COMPUTE_STORAGE_WRITE,
+        ));
+        sync::record(ctx, cmd, &to_trace);
+        ctx.begin_label(cmd, "trace");
+        self.timer.begin(ctx, cmd, "trace")?;
+        self.trace.record(
+            ctx,
+            cmd,
+            TraceInputs {
+                gbuffer: &self.gbuffer,
+                height: &self.height,
+                hit: &self.hit,
+            },
+            &self.settings.params,
+        );
+        self.timer.end(ctx, cmd);
+        ctx.end_label(cmd);
+
+        self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE)?;
+        self.shot.submit_and_wait(ctx)?;
+        self.timer.read(ctx)
+    }
+
+    fn record_shade(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        params: &crate::abi::ShadeParams,
+        hit_before: Access,
+    ) -> Result<()> {
+        let ctx = self.ctx;
+        sync::record(
+            ctx,
+            cmd,
+            &[
+                sync::image_barrier(
+                    self.hit.raw,
+                    self.hit.range(),
+                    hit_before,
+                    Access::COMPUTE_STORAGE_READ,
+                ),
+                sync::image_barrier(
+                    self.color.raw,
+                    self.color.range(),
+                    DISCARD,
+                    Access::COMPUTE_STORAGE_WRITE,
+                ),
+            ],
+        );
+        ctx.begin_label(cmd, "shade");
+        self.timer.begin(ctx, cmd, "shade")?;
+        self.shade.record(
+            ctx,
+            cmd,
+            ShadeInputs {
+                hit: &self.hit,
+                gbuffer: &self.gbuffer,
+                height: &self.height,
+                color: &self.color,
+            },
+            params,
+        );
+        self.timer.end(ctx, cmd);
+        ctx.end_label(cmd);
+        Ok(())
+    }
+
+    /// Renders `frames` frames and returns the median time of each pass and of their
+    /// sum (`total`), in pass order.
+    pub fn render_frames(&mut self, frames: u32) -> Result<Vec<(String, f64)>> {
+        let mut samples: Vec<(&'static str, Vec<f64>)> = Vec::new();
+        let mut totals = Vec::new();
+        for _ in 0..frames.max(1) {
+            let times = self.render()?;
+            totals.push(times.iter().map(|(_, ms)| ms).sum());
+            for (name, ms) in times {
+                match samples.iter_mut().find(|(n, _)| *n == name) {
+                    Some((_, v)) => v.push(ms),
+                    None => samples.push((name, vec![ms])),
+                }
+            }
+        }
+        let mut out: Vec<(String, f64)> = samples
+            .into_iter()
+            .map(|(n, v)| (n.to_string(), crate::timing::median(&v)))
+            .collect();
+        out.push(("total".into(), crate::timing::median(&totals)));
+        Ok(out)
+    }
+
+    /// Each pixel's ray from the last frame's G-buffer (`None` where there is no geometry).
+    pub fn read_rays(&self) -> Result<Vec<Option<Ray>>> {
+        let ray = read_image(
+            self.ctx,
+            &self.shot,
+            &self.gbuffer.ray,
+            Access::COMPUTE_SAMPLED,
+        )?;
+        let depth = read_image(
+            self.ctx,
+            &self.shot,
+            &self.gbuffer.depth,
+            Access::COMPUTE_SAMPLED,
+        )?;
+        let ray: &[[f32; 4]] = bytemuck::cast_slice(&ray);
+        let depth: &[f32] = bytemuck::cast_slice(&depth);
+        Ok(ray
+            .iter()
+            .zip(depth)
+            .map(|(r, &d)| {
+                (d > 0.0).then(|| Ray {
+                    uv0: [r[0] as f64, r[1] as f64],
+                    parallax: [r[2] as f64, r[3] as f64],
+                })
+            })
+            .collect())
+    }
+
+    /// The last frame's hit buffer.
+    pub fn read_hits(&self) -> Result<Vec<HitTexel>> {
+        let bytes = read_image(
+            self.ctx,
+            &self.shot,
+            &self.hit,
+            Access::COMPUTE_STORAGE_READ,
+        )?;
+        Ok(bytemuck::cast_slice::<u8, HitTexel>(&bytes).to_vec())
+    }
+
+    /// The last frame's colour image (RGBA8, sRGB-encoded).
+    pub fn read_color(&self) -> Result<Vec<u8>> {
+        read_image(
+            self.ctx,
+            &self.shot,
+            &self.color,
+            Access::COMPUTE_STORAGE_WRITE,
+        )
+    }
+
+    /// Shades `hits` (one texel per pixel) with the current G-buffer and returns the
+    /// colour. Overwrites the hit buffer.
+    pub fn shade_hits(&mut self, hits: &[HitTexel]) -> Result<Vec<u8>> {
+        let ctx = self.ctx;
+        upload_image(
+            ctx,
+            &self.shot,
+            &self.hit,
+            bytemuck::cast_slice(hits),
+            Access::COMPUTE_STORAGE_READ,
+        )?;
+        let scene = self.settings.scene;
+        let camera = scene.frame_camera(self.settings.width, self.settings.height);
+        let params = scene.shade_params(&camera, self.frame_size(), self.height.size());
+        let cmd = self.shot.begin(ctx)?;
+        self.timer.reset(ctx, cmd);
+        self.record_shade(cmd, &params, Access::COMPUTE_STORAGE_READ)?;
+        self.shot.submit_and_wait(ctx)?;
+        self.read_color()
+    }
+
+    /// Renders the G-buffer (with the current method), computes the exact hits of its
+    /// rays on the CPU and shades them.
+    pub fn reference(&mut self, reference: &Reference) -> Result<FrameReference> {
+        self.render()?;
+        let rays = self.read_rays()?;
+        let hits = reference.trace(&rays);
+        let texels: Vec<HitTexel> = hits
+            .iter()
+            .map(|h| match h {
+                Some(h) => [h.uv[0] as f32, h.uv[1] as f32, h.height as f32, 0.0],
+                None => [0.0, 0.0, crate::abi::NO_HIT_HEIGHT, 0.0],
+            })
+            .collect();
+        let color = self.shade_hits(&texels)?;
+        Ok(FrameReference { rays, hits, color })
+    }
+
+    /// Renders a frame with the current method and measures it against `reference`
+    /// (which must come from the same scene). Returns the times, metrics, hits, colour.
+    pub fn measure(&mut self, reference: &FrameReference, frames: u32) -> Result<Measurement> {
+        let timings = self.render_frames(frames)?;
+        let hits = self.read_hits()?;
+        let color = self.read_color()?;
+        let mut error =
+            metrics::hit_errors(&hits, &reference.hits, &reference.rays, self.map_geometry());
+        error.psnr_db = metrics::psnr_rgba8(&color, &reference.color);
+        Ok(Measurement {
+            timings_ms: timings,
+            error,
+            hits,
+            color,
+        })
+    }
+
+    /// Map size and depth scale for the metrics.
+    pub fn map_geometry(&self) -> MapGeometry {
+        let [w, h] = self.height.size();
+        MapGeometry {
+            map_width: w,
+            map_height: h,
+            depth_scale: self.settings.scene.depth_scale as f64,
+        }
+    }
+}
+
+/// The result of [`Renderer::measure`].
+pub struct Measurement {
+    /// Median per-pass milliseconds and `total`.
+    pub timings_ms: Vec<(String, f64)>,
+    /// Error against the reference.
+    pub error: ErrorMetrics,
+    /// The hit buffer of the last frame.
+    pub hits: Vec<HitTexel>,
+    /// The colour image of the last frame.
+    pub color: Vec<u8>,
+}
+
+impl Drop for Renderer<'_> {
+    fn drop(&mut self) {
+        let ctx = self.ctx;
+        // SAFETY: every submission was waited for; idle makes sure of it on error paths.
+        unsafe {
+            let _ = ctx.device().device_wait_idle();
+        }
+        self.shade.destroy(ctx);
+        self.trace.destroy(ctx);
+        self.gbuffer_pass.destroy(ctx);
+        self.color.destroy(ctx);
+        self.hit.destroy(ctx);
+        self.gbuffer.destroy(ctx);
+        self.height.destroy(ctx);
+        self.timer.destroy(ctx);
+        self.shot.destroy(ctx);
+    }
+}
+
+/// The renderer's parts while it is being built; destroys the built ones if a later
+/// step fails.
+struct Parts<'a> {
+    ctx: &'a Context,
+    shot: Option<OneShot>,
+    timer: Option<GpuTimer>,
+    height: Option<HeightTexture>,
+    gbuffer: Option<GBuffer>,
+    hit: Option<Image>,
+    color: Option<Image>,
+    gbuffer_pass: Option<GBufferPass>,
+    trace: Option<TracePass>,
+    shade: Option<ShadePass>,
+}
+
+impl Drop for Parts<'_> {
+    fn drop(&mut self) {
+        let ctx = self.ctx;
+        if let Some(p) = &mut self.shade {
+            p.destroy(ctx);
+        }
+        if let Some(p) = &mut self.trace {
+            p.destroy(ctx);
+        }
+        if let Some(p) = &mut self.gbuffer_pass {
+            p.destroy(ctx);
+        }
+        if let Some(i) = &mut self.color {
+            i.destroy(ctx);
+        }
+        if let Some(i) = &mut self.hit {
+            i.destroy(ctx);
+        }
+        if let Some(g) = &mut self.gbuffer {
+            g.destroy(ctx);
+        }
+        if let Some(h) = &mut self.height {
+            h.destroy(ctx);
+        }
+        if let Some(t) = &mut self.timer {
+            t.destroy(ctx);
+        }
+        if let Some(s) = &mut self.shot {
+            s.destroy(ctx);
+        }
+    }
+}

@@ -1,0 +1,322 @@
+//! Camera, light and macro geometry, and the per-frame constants they give the passes.
+//!
+//! World space is y-up; the macro surface lies on the `y = 0` plane with `u` along `+x`
+//! and `v` along `+z`; one tile (one repeat of the height map) is one world unit, and the
+//! displacement depth `depth_scale` is in the same units.
+
+use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, GBufferParams, ShadeParams};
+use crate::error::{Error, Result};
+use crate::heightfield::Addressing;
+use glam::{Mat4, Vec3, Vec4};
+
+/// Half the side of the tiled plane, in tiles: "effectively infinite" (the plane's edge
+/// is below 0.004 degrees above the horizon from the default camera height).
+pub const PLANE_HALF_EXTENT: f32 = 4096.0;
+/// Near plane distance (world units); the far plane is at infinity (reverse-Z).
+pub const NEAR: f32 = 0.005;
+/// Lower bound of `-V.z` in the G-buffer: beyond it the parallax vector is clamped so it
+/// stays finite (|P| <= depth_scale / MIN_COS) at grazing angles.
+pub const MIN_COS: f32 = 1e-4;
+
+/// The macro geometry the height field displaces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Geometry {
+    /// An effectively infinite plane tiled with the map (repeat addressing).
+    TiledPlane,
+    /// One unit quad carrying the map once (clamp addressing: rays that leave it are
+    /// discarded, giving silhouettes).
+    Quad,
+}
+
+impl Geometry {
+    /// The addressing this geometry implies.
+    pub fn addressing(self) -> Addressing {
+        match self {
+            Geometry::TiledPlane => Addressing::Repeat,
+            Geometry::Quad => Addressing::Clamp,
+        }
+    }
+}
+
+impl std::str::FromStr for Geometry {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "plane" | "tiled-plane" => Ok(Geometry::TiledPlane),
+            "quad" => Ok(Geometry::Quad),
+            other => Err(Error::invalid(
+                "geometry",
+                format!("'{other}' is not one of: plane, quad"),
+            )),
+        }
+    }
+}
+
+/// An orbit camera looking at the geometry's centre.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Camera {
+    /// Angle in degrees between the central view ray and the plane (90 = straight down).
+    pub elevation_deg: f32,
+    /// Rotation about the vertical axis, degrees.
+    pub azimuth_deg: f32,
+    /// Vertical field of view, degrees.
+    pub fov_y_deg: f32,
+    /// Eye height above the macro surface for the tiled plane (tiles); the quad uses
+    /// a distance that frames it.
+    pub height: f32,
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Camera {
+            elevation_deg: 30.0,
+            azimuth_deg: 0.0,
+            fov_y_deg: 45.0,
+            height: 0.25,
+        }
+    }
+}
+
+/// A directional light.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Light {
+    /// Angle above the plane, degrees.
+    pub elevation_deg: f32,
+    /// Rotation about the vertical axis, degrees.
+    pub azimuth_deg: f32,
+    /// Intensity.
+    pub intensity: f32,
+}
+
+impl Default for Light {
+    fn default() -> Self {
+        Light {
+            elevation_deg: 35.0,
+            azimuth_deg: 60.0,
+            intensity: 1.0,
+        }
+    }
+}
+
+/// Everything about the frame except the height field and the method.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Scene {
+    /// Macro geometry.
+    pub geometry: Geometry,
+    /// Displacement depth in tile units (default 0.1).
+    pub depth_scale: f32,
+    /// Camera.
+    pub camera: Camera,
+    /// Light.
+    pub light: Light,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Scene {
+            geometry: Geometry::TiledPlane,
+            depth_scale: 0.1,
+            camera: Camera::default(),
+            light: Light::default(),
+        }
+    }
+}
+
+fn direction(elevation_deg: f32, azimuth_deg: f32) -> Vec3 {
+    let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
+    Vec3::new(e.cos() * a.sin(), e.sin(), e.cos() * a.cos())
+}
+
+/// View and projection of one frame.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameCamera {
+    /// Eye position.
+    pub eye: Vec3,
+    /// World to clip.
+    pub view_proj: Mat4,
+}
+
+impl Scene {
+    /// Checks every number; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        let c = &self.camera;
+        let checks: [(&str, f32, f32, f32); 6] = [
+            ("depth-scale", self.depth_scale, 0.0, 1e3),
+            ("camera-elevation", c.elevation_deg, 1e-3, 90.0),
+            ("camera-fov", c.fov_y_deg, 1.0, 170.0),
+            ("camera-height", c.height, 1e-3, 1e4),
+            ("light-elevation", self.light.elevation_deg, -90.0, 90.0),
+            ("light-intensity", self.light.intensity, 0.0, 1e3),
+        ];
+        for (name, value, lo, hi) in checks {
+            if !value.is_finite() || value < lo || value > hi {
+                return Err(Error::invalid(
+                    name,
+                    format!("{value} is outside [{lo}, {hi}]"),
+                ));
+            }
+        }
+        for (name, value) in [
+            ("camera-azimuth", c.azimuth_deg),
+            ("light-azimuth", self.light.azimuth_deg),
+        ] {
+            if !value.is_finite() {
+                return Err(Error::invalid(name, format!("{value} is not a number")));
+            }
+        }
+        Ok(())
+    }
+
+    /// Addressing of the height field for this geometry.
+    pub fn addressing(&self) -> Addressing {
+        self.geometry.addressing()
+    }
+
+    /// Eye and view-projection for a `width x height` frame.
+    pub fn frame_camera(&self, width: u32, height: u32) -> FrameCamera {
+        let c = &self.camera;
+        let (target, distance) = match self.geometry {
+            Geometry::TiledPlane => (
+                Vec3::ZERO,
+                c.height / c.elevation_deg.to_radians().sin().max(1e-6),
+            ),
+            Geometry::Quad => (Vec3::new(0.5, 0.0, 0.5), 1.4),
+        };
+        let to_eye = direction(c.elevation_deg, c.azimuth_deg);
+        let eye = target + distance * to_eye;
+        let forward = -to_eye;
+        // Looking straight down, "up" on screen is the horizontal forward direction.
+        let horizontal = Vec3::new(
+            -c.azimuth_deg.to_radians().sin(),
+            0.0,
+            -c.azimuth_deg.to_radians().cos(),
+        );
+        let right = forward.cross(Vec3::Y);
+        let right = if right.length_squared() < 1e-8 {
+            horizontal.cross(Vec3::Y)
+        } else {
+            right.normalize()
+        };
+        let up = right.cross(forward);
+        let view = glam::camera::rh::view::look_to_mat4(eye, forward, up);
+        let aspect = width as f32 / height as f32;
+        // Vulkan clip space (y down, depth in [0, 1]), reverse-Z with the far plane at
+        // infinity: depth 1 at the near plane, 0 at the horizon and in the cleared sky.
+        let proj = glam::camera::rh::proj::vulkan::perspective_infinite_reverse(
+            c.fov_y_deg.to_radians(),
+            aspect,
+            NEAR,
+        );
+        FrameCamera {
+            eye,
+            view_proj: proj * view,
+        }
+    }
+
+    /// Push constants of the G-buffer pass.
+    pub fn gbuffer_params(&self, camera: &FrameCamera) -> GBufferParams {
+        let (world_rect, uv_rect) = match self.geometry {
+            Geometry::TiledPlane => {
+                // Centred on the eye's tile so UVs stay small (and precise) near the eye.
+                let (cx, cz) = (camera.eye.x.floor(), camera.eye.z.floor());
+                let r = PLANE_HALF_EXTENT;
+                (
+                    Vec4::new(cx - r, cz - r, cx + r, cz + r),
+                    Vec4::new(-r, -r, r, r),
+                )
+            }
+            Geometry::Quad => (Vec4::new(0.0, 0.0, 1.0, 1.0), Vec4::new(0.0, 0.0, 1.0, 1.0)),
+        };
+        GBufferParams {
+            view_proj: camera.view_proj,
+            camera_pos: camera.eye.extend(1.0),
+            world_rect,
+            uv_rect,
+            depth_scale: self.depth_scale,
+            min_cos: MIN_COS,
+            addressing: addressing_code(self.addressing()),
+            pad: 0,
+        }
+    }
+
+    /// Push constants of the shade pass.
+    pub fn shade_params(
+        &self,
+        camera: &FrameCamera,
+        frame_size: [u32; 2],
+        map_size: [u32; 2],
+    ) -> ShadeParams {
+        ShadeParams {
+            inv_view_proj: camera.view_proj.inverse(),
+            camera_pos: camera.eye.extend(1.0),
+            light_dir: direction(self.light.elevation_deg, self.light.azimuth_deg)
+                .extend(self.light.intensity),
+            frame_size,
+            map_size,
+            depth_scale: self.depth_scale,
+            ambient: 0.18,
+            specular: 0.25,
+            shininess: 48.0,
+        }
+    }
+}
+
+/// The shader code of an addressing mode.
+pub fn addressing_code(a: Addressing) -> u32 {
+    match a {
+        Addressing::Repeat => ADDRESSING_REPEAT,
+        Addressing::Clamp => ADDRESSING_CLAMP,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn central_ray_has_the_requested_elevation() {
+        for elevation in [5.0f32, 30.0, 89.0, 90.0] {
+            let scene = Scene {
+                camera: Camera {
+                    elevation_deg: elevation,
+                    ..Camera::default()
+                },
+                ..Scene::default()
+            };
+            let cam = scene.frame_camera(256, 144);
+            // The centre of the screen projects the plane's target point (the origin).
+            let clip = cam.view_proj * Vec4::new(0.0, 0.0, 0.0, 1.0);
+            let ndc = clip.truncate() / clip.w;
+            assert!(
+                ndc.x.abs() < 1e-4 && ndc.y.abs() < 1e-4,
+                "{elevation}: {ndc}"
+            );
+            let down = (-cam.eye).normalize();
+            let measured = (-down.y).asin().to_degrees();
+            assert!(
+                (measured - elevation).abs() < 1e-2,
+                "{elevation} vs {measured}"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_numbers_are_rejected_by_name() {
+        let mut scene = Scene {
+            depth_scale: f32::NAN,
+            ..Scene::default()
+        };
+        let err = scene.validate().unwrap_err().to_string();
+        assert!(err.contains("depth-scale"), "{err}");
+        scene.depth_scale = 0.1;
+        scene.camera.elevation_deg = 0.0;
+        assert!(
+            scene
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("camera-elevation")
+        );
+    }
+}
