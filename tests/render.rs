@@ -170,3 +170,35 @@ fn quad_silhouettes_match_the_reference() {
     assert!(e.compared_pixels > 5_000, "{e:?}");
     assert!(e.artifact_fraction < 0.05, "{e:?}");
 }
+
+/// The shared maps' odd and non-square-friendly sizes (1000x1000, 1025x1025 16-bit,
+/// 348x348) render and agree with the reference like rocks does.
+#[test]
+fn odd_sized_maps_render_and_match_the_reference() {
+    for (name, convention) in [
+        ("bricks_depth.jpg", Convention::Depth),
+        ("mountains_height16.png", Convention::Height),
+        ("shapes_depth.png", Convention::Depth),
+    ] {
+        let map = asset_map(name, convention);
+        let mut base = settings(Method::Relief, 128, 35.0);
+        base.width = 128;
+        base.height = 96;
+        let e = measure(&map, base, &[(Method::Relief, 128)])[0];
+        assert_eq!(e.nonfinite_pixels, 0, "{name}");
+        assert!(e.artifact_fraction < 0.05, "{name}: {e:?}");
+        assert!(e.psnr_db > 30.0, "{name}: {e:?}");
+    }
+}
+
+/// A non-square map with an odd size: a 3x5 float field on the quad.
+#[test]
+fn tiny_non_square_map_matches_the_reference() {
+    let values: Vec<f32> = (0..15).map(|i| ((i * 7) % 15) as f32 / 14.0).collect();
+    let map = HeightField::from_heights(3, 5, values, "3x5").unwrap();
+    let mut base = settings(Method::Relief, 256, 40.0);
+    base.scene.geometry = Geometry::Quad;
+    let e = measure(&map, base, &[(Method::Relief, 256)])[0];
+    assert_eq!(e.nonfinite_pixels, 0);
+    assert!(e.artifact_fraction < 0.02, "{e:?}");
+}

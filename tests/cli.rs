@@ -1,0 +1,129 @@
+//! The `dispmap` binary: the metrics JSON, validation, and clear errors on bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn dispmap() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dispmap"));
+    c.env("DISPMAP_VALIDATION", "1");
+    c
+}
+
+fn asset(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets/heightmaps")
+        .join(name)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dispmap-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn render_writes_png_and_metrics_json() {
+    let dir = scratch("render");
+    let (png, json) = (dir.join("r.png"), dir.join("r.json"));
+    let out = dispmap()
+        .args(["render", "--heightmap"])
+        .arg(asset("rocks_depth.jpg"))
+        .args(["--convention", "depth", "--method", "relief", "--steps", "128"])
+        .args(["--size", "256x144", "--camera-elevation", "5", "--frames", "2"])
+        .arg("--out")
+        .arg(&png)
+        .arg("--metrics")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("Validation"), "validation messages: {stderr}");
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (256, 144));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(v["method"], "relief");
+    assert_eq!(v["steps"], 128);
+    assert_eq!(v["width"], 256);
+    assert_eq!(v["height"], 144);
+    assert!(v["device"].as_str().is_some_and(|d| !d.is_empty()));
+    for pass in ["gbuffer", "trace", "shade", "total"] {
+        let ms = v["timings_ms"][pass].as_f64().unwrap_or(-1.0);
+        assert!(ms > 0.0, "timings_ms.{pass} = {ms}");
+    }
+    for key in ["mean_texels", "p99_texels", "max_texels", "artifact_fraction", "psnr_db"] {
+        assert!(v["error"][key].as_f64().is_some_and(f64::is_finite), "error.{key}");
+    }
+    assert_eq!(v["nonfinite_pixels"], 0);
+}
+
+#[test]
+fn info_names_the_device() {
+    let out = dispmap().arg("info").output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("timestamp period"), "{text}");
+    assert!(text.contains("timestamp valid bits"), "{text}");
+}
+
+#[test]
+fn device_is_chosen_by_name_and_index() {
+    let by_index = dispmap().args(["--device", "0", "info"]).output().unwrap();
+    assert!(by_index.status.success());
+    let name = String::from_utf8_lossy(&by_index.stdout)
+        .lines()
+        .find_map(|l| l.strip_prefix("device:").map(|s| s.trim().to_owned()))
+        .unwrap();
+    let word = name.split_whitespace().next().unwrap().to_lowercase();
+    let by_name = dispmap().arg("info").env("DISPMAP_DEVICE", &word).output().unwrap();
+    assert!(String::from_utf8_lossy(&by_name.stdout).contains(&name));
+    let missing = dispmap()
+        .args(["--device", "no-such-gpu", "info"])
+        .output()
+        .unwrap();
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("no-such-gpu"));
+}
+
+/// Each bad input fails with a message naming it, and leaves no output file.
+#[test]
+fn bad_input_is_named_and_leaves_no_file() {
+    let dir = scratch("bad");
+    let png = dir.join("out.png");
+    let junk = dir.join("junk.png");
+    std::fs::write(&junk, b"not a png").unwrap();
+    let rocks = asset("rocks_depth.jpg");
+    let rocks = rocks.to_str().unwrap();
+    let png_s = png.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--heightmap", "/no/such/map.png", "--convention", "height"], "/no/such/map.png"),
+        (vec!["--heightmap", junk.to_str().unwrap(), "--convention", "height"], "junk.png"),
+        (vec!["--heightmap", rocks, "--convention", "sideways"], "sideways"),
+        (vec!["--heightmap", rocks, "--convention", "depth", "--method", "magic"], "magic"),
+        (vec!["--heightmap", rocks, "--convention", "depth", "--steps", "0"], "steps"),
+        (vec!["--heightmap", rocks, "--convention", "depth", "--depth-scale", "NaN"], "depth-scale"),
+        (vec!["--heightmap", rocks, "--convention", "depth", "--size", "0x10"], "0x10"),
+        (vec!["--heightmap", rocks, "--convention", "depth", "--camera-elevation", "-3"], "camera-elevation"),
+        (vec!["--heightmap", rocks, "--convention", "depth", "--frames", "0"], "frames"),
+    ];
+    for (args, needle) in cases {
+        let out = dispmap()
+            .arg("render")
+            .args(&args)
+            .args(["--out", png_s])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(needle), "{args:?}: '{needle}' not in: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(!png.exists(), "{args:?} left {png_s}");
+    }
+    let unwritable = dispmap()
+        .args(["render", "--heightmap", rocks, "--convention", "depth"])
+        .args(["--out", "/no/such/dir/out.png"])
+        .output()
+        .unwrap();
+    assert!(!unwritable.status.success());
+    assert!(String::from_utf8_lossy(&unwritable.stderr).contains("/no/such/dir"));
+}
