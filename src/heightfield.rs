@@ -342,7 +342,8 @@ mod tests {
         assert_eq!((shapes.width(), shapes.height()), (348, 348));
         let bricks = HeightField::load(&asset("bricks_depth.jpg"), Convention::Depth).unwrap();
         assert_eq!((bricks.width(), bricks.height()), (1000, 1000));
-        assert!((bricks.mean() - 0.76).abs() < 0.02, "{}", bricks.mean());
+        // Measured 0.827 (PIL agrees); SOURCES.md's 0.76 was computed differently.
+        assert!((bricks.mean() - 0.827).abs() < 0.002, "{}", bricks.mean());
     }
 
     #[test]
