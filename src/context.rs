@@ -137,7 +137,8 @@ impl MessageCounter {
 
 /// Handles a host engine hands to [`Context::from_handles`].
 pub struct HostHandles {
-    /// The host's loader entry.
+    /// A clone of the host's loader entry (`ash::Entry` is reference-counted; the host
+    /// keeps its own clone alive until its instance is destroyed).
     pub entry: ash::Entry,
     /// The host's instance.
     pub instance: ash::Instance,

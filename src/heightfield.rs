@@ -336,7 +336,11 @@ mod tests {
         assert_eq!((mountains.width(), mountains.height()), (1025, 1025));
         assert_eq!(mountains.format(), vk::Format::R16_UNORM);
         // Raw mean 0.084; SOURCES.md's 0.13 is relative to the map's maximum (0.668).
-        assert!((mountains.mean() - 0.0844).abs() < 0.001, "{}", mountains.mean());
+        assert!(
+            (mountains.mean() - 0.0844).abs() < 0.001,
+            "{}",
+            mountains.mean()
+        );
 
         let shapes = HeightField::load(&asset("shapes_depth.png"), Convention::Depth).unwrap();
         assert_eq!((shapes.width(), shapes.height()), (348, 348));
@@ -383,7 +387,10 @@ mod tests {
         });
         img.save(&path).unwrap();
         let h = HeightField::load(&path, Convention::Height).unwrap();
-        assert_eq!((h.width(), h.height(), h.format()), (3, 5, vk::Format::R32_SFLOAT));
+        assert_eq!(
+            (h.width(), h.height(), h.format()),
+            (3, 5, vk::Format::R32_SFLOAT)
+        );
         assert_eq!(h.texel(2, 4), 1.0);
         assert_eq!(h.texel(1, 0), 1.0 / 14.0);
         let d = HeightField::load(&path, Convention::Depth).unwrap();

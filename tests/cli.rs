@@ -28,8 +28,22 @@ fn render_writes_png_and_metrics_json() {
     let out = dispmap()
         .args(["render", "--heightmap"])
         .arg(asset("rocks_depth.jpg"))
-        .args(["--convention", "depth", "--method", "relief", "--steps", "128"])
-        .args(["--size", "256x144", "--camera-elevation", "5", "--frames", "2"])
+        .args([
+            "--convention",
+            "depth",
+            "--method",
+            "relief",
+            "--steps",
+            "128",
+        ])
+        .args([
+            "--size",
+            "256x144",
+            "--camera-elevation",
+            "5",
+            "--frames",
+            "2",
+        ])
         .arg("--out")
         .arg(&png)
         .arg("--metrics")
@@ -38,7 +52,10 @@ fn render_writes_png_and_metrics_json() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    assert!(!stderr.contains("Validation"), "validation messages: {stderr}");
+    assert!(
+        !stderr.contains("Validation"),
+        "validation messages: {stderr}"
+    );
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (256, 144));
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
@@ -51,8 +68,17 @@ fn render_writes_png_and_metrics_json() {
         let ms = v["timings_ms"][pass].as_f64().unwrap_or(-1.0);
         assert!(ms > 0.0, "timings_ms.{pass} = {ms}");
     }
-    for key in ["mean_texels", "p99_texels", "max_texels", "artifact_fraction", "psnr_db"] {
-        assert!(v["error"][key].as_f64().is_some_and(f64::is_finite), "error.{key}");
+    for key in [
+        "mean_texels",
+        "p99_texels",
+        "max_texels",
+        "artifact_fraction",
+        "psnr_db",
+    ] {
+        assert!(
+            v["error"][key].as_f64().is_some_and(f64::is_finite),
+            "error.{key}"
+        );
     }
     assert_eq!(v["nonfinite_pixels"], 0);
 }
@@ -75,7 +101,11 @@ fn device_is_chosen_by_name_and_index() {
         .find_map(|l| l.strip_prefix("device:").map(|s| s.trim().to_owned()))
         .unwrap();
     let word = name.split_whitespace().next().unwrap().to_lowercase();
-    let by_name = dispmap().arg("info").env("DISPMAP_DEVICE", &word).output().unwrap();
+    let by_name = dispmap()
+        .arg("info")
+        .env("DISPMAP_DEVICE", &word)
+        .output()
+        .unwrap();
     assert!(String::from_utf8_lossy(&by_name.stdout).contains(&name));
     let missing = dispmap()
         .args(["--device", "no-such-gpu", "info"])
@@ -96,15 +126,89 @@ fn bad_input_is_named_and_leaves_no_file() {
     let rocks = rocks.to_str().unwrap();
     let png_s = png.to_str().unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["--heightmap", "/no/such/map.png", "--convention", "height"], "/no/such/map.png"),
-        (vec!["--heightmap", junk.to_str().unwrap(), "--convention", "height"], "junk.png"),
-        (vec!["--heightmap", rocks, "--convention", "sideways"], "sideways"),
-        (vec!["--heightmap", rocks, "--convention", "depth", "--method", "magic"], "magic"),
-        (vec!["--heightmap", rocks, "--convention", "depth", "--steps", "0"], "steps"),
-        (vec!["--heightmap", rocks, "--convention", "depth", "--depth-scale", "NaN"], "depth-scale"),
-        (vec!["--heightmap", rocks, "--convention", "depth", "--size", "0x10"], "0x10"),
-        (vec!["--heightmap", rocks, "--convention", "depth", "--camera-elevation", "-3"], "camera-elevation"),
-        (vec!["--heightmap", rocks, "--convention", "depth", "--frames", "0"], "frames"),
+        (
+            vec!["--heightmap", "/no/such/map.png", "--convention", "height"],
+            "/no/such/map.png",
+        ),
+        (
+            vec![
+                "--heightmap",
+                junk.to_str().unwrap(),
+                "--convention",
+                "height",
+            ],
+            "junk.png",
+        ),
+        (
+            vec!["--heightmap", rocks, "--convention", "sideways"],
+            "sideways",
+        ),
+        (
+            vec![
+                "--heightmap",
+                rocks,
+                "--convention",
+                "depth",
+                "--method",
+                "magic",
+            ],
+            "magic",
+        ),
+        (
+            vec![
+                "--heightmap",
+                rocks,
+                "--convention",
+                "depth",
+                "--steps",
+                "0",
+            ],
+            "steps",
+        ),
+        (
+            vec![
+                "--heightmap",
+                rocks,
+                "--convention",
+                "depth",
+                "--depth-scale",
+                "NaN",
+            ],
+            "depth-scale",
+        ),
+        (
+            vec![
+                "--heightmap",
+                rocks,
+                "--convention",
+                "depth",
+                "--size",
+                "0x10",
+            ],
+            "0x10",
+        ),
+        (
+            vec![
+                "--heightmap",
+                rocks,
+                "--convention",
+                "depth",
+                "--camera-elevation",
+                "-3",
+            ],
+            "camera-elevation",
+        ),
+        (
+            vec![
+                "--heightmap",
+                rocks,
+                "--convention",
+                "depth",
+                "--frames",
+                "0",
+            ],
+            "frames",
+        ),
     ];
     for (args, needle) in cases {
         let out = dispmap()
@@ -115,7 +219,10 @@ fn bad_input_is_named_and_leaves_no_file() {
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} succeeded");
-        assert!(stderr.contains(needle), "{args:?}: '{needle}' not in: {stderr}");
+        assert!(
+            stderr.contains(needle),
+            "{args:?}: '{needle}' not in: {stderr}"
+        );
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
         assert!(!png.exists(), "{args:?} left {png_s}");
     }

@@ -1,0 +1,134 @@
+//! A context built from handles a host engine created itself (raw ash + gpu-allocator)
+//! renders the same hits as the standalone context.
+
+mod common;
+
+use ash::vk;
+use common::{assert_validation_clean, asset_map, validated_context};
+use dispmap::context::{Context, HostHandles, requirements};
+use dispmap::heightfield::Convention;
+use dispmap::method::{Method, MethodParams};
+use dispmap::renderer::{RenderSettings, Renderer};
+use dispmap::scene::Scene;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use std::sync::{Arc, Mutex};
+
+fn settings() -> RenderSettings {
+    RenderSettings {
+        width: 96,
+        height: 64,
+        method: Method::Relief,
+        params: MethodParams::default(),
+        scene: Scene::default(),
+    }
+}
+
+#[test]
+fn host_handles_give_the_same_hits_as_standalone() {
+    let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
+
+    let standalone = validated_context();
+    let expected = {
+        let mut r = Renderer::new(&standalone, &rocks, settings()).unwrap();
+        r.render().unwrap();
+        r.read_hits().unwrap()
+    };
+    assert_validation_clean(&standalone);
+    let chosen = standalone.info().name.clone();
+    drop(standalone);
+
+    // The "engine": its own instance, device, queue and allocator.
+    // SAFETY: test code; every handle below is created and destroyed in order.
+    unsafe {
+        let entry = ash::Entry::load().unwrap();
+        let app = vk::ApplicationInfo::default().api_version(requirements::API_VERSION);
+        let instance = entry
+            .create_instance(
+                &vk::InstanceCreateInfo::default().application_info(&app),
+                None,
+            )
+            .unwrap();
+        let physical_device = instance
+            .enumerate_physical_devices()
+            .unwrap()
+            .into_iter()
+            .find(|&pd| {
+                instance
+                    .get_physical_device_properties(pd)
+                    .device_name_as_c_str()
+                    .is_ok_and(|n| n.to_string_lossy() == chosen)
+            })
+            .unwrap();
+        let family = instance
+            .get_physical_device_queue_family_properties(physical_device)
+            .iter()
+            .position(|f| {
+                f.queue_flags
+                    .contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE)
+            })
+            .unwrap() as u32;
+        let exts: Vec<_> = requirements::DEVICE_EXTENSIONS
+            .iter()
+            .map(|e| e.as_ptr())
+            .collect();
+        let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
+            .dynamic_rendering(true)
+            .synchronization2(true);
+        let queues = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(family)
+            .queue_priorities(&[1.0])];
+        let device = instance
+            .create_device(
+                physical_device,
+                &vk::DeviceCreateInfo::default()
+                    .queue_create_infos(&queues)
+                    .enabled_extension_names(&exts)
+                    .push_next(&mut f13),
+                None,
+            )
+            .unwrap();
+        let queue = device.get_device_queue(family, 0);
+        let allocator = Arc::new(Mutex::new(
+            Allocator::new(&AllocatorCreateDesc {
+                instance: instance.clone(),
+                device: device.clone(),
+                physical_device,
+                debug_settings: Default::default(),
+                buffer_device_address: false,
+                allocation_sizes: Default::default(),
+            })
+            .unwrap(),
+        ));
+        let ctx = Context::from_handles(
+            HostHandles {
+                entry: entry.clone(),
+                instance: instance.clone(),
+                physical_device,
+                device: device.clone(),
+                queue_family_index: family,
+                queue,
+                allocator: allocator.clone(),
+            },
+            false,
+        )
+        .unwrap();
+        let hits = {
+            let mut r = Renderer::new(&ctx, &rocks, settings()).unwrap();
+            r.render().unwrap();
+            r.read_hits().unwrap()
+        };
+        drop(ctx);
+        let bits = |h: &[[f32; 4]]| h.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&hits), bits(&expected));
+
+        // The host tears down what it owns; dispmap destroyed none of it.
+        drop(
+            Arc::try_unwrap(allocator)
+                .ok()
+                .expect("dispmap released the allocator"),
+        );
+        device.destroy_device(None);
+        instance.destroy_instance(None);
+        drop(entry);
+    }
+}
