@@ -202,7 +202,7 @@ impl Context {
         } else {
             None
         };
-        let result = Self::create_device(&entry, &instance, options);
+        let result = Self::create_device(&instance, options);
         let (physical_device, device, queue_family_index, queue) = match result {
             Ok(v) => v,
             Err(e) => {
@@ -371,11 +371,9 @@ impl Context {
     }
 
     fn create_device(
-        entry: &ash::Entry,
         instance: &ash::Instance,
         options: &ContextOptions,
     ) -> Result<(vk::PhysicalDevice, ash::Device, u32, vk::Queue)> {
-        let _ = entry;
         // SAFETY: `instance` is a valid instance.
         let devices =
             unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;

@@ -104,7 +104,7 @@ struct Level {
 ///
 /// Built once per (height field, addressing): holds an `f64` copy of the texels and the
 /// cell max pyramid described in the [module documentation](self).
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct Reference {
     /// Texels per row / column.
     size: [usize; 2],
@@ -119,6 +119,18 @@ pub struct Reference {
     levels: Vec<Level>,
     /// The highest texel.
     global_max: f64,
+}
+
+impl std::fmt::Debug for Reference {
+    /// A summary: the texels and the pyramid are not printed.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Reference")
+            .field("size", &self.size)
+            .field("addressing", &self.addressing)
+            .field("levels", &self.levels.len())
+            .field("global_max", &self.global_max)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Reference {
@@ -231,11 +243,9 @@ impl Reference {
         // Texel space: x(t) = origin + t dir.
         let origin = [ray.uv0[0] * dims[0] - 0.5, ray.uv0[1] * dims[1] - 0.5];
         let dir = [ray.parallax[0] * dims[0], ray.parallax[1] * dims[1]];
-        if (0..2).any(|a| {
-            !(origin[a].abs() + dir[a].abs() <= MAX_TEXEL_EXTENT)
-                || !origin[a].is_finite()
-                || !dir[a].is_finite()
-        }) {
+        // Non-finite values fail this test too (NaN compares false, inf is too long).
+        let bounded = (0..2).all(|a| origin[a].abs() + dir[a].abs() <= MAX_TEXEL_EXTENT);
+        if !bounded {
             return None;
         }
 
@@ -386,7 +396,11 @@ impl Reference {
         let c = h00 - h10 - h01 + h11;
         let qa = c * dir[0] * dir[1];
         let qb = a * dir[0] + b * dir[1] + c * (fx * dir[1] + fy * dir[0]) + 1.0;
-        let qc = h00 + a * fx + b * fy + c * fx * fy - (1.0 - t_in);
+        // The height at the entry in nested-lerp form, which is exact at texel centres,
+        // along edges between equal texels and on plateaus (so ties `f = 0` are kept).
+        let top = h00 + (h10 - h00) * fx;
+        let bottom = h01 + (h11 - h01) * fx;
+        let qc = top + (bottom - top) * fy - (1.0 - t_in);
         first_root(qa, qb, qc, t_out - t_in).map(|s| (t_in + s).min(t_out))
     }
 }
@@ -750,7 +764,7 @@ mod tests {
     #[test]
     fn agrees_with_brute_force_on_random_maps() {
         let mut rng = Rng(42);
-        for (w, h) in [(7u32, 5u32), (16, 16), (1, 3)] {
+        for (w, h) in [(7u32, 5u32), (16, 16), (1, 3), (1, 1)] {
             let field = random_field(w, h, 0.0, 1.0, &mut rng);
             for addressing in [Addressing::Repeat, Addressing::Clamp] {
                 let reference = Reference::new(&field, addressing);
