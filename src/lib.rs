@@ -3,7 +3,7 @@
 //!
 //! A frame is a pass graph: `gbuffer` (raster) -> `trace` (the method, writing the hit
 //! buffer) -> `shade`. Every pass records into a command buffer it is given and is
-//! bracketed by GPU timestamps; [`reference`] computes the exact first intersection on
+//! bracketed by GPU timestamps; [`reference`](mod@reference) computes the exact first intersection on
 //! the CPU from the same rays, and [`metrics`] compares any method against it.
 //!
 //! Conventions (see `DESIGN.md` in the repository): heights in `[0, 1]` with 1 the
