@@ -43,7 +43,7 @@ fn main() -> anyhow::Result<()> {
     let reference = Reference::new(&field, base.scene.addressing());
     let frame_ref = renderer.reference(&reference)?;
     println!(
-        "{:<8} {:>6} {:>10} {:>10} {:>10} {:>8} {:>10}",
+        "{:<12} {:>6} {:>10} {:>10} {:>10} {:>8} {:>10}",
         "method", "steps", "trace ms", "total ms", "vs bump", "iters", "artifact%"
     );
     let mut bump_trace = None;
@@ -51,19 +51,14 @@ fn main() -> anyhow::Result<()> {
         if !filter.is_empty() && !filter.iter().any(|f| method.name().contains(f.as_str())) {
             continue;
         }
-        let steps_list: &[u32] = if method == Method::Bump {
-            &[1]
-        } else {
-            &[32, 64, 128]
+        // Methods without a step count (bump, pyramid, exact) run once.
+        let steps_list: &[u32] = match method {
+            Method::Bump | Method::Pyramid | Method::Exact => &[1],
+            Method::Secant => &[15, 30],
+            _ => &[32, 64, 128],
         };
         for &steps in steps_list {
-            renderer.set_method(
-                method,
-                MethodParams {
-                    steps,
-                    refine_steps: 5,
-                },
-            )?;
+            renderer.set_method(method, MethodParams::with_steps(steps))?;
             let m = renderer.measure(&frame_ref, frames)?;
             let get = |n: &str| {
                 m.timings_ms
@@ -77,7 +72,7 @@ fn main() -> anyhow::Result<()> {
             }
             let ratio = bump_trace.map_or(f64::NAN, |b| trace / b);
             println!(
-                "{:<8} {:>6} {:>10.3} {:>10.3} {:>9.1}x {:>8.1} {:>10.3}",
+                "{:<12} {:>6} {:>10.3} {:>10.3} {:>9.1}x {:>8.1} {:>10.3}",
                 method.name(),
                 steps,
                 trace,

@@ -28,8 +28,62 @@ pub struct TraceParams {
     pub refine_steps: u32,
     /// `ADDRESSING_*`.
     pub addressing: u32,
-    /// Reserved, 0.
+    /// `TRACE_FLAG_*`.
     pub flags: u32,
+    /// `pom`: `n_min`.
+    pub min_steps: u32,
+    /// `secant`: segments.
+    pub segments: u32,
+    /// `dig`: block size in pixels.
+    pub block: [u32; 2],
+    /// `dig`: corner-grid size (`ceil(frame / block) + 1`).
+    pub corner_size: [u32; 2],
+    /// `dig`: `eps1 = eps2`.
+    pub eps: f32,
+    /// `pyramid`: the coarsest traversal level (with `TRACE_FLAG_AUTO_LEVEL`: a bias).
+    pub max_level: u32,
+    /// Levels of the bound pyramid (0 without one).
+    pub pyramid_levels: u32,
+    /// Displacement depth in tile units (`pom`: `N . V` from the parallax vector).
+    pub depth_scale: f32,
+}
+
+/// `TRACE_FLAG_AUTO_LEVEL` in `glsl/common/trace.glsl`: the pyramid method derives its
+/// coarsest level from each pixel's texel footprint.
+pub const TRACE_FLAG_AUTO_LEVEL: u32 = 1;
+
+/// `PyramidParams` in `glsl/pyramid.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PyramidParams {
+    /// Logical size of the level read (level 0: the map).
+    pub src_size: [u32; 2],
+    /// Logical size of the level written.
+    pub dst_size: [u32; 2],
+    /// The level written.
+    pub level: u32,
+    /// `PYRAMID_KIND_*`.
+    pub kind: u32,
+    /// `ADDRESSING_*`.
+    pub addressing: u32,
+    /// Padding.
+    pub pad: u32,
+}
+
+/// `CornerParams` in `glsl/dig_corners.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct CornerParams {
+    /// Frame size in pixels.
+    pub frame_size: [u32; 2],
+    /// Corner-grid size.
+    pub corner_size: [u32; 2],
+    /// Block size in pixels.
+    pub block: [u32; 2],
+    /// Linear steps over the full depth.
+    pub steps: u32,
+    /// `ADDRESSING_*`.
+    pub addressing: u32,
 }
 
 /// `GBufferParams` in `glsl/common/gbuffer.glsl`.
@@ -187,10 +241,51 @@ mod tests {
                 ("refine_steps", offset_of!(TraceParams, refine_steps)),
                 ("addressing", offset_of!(TraceParams, addressing)),
                 ("flags", offset_of!(TraceParams, flags)),
+                ("min_steps", offset_of!(TraceParams, min_steps)),
+                ("segments", offset_of!(TraceParams, segments)),
+                ("block", offset_of!(TraceParams, block)),
+                ("corner_size", offset_of!(TraceParams, corner_size)),
+                ("eps", offset_of!(TraceParams, eps)),
+                ("max_level", offset_of!(TraceParams, max_level)),
+                ("pyramid_levels", offset_of!(TraceParams, pyramid_levels)),
+                ("depth_scale", offset_of!(TraceParams, depth_scale)),
             ],
             size_of::<TraceParams>(),
         );
-        assert_eq!(size_of::<TraceParams>(), 32);
+        assert_eq!(size_of::<TraceParams>(), 64);
+    }
+
+    #[test]
+    fn pyramid_params_layout() {
+        check(
+            &shaders::PYRAMID_COMP,
+            "PyramidParams",
+            &[
+                ("src_size", offset_of!(PyramidParams, src_size)),
+                ("dst_size", offset_of!(PyramidParams, dst_size)),
+                ("level", offset_of!(PyramidParams, level)),
+                ("kind", offset_of!(PyramidParams, kind)),
+                ("addressing", offset_of!(PyramidParams, addressing)),
+                ("pad", offset_of!(PyramidParams, pad)),
+            ],
+            size_of::<PyramidParams>(),
+        );
+    }
+
+    #[test]
+    fn corner_params_layout() {
+        check(
+            &shaders::DIG_CORNERS_COMP,
+            "CornerParams",
+            &[
+                ("frame_size", offset_of!(CornerParams, frame_size)),
+                ("corner_size", offset_of!(CornerParams, corner_size)),
+                ("block", offset_of!(CornerParams, block)),
+                ("steps", offset_of!(CornerParams, steps)),
+                ("addressing", offset_of!(CornerParams, addressing)),
+            ],
+            size_of::<CornerParams>(),
+        );
     }
 
     #[test]

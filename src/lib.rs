@@ -17,6 +17,7 @@ pub mod bundled;
 pub mod context;
 pub mod error;
 pub mod gpu;
+pub mod heatmap;
 pub mod heightfield;
 pub mod method;
 pub mod metrics;

@@ -3,8 +3,9 @@
 use anyhow::{Context as _, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use dispmap::context::{Context, ContextOptions};
+use dispmap::heatmap::{self, CornerStats, IterationStats};
 use dispmap::heightfield::{Convention, HeightField};
-use dispmap::method::{Method, MethodParams};
+use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::metrics::ErrorMetrics;
 use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer};
@@ -53,7 +54,8 @@ struct RenderArgs {
     /// How the file encodes heights: `height` (white = high) or `depth` (white = low).
     #[arg(long)]
     convention: Convention,
-    /// Intersection method (bump, linear, relief).
+    /// Intersection method: bump, linear, relief, pom, secant, dig, dig-guarded, pyramid,
+    /// exact.
     #[arg(long, default_value = "relief")]
     method: Method,
     #[command(flatten)]
@@ -64,6 +66,21 @@ struct RenderArgs {
     /// Also compute the exact reference and write the metrics JSON here.
     #[arg(long)]
     metrics: Option<PathBuf>,
+    /// Also write the per-pixel iteration count of the trace pass as a colour-mapped PNG
+    /// (viridis-like: dark purple = few, yellow = many; black = no geometry; white = a
+    /// non-finite count). Scaled to the frame's largest count unless --heatmap-max.
+    #[arg(long, value_name = "FILE")]
+    heatmap: Option<PathBuf>,
+    /// Fixed iteration count at the top of the --heatmap ramp (counts above saturate), so
+    /// heat maps of different methods compare by colour.
+    #[arg(long, requires = "heatmap", value_name = "N")]
+    heatmap_max: Option<f32>,
+    /// dig, dig-guarded: also write the depth interval length of each block as a grey PNG
+    /// at the frame size (nearest neighbour; darker = longer interval, black = the full
+    /// depth; red = no interval: the block's corners are not all on one surface and the
+    /// trace falls back to the unconstrained search).
+    #[arg(long, value_name = "FILE")]
+    interval_map: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -77,12 +94,29 @@ struct DemoArgs {
 
 #[derive(Args, Debug)]
 struct CommonArgs {
-    /// Linear steps over the full depth (the quality setting).
-    #[arg(long, default_value_t = 64)]
-    steps: u32,
-    /// Binary-search steps after the linear march (relief).
+    /// The quality: linear steps over the full depth (linear, relief, dig's `iter`),
+    /// pom's n_max, secant's samples per segment. Default: 15 for secant, 64 otherwise.
+    #[arg(long)]
+    steps: Option<u32>,
+    /// pom: n_min, the sample count at a head-on view.
+    #[arg(long, default_value_t = 8)]
+    min_steps: u32,
+    /// Binary-search steps after the linear march (relief, dig).
     #[arg(long, default_value_t = 5)]
     refine_steps: u32,
+    /// secant: split the ray into this many segments (the paper's multi-pass variant).
+    #[arg(long, default_value_t = 1)]
+    segments: u32,
+    /// dig: block size in pixels, N or WxH.
+    #[arg(long, default_value = "4x4", value_parser = parse_block)]
+    block: (u32, u32),
+    /// dig: interval widening eps1 = eps2 (default 1/steps).
+    #[arg(long)]
+    eps: Option<f32>,
+    /// pyramid: coarsest traversal level (0 = full detail) or `auto` (from the pixel's
+    /// texel footprint).
+    #[arg(long, default_value = "0")]
+    max_level: MaxLevel,
     /// Displacement depth in tile units.
     #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     depth_scale: f32,
@@ -107,6 +141,13 @@ struct CommonArgs {
     /// Frames to render; timings are medians over them.
     #[arg(long, default_value_t = 3)]
     frames: u32,
+}
+
+fn parse_block(s: &str) -> std::result::Result<(u32, u32), String> {
+    match s.trim().parse::<u32>() {
+        Ok(n) if n > 0 => Ok((n, n)),
+        _ => parse_size(s),
+    }
 }
 
 fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -134,8 +175,13 @@ impl CommonArgs {
             height: self.size.1,
             method,
             params: MethodParams {
-                steps: self.steps,
+                steps: self.steps.unwrap_or(method.default_steps()),
+                min_steps: self.min_steps,
                 refine_steps: self.refine_steps,
+                segments: self.segments,
+                block: [self.block.0, self.block.1],
+                eps: self.eps,
+                max_level: self.max_level,
             },
             scene: Scene {
                 geometry: self.geometry,
@@ -177,6 +223,9 @@ struct MetricsReport<'a> {
     error: ErrorSummary,
     nonfinite_pixels: u64,
     iterations: Iterations,
+    /// DIG methods only: the corner pass's iterations.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    corner_pass: Option<CornerPass>,
 }
 
 #[derive(Serialize)]
@@ -189,10 +238,47 @@ struct ErrorSummary {
     compared_pixels: u64,
 }
 
+/// The trace pass's per-pixel iteration counts over covered pixels (see
+/// `dispmap::heatmap::iteration_stats`).
 #[derive(Serialize)]
 struct Iterations {
     mean: f64,
     p99: f64,
+    max: f64,
+    /// Sum over covered pixels.
+    total: f64,
+}
+
+impl From<IterationStats> for Iterations {
+    fn from(s: IterationStats) -> Self {
+        Iterations {
+            mean: s.mean,
+            p99: s.p99,
+            max: s.max,
+            total: s.total,
+        }
+    }
+}
+
+/// The DIG corner pass: `corners` in the grid, the `total` and `mean` of their iteration
+/// counts, and `total_with_corners` = the trace pass's per-pixel total + `total`.
+#[derive(Serialize)]
+struct CornerPass {
+    corners: u64,
+    total: f64,
+    mean: f64,
+    total_with_corners: f64,
+}
+
+impl CornerPass {
+    fn new(corners: CornerStats, trace: &IterationStats) -> Self {
+        CornerPass {
+            corners: corners.corners,
+            total: corners.total,
+            mean: corners.mean,
+            total_with_corners: trace.total + corners.total,
+        }
+    }
 }
 
 impl From<&ErrorMetrics> for ErrorSummary {
@@ -282,24 +368,73 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
     args.common.check()?;
     let settings = args.common.settings(args.method);
     settings.validate()?;
-    output::check_writable(&args.out)?;
-    if let Some(m) = &args.metrics {
-        output::check_writable(m)?;
+    let dig = settings.method.needs().dig_corners;
+    if args.interval_map.is_some() && !dig {
+        bail!(
+            "invalid --interval-map: method {} has no depth interval grid (only dig and \
+             dig-guarded have one)",
+            settings.method
+        );
+    }
+    if let Some(max) = args.heatmap_max
+        && !(max.is_finite() && max > 0.0)
+    {
+        bail!("invalid --heatmap-max: {max} is not a positive finite number");
+    }
+    let outputs = [
+        ("--out", Some(&args.out)),
+        ("--metrics", args.metrics.as_ref()),
+        ("--heatmap", args.heatmap.as_ref()),
+        ("--interval-map", args.interval_map.as_ref()),
+    ];
+    for (option, path) in outputs {
+        if let Some(path) = path {
+            output::check_writable(path).with_context(|| format!("invalid {option}"))?;
+        }
     }
     let field = HeightField::load(&args.heightmap, args.convention)?;
     let ctx = Context::headless(options)?;
     {
         let mut renderer = Renderer::new(&ctx, &field, settings)?;
-        let (timings, color, error) = if args.metrics.is_some() {
+        let (timings, color, error, hits, rays) = if args.metrics.is_some() {
             let reference = Reference::new(&field, settings.scene.addressing());
             let frame_ref = renderer.reference(&reference)?;
             let m = renderer.measure(&frame_ref, args.common.frames)?;
-            (m.timings_ms, m.color, Some(m.error))
+            (m.timings_ms, m.color, Some(m.error), m.hits, frame_ref.rays)
         } else {
             let timings = renderer.render_frames(args.common.frames)?;
-            (timings, renderer.read_color()?, None)
+            let (hits, rays) = if args.heatmap.is_some() {
+                (renderer.read_hits()?, renderer.read_rays()?)
+            } else {
+                (Vec::new(), Vec::new())
+            };
+            (timings, renderer.read_color()?, None, hits, rays)
+        };
+        let covered = heatmap::coverage(&hits, Some(&rays));
+        let trace_iterations = heatmap::iteration_stats(&hits, &covered);
+        let corners = if dig && (args.metrics.is_some() || args.interval_map.is_some()) {
+            renderer.read_corners()?
+        } else {
+            None
         };
         output::write_png(&args.out, settings.width, settings.height, &color)?;
+        if let Some(path) = &args.heatmap {
+            let rgba = heatmap::iteration_heatmap(&hits, &covered, args.heatmap_max)?;
+            output::write_png(path, settings.width, settings.height, &rgba)?;
+        }
+        if let Some(path) = &args.interval_map {
+            let (grid, corners) = corners
+                .as_ref()
+                .context("the renderer kept no DIG corner grid")?;
+            let intervals = heatmap::block_intervals(*grid, corners, settings.params.dig_eps())?;
+            let rgba = heatmap::interval_map(
+                &intervals,
+                heatmap::block_count(*grid),
+                settings.params.block,
+                [settings.width, settings.height],
+            )?;
+            output::write_png(path, settings.width, settings.height, &rgba)?;
+        }
         if let (Some(path), Some(error)) = (&args.metrics, error) {
             let report = MetricsReport {
                 method: settings.method.name(),
@@ -316,10 +451,10 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
                 timings_ms: timings.iter().cloned().collect(),
                 error: (&error).into(),
                 nonfinite_pixels: error.nonfinite_pixels,
-                iterations: Iterations {
-                    mean: error.mean_iterations,
-                    p99: error.p99_iterations,
-                },
+                iterations: trace_iterations.into(),
+                corner_pass: corners
+                    .as_ref()
+                    .map(|(_, c)| CornerPass::new(heatmap::corner_stats(c), &trace_iterations)),
             };
             let json = serde_json::to_string_pretty(&report)?;
             output::write_atomic(path, json.as_bytes())?;
@@ -355,14 +490,17 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         .with_context(|| format!("cannot create {}", args.out_dir.display()))?;
     let ctx = Context::headless(options)?;
     println!(
-        "dispmap: {} on {} ({}), {}x{}, camera elevation {} deg, {} steps, median of {} frames",
+        "dispmap: {} on {} ({}), {}x{}, camera elevation {} deg, steps {}, median of {} frames",
         field.label(),
         ctx.info().name,
         ctx.info().driver,
         args.common.size.0,
         args.common.size.1,
         args.common.camera_elevation,
-        args.common.steps,
+        args.common
+            .steps
+            .map_or("per method (secant 15, others 64)".into(), |s| s
+                .to_string()),
         args.common.frames
     );
     {
@@ -373,7 +511,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         let path = args.out_dir.join("reference.png");
         output::write_png(&path, first.width, first.height, &frame_ref.color)?;
         println!(
-            "\n{:<8} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>10} {:>10} {:>9}",
+            "\n{:<11} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>10} {:>10} {:>9}",
             "method",
             "gbuffer",
             "trace ms",
@@ -398,7 +536,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             };
             let e = &m.error;
             println!(
-                "{:<8} {:>10.3} {:>10.3} {:>10.3} {:>10.3} {:>8.1} {:>10.3} {:>10.3} {:>10.3} {:>9.2}",
+                "{:<11} {:>10.3} {:>10.3} {:>10.3} {:>10.3} {:>8.1} {:>10.3} {:>10.3} {:>10.3} {:>9.2}",
                 method.name(),
                 t("gbuffer"),
                 t("trace"),

@@ -10,7 +10,7 @@ use crate::shaders::{self, Shader};
 
 /// An intersection method (CLI `--method` names in [`Method::name`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// One fetch at the entry point: the cost floor (plain bump mapping).
     Bump,
@@ -18,20 +18,58 @@ pub enum Method {
     Linear,
     /// Linear march then binary search (relief mapping).
     Relief,
+    /// Parallax occlusion mapping (Tatarchuk 2006): view-dependent step count,
+    /// piecewise-linear intersection of the last two samples.
+    Pom,
+    /// Ray casting with secant refinement (Yerex & Jagersand 2004), optionally in
+    /// `segments` passes.
+    Secant,
+    /// Depth interval grid (Judnich & Ling): corner pass, then a constrained march.
+    Dig,
+    /// DIG whose interval start is checked against the cell pyramid, with a pyramid
+    /// traversal where the check fails (beyond the papers).
+    DigGuarded,
+    /// Pyramidal displacement mapping (Oh, Ki & Lee 2006).
+    Pyramid,
+    /// Conservative cell-max pyramid traversal with the exact ray/bilinear-patch
+    /// intersection in the leaf (beyond the papers; after Tevs et al. 2008).
+    Exact,
+}
+
+/// What the finest level of a max-height pyramid bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PyramidKind {
+    /// Level 0 texel `(i, j)` bounds the bilinear surface over the texel's footprint
+    /// `[i, i + 1] x [j, j + 1] / size` (the quadtree of Oh et al., made conservative
+    /// for the bilinear surface).
+    Footprint,
+    /// Level 0 texel `(i, j)` bounds the bilinear *cell* between texel centres `(i, j)`
+    /// and `(i + 1, j + 1)`: the max of its 4 corner texels (exact traversal).
+    Cell,
 }
 
 /// Pre-passes and resources a method needs beyond the G-buffer and the height map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Needs {
-    /// The max-height pyramid (min-reduce chain).
-    pub pyramid: bool,
-    /// The DIG corner grid.
+    /// The max-height pyramid (min-reduce chain) and what its finest level bounds.
+    pub pyramid: Option<PyramidKind>,
+    /// The DIG corner grid (`dig_corners` pass).
     pub dig_corners: bool,
 }
 
 impl Method {
-    /// Every method, in report order (cheapest first).
-    pub const ALL: &'static [Method] = &[Method::Bump, Method::Linear, Method::Relief];
+    /// Every method, in report order (cheapest first, then the papers, then beyond).
+    pub const ALL: &'static [Method] = &[
+        Method::Bump,
+        Method::Linear,
+        Method::Relief,
+        Method::Pom,
+        Method::Secant,
+        Method::Dig,
+        Method::DigGuarded,
+        Method::Pyramid,
+        Method::Exact,
+    ];
 
     /// CLI name.
     pub fn name(self) -> &'static str {
@@ -39,6 +77,27 @@ impl Method {
             Method::Bump => "bump",
             Method::Linear => "linear",
             Method::Relief => "relief",
+            Method::Pom => "pom",
+            Method::Secant => "secant",
+            Method::Dig => "dig",
+            Method::DigGuarded => "dig-guarded",
+            Method::Pyramid => "pyramid",
+            Method::Exact => "exact",
+        }
+    }
+
+    /// The paper (or family) the method follows.
+    pub fn paper(self) -> &'static str {
+        match self {
+            Method::Bump => "bump mapping (cost floor)",
+            Method::Linear => "steep parallax mapping (McGuire & McGuire 2005)",
+            Method::Relief => "relief mapping (Policarpo, Oliveira & Comba 2005)",
+            Method::Pom => "parallax occlusion mapping (Tatarchuk 2006)",
+            Method::Secant => "displacement ray casting (Yerex & Jagersand 2004)",
+            Method::Dig => "depth interval grids (Judnich & Ling)",
+            Method::DigGuarded => "depth interval grids + pyramid guard (beyond the papers)",
+            Method::Pyramid => "pyramidal displacement mapping (Oh, Ki & Lee 2006)",
+            Method::Exact => "maximum-mipmap traversal + exact bilinear patch (beyond the papers)",
         }
     }
 
@@ -48,12 +107,45 @@ impl Method {
             Method::Bump => shaders::TRACE_BUMP_COMP,
             Method::Linear => shaders::TRACE_LINEAR_COMP,
             Method::Relief => shaders::TRACE_RELIEF_COMP,
+            Method::Pom => shaders::TRACE_POM_COMP,
+            Method::Secant => shaders::TRACE_SECANT_COMP,
+            Method::Dig => shaders::TRACE_DIG_COMP,
+            Method::DigGuarded => shaders::TRACE_DIG_GUARDED_COMP,
+            Method::Pyramid => shaders::TRACE_PYRAMID_COMP,
+            Method::Exact => shaders::TRACE_EXACT_COMP,
         }
     }
 
-    /// What the method needs besides the G-buffer.
+    /// What the method needs besides the G-buffer (the renderer builds only that).
     pub fn needs(self) -> Needs {
-        Needs::default()
+        match self {
+            Method::Dig => Needs {
+                pyramid: None,
+                dig_corners: true,
+            },
+            Method::DigGuarded => Needs {
+                pyramid: Some(PyramidKind::Cell),
+                dig_corners: true,
+            },
+            Method::Pyramid => Needs {
+                pyramid: Some(PyramidKind::Footprint),
+                dig_corners: false,
+            },
+            Method::Exact => Needs {
+                pyramid: Some(PyramidKind::Cell),
+                dig_corners: false,
+            },
+            _ => Needs::default(),
+        }
+    }
+
+    /// The default quality (`--steps`): the paper's 15 samples for `secant`, 64 for
+    /// the marching methods (unused by `bump`, `pyramid` and `exact`).
+    pub fn default_steps(self) -> u32 {
+        match self {
+            Method::Secant => 15,
+            _ => 64,
+        }
     }
 }
 
@@ -84,31 +176,109 @@ impl std::str::FromStr for Method {
 /// linear step is far below the height map's own precision.
 pub const MAX_STEPS: u32 = 1 << 16;
 
-/// Parameters shared by the methods.
+/// Largest DIG block side in pixels.
+pub const MAX_BLOCK: u32 = 64;
+
+/// Largest `secant` segment count.
+pub const MAX_SEGMENTS: u32 = 64;
+
+/// The coarsest level the `pyramid` method may stop at (minification).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MaxLevel {
+    /// Always traverse down to this level (0 = full detail).
+    Fixed(u32),
+    /// From the pixel's texel footprint (log2 of the texels a pixel spans).
+    Auto,
+}
+
+impl std::str::FromStr for MaxLevel {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        if s == "auto" {
+            return Ok(MaxLevel::Auto);
+        }
+        s.parse::<u32>()
+            .ok()
+            .filter(|&l| l <= 31)
+            .map(MaxLevel::Fixed)
+            .ok_or_else(|| {
+                Error::invalid(
+                    "max-level",
+                    format!("'{s}' is neither 'auto' nor a level in 0..=31"),
+                )
+            })
+    }
+}
+
+/// Parameters of the methods; each method reads the ones it documents.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MethodParams {
-    /// Linear steps over the full depth (the quality setting; ignored by `bump`).
+    /// The quality: linear steps over the full depth (`linear`, `relief`, `dig`'s corner
+    /// pass and `iter`), `n_max` of `pom`, samples per segment of `secant`.
     pub steps: u32,
-    /// Binary-search steps after the linear march (`relief`).
+    /// `n_min` of `pom` (used as `min(min_steps, steps)`).
+    pub min_steps: u32,
+    /// Binary-search steps after the linear march (`relief`, `dig`: `I_B`).
     pub refine_steps: u32,
+    /// `secant`: the ray is split into this many segments, each sampled `steps` times.
+    pub segments: u32,
+    /// `dig`: block size in pixels (x, y).
+    pub block: [u32; 2],
+    /// `dig`: `eps1 = eps2` widening of the corner interval; `None` = `1 / steps`.
+    pub eps: Option<f32>,
+    /// `pyramid`: the coarsest traversal level (minification).
+    pub max_level: MaxLevel,
 }
 
 impl Default for MethodParams {
     fn default() -> Self {
         MethodParams {
             steps: 64,
+            min_steps: 8,
             refine_steps: 5,
+            segments: 1,
+            block: [4, 4],
+            eps: None,
+            max_level: MaxLevel::Fixed(0),
         }
     }
 }
 
 impl MethodParams {
+    /// The defaults of `method` (its default step count).
+    pub fn for_method(method: Method) -> Self {
+        MethodParams {
+            steps: method.default_steps(),
+            ..Default::default()
+        }
+    }
+
+    /// The given step count, other values default.
+    pub fn with_steps(steps: u32) -> Self {
+        MethodParams {
+            steps,
+            ..Default::default()
+        }
+    }
+
+    /// DIG's interval widening: `eps` or `1 / steps`.
+    pub fn dig_eps(&self) -> f32 {
+        self.eps.unwrap_or(1.0 / self.steps.max(1) as f32)
+    }
+
     /// Checks the ranges; the error names the option.
     pub fn validate(&self) -> Result<()> {
         if self.steps == 0 || self.steps > MAX_STEPS {
             return Err(Error::invalid(
                 "steps",
                 format!("{} is outside 1..={MAX_STEPS}", self.steps),
+            ));
+        }
+        if self.min_steps == 0 || self.min_steps > MAX_STEPS {
+            return Err(Error::invalid(
+                "min-steps",
+                format!("{} is outside 1..={MAX_STEPS}", self.min_steps),
             ));
         }
         if self.refine_steps > 32 {
@@ -118,6 +288,37 @@ impl MethodParams {
                     "{} is outside 0..=32 (32 halvings exceed float precision)",
                     self.refine_steps
                 ),
+            ));
+        }
+        if self.segments == 0 || self.segments > MAX_SEGMENTS {
+            return Err(Error::invalid(
+                "segments",
+                format!("{} is outside 1..={MAX_SEGMENTS}", self.segments),
+            ));
+        }
+        if self.block.iter().any(|&b| b == 0 || b > MAX_BLOCK) {
+            return Err(Error::invalid(
+                "block",
+                format!(
+                    "{}x{} is outside 1..={MAX_BLOCK} per side",
+                    self.block[0], self.block[1]
+                ),
+            ));
+        }
+        if let Some(eps) = self.eps
+            && !(0.0..=1.0).contains(&eps)
+        {
+            return Err(Error::invalid(
+                "eps",
+                format!("{eps} is outside 0..=1 (a fraction of the full depth)"),
+            ));
+        }
+        if let MaxLevel::Fixed(l) = self.max_level
+            && l > 31
+        {
+            return Err(Error::invalid(
+                "max-level",
+                format!("{l} is outside 0..=31"),
             ));
         }
         Ok(())
@@ -132,7 +333,11 @@ mod tests {
     fn names_round_trip() {
         for m in Method::ALL {
             assert_eq!(m.name().parse::<Method>().unwrap(), *m);
-            assert!(m.shader().name.ends_with(&format!("{}.comp", m.name())));
+            assert!(
+                m.shader()
+                    .name
+                    .ends_with(&format!("{}.comp", m.name().replace('-', "_")))
+            );
         }
         let err = "nope".parse::<Method>().unwrap_err().to_string();
         assert!(err.contains("nope") && err.contains("relief"), "{err}");
@@ -140,14 +345,44 @@ mod tests {
 
     #[test]
     fn params_are_checked() {
-        assert!(
-            MethodParams {
-                steps: 0,
-                refine_steps: 5
-            }
-            .validate()
-            .is_err()
-        );
+        let bad = [
+            ("steps", MethodParams::with_steps(0)),
+            (
+                "min-steps",
+                MethodParams {
+                    min_steps: 0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "segments",
+                MethodParams {
+                    segments: 0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "block",
+                MethodParams {
+                    block: [4, 0],
+                    ..Default::default()
+                },
+            ),
+            (
+                "eps",
+                MethodParams {
+                    eps: Some(f32::NAN),
+                    ..Default::default()
+                },
+            ),
+        ];
+        for (name, params) in bad {
+            let err = params.validate().unwrap_err().to_string();
+            assert!(err.contains(name), "{name}: {err}");
+        }
         assert!(MethodParams::default().validate().is_ok());
+        assert_eq!("auto".parse::<MaxLevel>().unwrap(), MaxLevel::Auto);
+        assert_eq!("3".parse::<MaxLevel>().unwrap(), MaxLevel::Fixed(3));
+        assert!("-1".parse::<MaxLevel>().is_err());
     }
 }

@@ -1,12 +1,20 @@
 //! The standalone renderer: owns the images and passes of one frame size and runs
-//! `gbuffer -> trace -> shade` on the context's queue, each pass between timestamps.
+//! `gbuffer -> [pyramid] -> [dig_corners] -> trace -> shade` on the context's queue,
+//! each pass between timestamps. It builds only what the method needs ([`Method::needs`]):
+//! the pyramid (and its pass) only for the pyramid methods, the corner grid only for DIG.
+//! The pyramid is built in the first frame after the method asks for it (the height map
+//! does not change during a renderer's life) and reported as the `pyramid` pass of that
+//! frame only.
 //!
 //! Barriers and layouts per frame (the contract each pass documents):
 //!
 //! 1. G-buffer images: discarded (`UNDEFINED`, after last frame's compute reads) ->
 //!    attachment layouts; `gbuffer` clears and writes them.
-//! 2. G-buffer -> `SHADER_READ_ONLY_OPTIMAL` for compute; hit buffer: discarded ->
-//!    `GENERAL` for storage writes; `trace` writes the hits.
+//! 2. G-buffer -> `SHADER_READ_ONLY_OPTIMAL` for compute. When it is (re)built, the
+//!    pyramid pass takes its image from discarded to `SHADER_READ_ONLY_OPTIMAL` itself.
+//!    DIG: corner grid discarded -> `GENERAL`, `dig_corners` writes it, then ->
+//!    `SHADER_READ_ONLY_OPTIMAL`. Hit buffer: discarded -> `GENERAL` for storage writes;
+//!    `trace` writes the hits.
 //! 3. Hit buffer: storage write -> storage read (`GENERAL`); colour: discarded ->
 //!    `GENERAL`; `shade` writes the colour.
 //!
@@ -20,9 +28,11 @@ use crate::gpu::commands::{read_image, upload_image};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{HeightTexture, Image, OneShot};
 use crate::heightfield::HeightField;
-use crate::method::{Method, MethodParams};
+use crate::method::{Method, MethodParams, Needs};
 use crate::metrics::{self, ErrorMetrics, HitTexel, MapGeometry};
+use crate::passes::dig::{Corner, CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::{GBuffer, GBufferPass};
+use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::{COLOR_FORMAT, ShadeInputs, ShadePass};
 use crate::passes::trace::{HIT_FORMAT, TraceInputs, TracePass};
 use crate::reference::{Hit, Ray, Reference};
@@ -105,6 +115,38 @@ pub struct Renderer<'a> {
     gbuffer_pass: GBufferPass,
     trace: TracePass,
     shade: ShadePass,
+    /// What the method needs, built by [`Renderer::prepare`].
+    extras: Extras,
+}
+
+/// The resources and passes only some methods need.
+#[derive(Default)]
+struct Extras {
+    pyramid_pass: Option<PyramidPass>,
+    pyramid: Option<Pyramid>,
+    pyramid_built: bool,
+    /// GPU milliseconds of the last pyramid build.
+    pyramid_ms: Option<f64>,
+    corner_pass: Option<DigCornerPass>,
+    corners: Option<CornerGrid>,
+}
+
+impl Extras {
+    fn destroy(&mut self, ctx: &Context) {
+        if let Some(p) = &mut self.pyramid_pass {
+            p.destroy(ctx);
+        }
+        if let Some(p) = &mut self.pyramid {
+            p.destroy(ctx);
+        }
+        if let Some(p) = &mut self.corner_pass {
+            p.destroy(ctx);
+        }
+        if let Some(c) = &mut self.corners {
+            c.destroy(ctx);
+        }
+        *self = Extras::default();
+    }
 }
 
 impl<'a> Renderer<'a> {
@@ -170,7 +212,7 @@ impl<'a> Renderer<'a> {
         parts.trace = Some(TracePass::new(ctx, settings.method)?);
         parts.shade = Some(ShadePass::new(ctx)?);
         let built = "every part was built above";
-        Ok(Renderer {
+        let mut renderer = Renderer {
             ctx,
             settings,
             shot: parts.shot.take().expect(built),
@@ -182,7 +224,68 @@ impl<'a> Renderer<'a> {
             gbuffer_pass: parts.gbuffer_pass.take().expect(built),
             trace: parts.trace.take().expect(built),
             shade: parts.shade.take().expect(built),
-        })
+            extras: Extras::default(),
+        };
+        // On failure the renderer's Drop destroys everything built so far.
+        renderer.prepare()?;
+        Ok(renderer)
+    }
+
+    /// Builds what the current method needs and drops what it does not.
+    fn prepare(&mut self) -> Result<()> {
+        let ctx = self.ctx;
+        let Needs {
+            pyramid,
+            dig_corners,
+        } = self.settings.method.needs();
+        let frame = self.frame_size();
+        let block = self.settings.params.block;
+        let map_size = self.height.size();
+        let addressing = self.height.addressing;
+        let x = &mut self.extras;
+        match pyramid {
+            Some(kind) => {
+                if x.pyramid_pass.is_none() {
+                    x.pyramid_pass = Some(PyramidPass::new(ctx)?);
+                }
+                if x.pyramid.as_ref().is_none_or(|p| p.kind != kind) {
+                    if let Some(mut old) = x.pyramid.take() {
+                        old.destroy(ctx);
+                    }
+                    x.pyramid_built = false;
+                    x.pyramid_ms = None;
+                    x.pyramid = Some(Pyramid::new(ctx, map_size, kind, addressing)?);
+                }
+            }
+            None => {
+                if let Some(mut p) = x.pyramid_pass.take() {
+                    p.destroy(ctx);
+                }
+                if let Some(mut p) = x.pyramid.take() {
+                    p.destroy(ctx);
+                }
+                x.pyramid_built = false;
+            }
+        }
+        if dig_corners {
+            if x.corner_pass.is_none() {
+                x.corner_pass = Some(DigCornerPass::new(ctx)?);
+            }
+            if x.corners.as_ref().is_none_or(|c| c.block != block) {
+                if let Some(mut old) = x.corners.take() {
+                    old.destroy(ctx);
+                }
+                x.corners = Some(CornerGrid::new(ctx, frame, block)?);
+            }
+        } else {
+            if let Some(mut p) = x.corner_pass.take() {
+                p.destroy(ctx);
+            }
+            if let Some(mut c) = x.corners.take() {
+                c.destroy(ctx);
+            }
+        }
+        Ok(())
     }
 
     /// The settings in use.
@@ -200,7 +303,7 @@ impl<'a> Renderer<'a> {
         }
         self.settings.method = method;
         self.settings.params = params;
-        Ok(())
+        self.prepare()
     }
 
     /// Changes camera, light or depth scale (the geometry and addressing must stay).
@@ -272,7 +375,52 @@ impl<'a> Renderer<'a> {
             DISCARD,
             Access::COMPUTE_STORAGE_WRITE,
         ));
+        if let Some(corners) = &self.extras.corners {
+            to_trace.push(sync::image_barrier(
+                corners.image.raw,
+                corners.image.range(),
+                DISCARD,
+                Access::COMPUTE_STORAGE_WRITE,
+            ));
+        }
         sync::record(ctx, cmd, &to_trace);
+
+        if let (Some(pass), Some(pyramid), false) = (
+            &self.extras.pyramid_pass,
+            &self.extras.pyramid,
+            self.extras.pyramid_built,
+        ) {
+            ctx.begin_label(cmd, "pyramid");
+            self.timer.begin(ctx, cmd, "pyramid")?;
+            pass.record(ctx, cmd, &self.height, pyramid);
+            self.timer.end(ctx, cmd);
+            ctx.end_label(cmd);
+        }
+        if let (Some(pass), Some(corners)) = (&self.extras.corner_pass, &self.extras.corners) {
+            ctx.begin_label(cmd, "dig_corners");
+            self.timer.begin(ctx, cmd, "dig_corners")?;
+            pass.record(
+                ctx,
+                cmd,
+                &self.gbuffer,
+                &self.height,
+                corners,
+                self.settings.params.steps,
+            );
+            self.timer.end(ctx, cmd);
+            ctx.end_label(cmd);
+            sync::record(
+                ctx,
+                cmd,
+                &[sync::image_barrier(
+                    corners.image.raw,
+                    corners.image.range(),
+                    Access::COMPUTE_STORAGE_WRITE,
+                    Access::COMPUTE_SAMPLED,
+                )],
+            );
+        }
+
         ctx.begin_label(cmd, "trace");
         self.timer.begin(ctx, cmd, "trace")?;
         self.trace.record(
@@ -282,15 +430,44 @@ impl<'a> Renderer<'a> {
                 gbuffer: &self.gbuffer,
                 height: &self.height,
                 hit: &self.hit,
+                pyramid: self.extras.pyramid.as_ref(),
+                corners: self.extras.corners.as_ref(),
             },
             &self.settings.params,
-        );
+            scene.depth_scale,
+        )?;
         self.timer.end(ctx, cmd);
         ctx.end_label(cmd);
 
         self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE)?;
         self.shot.submit_and_wait(ctx)?;
-        self.timer.read(ctx)
+        let times = self.timer.read(ctx)?;
+        if self.extras.pyramid.is_some() && !self.extras.pyramid_built {
+            self.extras.pyramid_built = true;
+            self.extras.pyramid_ms = times.iter().find(|(n, _)| *n == "pyramid").map(|t| t.1);
+        }
+        Ok(times)
+    }
+
+    /// The last frame's DIG corner grid (`None` unless the method is a DIG): the grid size
+    /// in corners and the corners row by row.
+    pub fn read_corners(&self) -> Result<Option<([u32; 2], Vec<Corner>)>> {
+        match &self.extras.corners {
+            Some(c) => Ok(Some((
+                c.size(),
+                c.read(self.ctx, &self.shot, Access::COMPUTE_SAMPLED)?,
+            ))),
+            None => Ok(None),
+        }
+    }
+
+    /// The pyramid's levels (logical sizes, row by row); `None` unless the method uses
+    /// one and a frame has built it.
+    pub fn read_pyramid(&self) -> Result<Option<Vec<Vec<f32>>>> {
+        match (&self.extras.pyramid, self.extras.pyramid_built) {
+            (Some(p), true) => Ok(Some(p.read_levels(self.ctx, &self.shot)?)),
+            _ => Ok(None),
+        }
     }
 
     fn record_shade(
@@ -337,24 +514,36 @@ impl<'a> Renderer<'a> {
     }
 
     /// Renders `frames` frames and returns the median time of each pass and of their
-    /// sum (`total`), in pass order.
+    /// sum (`total`, per frame: without the one-off pyramid build), in pass order. The
+    /// pyramid is listed with the time of its (one) build, whichever frame ran it.
     pub fn render_frames(&mut self, frames: u32) -> Result<Vec<(String, f64)>> {
         let mut samples: Vec<(&'static str, Vec<f64>)> = Vec::new();
         let mut totals = Vec::new();
         for _ in 0..frames.max(1) {
             let times = self.render()?;
-            totals.push(times.iter().map(|(_, ms)| ms).sum());
-            for (name, ms) in times {
+            totals.push(
+                times
+                    .iter()
+                    .filter(|(n, _)| *n != "pyramid")
+                    .map(|(_, ms)| ms)
+                    .sum(),
+            );
+            for (name, ms) in times.into_iter().filter(|(n, _)| *n != "pyramid") {
                 match samples.iter_mut().find(|(n, _)| *n == name) {
                     Some((_, v)) => v.push(ms),
                     None => samples.push((name, vec![ms])),
                 }
             }
         }
-        let mut out: Vec<(String, f64)> = samples
-            .into_iter()
-            .map(|(n, v)| (n.to_string(), crate::timing::median(&v)))
-            .collect();
+        let mut out: Vec<(String, f64)> = Vec::new();
+        if let (Some(ms), Some(_)) = (self.extras.pyramid_ms, &self.extras.pyramid) {
+            out.push(("pyramid".into(), ms));
+        }
+        out.extend(
+            samples
+                .into_iter()
+                .map(|(n, v)| (n.to_string(), crate::timing::median(&v))),
+        );
         out.push(("total".into(), crate::timing::median(&totals)));
         Ok(out)
     }
@@ -493,6 +682,7 @@ impl Drop for Renderer<'_> {
         unsafe {
             let _ = ctx.device().device_wait_idle();
         }
+        self.extras.destroy(ctx);
         self.shade.destroy(ctx);
         self.trace.destroy(ctx);
         self.gbuffer_pass.destroy(ctx);

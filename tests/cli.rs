@@ -234,3 +234,150 @@ fn bad_input_is_named_and_leaves_no_file() {
     assert!(!unwritable.status.success());
     assert!(String::from_utf8_lossy(&unwritable.stderr).contains("/no/such/dir"));
 }
+
+/// `render` with the rocks map at a tiny size, the given extra arguments, PNG `out`.
+fn render_small(method: &str, out: &Path, extra: &[&std::ffi::OsStr]) -> std::process::Output {
+    dispmap()
+        .args(["render", "--heightmap"])
+        .arg(asset("rocks_depth.jpg"))
+        .args(["--convention", "depth", "--method", method])
+        .args(["--size", "64x48", "--frames", "1", "--steps", "32"])
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+#[test]
+fn dig_writes_heatmap_interval_map_and_corner_iterations() {
+    let dir = scratch("dig-maps");
+    let (png, heat, intervals, json) = (
+        dir.join("d.png"),
+        dir.join("h.png"),
+        dir.join("i.png"),
+        dir.join("m.json"),
+    );
+    let out = render_small(
+        "dig",
+        &png,
+        &[
+            "--heatmap".as_ref(),
+            heat.as_ref(),
+            "--interval-map".as_ref(),
+            intervals.as_ref(),
+            "--metrics".as_ref(),
+            json.as_ref(),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    for path in [&png, &heat, &intervals] {
+        let img = image::open(path).unwrap();
+        assert_eq!((img.width(), img.height()), (64, 48), "{}", path.display());
+    }
+    // The heat map uses more than one colour; the interval map is grey or red.
+    let heat = image::open(&heat).unwrap().to_rgb8();
+    let first = heat.get_pixel(0, 0);
+    assert!(heat.pixels().any(|p| p != first), "flat heat map");
+    let intervals = image::open(&intervals).unwrap().to_rgb8();
+    assert!(
+        intervals
+            .pixels()
+            .all(|p| p.0 == [255, 0, 0] || (p[0] == p[1] && p[1] == p[2]))
+    );
+    assert!(
+        intervals.pixels().any(|p| p.0 != [255, 0, 0]),
+        "no block has an interval"
+    );
+    let v = read_json(&json);
+    let it = &v["iterations"];
+    let (mean, p99, max) = (
+        it["mean"].as_f64().unwrap(),
+        it["p99"].as_f64().unwrap(),
+        it["max"].as_f64().unwrap(),
+    );
+    assert!(mean > 0.0 && max >= p99 && p99 >= mean, "{it}");
+    let cp = &v["corner_pass"];
+    let corners = cp["corners"].as_u64().unwrap();
+    assert_eq!(corners, (64 / 4 + 1) * (48 / 4 + 1));
+    let total = cp["total"].as_f64().unwrap();
+    assert!(total > 0.0, "{cp}");
+    assert!((cp["mean"].as_f64().unwrap() - total / corners as f64).abs() < 1e-9);
+    let with = cp["total_with_corners"].as_f64().unwrap();
+    assert!(
+        (with - total - it["total"].as_f64().unwrap()).abs() < 1e-6,
+        "{v}"
+    );
+    let ms = v["timings_ms"]["dig_corners"].as_f64().unwrap_or(-1.0);
+    assert!(ms > 0.0, "timings_ms.dig_corners = {ms}");
+}
+
+#[test]
+fn interval_map_needs_a_dig_method() {
+    let dir = scratch("interval-relief");
+    let (png, intervals) = (dir.join("r.png"), dir.join("i.png"));
+    let out = render_small(
+        "relief",
+        &png,
+        &["--interval-map".as_ref(), intervals.as_ref()],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("--interval-map"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!png.exists() && !intervals.exists());
+}
+
+#[test]
+fn exact_reports_the_pyramid_build_and_no_corner_pass() {
+    let dir = scratch("exact");
+    let (png, json) = (dir.join("e.png"), dir.join("e.json"));
+    let out = render_small("exact", &png, &["--metrics".as_ref(), json.as_ref()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let v = read_json(&json);
+    let ms = v["timings_ms"]["pyramid"].as_f64().unwrap_or(-1.0);
+    assert!(ms > 0.0, "timings_ms.pyramid = {ms}");
+    assert!(v.get("corner_pass").is_none(), "{v}");
+    assert!(v["iterations"]["max"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn unwritable_heatmap_is_named_and_nothing_is_written() {
+    let dir = scratch("bad-heatmap");
+    let png = dir.join("out.png");
+    let out = render_small(
+        "relief",
+        &png,
+        &["--heatmap".as_ref(), "/no/such/dir/h.png".as_ref()],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("--heatmap"), "{stderr}");
+    assert!(stderr.contains("/no/such/dir"), "{stderr}");
+    assert!(!png.exists());
+    let folder = dir.join("a-folder");
+    std::fs::create_dir_all(&folder).unwrap();
+    let out = render_small("relief", &png, &["--heatmap".as_ref(), folder.as_ref()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--heatmap"));
+    assert!(!png.exists());
+    let out = render_small(
+        "relief",
+        &png,
+        &[
+            "--heatmap".as_ref(),
+            dir.join("h.png").as_os_str(),
+            "--heatmap-max".as_ref(),
+            "0".as_ref(),
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--heatmap-max"));
+    assert!(!png.exists() && !dir.join("h.png").exists());
+}

@@ -15,10 +15,7 @@ fn settings(method: Method, steps: u32, elevation: f32) -> RenderSettings {
         width: 256,
         height: 144,
         method,
-        params: MethodParams {
-            steps,
-            refine_steps: 5,
-        },
+        params: MethodParams::with_steps(steps),
         scene: Scene {
             camera: Camera {
                 elevation_deg: elevation,

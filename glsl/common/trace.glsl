@@ -1,7 +1,9 @@
 // The trace pass: everything a method shares. A method file defines
-//     Hit trace_ray(Ray ray);
+//     Hit trace_ray(Ray ray, ivec2 pixel);
 // after including this file; `main` below reads the G-buffer, calls it and writes the
 // hit buffer. Bindings and push constants mirror src/passes/trace.rs and src/abi.rs.
+// Methods that read more (the pyramid, the DIG corner grid) declare those bindings in
+// their own includes (pyramid.glsl, dig.glsl).
 #ifndef DISPMAP_TRACE_GLSL
 #define DISPMAP_TRACE_GLSL
 
@@ -20,34 +22,30 @@ layout(set = 0, binding = 3, rgba32f) uniform writeonly image2D u_hit;
 layout(push_constant) uniform TraceParams {
     uvec2 frame_size;   // pixels
     uvec2 map_size;     // texels
-    uint steps;         // linear steps over the full depth
+    uint steps;         // linear steps over the full depth (the quality)
     uint refine_steps;  // binary-search steps after the linear march
     uint addressing;    // ADDRESSING_*
-    uint flags;         // reserved, 0
+    uint flags;         // TRACE_FLAG_*
+    uint min_steps;     // pom: n_min
+    uint segments;      // secant: segments of the ray
+    uvec2 block;        // dig: block size in pixels
+    uvec2 corner_size;  // dig: corner-grid size
+    float eps;          // dig: eps1 = eps2
+    uint max_level;     // pyramid: coarsest traversal level
+    uint pyramid_levels;// levels of the bound pyramid (0: none)
+    float depth_scale;  // displacement depth in tile units
 } pc;
 
-#include "heightfield.glsl"
+// The pyramid method picks its coarsest level from the pixel's texel footprint.
+#define TRACE_FLAG_AUTO_LEVEL 1u
 
-// The tangent-space ray: uv(h) = uv0 + (1 - h) * P, h from 1 (entry) down to 0.
-struct Ray {
-    vec2 uv0;
-    vec2 P;
-};
+#include "march.glsl"
 
 struct Hit {
     vec2 uv;
     float h;           // NO_HIT_HEIGHT for a miss
-    uint iterations;   // height-field fetches spent
+    uint iterations;   // height-field (or pyramid) fetches spent
 };
-
-vec2 ray_uv(Ray ray, float h) {
-    return ray.uv0 + (1.0 - h) * ray.P;
-}
-
-// True when a clamp-addressed ray has left the decal at uv (the silhouette).
-bool leaves_domain(vec2 uv) {
-    return pc.addressing == ADDRESSING_CLAMP && (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))));
-}
 
 Hit hit_at(Ray ray, float h, uint iterations) {
     return Hit(ray_uv(ray, h), h, iterations);
@@ -57,31 +55,22 @@ Hit miss(Ray ray, uint iterations) {
     return Hit(ray.uv0, NO_HIT_HEIGHT, iterations);
 }
 
-// Fixed-step march from h = 1 down to h = 0 in `steps` equal steps, stopping at the
-// first sample on or below the surface (H >= h). Returns the index of that sample
-// (0 = the entry point) in `below`, or false when a clamp ray leaves the domain first.
-// Every sample is one height fetch, counted in `iterations`.
-bool linear_march(Ray ray, uint steps, out uint below, inout uint iterations) {
-    float dh = 1.0 / float(steps);
-    for (uint i = 0u; i <= steps; ++i) {
-        float h = 1.0 - float(i) * dh;
-        vec2 uv = ray_uv(ray, h);
-        if (leaves_domain(uv)) {
-            below = i;
-            return false;
-        }
+// Bisection between a height above the surface and one on or below it: `steps` halvings
+// (one fetch each); returns the midpoint of the final interval.
+float bisect(Ray ray, float h_above, float h_below, uint steps, inout uint iterations) {
+    for (uint i = 0u; i < steps; ++i) {
+        float h_mid = 0.5 * (h_above + h_below);
         iterations += 1u;
-        if (height_at(uv) >= h) {
-            below = i;
-            return true;
+        if (height_at(ray_uv(ray, h_mid)) >= h_mid) {
+            h_below = h_mid;
+        } else {
+            h_above = h_mid;
         }
     }
-    // Unreachable: at h = 0 every height satisfies H >= 0.
-    below = steps;
-    return true;
+    return 0.5 * (h_above + h_below);
 }
 
-Hit trace_ray(Ray ray);
+Hit trace_ray(Ray ray, ivec2 pixel);
 
 void main() {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -93,7 +82,7 @@ void main() {
         return;
     }
     vec4 g = texelFetch(u_ray, pixel, 0);
-    Hit hit = trace_ray(Ray(g.xy, g.zw));
+    Hit hit = trace_ray(Ray(g.xy, g.zw), pixel);
     imageStore(u_hit, pixel, vec4(hit.uv, hit.h, float(hit.iterations)));
 }
 

@@ -4,7 +4,7 @@
 // plain bump mapping. Also the far-LOD fallback of the methods that blend to it.
 #include "trace.glsl"
 
-Hit trace_ray(Ray ray) {
+Hit trace_ray(Ray ray, ivec2 pixel) {
     if (leaves_domain(ray.uv0)) {
         return miss(ray, 0u);
     }

@@ -4,7 +4,7 @@
 // the hit is that sample (no refinement), so the error is up to one step.
 #include "trace.glsl"
 
-Hit trace_ray(Ray ray) {
+Hit trace_ray(Ray ray, ivec2 pixel) {
     uint iterations = 0u;
     uint below;
     if (!linear_march(ray, max(pc.steps, 1u), below, iterations)) {

@@ -4,7 +4,7 @@
 // surface and the first one below it; the hit is the midpoint of the final interval.
 #include "trace.glsl"
 
-Hit trace_ray(Ray ray) {
+Hit trace_ray(Ray ray, ivec2 pixel) {
     uint steps = max(pc.steps, 1u);
     uint iterations = 0u;
     uint below;
@@ -16,15 +16,6 @@ Hit trace_ray(Ray ray) {
     }
     float dh = 1.0 / float(steps);
     float h_below = 1.0 - float(below) * dh;
-    float h_above = h_below + dh;
-    for (uint i = 0u; i < pc.refine_steps; ++i) {
-        float h_mid = 0.5 * (h_above + h_below);
-        iterations += 1u;
-        if (height_at(ray_uv(ray, h_mid)) >= h_mid) {
-            h_below = h_mid;
-        } else {
-            h_above = h_mid;
-        }
-    }
-    return hit_at(ray, 0.5 * (h_above + h_below), iterations);
+    float h = bisect(ray, h_below + dh, h_below, pc.refine_steps, iterations);
+    return hit_at(ray, h, iterations);
 }

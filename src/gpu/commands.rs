@@ -202,7 +202,25 @@ pub fn read_image(
     image: &Image,
     current: Access,
 ) -> Result<Vec<u8>> {
-    let extent = level_extent(image, 0);
+    read_image_level(ctx, shot, image, 0, current)
+}
+
+/// Reads mip level `level` of `image` (every level in `current`) back to tightly packed
+/// bytes; the level is returned to `current` afterwards.
+pub fn read_image_level(
+    ctx: &Context,
+    shot: &OneShot,
+    image: &Image,
+    level: u32,
+    current: Access,
+) -> Result<Vec<u8>> {
+    if level >= image.mip_levels {
+        return Err(Error::invalid(
+            image.name(),
+            format!("no mip level {level} (it has {})", image.mip_levels),
+        ));
+    }
+    let extent = level_extent(image, level);
     let size = texel_bytes(image)? * extent.width as u64 * extent.height as u64;
     let mut staging = Buffer::new(
         ctx,
@@ -214,6 +232,7 @@ pub fn read_image(
     let result = (|| {
         let cmd = shot.begin(ctx)?;
         let range = vk::ImageSubresourceRange {
+            base_mip_level: level,
             level_count: 1,
             ..image.range()
         };
@@ -230,7 +249,7 @@ pub fn read_image(
         let region = vk::BufferImageCopy::default()
             .image_subresource(vk::ImageSubresourceLayers {
                 aspect_mask: range.aspect_mask,
-                mip_level: 0,
+                mip_level: level,
                 base_array_layer: 0,
                 layer_count: 1,
             })

@@ -21,23 +21,22 @@ pub struct ComputePipeline {
 pub const LOCAL_SIZE: [u32; 2] = [8, 8];
 
 impl ComputePipeline {
-    /// Builds a pipeline from `shader` whose set 0 has one binding per entry of
-    /// `bindings` (binding `i` has type `bindings[i]`) and `push_constant_size` bytes of
-    /// push constants.
+    /// Builds a pipeline from `shader` whose set 0 has the `(binding, type)` pairs of
+    /// `bindings` (numbers may have gaps: a method declares only what it reads) and
+    /// `push_constant_size` bytes of push constants.
     pub fn new(
         ctx: &Context,
         name: &str,
         shader: &Shader,
-        bindings: &[vk::DescriptorType],
+        bindings: &[(u32, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
         let dev = ctx.device();
         let binding_info: Vec<_> = bindings
             .iter()
-            .enumerate()
-            .map(|(i, &ty)| {
+            .map(|&(i, ty)| {
                 vk::DescriptorSetLayoutBinding::default()
-                    .binding(i as u32)
+                    .binding(i)
                     .descriptor_type(ty)
                     .descriptor_count(1)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
@@ -132,6 +131,15 @@ impl ComputePipeline {
         }
         self.pipeline = vk::Pipeline::null();
     }
+}
+
+/// `(i, types[i])` for every entry: bindings numbered from 0 without gaps.
+pub fn numbered(types: &[vk::DescriptorType]) -> Vec<(u32, vk::DescriptorType)> {
+    types
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| (i as u32, t))
+        .collect()
 }
 
 /// A descriptor write for binding `binding` of an image (sampled or storage).

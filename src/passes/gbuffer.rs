@@ -4,9 +4,14 @@
 //! | attachment | format | contents |
 //! |---|---|---|
 //! | `ray` | `R32G32B32A32_SFLOAT` | entry `uv0` (tile-local for repeat addressing) and parallax vector `P` |
-//! | `normal` | `R16G16B16A16_SFLOAT` | world normal `N`, `w = 1` |
+//! | `normal` | `R16G16B16A16_SFLOAT` | world normal `N`; `w` = surface id (> 0; 0 where nothing was drawn) |
 //! | `tangent` | `R16G16B16A16_SFLOAT` | world tangent `T = dP/du`, `w` = handedness (`B = w N x T`) |
 //! | `depth` | `D32_SFLOAT` | reverse-Z depth, cleared to 0: 0 means no geometry |
+//!
+//! The surface id names a piece of geometry whose UVs are continuous (a chart). DIG
+//! trusts a block's corner interval only when the block's corners and the pixel share
+//! one id. The macro geometry here is one surface (id 1): the tiled plane's wrap of `uv0`
+//! into `[0, 1)` is not a discontinuity, since the addressing repeats the map.
 //!
 //! `record` expects every attachment in `COLOR_ATTACHMENT_OPTIMAL` /
 //! `DEPTH_ATTACHMENT_OPTIMAL` (contents may be discarded: it clears them) and leaves them

@@ -1,9 +1,11 @@
-//! The passes of a frame, one file each: `gbuffer` (graphics), `trace` (the method) and
-//! `shade`. Every pass only records into a command buffer it is given; the caller
+//! The passes of a frame, one file each: `gbuffer` (graphics), `pyramid` (the min-reduce
+//! chain), `dig` (the DIG corner pass), `trace` (the method) and `shade`. Every pass only records into a command buffer it is given; the caller
 //! places the barriers between passes (see [`crate::renderer`] for the order and
 //! the layouts each pass expects).
 
+pub mod dig;
 pub mod gbuffer;
+pub mod pyramid;
 pub mod shade;
 pub mod trace;
 

@@ -56,7 +56,7 @@ impl ShadePass {
             ctx,
             "shade",
             &shaders::SHADE_COMP,
-            &BINDINGS,
+            &crate::gpu::pipeline::numbered(&BINDINGS),
             std::mem::size_of::<ShadeParams>() as u32,
         )?;
         let fetch_sampler = match crate::passes::sampler(

@@ -8,28 +8,48 @@
 //! | 1 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 2 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 3 | hit buffer (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
+//! | 4 | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 5 | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 6 | G-buffer `normal` (`w`: surface id; `dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
+//!
+//! A method's pipeline declares only the bindings its [`Needs`] name.
 //!
 //! Each pixel's hit is `(u, v, height, iterations)`; `height < 0` means no hit.
 
-use crate::abi::TraceParams;
+use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TraceParams};
 use crate::context::Context;
+use crate::error::Error;
 use crate::error::Result;
 use crate::gpu::pipeline::image_write;
 use crate::gpu::{ComputePipeline, HeightTexture, Image};
-use crate::method::{Method, MethodParams};
+use crate::method::{MaxLevel, Method, MethodParams, Needs};
+use crate::passes::dig::CornerGrid;
 use crate::passes::gbuffer::GBuffer;
+use crate::passes::pyramid::Pyramid;
 use crate::scene::addressing_code;
 use ash::vk;
 
 /// Format of the hit buffer.
 pub const HIT_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
-const BINDINGS: [vk::DescriptorType; 4] = [
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::STORAGE_IMAGE,
-];
+const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
+const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
+const PYRAMID_BINDING: u32 = 4;
+const CORNERS_BINDING: u32 = 5;
+const NORMAL_BINDING: u32 = 6;
+
+/// The bindings of a method with `needs`.
+fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
+    let mut b = vec![(0, SAMPLED), (1, SAMPLED), (2, SAMPLED), (3, STORAGE)];
+    if needs.pyramid.is_some() {
+        b.push((PYRAMID_BINDING, SAMPLED));
+    }
+    if needs.dig_corners {
+        b.push((CORNERS_BINDING, SAMPLED));
+        b.push((NORMAL_BINDING, SAMPLED));
+    }
+    b
+}
 
 /// The images the trace pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
@@ -40,6 +60,11 @@ pub struct TraceInputs<'a> {
     pub height: &'a HeightTexture,
     /// The hit buffer (written).
     pub hit: &'a Image,
+    /// The pyramid, for methods that need one (built, `SHADER_READ_ONLY_OPTIMAL`).
+    pub pyramid: Option<&'a Pyramid>,
+    /// The DIG corner grid, for `dig` methods (written by this frame's corner pass,
+    /// `SHADER_READ_ONLY_OPTIMAL`).
+    pub corners: Option<&'a CornerGrid>,
 }
 
 /// The trace pass of one method.
@@ -57,7 +82,7 @@ impl TracePass {
             ctx,
             &name,
             &method.shader(),
-            &BINDINGS,
+            &bindings(method.needs()),
             std::mem::size_of::<TraceParams>() as u32,
         )?;
         let fetch_sampler = match crate::passes::sampler(
@@ -85,19 +110,40 @@ impl TracePass {
         self.method
     }
 
-    /// Records the dispatch over the whole frame.
+    /// Records the dispatch over the whole frame. Fails (recording nothing) when a
+    /// resource the method needs is missing from `inputs`.
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: TraceInputs,
         params: &MethodParams,
-    ) {
+        depth_scale: f32,
+    ) -> Result<()> {
         let TraceInputs {
             gbuffer,
             height,
             hit,
+            pyramid,
+            corners,
         } = inputs;
+        let needs = self.method.needs();
+        let missing = |what: &str| {
+            Error::invalid(
+                "trace inputs",
+                format!("method {} needs {what}", self.method.name()),
+            )
+        };
+        let pyramid = match (needs.pyramid, pyramid) {
+            (Some(kind), Some(p)) if p.kind == kind => Some(p),
+            (Some(kind), _) => return Err(missing(&format!("a {kind:?} pyramid"))),
+            (None, _) => None,
+        };
+        let corners = match (needs.dig_corners, corners) {
+            (true, Some(c)) => Some(c),
+            (true, None) => return Err(missing("the DIG corner grid")),
+            (false, _) => None,
+        };
         let fetch = |image: &Image| {
             [vk::DescriptorImageInfo {
                 sampler: self.fetch_sampler,
@@ -113,20 +159,42 @@ impl TracePass {
             image_view: hit.view,
             image_layout: vk::ImageLayout::GENERAL,
         }];
-        let writes = [
-            image_write(0, BINDINGS[0], &ray),
-            image_write(1, BINDINGS[1], &depth),
-            image_write(2, BINDINGS[2], &heights),
-            image_write(3, BINDINGS[3], &hits),
+        let pyramids = pyramid.map(|p| [p.descriptor()]);
+        let grid = corners.map(|c| fetch(&c.image));
+        let normal = fetch(&gbuffer.normal);
+        let mut writes = vec![
+            image_write(0, SAMPLED, &ray),
+            image_write(1, SAMPLED, &depth),
+            image_write(2, SAMPLED, &heights),
+            image_write(3, STORAGE, &hits),
         ];
+        if let Some(p) = &pyramids {
+            writes.push(image_write(PYRAMID_BINDING, SAMPLED, p));
+        }
+        if let Some(g) = &grid {
+            writes.push(image_write(CORNERS_BINDING, SAMPLED, g));
+            writes.push(image_write(NORMAL_BINDING, SAMPLED, &normal));
+        }
         let extent = hit.extent;
+        let (max_level, flags) = match params.max_level {
+            MaxLevel::Fixed(l) => (l, 0),
+            MaxLevel::Auto => (0, TRACE_FLAG_AUTO_LEVEL),
+        };
         let push = TraceParams {
             frame_size: [extent.width, extent.height],
             map_size: height.size(),
             steps: params.steps,
             refine_steps: params.refine_steps,
             addressing: addressing_code(height.addressing),
-            flags: 0,
+            flags,
+            min_steps: params.min_steps.min(params.steps),
+            segments: params.segments,
+            block: params.block,
+            corner_size: corners.map_or([0, 0], CornerGrid::size),
+            eps: params.dig_eps(),
+            max_level,
+            pyramid_levels: pyramid.map_or(0, Pyramid::levels),
+            depth_scale,
         };
         self.pipeline.dispatch(
             ctx,
@@ -136,6 +204,7 @@ impl TracePass {
             extent.width,
             extent.height,
         );
+        Ok(())
     }
 
     /// Destroys the pipeline and sampler.

@@ -1,0 +1,110 @@
+// Constrained ray refinement of Depth Interval Grids (Judnich & Ling, section 5), shared
+// by `dig` and `dig-guarded`. Include after trace.glsl. The corner grid is written by
+// the dig_corners pass (glsl/dig_corners.comp: x = ray height of the last sample above
+// the surface, y = surface id).
+#ifndef DISPMAP_DIG_GLSL
+#define DISPMAP_DIG_GLSL
+
+// The height the interval refinement samples: the hardware filter for `dig` (as the
+// paper); `dig-guarded` defines DIG_HEIGHT as height_exact, the exact bilinear surface
+// its guard and fallback intersect, so that all three agree on the surface.
+#ifndef DIG_HEIGHT
+#define DIG_HEIGHT height_at
+#endif
+
+layout(set = 0, binding = 5) uniform sampler2D u_corners;
+layout(set = 0, binding = 6) uniform sampler2D u_normal;
+
+// The interval [h_bottom, h_top] of the pixel's block (equation 1 in heights: the
+// corners' min - eps2 and max + eps1, clamped to [0, 1]). False when the block's corners
+// are not all on the pixel's surface (no geometry at a corner, another surface, a
+// silhouette of a clamp-addressed decal): then the interval means nothing.
+bool dig_interval(ivec2 pixel, out float h_bottom, out float h_top) {
+    float surface = texelFetch(u_normal, pixel, 0).w;
+    ivec2 b = pixel / ivec2(pc.block);
+    float lo = 1.0, hi = 0.0;
+    bool same = surface > 0.0;
+    for (int k = 0; k < 4; ++k) {
+        ivec2 c = min(b + ivec2(k & 1, k >> 1), ivec2(pc.corner_size) - 1);
+        vec2 corner = texelFetch(u_corners, c, 0).xy;
+        same = same && corner.y == surface;
+        lo = min(lo, corner.x);
+        hi = max(hi, corner.x);
+    }
+    h_bottom = clamp(lo - pc.eps, 0.0, 1.0);
+    h_top = clamp(hi + pc.eps, 0.0, 1.0);
+    return same;
+}
+
+// The unconstrained search the paper's refinement reduces to without an interval:
+// `steps` equal height steps from the entry, then `refine_steps` bisections (relief).
+Hit dig_unconstrained(Ray ray, inout uint iterations) {
+    uint steps = max(pc.steps, 1u);
+    uint below;
+    if (!linear_march(ray, steps, below, iterations)) {
+        return miss(ray, iterations);
+    }
+    if (below == 0u) {
+        return hit_at(ray, 1.0, iterations);
+    }
+    float dh = 1.0 / float(steps);
+    float h_below = 1.0 - float(below) * dh;
+    return hit_at(ray, bisect(ray, h_below + dh, h_below, pc.refine_steps, iterations), iterations);
+}
+
+// Linear search inside [h_bottom, h_top] with the fixed horizontal step s = 1 / steps
+// (in UV units, section 8.2): I_L = floor(|R_xy| / s) (equation 2), R_xy the interval's
+// horizontal extent. Choices where the paper is silent:
+//  * I_L is at least the interval's length in height steps of 1 / steps: the step is
+//    never coarser than relief's at the same quality (the benchmark gives every method
+//    the same step size; when |P| < 1 UV the fixed horizontal step would be coarser).
+//  * I_L is at most 4 times that: near the horizon |P| >> 1 UV and a fixed UV step would
+//    need thousands of samples per pixel.
+//  * If the interval's top sample is already on or below the surface, the hit lies
+//    above the interval (the corners missed a feature): the unconstrained search runs.
+//  * If no sample of the interval reaches the surface, the hit lies below it: the march
+//    continues below the interval with the same step down to h = 0.
+// Then I_B = `refine_steps` bisections between the last two samples.
+Hit dig_constrained(Ray ray, float h_bottom, float h_top, inout uint iterations) {
+    float iter = float(max(pc.steps, 1u));
+    float len = h_top - h_bottom;
+    float s = 1.0 / iter;
+    float r_xy = len * length(ray.P);
+    float relief = max(ceil(len * iter), 1.0);
+    float i_l = clamp(floor(r_xy / s), relief, 4.0 * relief);
+    float dh = len > 0.0 ? len / i_l : 1.0 / iter;
+    float h_prev = h_top;
+    for (float k = 0.0; ; k += 1.0) {
+        float h = max(h_top - k * dh, 0.0);
+        vec2 uv = ray_uv(ray, h);
+        if (leaves_domain(uv)) {
+            return miss(ray, iterations);
+        }
+        iterations += 1u;
+        if (DIG_HEIGHT(uv) >= h) {
+            if (k == 0.0) {
+                return h_top >= 1.0 ? hit_at(ray, 1.0, iterations) : dig_unconstrained(ray, iterations);
+            }
+            // I_B bisections between the last two samples.
+            float h_above = h_prev, h_below = h;
+            for (uint i = 0u; i < pc.refine_steps; ++i) {
+                float h_mid = 0.5 * (h_above + h_below);
+                iterations += 1u;
+                if (DIG_HEIGHT(ray_uv(ray, h_mid)) >= h_mid) {
+                    h_below = h_mid;
+                } else {
+                    h_above = h_mid;
+                }
+            }
+            return hit_at(ray, 0.5 * (h_above + h_below), iterations);
+        }
+        if (h <= 0.0) {
+            // Unreachable: at h = 0 every height is on or above the ray.
+            return hit_at(ray, 0.0, iterations);
+        }
+        h_prev = h;
+    }
+    return miss(ray, iterations);
+}
+
+#endif

@@ -1,0 +1,208 @@
+//! The `dig_corners` pass: the Depth Interval Grid of Judnich & Ling (section 4), one
+//! ray per block corner (`glsl/dig_corners.comp`). The `dig` and `dig-guarded` trace
+//! shaders then constrain each pixel's search to its block's interval.
+//!
+//! Bindings (set 0, push descriptors):
+//!
+//! | binding | resource | layout on entry |
+//! |---|---|---|
+//! | 0 | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 1 | G-buffer `depth` | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 2 | G-buffer `normal` (`w`: surface id) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 3 | height field | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 4 | corner grid (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
+//!
+//! Each corner holds `(ray height at the last sample above the surface, surface id,
+//! iterations, 0)`; see the shader for the details. The grid has
+//! `(ceil(W / bx) + 1) x (ceil(H / by) + 1)` corners: the paper's `(W/bx + 1) x (H/by + 1)`
+//! for frame sizes that are multiples of the block, one more partial block otherwise.
+
+use crate::abi::CornerParams;
+use crate::context::Context;
+use crate::error::Result;
+use crate::gpu::commands::read_image;
+use crate::gpu::pipeline::{image_write, numbered};
+use crate::gpu::sync::Access;
+use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
+use crate::passes::gbuffer::GBuffer;
+use crate::scene::addressing_code;
+use crate::shaders;
+use ash::vk;
+
+/// Format of the corner grid.
+pub const CORNER_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+
+const BINDINGS: [vk::DescriptorType; 5] = [
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::STORAGE_IMAGE,
+];
+
+/// Corner-grid size for a frame and block size.
+pub fn corner_size(frame: [u32; 2], block: [u32; 2]) -> [u32; 2] {
+    [
+        frame[0].div_ceil(block[0].max(1)) + 1,
+        frame[1].div_ceil(block[1].max(1)) + 1,
+    ]
+}
+
+/// The corner grid of one frame and block size.
+pub struct CornerGrid {
+    /// The grid image.
+    pub image: Image,
+    /// Block size in pixels.
+    pub block: [u32; 2],
+}
+
+/// One corner as read back.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Corner {
+    /// Normalised ray height of the last sample above the surface.
+    pub height: f32,
+    /// Surface id (0: no geometry or a silhouette).
+    pub surface: f32,
+    /// Height fetches spent.
+    pub iterations: f32,
+}
+
+impl CornerGrid {
+    /// Allocates the grid for `frame` pixels in blocks of `block`.
+    pub fn new(ctx: &Context, frame: [u32; 2], block: [u32; 2]) -> Result<Self> {
+        let [w, h] = corner_size(frame, block);
+        let image = Image::new(
+            ctx,
+            "dig.corners",
+            CORNER_FORMAT,
+            vk::Extent2D {
+                width: w,
+                height: h,
+            },
+            1,
+            vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::SAMPLED
+                | vk::ImageUsageFlags::TRANSFER_SRC,
+        )?;
+        Ok(CornerGrid { image, block })
+    }
+
+    /// Grid size in corners.
+    pub fn size(&self) -> [u32; 2] {
+        [self.image.extent.width, self.image.extent.height]
+    }
+
+    /// Reads the corners back (row by row); the grid is in `current`.
+    pub fn read(&self, ctx: &Context, shot: &OneShot, current: Access) -> Result<Vec<Corner>> {
+        let bytes = read_image(ctx, shot, &self.image, current)?;
+        Ok(bytemuck::cast_slice::<u8, [f32; 4]>(&bytes)
+            .iter()
+            .map(|c| Corner {
+                height: c[0],
+                surface: c[1],
+                iterations: c[2],
+            })
+            .collect())
+    }
+
+    /// Destroys the image.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.image.destroy(ctx);
+    }
+}
+
+/// The corner pass.
+pub struct DigCornerPass {
+    pipeline: ComputePipeline,
+    fetch_sampler: vk::Sampler,
+}
+
+impl DigCornerPass {
+    /// Builds the pipeline.
+    pub fn new(ctx: &Context) -> Result<Self> {
+        let mut pipeline = ComputePipeline::new(
+            ctx,
+            "dig_corners",
+            &shaders::DIG_CORNERS_COMP,
+            &numbered(&BINDINGS),
+            std::mem::size_of::<CornerParams>() as u32,
+        )?;
+        let fetch_sampler = match crate::passes::sampler(
+            ctx,
+            "dig_corners.fetch_sampler",
+            vk::Filter::NEAREST,
+            vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        ) {
+            Ok(s) => s,
+            Err(e) => {
+                pipeline.destroy(ctx);
+                return Err(e);
+            }
+        };
+        Ok(DigCornerPass {
+            pipeline,
+            fetch_sampler,
+        })
+    }
+
+    /// Records the corner dispatch: the G-buffer and height field readable by compute,
+    /// the grid in `GENERAL` ready for storage writes (see the module table).
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        gbuffer: &GBuffer,
+        height: &HeightTexture,
+        grid: &CornerGrid,
+        steps: u32,
+    ) {
+        let fetch = |image: &Image| {
+            [vk::DescriptorImageInfo {
+                sampler: self.fetch_sampler,
+                image_view: image.view,
+                image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+            }]
+        };
+        let ray = fetch(&gbuffer.ray);
+        let depth = fetch(&gbuffer.depth);
+        let normal = fetch(&gbuffer.normal);
+        let heights = [height.descriptor()];
+        let corners = [vk::DescriptorImageInfo {
+            sampler: vk::Sampler::null(),
+            image_view: grid.image.view,
+            image_layout: vk::ImageLayout::GENERAL,
+        }];
+        let writes = [
+            image_write(0, BINDINGS[0], &ray),
+            image_write(1, BINDINGS[1], &depth),
+            image_write(2, BINDINGS[2], &normal),
+            image_write(3, BINDINGS[3], &heights),
+            image_write(4, BINDINGS[4], &corners),
+        ];
+        let frame = gbuffer.ray.extent;
+        let size = grid.size();
+        let push = CornerParams {
+            frame_size: [frame.width, frame.height],
+            corner_size: size,
+            block: grid.block,
+            steps,
+            addressing: addressing_code(height.addressing),
+        };
+        self.pipeline.dispatch(
+            ctx,
+            cmd,
+            &writes,
+            bytemuck::bytes_of(&push),
+            size[0],
+            size[1],
+        );
+    }
+
+    /// Destroys the pipeline and sampler.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+        // SAFETY: caller guarantees no pending use.
+        unsafe { ctx.device().destroy_sampler(self.fetch_sampler, None) };
+        self.fetch_sampler = vk::Sampler::null();
+    }
+}

@@ -1,0 +1,420 @@
+//! The `pyramid` pass: the max-height pyramid (Oh, Ki & Lee's minimum-displacement
+//! pyramid; Tevs et al.'s maximum mipmap), built on the GPU by a chain of compute
+//! dispatches, one per level, each reducing the level below with `max`
+//! (`glsl/pyramid.comp`).
+//!
+//! # Levels and sizes
+//!
+//! Level 0 has one value per texel (or per bilinear cell, see [`PyramidKind`]): the
+//! map's `W x H`. Level `L` has `ceil(W / 2^L) x ceil(H / 2^L)` nodes, down to `1 x 1`;
+//! node `n` of level `L` covers the level-0 entries `[n 2^L, min((n + 1) 2^L, W))` of
+//! its axis, so odd and non-square sizes stay conservative (the last node of a row
+//! covers the one child that exists). These *logical* sizes are what the shaders use.
+//!
+//! Storage: one `R32_SFLOAT` image with a Vulkan mip chain whose level 0 is padded to
+//! the next power of two per axis, so that each mip level (`max(1, W0 >> L)`) holds at
+//! least the logical `ceil(W / 2^L)` nodes; padding texels are never read. A 1025-wide
+//! map thus costs a 2048-wide level 0; the simplicity of `texelFetch(pyramid, node,
+//! level)` is worth it.
+//!
+//! # Contract (engine embedding)
+//!
+//! [`PyramidPass::record`] expects the height texture in `SHADER_READ_ONLY_OPTIMAL`,
+//! visible to compute reads; it discards the pyramid's contents, records every level with
+//! the barriers between them and leaves the pyramid in `SHADER_READ_ONLY_OPTIMAL`, its
+//! writes made visible to compute-shader sampled reads. Build it only when the height
+//! map changes.
+
+use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, PyramidParams};
+use crate::context::Context;
+use crate::error::{Result, VkContext};
+use crate::gpu::commands::read_image_level;
+use crate::gpu::pipeline::image_write;
+use crate::gpu::sync::{self, Access};
+use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
+use crate::heightfield::{Addressing, HeightField};
+pub use crate::method::PyramidKind;
+use crate::shaders;
+use ash::vk;
+
+/// Format of the pyramid.
+pub const PYRAMID_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
+
+const BINDINGS: [(u32, vk::DescriptorType); 3] = [
+    (0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    (1, vk::DescriptorType::STORAGE_IMAGE),
+    (2, vk::DescriptorType::STORAGE_IMAGE),
+];
+
+/// `PYRAMID_KIND_*` in `glsl/pyramid.comp`.
+fn kind_code(kind: PyramidKind) -> u32 {
+    match kind {
+        PyramidKind::Footprint => 0,
+        PyramidKind::Cell => 1,
+    }
+}
+
+/// Number of levels of a pyramid over `size` (level 0 to the `1 x 1` root).
+pub fn level_count(size: [u32; 2]) -> u32 {
+    let side = size[0].max(size[1]).max(1);
+    side.next_power_of_two().trailing_zeros() + 1
+}
+
+/// Logical size of `level` (nodes per axis: `ceil(size / 2^level)`).
+pub fn level_size(size: [u32; 2], level: u32) -> [u32; 2] {
+    let shrink = |s: u32| {
+        if level >= 32 {
+            1
+        } else {
+            s.div_ceil(1u32 << level).max(1)
+        }
+    };
+    [shrink(size[0]), shrink(size[1])]
+}
+
+/// The pyramid of one height map.
+pub struct Pyramid {
+    /// The mip-chained image (see the module docs for its padded sizes).
+    pub image: Image,
+    level_views: Vec<vk::ImageView>,
+    sampler: vk::Sampler,
+    /// What level 0 bounds.
+    pub kind: PyramidKind,
+    /// The map's size in texels (the logical size of level 0).
+    pub size: [u32; 2],
+    /// The addressing the pyramid was built for.
+    pub addressing: Addressing,
+}
+
+impl Pyramid {
+    /// Allocates the pyramid of a `size` map (contents undefined until built).
+    pub fn new(
+        ctx: &Context,
+        size: [u32; 2],
+        kind: PyramidKind,
+        addressing: Addressing,
+    ) -> Result<Self> {
+        let levels = level_count(size);
+        let extent = vk::Extent2D {
+            width: size[0].max(1).next_power_of_two(),
+            height: size[1].max(1).next_power_of_two(),
+        };
+        let name = match kind {
+            PyramidKind::Footprint => "pyramid[footprint]",
+            PyramidKind::Cell => "pyramid[cell]",
+        };
+        let image = Image::new(
+            ctx,
+            name,
+            PYRAMID_FORMAT,
+            extent,
+            levels,
+            vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::SAMPLED
+                | vk::ImageUsageFlags::TRANSFER_SRC,
+        )?;
+        let mut pyramid = Pyramid {
+            level_views: Vec::new(),
+            sampler: vk::Sampler::null(),
+            kind,
+            size,
+            addressing,
+            image,
+        };
+        if let Err(e) = pyramid.create_views(ctx, name) {
+            pyramid.destroy(ctx);
+            return Err(e);
+        }
+        Ok(pyramid)
+    }
+
+    fn create_views(&mut self, ctx: &Context, name: &str) -> Result<()> {
+        for level in 0..self.image.mip_levels {
+            let info = vk::ImageViewCreateInfo::default()
+                .image(self.image.raw)
+                .view_type(vk::ImageViewType::TYPE_2D)
+                .format(PYRAMID_FORMAT)
+                .subresource_range(self.level_range(level));
+            // SAFETY: the image is alive and has this level.
+            let view =
+                unsafe { ctx.device().create_image_view(&info, None) }.vk("vkCreateImageView")?;
+            ctx.set_name(view, &format!("{name}.level{level}"));
+            self.level_views.push(view);
+        }
+        self.sampler = crate::passes::sampler(
+            ctx,
+            &format!("{name}.sampler"),
+            vk::Filter::NEAREST,
+            vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        )?;
+        Ok(())
+    }
+
+    /// Number of levels.
+    pub fn levels(&self) -> u32 {
+        self.image.mip_levels
+    }
+
+    fn level_range(&self, level: u32) -> vk::ImageSubresourceRange {
+        vk::ImageSubresourceRange {
+            base_mip_level: level,
+            level_count: 1,
+            ..self.image.range()
+        }
+    }
+
+    /// Descriptor for the trace pass (`texelFetch(pyramid, node, level)`).
+    pub fn descriptor(&self) -> vk::DescriptorImageInfo {
+        vk::DescriptorImageInfo {
+            sampler: self.sampler,
+            image_view: self.image.view,
+            image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        }
+    }
+
+    /// Reads every level back (logical sizes, row by row). The pyramid must be built
+    /// and idle in `SHADER_READ_ONLY_OPTIMAL`.
+    pub fn read_levels(&self, ctx: &Context, shot: &OneShot) -> Result<Vec<Vec<f32>>> {
+        (0..self.levels())
+            .map(|level| {
+                let bytes =
+                    read_image_level(ctx, shot, &self.image, level, Access::COMPUTE_SAMPLED)?;
+                let stored: &[f32] = bytemuck::cast_slice(&bytes);
+                let stride = (self.image.extent.width >> level).max(1) as usize;
+                let [w, h] = level_size(self.size, level);
+                Ok((0..h as usize)
+                    .flat_map(|j| stored[j * stride..j * stride + w as usize].iter().copied())
+                    .collect())
+            })
+            .collect()
+    }
+
+    /// Destroys views, sampler and image. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        for view in self.level_views.drain(..) {
+            // SAFETY: caller guarantees no pending use.
+            unsafe { ctx.device().destroy_image_view(view, None) };
+        }
+        if self.sampler != vk::Sampler::null() {
+            // SAFETY: caller guarantees no pending use.
+            unsafe { ctx.device().destroy_sampler(self.sampler, None) };
+            self.sampler = vk::Sampler::null();
+        }
+        self.image.destroy(ctx);
+    }
+}
+
+/// The reduction pipeline.
+pub struct PyramidPass {
+    pipeline: ComputePipeline,
+}
+
+impl PyramidPass {
+    /// Builds the pipeline.
+    pub fn new(ctx: &Context) -> Result<Self> {
+        Ok(PyramidPass {
+            pipeline: ComputePipeline::new(
+                ctx,
+                "pyramid",
+                &shaders::PYRAMID_COMP,
+                &BINDINGS,
+                std::mem::size_of::<PyramidParams>() as u32,
+            )?,
+        })
+    }
+
+    /// Records the whole chain (see the module docs for the layouts on entry and exit).
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        height: &HeightTexture,
+        pyramid: &Pyramid,
+    ) {
+        let all = pyramid.image.range();
+        // Every level is written, and (as `src`) read, by storage access below.
+        let storage_rw = Access {
+            access: vk::AccessFlags2::SHADER_STORAGE_WRITE | vk::AccessFlags2::SHADER_STORAGE_READ,
+            ..Access::COMPUTE_STORAGE_WRITE
+        };
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                pyramid.image.raw,
+                all,
+                Access::UNDEFINED,
+                storage_rw,
+            )],
+        );
+        let heights = [height.descriptor()];
+        let storage = |level: u32| {
+            [vk::DescriptorImageInfo {
+                sampler: vk::Sampler::null(),
+                image_view: pyramid.level_views[level as usize],
+                image_layout: vk::ImageLayout::GENERAL,
+            }]
+        };
+        let addressing = match pyramid.addressing {
+            Addressing::Repeat => ADDRESSING_REPEAT,
+            Addressing::Clamp => ADDRESSING_CLAMP,
+        };
+        for level in 0..pyramid.levels() {
+            if level > 0 {
+                sync::record(
+                    ctx,
+                    cmd,
+                    &[sync::image_barrier(
+                        pyramid.image.raw,
+                        pyramid.level_range(level - 1),
+                        Access::COMPUTE_STORAGE_WRITE,
+                        Access::COMPUTE_STORAGE_READ,
+                    )],
+                );
+            }
+            // Level 0 reads the height map only; its `src` binding (statically used by
+            // the shader, not read on that path) names level 0 itself, so no later
+            // dispatch's write follows an unsynchronised read.
+            let src = storage(level.saturating_sub(1));
+            let dst = storage(level);
+            let writes = [
+                image_write(BINDINGS[0].0, BINDINGS[0].1, &heights),
+                image_write(BINDINGS[1].0, BINDINGS[1].1, &src),
+                image_write(BINDINGS[2].0, BINDINGS[2].1, &dst),
+            ];
+            let src_size = if level == 0 {
+                pyramid.size
+            } else {
+                level_size(pyramid.size, level - 1)
+            };
+            let dst_size = level_size(pyramid.size, level);
+            let push = PyramidParams {
+                src_size,
+                dst_size,
+                level,
+                kind: kind_code(pyramid.kind),
+                addressing,
+                pad: 0,
+            };
+            self.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(&push),
+                dst_size[0],
+                dst_size[1],
+            );
+        }
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                pyramid.image.raw,
+                all,
+                storage_rw,
+                Access::COMPUTE_SAMPLED,
+            )],
+        );
+    }
+
+    /// Destroys the pipeline.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+    }
+}
+
+/// The same pyramid built on the CPU in `f32` with the shader's operation order (the
+/// reference the GPU build is compared with bit for bit). Levels in logical sizes.
+pub fn cpu_build(field: &HeightField, addressing: Addressing, kind: PyramidKind) -> Vec<Vec<f32>> {
+    let size = [field.width(), field.height()];
+    let (w, h) = (size[0] as i64, size[1] as i64);
+    let texel = |i: i64, j: i64| {
+        let (i, j) = match addressing {
+            Addressing::Repeat => (i.rem_euclid(w), j.rem_euclid(h)),
+            Addressing::Clamp => (i.clamp(0, w - 1), j.clamp(0, h - 1)),
+        };
+        field.texel(i as u32, j as u32)
+    };
+    let mut level0 = Vec::with_capacity((w * h) as usize);
+    for j in 0..h {
+        for i in 0..w {
+            level0.push(match kind {
+                PyramidKind::Cell => texel(i, j)
+                    .max(texel(i + 1, j))
+                    .max(texel(i, j + 1).max(texel(i + 1, j + 1))),
+                PyramidKind::Footprint => {
+                    let t = |di: i64, dj: i64| texel(i + di, j + dj);
+                    let edges = [
+                        (t(-1, 0) + t(0, 0)) * 0.5,
+                        (t(0, 0) + t(1, 0)) * 0.5,
+                        (t(0, -1) + t(0, 0)) * 0.5,
+                        (t(0, 0) + t(0, 1)) * 0.5,
+                    ];
+                    let corners = [
+                        ((t(-1, -1) + t(0, -1)) + (t(-1, 0) + t(0, 0))) * 0.25,
+                        ((t(0, -1) + t(1, -1)) + (t(0, 0) + t(1, 0))) * 0.25,
+                        ((t(-1, 0) + t(0, 0)) + (t(-1, 1) + t(0, 1))) * 0.25,
+                        ((t(0, 0) + t(1, 0)) + (t(0, 1) + t(1, 1))) * 0.25,
+                    ];
+                    edges.iter().chain(&corners).fold(t(0, 0), |m, &v| m.max(v))
+                }
+            });
+        }
+    }
+    let mut levels = vec![level0];
+    for level in 1..level_count(size) {
+        let [sw, sh] = level_size(size, level - 1);
+        let [dw, dh] = level_size(size, level);
+        let src = &levels[level as usize - 1];
+        let at = |i: u32, j: u32| src[(j.min(sh - 1) * sw + i.min(sw - 1)) as usize];
+        let mut dst = Vec::with_capacity((dw * dh) as usize);
+        for j in 0..dh {
+            for i in 0..dw {
+                let (ci, cj) = (2 * i, 2 * j);
+                dst.push(
+                    at(ci, cj)
+                        .max(at(ci + 1, cj))
+                        .max(at(ci, cj + 1).max(at(ci + 1, cj + 1))),
+                );
+            }
+        }
+        levels.push(dst);
+    }
+    levels
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_reach_a_single_root() {
+        assert_eq!(level_count([1, 1]), 1);
+        assert_eq!(level_count([1024, 1024]), 11);
+        assert_eq!(level_count([1025, 3]), 12);
+        assert_eq!(level_size([1025, 3], 1), [513, 2]);
+        assert_eq!(level_size([1025, 3], 11), [1, 1]);
+        assert_eq!(level_size([348, 1000], 9), [1, 2]);
+        assert_eq!(level_size([348, 1000], 10), [1, 1]);
+    }
+
+    #[test]
+    fn cpu_levels_bound_their_children() {
+        let field = HeightField::from_fn(5, 3, "odd", |u, v| (u * 7.0).sin() * 0.4 + v * 0.5)
+            .expect("valid field");
+        for kind in [PyramidKind::Footprint, PyramidKind::Cell] {
+            let levels = cpu_build(&field, Addressing::Repeat, kind);
+            assert_eq!(levels.len(), 4);
+            assert_eq!(levels.last().map(Vec::len), Some(1));
+            let max = levels[0].iter().copied().fold(f32::MIN, f32::max);
+            assert_eq!(levels[3][0], max);
+        }
+        // Cell (4, 2) wraps to texels (0, 0), (4, 0), (0, 2), (4, 2).
+        let cells = cpu_build(&field, Addressing::Repeat, PyramidKind::Cell);
+        let expect = [(4, 2), (0, 2), (4, 0), (0, 0)]
+            .iter()
+            .map(|&(i, j)| field.texel(i, j))
+            .fold(f32::MIN, f32::max);
+        assert_eq!(cells[0][2 * 5 + 4], expect);
+    }
+}
