@@ -1,5 +1,6 @@
 //! Compute pipelines whose resources are bound with push descriptors.
 
+use super::Image;
 use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::shaders::Shader;
@@ -152,4 +153,63 @@ pub fn image_write(
         .dst_binding(binding)
         .descriptor_type(ty)
         .image_info(info)
+}
+
+/// A compute pipeline and the nearest-filtering sampler its `texelFetch` reads of
+/// sampled images (G-buffer, corner grid) are bound with.
+pub struct FetchPipeline {
+    /// The pipeline.
+    pub pipeline: ComputePipeline,
+    sampler: vk::Sampler,
+}
+
+impl FetchPipeline {
+    /// [`ComputePipeline::new`] plus a sampler named `<name>.fetch_sampler`.
+    pub fn new(
+        ctx: &Context,
+        name: &str,
+        shader: &Shader,
+        bindings: &[(u32, vk::DescriptorType)],
+        push_constant_size: u32,
+    ) -> Result<Self> {
+        let mut pipeline = ComputePipeline::new(ctx, name, shader, bindings, push_constant_size)?;
+        match crate::passes::sampler(
+            ctx,
+            &format!("{name}.fetch_sampler"),
+            vk::Filter::NEAREST,
+            vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        ) {
+            Ok(sampler) => Ok(FetchPipeline { pipeline, sampler }),
+            Err(e) => {
+                pipeline.destroy(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    /// Descriptor info of `image` read with `texelFetch` (`SHADER_READ_ONLY_OPTIMAL`).
+    pub fn fetch(&self, image: &Image) -> [vk::DescriptorImageInfo; 1] {
+        [vk::DescriptorImageInfo {
+            sampler: self.sampler,
+            image_view: image.view,
+            image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        }]
+    }
+
+    /// Destroys the pipeline and the sampler. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+        // SAFETY: caller guarantees no pending use.
+        unsafe { ctx.device().destroy_sampler(self.sampler, None) };
+        self.sampler = vk::Sampler::null();
+    }
+}
+
+/// Descriptor info of `image` as a storage image (`GENERAL`).
+pub fn storage(image: &Image) -> [vk::DescriptorImageInfo; 1] {
+    [vk::DescriptorImageInfo {
+        sampler: vk::Sampler::null(),
+        image_view: image.view,
+        image_layout: vk::ImageLayout::GENERAL,
+    }]
 }

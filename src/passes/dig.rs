@@ -21,9 +21,9 @@ use crate::abi::CornerParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::commands::read_image;
-use crate::gpu::pipeline::{image_write, numbered};
+use crate::gpu::pipeline::{FetchPipeline, image_write, numbered, storage};
 use crate::gpu::sync::Access;
-use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
+use crate::gpu::{HeightTexture, Image, OneShot};
 use crate::passes::gbuffer::GBuffer;
 use crate::scene::addressing_code;
 use crate::shaders;
@@ -113,35 +113,20 @@ impl CornerGrid {
 
 /// The corner pass.
 pub struct DigCornerPass {
-    pipeline: ComputePipeline,
-    fetch_sampler: vk::Sampler,
+    pipeline: FetchPipeline,
 }
 
 impl DigCornerPass {
     /// Builds the pipeline.
     pub fn new(ctx: &Context) -> Result<Self> {
-        let mut pipeline = ComputePipeline::new(
-            ctx,
-            "dig_corners",
-            &shaders::DIG_CORNERS_COMP,
-            &numbered(&BINDINGS),
-            std::mem::size_of::<CornerParams>() as u32,
-        )?;
-        let fetch_sampler = match crate::passes::sampler(
-            ctx,
-            "dig_corners.fetch_sampler",
-            vk::Filter::NEAREST,
-            vk::SamplerAddressMode::CLAMP_TO_EDGE,
-        ) {
-            Ok(s) => s,
-            Err(e) => {
-                pipeline.destroy(ctx);
-                return Err(e);
-            }
-        };
         Ok(DigCornerPass {
-            pipeline,
-            fetch_sampler,
+            pipeline: FetchPipeline::new(
+                ctx,
+                "dig_corners",
+                &shaders::DIG_CORNERS_COMP,
+                &numbered(&BINDINGS),
+                std::mem::size_of::<CornerParams>() as u32,
+            )?,
         })
     }
 
@@ -156,22 +141,12 @@ impl DigCornerPass {
         grid: &CornerGrid,
         steps: u32,
     ) {
-        let fetch = |image: &Image| {
-            [vk::DescriptorImageInfo {
-                sampler: self.fetch_sampler,
-                image_view: image.view,
-                image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
-            }]
-        };
+        let fetch = |image: &Image| self.pipeline.fetch(image);
         let ray = fetch(&gbuffer.ray);
         let depth = fetch(&gbuffer.depth);
         let normal = fetch(&gbuffer.normal);
         let heights = [height.descriptor()];
-        let corners = [vk::DescriptorImageInfo {
-            sampler: vk::Sampler::null(),
-            image_view: grid.image.view,
-            image_layout: vk::ImageLayout::GENERAL,
-        }];
+        let corners = storage(&grid.image);
         let writes = [
             image_write(0, BINDINGS[0], &ray),
             image_write(1, BINDINGS[1], &depth),
@@ -188,7 +163,7 @@ impl DigCornerPass {
             steps,
             addressing: addressing_code(height.addressing),
         };
-        self.pipeline.dispatch(
+        self.pipeline.pipeline.dispatch(
             ctx,
             cmd,
             &writes,
@@ -201,8 +176,5 @@ impl DigCornerPass {
     /// Destroys the pipeline and sampler.
     pub fn destroy(&mut self, ctx: &Context) {
         self.pipeline.destroy(ctx);
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_sampler(self.fetch_sampler, None) };
-        self.fetch_sampler = vk::Sampler::null();
     }
 }

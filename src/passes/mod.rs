@@ -1,6 +1,7 @@
 //! The passes of a frame, one file each: `gbuffer` (graphics), `pyramid` (the min-reduce
-//! chain), `dig` (the DIG corner pass), `trace` (the method) and `shade`. Every pass only records into a command buffer it is given; the caller
-//! places the barriers between passes (see [`crate::renderer`] for the order and
+//! chain), `dig` (the DIG corner pass), `trace` (the method) and `shade`. Every pass only
+//! records into a command buffer it is given; the caller places the barriers between
+//! passes (see [`crate::renderer`] for the order and
 //! the layouts each pass expects).
 
 pub mod dig;

@@ -13,8 +13,8 @@
 use crate::abi::ShadeParams;
 use crate::context::Context;
 use crate::error::Result;
-use crate::gpu::pipeline::image_write;
-use crate::gpu::{ComputePipeline, HeightTexture, Image};
+use crate::gpu::pipeline::{FetchPipeline, image_write, storage};
+use crate::gpu::{HeightTexture, Image};
 use crate::passes::gbuffer::GBuffer;
 use crate::shaders;
 use ash::vk;
@@ -45,35 +45,20 @@ pub struct ShadeInputs<'a> {
 
 /// The shade pass.
 pub struct ShadePass {
-    pipeline: ComputePipeline,
-    fetch_sampler: vk::Sampler,
+    pipeline: FetchPipeline,
 }
 
 impl ShadePass {
     /// Builds the pipeline.
     pub fn new(ctx: &Context) -> Result<Self> {
-        let mut pipeline = ComputePipeline::new(
-            ctx,
-            "shade",
-            &shaders::SHADE_COMP,
-            &crate::gpu::pipeline::numbered(&BINDINGS),
-            std::mem::size_of::<ShadeParams>() as u32,
-        )?;
-        let fetch_sampler = match crate::passes::sampler(
-            ctx,
-            "shade.fetch_sampler",
-            vk::Filter::NEAREST,
-            vk::SamplerAddressMode::CLAMP_TO_EDGE,
-        ) {
-            Ok(s) => s,
-            Err(e) => {
-                pipeline.destroy(ctx);
-                return Err(e);
-            }
-        };
         Ok(ShadePass {
-            pipeline,
-            fetch_sampler,
+            pipeline: FetchPipeline::new(
+                ctx,
+                "shade",
+                &shaders::SHADE_COMP,
+                &crate::gpu::pipeline::numbered(&BINDINGS),
+                std::mem::size_of::<ShadeParams>() as u32,
+            )?,
         })
     }
 
@@ -91,20 +76,7 @@ impl ShadePass {
             height,
             color,
         } = inputs;
-        let storage = |image: &Image| {
-            [vk::DescriptorImageInfo {
-                sampler: vk::Sampler::null(),
-                image_view: image.view,
-                image_layout: vk::ImageLayout::GENERAL,
-            }]
-        };
-        let fetch = |image: &Image| {
-            [vk::DescriptorImageInfo {
-                sampler: self.fetch_sampler,
-                image_view: image.view,
-                image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
-            }]
-        };
+        let fetch = |image: &Image| self.pipeline.fetch(image);
         let hits = storage(hit);
         let normal = fetch(&gbuffer.normal);
         let tangent = fetch(&gbuffer.tangent);
@@ -117,7 +89,7 @@ impl ShadePass {
             image_write(3, BINDINGS[3], &heights),
             image_write(4, BINDINGS[4], &colors),
         ];
-        self.pipeline.dispatch(
+        self.pipeline.pipeline.dispatch(
             ctx,
             cmd,
             &writes,
@@ -130,8 +102,5 @@ impl ShadePass {
     /// Destroys the pipeline and sampler.
     pub fn destroy(&mut self, ctx: &Context) {
         self.pipeline.destroy(ctx);
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_sampler(self.fetch_sampler, None) };
-        self.fetch_sampler = vk::Sampler::null();
     }
 }

@@ -20,8 +20,8 @@ use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TraceParams};
 use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
-use crate::gpu::pipeline::image_write;
-use crate::gpu::{ComputePipeline, HeightTexture, Image};
+use crate::gpu::pipeline::{FetchPipeline, image_write, storage};
+use crate::gpu::{HeightTexture, Image};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
 use crate::passes::dig::CornerGrid;
 use crate::passes::gbuffer::GBuffer;
@@ -70,39 +70,21 @@ pub struct TraceInputs<'a> {
 /// The trace pass of one method.
 pub struct TracePass {
     method: Method,
-    pipeline: ComputePipeline,
-    fetch_sampler: vk::Sampler,
+    pipeline: FetchPipeline,
 }
 
 impl TracePass {
     /// Builds the pipeline of `method`.
     pub fn new(ctx: &Context, method: Method) -> Result<Self> {
         let name = format!("trace[{}]", method.name());
-        let pipeline = ComputePipeline::new(
+        let pipeline = FetchPipeline::new(
             ctx,
             &name,
             &method.shader(),
             &bindings(method.needs()),
             std::mem::size_of::<TraceParams>() as u32,
         )?;
-        let fetch_sampler = match crate::passes::sampler(
-            ctx,
-            &format!("{name}.fetch_sampler"),
-            vk::Filter::NEAREST,
-            vk::SamplerAddressMode::CLAMP_TO_EDGE,
-        ) {
-            Ok(s) => s,
-            Err(e) => {
-                let mut p = pipeline;
-                p.destroy(ctx);
-                return Err(e);
-            }
-        };
-        Ok(TracePass {
-            method,
-            pipeline,
-            fetch_sampler,
-        })
+        Ok(TracePass { method, pipeline })
     }
 
     /// The method this pass runs.
@@ -144,21 +126,11 @@ impl TracePass {
             (true, None) => return Err(missing("the DIG corner grid")),
             (false, _) => None,
         };
-        let fetch = |image: &Image| {
-            [vk::DescriptorImageInfo {
-                sampler: self.fetch_sampler,
-                image_view: image.view,
-                image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
-            }]
-        };
+        let fetch = |image: &Image| self.pipeline.fetch(image);
         let ray = fetch(&gbuffer.ray);
         let depth = fetch(&gbuffer.depth);
         let heights = [height.descriptor()];
-        let hits = [vk::DescriptorImageInfo {
-            sampler: vk::Sampler::null(),
-            image_view: hit.view,
-            image_layout: vk::ImageLayout::GENERAL,
-        }];
+        let hits = storage(hit);
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(&c.image));
         let normal = fetch(&gbuffer.normal);
@@ -196,7 +168,7 @@ impl TracePass {
             pyramid_levels: pyramid.map_or(0, Pyramid::levels),
             depth_scale,
         };
-        self.pipeline.dispatch(
+        self.pipeline.pipeline.dispatch(
             ctx,
             cmd,
             &writes,
@@ -210,8 +182,5 @@ impl TracePass {
     /// Destroys the pipeline and sampler.
     pub fn destroy(&mut self, ctx: &Context) {
         self.pipeline.destroy(ctx);
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_sampler(self.fetch_sampler, None) };
-        self.fetch_sampler = vk::Sampler::null();
     }
 }
