@@ -46,6 +46,8 @@ pub struct TraceParams {
     pub pyramid_levels: u32,
     /// Displacement depth in tile units (`pom`: `N . V` from the parallax vector).
     pub depth_scale: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
 }
 
 /// `TRACE_FLAG_AUTO_LEVEL` in `glsl/common/trace.glsl`: the pyramid method derives its
@@ -249,10 +251,11 @@ mod tests {
                 ("max_level", offset_of!(TraceParams, max_level)),
                 ("pyramid_levels", offset_of!(TraceParams, pyramid_levels)),
                 ("depth_scale", offset_of!(TraceParams, depth_scale)),
+                ("pad", offset_of!(TraceParams, pad)),
             ],
             size_of::<TraceParams>(),
         );
-        assert_eq!(size_of::<TraceParams>(), 64);
+        assert_eq!(size_of::<TraceParams>(), 80);
     }
 
     #[test]
@@ -334,7 +337,7 @@ mod tests {
         for s in shaders::ALL.iter().filter(|s| s.name.starts_with("trace/")) {
             let words = s.words().unwrap();
             let offs = block_offsets(&words, "TraceParams");
-            assert_eq!(offs.len(), 6, "{}", s.name);
+            assert_eq!(offs.len(), 15, "{}", s.name);
         }
     }
 }

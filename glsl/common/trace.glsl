@@ -34,6 +34,7 @@ layout(push_constant) uniform TraceParams {
     uint max_level;     // pyramid: coarsest traversal level
     uint pyramid_levels;// levels of the bound pyramid (0: none)
     float depth_scale;  // displacement depth in tile units
+    uvec2 pad;
 } pc;
 
 // The pyramid method picks its coarsest level from the pixel's texel footprint.

@@ -400,8 +400,10 @@ mod tests {
 
     #[test]
     fn cpu_levels_bound_their_children() {
-        let field = HeightField::from_fn(5, 3, "odd", |u, v| (u * 7.0).sin() * 0.4 + v * 0.5)
-            .expect("valid field");
+        let field = HeightField::from_fn(5, 3, "odd", |u, v| {
+            (0.5 + 0.4 * (u * 7.0).sin()) * (0.5 + 0.5 * v)
+        })
+        .expect("valid field");
         for kind in [PyramidKind::Footprint, PyramidKind::Cell] {
             let levels = cpu_build(&field, Addressing::Repeat, kind);
             assert_eq!(levels.len(), 4);

@@ -167,6 +167,7 @@ impl TracePass {
             max_level,
             pyramid_levels: pyramid.map_or(0, Pyramid::levels),
             depth_scale,
+            pad: [0; 2],
         };
         self.pipeline.pipeline.dispatch(
             ctx,
