@@ -2,7 +2,7 @@
 // pyramid: one level of the max-height pyramid per dispatch (the papers' min-displacement
 // pyramid; heights here, so the reduction is a max). See src/passes/pyramid.rs.
 //
-// Level 0 (from the height map, `texelFetch`, indices wrapped or clamped by addressing):
+// Level 0 (from the height map, texels.glsl's texel_height: wrapped or clamped):
 //   PYRAMID_KIND_FOOTPRINT: texel (i, j) bounds the bilinear surface over the texel's own
 //     footprint [i - 0.5, i + 0.5] x [j - 0.5, j + 0.5] (texel-centre coordinates). On each
 //     quarter of the footprint the surface is one bilinear patch whose maximum is at a
@@ -32,27 +32,19 @@ layout(push_constant) uniform PyramidParams {
     uint pad;
 } pc;
 
+#include "texels.glsl"
+
 #define PYRAMID_KIND_FOOTPRINT 0u
 #define PYRAMID_KIND_CELL 1u
 
-float texel(ivec2 p) {
-    ivec2 size = ivec2(pc.src_size);
-    if (pc.addressing == ADDRESSING_REPEAT) {
-        p = ((p % size) + size) % size;
-    } else {
-        p = clamp(p, ivec2(0), size - 1);
-    }
-    return texelFetch(u_height, p, 0).r;
-}
-
 float level0(ivec2 p) {
     if (pc.kind == PYRAMID_KIND_CELL) {
-        return max(max(texel(p), texel(p + ivec2(1, 0))), max(texel(p + ivec2(0, 1)), texel(p + ivec2(1, 1))));
+        return max(max(texel_height(p), texel_height(p + ivec2(1, 0))), max(texel_height(p + ivec2(0, 1)), texel_height(p + ivec2(1, 1))));
     }
     float t[9];
     for (int j = 0; j < 3; ++j) {
         for (int i = 0; i < 3; ++i) {
-            t[j * 3 + i] = texel(p + ivec2(i - 1, j - 1));
+            t[j * 3 + i] = texel_height(p + ivec2(i - 1, j - 1));
         }
     }
     float m = t[4];

@@ -109,15 +109,12 @@ pub fn iteration_stats(hits: &[HitTexel], covered: &[bool]) -> IterationStats {
     if values.is_empty() {
         return IterationStats::default();
     }
-    let n = values.len();
     let total: f64 = values.iter().sum();
-    let max = values.iter().copied().fold(f64::MIN, f64::max);
-    let rank = ((0.99 * n as f64).ceil() as usize).clamp(1, n);
-    let (_, p99, _) = values.select_nth_unstable_by(rank - 1, f64::total_cmp);
+    let (mean, p99, max) = crate::metrics::summary(&mut values);
     IterationStats {
-        pixels: n as u64,
-        mean: total / n as f64,
-        p99: *p99,
+        pixels: values.len() as u64,
+        mean,
+        p99,
         max,
         total,
     }

@@ -150,7 +150,7 @@ pub fn hit_errors(
 }
 
 /// Mean, nearest-rank p99 and maximum of finite values; zeros for an empty slice.
-fn summary(values: &mut [f64]) -> (f64, f64, f64) {
+pub(crate) fn summary(values: &mut [f64]) -> (f64, f64, f64) {
     if values.is_empty() {
         return (0.0, 0.0, 0.0);
     }

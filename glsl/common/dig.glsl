@@ -5,11 +5,11 @@
 #ifndef DISPMAP_DIG_GLSL
 #define DISPMAP_DIG_GLSL
 
-// The height the interval refinement samples: the hardware filter for `dig` (as the
-// paper); `dig-guarded` defines DIG_HEIGHT as height_exact, the exact bilinear surface
-// its guard and fallback intersect, so that all three agree on the surface.
-#ifndef DIG_HEIGHT
-#define DIG_HEIGHT height_at
+// The surface the interval refinement samples (trace_height): the hardware filter for
+// `dig` (as the paper); `dig-guarded` defines DIG_EXACT as true, the exact bilinear
+// surface its guard and fallback intersect, so that all three agree on the surface.
+#ifndef DIG_EXACT
+#define DIG_EXACT false
 #endif
 
 layout(set = 0, binding = 5) uniform sampler2D u_corners;
@@ -36,22 +36,6 @@ bool dig_interval(ivec2 pixel, out float h_bottom, out float h_top) {
     return same;
 }
 
-// The unconstrained search the paper's refinement reduces to without an interval:
-// `steps` equal height steps from the entry, then `refine_steps` bisections (relief).
-Hit dig_unconstrained(Ray ray, inout uint iterations) {
-    uint steps = max(pc.steps, 1u);
-    uint below;
-    if (!linear_march(ray, steps, below, iterations)) {
-        return miss(ray, iterations);
-    }
-    if (below == 0u) {
-        return hit_at(ray, 1.0, iterations);
-    }
-    float dh = 1.0 / float(steps);
-    float h_below = 1.0 - float(below) * dh;
-    return hit_at(ray, bisect(ray, h_below + dh, h_below, pc.refine_steps, iterations), iterations);
-}
-
 // Linear search inside [h_bottom, h_top] with the fixed horizontal step s = 1 / steps
 // (in UV units, section 8.2): I_L = floor(|R_xy| / s) (equation 2), R_xy the interval's
 // horizontal extent. Choices where the paper is silent:
@@ -61,7 +45,8 @@ Hit dig_unconstrained(Ray ray, inout uint iterations) {
 //  * I_L is at most 4 times that: near the horizon |P| >> 1 UV and a fixed UV step would
 //    need thousands of samples per pixel.
 //  * If the interval's top sample is already on or below the surface, the hit lies
-//    above the interval (the corners missed a feature): the unconstrained search runs.
+//    above the interval (the corners missed a feature): the unconstrained search
+//    (relief_search) runs.
 //  * If no sample of the interval reaches the surface, the hit lies below it: the march
 //    continues below the interval with the same step down to h = 0.
 // Then I_B = `refine_steps` bisections between the last two samples.
@@ -81,22 +66,11 @@ Hit dig_constrained(Ray ray, float h_bottom, float h_top, inout uint iterations)
             return miss(ray, iterations);
         }
         iterations += 1u;
-        if (DIG_HEIGHT(uv) >= h) {
+        if (trace_height(uv, DIG_EXACT) >= h) {
             if (k == 0.0) {
-                return h_top >= 1.0 ? hit_at(ray, 1.0, iterations) : dig_unconstrained(ray, iterations);
+                return h_top >= 1.0 ? hit_at(ray, 1.0, iterations) : relief_search(ray, iterations);
             }
-            // I_B bisections between the last two samples.
-            float h_above = h_prev, h_below = h;
-            for (uint i = 0u; i < pc.refine_steps; ++i) {
-                float h_mid = 0.5 * (h_above + h_below);
-                iterations += 1u;
-                if (DIG_HEIGHT(ray_uv(ray, h_mid)) >= h_mid) {
-                    h_below = h_mid;
-                } else {
-                    h_above = h_mid;
-                }
-            }
-            return hit_at(ray, 0.5 * (h_above + h_below), iterations);
+            return hit_at(ray, bisect(ray, h_prev, h, pc.refine_steps, DIG_EXACT, iterations), iterations);
         }
         if (h <= 0.0) {
             // Unreachable: at h = 0 every height is on or above the ray.

@@ -1,7 +1,7 @@
 // Traversal of the cell-max pyramid (PYRAMID_KIND_CELL, glsl/pyramid.comp) with the
 // exact ray / bilinear-patch intersection in the leaf: the GPU twin of the CPU reference
 // (src/reference.rs, whose module docs explain the algorithm), in f32. Used by `exact`
-// and by `dig-guarded`'s guard. Include after trace.glsl.
+// and by `dig-guarded`'s guard. Include after trace.glsl (which brings texels.glsl).
 //
 // Texel space: x = u W - 0.5, y = v H - 0.5; texel (i, j) at the integer point (i, j);
 // cell (i, j) = [i, i + 1] x [j, j + 1], its bound = pyramid level 0 at (i, j) (wrapped
@@ -16,37 +16,6 @@ layout(set = 0, binding = 4) uniform sampler2D u_pyramid;
 // A skip needs the ray to clear the node's bound by this much: f32 rounding of the exit
 // height must never skip a node the ray touches.
 const float SKIP_MARGIN = 1.0 / 1048576.0;
-
-int wrap_index(int i, int n) {
-    return ((i % n) + n) % n;
-}
-
-float texel_height(ivec2 p) {
-    ivec2 size = ivec2(pc.map_size);
-    if (pc.addressing == ADDRESSING_REPEAT) {
-        p = ivec2(wrap_index(p.x, size.x), wrap_index(p.y, size.y));
-    } else {
-        p = clamp(p, ivec2(0), size - 1);
-    }
-    return texelFetch(u_height, p, 0).r;
-}
-
-// The bilinear height at uv from 4 texel fetches in f32: the surface the reference
-// intersects. (The hardware filter may quantise its weights: 8 bits on lavapipe, which
-// moves a grazing hit by many texels.)
-float height_exact(vec2 uv) {
-    vec2 x = uv * vec2(pc.map_size) - 0.5;
-    vec2 cf = floor(x);
-    vec2 f = x - cf;
-    ivec2 c = ivec2(cf);
-    float h00 = texel_height(c);
-    float h10 = texel_height(c + ivec2(1, 0));
-    float h01 = texel_height(c + ivec2(0, 1));
-    float h11 = texel_height(c + ivec2(1, 1));
-    float top = h00 + (h10 - h00) * f.x;
-    float bottom = h01 + (h11 - h01) * f.x;
-    return top + (bottom - top) * f.y;
-}
 
 // The level-`level` node holding `cell` along one axis of `n` cells: its cell range
 // [lo, hi) (in the ray's unbounded cell coordinates) and its index within the level.

@@ -12,7 +12,7 @@
 // fetches, see dig.glsl), the surface the guard and the reference intersect.
 #include "trace.glsl"
 #include "pyramid.glsl"
-#define DIG_HEIGHT height_exact
+#define DIG_EXACT true
 #include "dig.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
