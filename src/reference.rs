@@ -216,6 +216,28 @@ impl Reference {
         ]
     }
 
+    /// The bilinear height at `uv` (unbounded UV, the reference's addressing), in `f64`.
+    pub fn height(&self, uv: [f64; 2]) -> f64 {
+        let x = uv[0] * self.size[0] as f64 - 0.5;
+        let y = uv[1] * self.size[1] as f64 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let [h00, h10, h01, h11] = self.corners(x0 as i64, y0 as i64);
+        let top = h00 + (h10 - h00) * fx;
+        let bottom = h01 + (h11 - h01) * fx;
+        top + (bottom - top) * fy
+    }
+
+    /// How far the surface rises above `ray` at its parameter `t` (`t = 1 - h`):
+    /// `H(uv0 + t P) - (1 - t)`; `>= 0` on or below the surface.
+    pub fn penetration(&self, ray: &Ray, t: f64) -> f64 {
+        let uv = [
+            ray.uv0[0] + t * ray.parallax[0],
+            ray.uv0[1] + t * ray.parallax[1],
+        ];
+        self.height(uv) - (1.0 - t)
+    }
+
     /// The exact first intersection of `ray`, or `None` for a clamp-mode miss (and for
     /// rays with non-finite components or an absurd extent, see the module docs).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {

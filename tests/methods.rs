@@ -41,6 +41,69 @@ struct Run {
     error: ErrorMetrics,
     /// Sum of the hit buffer's iteration counts plus the DIG corner pass's.
     total_iterations: f64,
+    /// Artifact pixels that are not a skim within the method's tolerance (see
+    /// `unexplained`); `None` for the methods without one.
+    unexplained: Option<usize>,
+}
+
+/// How far (in heights, the depth being 1) the ray may pass above or below the surface
+/// and still count as touching it: a few f32 ulps of the G-buffer's ray.
+const TANGENCY: f64 = 1e-6;
+
+/// The deepest skim the pyramid method's two-sample refinement may step over: the
+/// measured misses dip at most 3.1e-3 of the depth under the surface (mountains at 5
+/// and 1 deg; 0.08 texel at depth scale 0.1 on the 256-texel map), every other miss
+/// under 1e-3.
+const PYRAMID_SKIM: f64 = 5e-3;
+
+/// The tolerance `unexplained` applies to `method`'s hits.
+fn skim_tolerance(method: Method) -> Option<f64> {
+    match method {
+        Method::Exact | Method::DigGuarded => Some(TANGENCY),
+        Method::Pyramid => Some(PYRAMID_SKIM),
+        _ => None,
+    }
+}
+
+/// The artifact pixels of `hits` that a skim of depth `tolerance` does not explain. An
+/// exact method and the f64 reference may disagree on a ray that skims the surface within
+/// f32 rounding (a grazing touch of a patch's ridge: one of them reports the touch, the
+/// other the next crossing); the pyramid method's refinement samples the surface half a
+/// texel apart and steps over shallow skims. Such a pixel is explained when the earlier
+/// of the two hits is a touch (the surface within `tolerance` of the ray) and the ray
+/// between the two never goes deeper than `tolerance` under the surface.
+fn unexplained(
+    reference: &Reference,
+    frame: &dispmap::renderer::FrameReference,
+    hits: &[[f32; 4]],
+    geometry: dispmap::metrics::MapGeometry,
+    tolerance: f64,
+) -> usize {
+    let mut count = 0;
+    for ((hit, exact), ray) in hits.iter().zip(&frame.hits).zip(&frame.rays) {
+        let Some(ray) = ray else { continue };
+        let explained = match (hit[2] >= 0.0, exact) {
+            (false, None) => true,
+            (true, Some(exact)) => {
+                if dispmap::metrics::hit_distance_texels(hit, exact, geometry) <= 1.0 {
+                    true
+                } else {
+                    let (t_gpu, t_ref) = (1.0 - f64::from(hit[2]), 1.0 - exact.height);
+                    let (a, b) = (t_gpu.min(t_ref), t_gpu.max(t_ref));
+                    let touch = reference.penetration(ray, a) >= -tolerance;
+                    let shallow = (0..=1000)
+                        .map(|k| reference.penetration(ray, a + (b - a) * f64::from(k) / 1000.0))
+                        .all(|p| p <= tolerance);
+                    touch && shallow
+                }
+            }
+            _ => false,
+        };
+        if !explained {
+            count += 1;
+        }
+    }
+    count
 }
 
 /// Runs `methods` at every elevation on `field` and returns the table.
@@ -74,8 +137,17 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
                     c.iter().map(|c| f64::from(c.iterations)).sum()
                 });
                 let e = m.error;
+                let unexplained = skim_tolerance(method).map(|tolerance| {
+                    unexplained(
+                        &reference,
+                        &frame_ref,
+                        &m.hits,
+                        renderer.map_geometry(),
+                        tolerance,
+                    )
+                });
                 eprintln!(
-                    "{:<11} {:>3} {:>4}deg {:<10} artifacts {:>7.3}% p99 {:>9.4} mean it {:>6.1} total it {:>10.0} nonfinite {}",
+                    "{:<11} {:>3} {:>4}deg {:<10} artifacts {:>7.3}% p99 {:>9.4} mean it {:>6.1} total it {:>10.0} nonfinite {} unexplained {:?}",
                     method.name(),
                     steps,
                     elevation,
@@ -84,7 +156,8 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
                     e.p99_texels,
                     e.mean_iterations,
                     trace + corners,
-                    e.nonfinite_pixels
+                    e.nonfinite_pixels,
+                    unexplained
                 );
                 runs.push(Run {
                     method,
@@ -92,6 +165,7 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
                     elevation,
                     error: e,
                     total_iterations: trace + corners,
+                    unexplained,
                 });
             }
         }
@@ -120,7 +194,8 @@ const METHODS: [(Method, u32); 7] = [
 /// Bounds each test holds. Where the issue's target is not reached the bound is the
 /// measured value (rounded up) and README.md says so; see `check`.
 struct Bounds {
-    /// `exact`: artifact fraction (issue: 0).
+    /// `exact`: artifact fraction (issue: 0; bricks at 5 deg: one pixel, a ray touching
+    /// a ridge within 1.1e-7, which `unexplained` checks is a float-precision tangency).
     exact: f64,
     /// `pyramid`: artifact fraction (issue: 0.001).
     pyramid: f64,
@@ -139,6 +214,12 @@ fn check(runs: &[Run], bounds: &Bounds) {
     }
     for &elevation in &ELEVATIONS {
         let exact = find(runs, Method::Exact, elevation);
+        // Exact agrees with the reference to float precision on every pixel; the
+        // pyramid method misses only shallow skims.
+        for method in [Method::Exact, Method::DigGuarded, Method::Pyramid] {
+            let run = find(runs, method, elevation);
+            assert_eq!(run.unexplained, Some(0), "{method} at {elevation}");
+        }
         assert!(
             exact.error.artifact_fraction <= bounds.exact,
             "exact at {elevation}: {}",
@@ -169,13 +250,12 @@ fn check(runs: &[Run], bounds: &Bounds) {
             relief.total_iterations
         );
 
-        // Issue: no higher than `pyramid`'s; reached: well below plain DIG's (README).
         let guarded = find(runs, Method::DigGuarded, elevation);
         assert!(
-            guarded.error.artifact_fraction <= 0.6 * dig.error.artifact_fraction,
-            "dig-guarded at {elevation}: {} vs dig {}",
+            guarded.error.artifact_fraction <= pyramid.error.artifact_fraction,
+            "dig-guarded at {elevation}: {} vs pyramid {}",
             guarded.error.artifact_fraction,
-            dig.error.artifact_fraction
+            pyramid.error.artifact_fraction
         );
     }
 }

@@ -5,13 +5,6 @@
 #ifndef DISPMAP_DIG_GLSL
 #define DISPMAP_DIG_GLSL
 
-// The surface the interval refinement samples (trace_height): the hardware filter for
-// `dig` (as the paper); `dig-guarded` defines DIG_EXACT as true, the exact bilinear
-// surface its guard and fallback intersect, so that all three agree on the surface.
-#ifndef DIG_EXACT
-#define DIG_EXACT false
-#endif
-
 layout(set = 0, binding = 5) uniform sampler2D u_corners;
 layout(set = 0, binding = 6) uniform sampler2D u_normal;
 
@@ -36,28 +29,34 @@ bool dig_interval(ivec2 pixel, out float h_bottom, out float h_top) {
     return same;
 }
 
-// Linear search inside [h_bottom, h_top] with the fixed horizontal step s = 1 / steps
-// (in UV units, section 8.2): I_L = floor(|R_xy| / s) (equation 2), R_xy the interval's
-// horizontal extent. Choices where the paper is silent:
+// The height step of the linear search inside [h_bottom, h_top]: a fixed horizontal step
+// s = 1 / steps (in UV units, section 8.2), I_L = floor(|R_xy| / s) steps over the
+// interval (equation 2), R_xy the interval's horizontal extent. Choices where the paper
+// is silent:
 //  * I_L is at least the interval's length in height steps of 1 / steps: the step is
 //    never coarser than relief's at the same quality (the benchmark gives every method
 //    the same step size; when |P| < 1 UV the fixed horizontal step would be coarser).
 //  * I_L is at most 4 times that: near the horizon |P| >> 1 UV and a fixed UV step would
 //    need thousands of samples per pixel.
-//  * If the interval's top sample is already on or below the surface, the hit lies
-//    above the interval (the corners missed a feature): the unconstrained search
-//    (relief_search) runs.
-//  * If no sample of the interval reaches the surface, the hit lies below it: the march
-//    continues below the interval with the same step down to h = 0.
-// Then I_B = `refine_steps` bisections between the last two samples.
-Hit dig_constrained(Ray ray, float h_bottom, float h_top, inout uint iterations) {
+float dig_step(Ray ray, float h_bottom, float h_top) {
     float iter = float(max(pc.steps, 1u));
     float len = h_top - h_bottom;
     float s = 1.0 / iter;
     float r_xy = len * length(ray.P);
     float relief = max(ceil(len * iter), 1.0);
     float i_l = clamp(floor(r_xy / s), relief, 4.0 * relief);
-    float dh = len > 0.0 ? len / i_l : 1.0 / iter;
+    return len > 0.0 ? len / i_l : 1.0 / iter;
+}
+
+// Linear search from h_top down with the step of dig_step, then I_B = `refine_steps`
+// bisections between the last two samples (hardware filter, as the paper).
+//  * If the interval's top sample is already on or below the surface, the hit lies
+//    above the interval (the corners missed a feature): the unconstrained search
+//    (relief_search) runs.
+//  * If no sample of the interval reaches the surface, the hit lies below it: the march
+//    continues below the interval with the same step down to h = 0.
+Hit dig_constrained(Ray ray, float h_bottom, float h_top, inout uint iterations) {
+    float dh = dig_step(ray, h_bottom, h_top);
     float h_prev = h_top;
     for (float k = 0.0; ; k += 1.0) {
         float h = max(h_top - k * dh, 0.0);
@@ -66,11 +65,11 @@ Hit dig_constrained(Ray ray, float h_bottom, float h_top, inout uint iterations)
             return miss(ray, iterations);
         }
         iterations += 1u;
-        if (trace_height(uv, DIG_EXACT) >= h) {
+        if (height_at(uv) >= h) {
             if (k == 0.0) {
                 return h_top >= 1.0 ? hit_at(ray, 1.0, iterations) : relief_search(ray, iterations);
             }
-            return hit_at(ray, bisect(ray, h_prev, h, pc.refine_steps, DIG_EXACT, iterations), iterations);
+            return hit_at(ray, bisect(ray, h_prev, h, pc.refine_steps, iterations), iterations);
         }
         if (h <= 0.0) {
             // Unreachable: at h = 0 every height is on or above the ray.

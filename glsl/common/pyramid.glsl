@@ -126,15 +126,23 @@ float cell_hit(ivec2 cell, vec2 origin, vec2 dir, float t_in, float t_out) {
     return s < 0.0 ? -1.0 : min(t_in + s, t_out);
 }
 
+// The ray in texel space: x = origin + t dir.
+void texel_ray(Ray ray, out vec2 origin, out vec2 dir) {
+    vec2 dims = vec2(pc.map_size);
+    origin = ray.uv0 * dims - 0.5;
+    dir = ray.P * dims;
+}
+
 // The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h):
 // returns t, or -1 when there is none (a clamp-addressed ray leaving the decal, or no
-// crossing before t_stop < 1). `iterations` counts the traversal steps (one pyramid or
-// one cell fetch each).
-float pyramid_first_hit(Ray ray, float t_start, float t_stop, inout uint iterations) {
+// crossing before t_stop < 1). The traversal starts at level `start_level` (any level
+// is correct: every level bounds its cells; a short segment starts low). `iterations`
+// counts the traversal steps (one pyramid or one cell fetch each).
+float pyramid_first_hit_from(Ray ray, float t_start, float t_stop, int start_level, inout uint iterations) {
     ivec2 n_cells = ivec2(pc.map_size);
     vec2 dims = vec2(pc.map_size);
-    vec2 origin = ray.uv0 * dims - 0.5;
-    vec2 dir = ray.P * dims;
+    vec2 origin, dir;
+    texel_ray(ray, origin, dir);
     float t_end = t_stop;
     if (pc.addressing == ADDRESSING_CLAMP) {
         if (any(lessThan(ray.uv0, vec2(0.0))) || any(greaterThan(ray.uv0, vec2(1.0)))) {
@@ -160,7 +168,7 @@ float pyramid_first_hit(Ray ray, float t_start, float t_stop, inout uint iterati
         int c = cell_at(origin[a] + t * dir[a], dir[a]);
         cell[a] = pc.addressing == ADDRESSING_CLAMP ? clamp(c, -1, n_cells[a] - 1) : c;
     }
-    int level = top;
+    int level = clamp(start_level, 0, top);
     // Each skip moves a cell index by >= 1 along the ray and follows at most `top`
     // descents: the cap is only reached through a bug (then: no hit).
     float span = abs(dir.x) + abs(dir.y) + 4.0;
@@ -214,6 +222,17 @@ float pyramid_first_hit(Ray ray, float t_start, float t_stop, inout uint iterati
         level = min(level + 1, top);
     }
     return -1.0;
+}
+
+// pyramid_first_hit_from starting at the root.
+float pyramid_first_hit(Ray ray, float t_start, float t_stop, inout uint iterations) {
+    return pyramid_first_hit_from(ray, t_start, t_stop, int(pc.pyramid_levels) - 1, iterations);
+}
+
+// The finest level whose nodes are at least `cells` cells wide (a restart level).
+int level_for_span(float cells) {
+    int top = int(pc.pyramid_levels) - 1;
+    return clamp(int(ceil(log2(max(cells, 1.0)))), 0, top);
 }
 
 #endif

@@ -57,21 +57,13 @@ Hit miss(Ray ray, uint iterations) {
     return Hit(ray.uv0, NO_HIT_HEIGHT, iterations);
 }
 
-// The height at uv: the hardware bilinear filter, or with `exact` the f32 bilinear
-// surface from 4 texel fetches (texels.glsl). Callers pass a constant, so the branch
-// folds away.
-float trace_height(vec2 uv, bool exact) {
-    return exact ? height_exact(uv) : height_at(uv);
-}
-
 // Bisection between a height above the surface and one on or below it: `steps` halvings
-// (one fetch each) of the surface `trace_height(.., exact)`; returns the midpoint of the
-// final interval.
-float bisect(Ray ray, float h_above, float h_below, uint steps, bool exact, inout uint iterations) {
+// (one hardware-filtered fetch each); returns the midpoint of the final interval.
+float bisect(Ray ray, float h_above, float h_below, uint steps, inout uint iterations) {
     for (uint i = 0u; i < steps; ++i) {
         float h_mid = 0.5 * (h_above + h_below);
         iterations += 1u;
-        if (trace_height(ray_uv(ray, h_mid), exact) >= h_mid) {
+        if (height_at(ray_uv(ray, h_mid)) >= h_mid) {
             h_below = h_mid;
         } else {
             h_above = h_mid;
@@ -93,7 +85,7 @@ Hit relief_search(Ray ray, inout uint iterations) {
     }
     float dh = 1.0 / float(steps);
     float h_below = 1.0 - float(below) * dh;
-    return hit_at(ray, bisect(ray, h_below + dh, h_below, pc.refine_steps, false, iterations), iterations);
+    return hit_at(ray, bisect(ray, h_below + dh, h_below, pc.refine_steps, iterations), iterations);
 }
 
 Hit trace_ray(Ray ray, ivec2 pixel);
