@@ -26,8 +26,8 @@ pub enum Method {
     Secant,
     /// Depth interval grid (Judnich & Ling): corner pass, then a constrained march.
     Dig,
-    /// DIG whose interval start is checked against the cell pyramid, with a pyramid
-    /// traversal where the check fails (beyond the papers).
+    /// DIG made exact by the cell pyramid: the traversal clears the ray before the
+    /// interval, then continues from the interval's top (beyond the papers).
     DigGuarded,
     /// Pyramidal displacement mapping (Oh, Ki & Lee 2006).
     Pyramid,
