@@ -381,3 +381,36 @@ fn unwritable_heatmap_is_named_and_nothing_is_written() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--heatmap-max"));
     assert!(!png.exists() && !dir.join("h.png").exists());
 }
+
+/// `dispmap render --method M` works for every method: a PNG, metrics with no
+/// non-finite pixel, and the passes the method needs (and only those) in the timings.
+#[test]
+fn render_works_for_every_method() {
+    let dir = scratch("every-method");
+    for &method in dispmap::method::Method::ALL {
+        let name = method.name();
+        let (png, json) = (
+            dir.join(format!("{name}.png")),
+            dir.join(format!("{name}.json")),
+        );
+        let out = render_small(name, &png, &["--metrics".as_ref(), json.as_ref()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {stderr}");
+        assert!(image::open(&png).is_ok(), "{name}: no PNG");
+        let v = read_json(&json);
+        assert_eq!(v["method"], name, "{v}");
+        assert_eq!(v["nonfinite_pixels"], 0, "{name}: {v}");
+        let needs = method.needs();
+        let timings = &v["timings_ms"];
+        assert_eq!(
+            timings.get("pyramid").is_some(),
+            needs.pyramid.is_some(),
+            "{name}: {timings}"
+        );
+        assert_eq!(
+            timings.get("dig_corners").is_some(),
+            needs.dig_corners,
+            "{name}: {timings}"
+        );
+    }
+}
