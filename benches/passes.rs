@@ -1,87 +1,63 @@
-//! `cargo bench`: per-pass GPU time (timestamp medians) of every method on the bundled
-//! rocks map, with its error against the exact reference. Not wall-clock: the numbers
-//! come from timestamp queries, so compare ratios within one run (on lavapipe they are
-//! CPU times).
+//! `cargo bench`: a reduced run of `dispmap bench` (the same protocol through
+//! `dispmap::bench`): 480x270 frames, 3 frames per run (error on the first), settings 75
+//! and 150, every method on the rocks, bricks and mountains maps, and a 256/2048 map-size
+//! sweep. Times are GPU timestamp medians, not wall-clock: compare ratios within one run
+//! (on lavapipe they are CPU times). Prints the report's tables and writes the full
+//! outputs to `target/dispmap-bench/`.
+//!
+//! Arguments other than cargo's `--bench` select methods by name substring
+//! (`cargo bench -- dig pom`).
 
+use dispmap::bench::{self, BenchConfig, MapSpec};
 use dispmap::context::{Context, ContextOptions};
-use dispmap::method::{Method, MethodParams};
-use dispmap::reference::Reference;
-use dispmap::renderer::{RenderSettings, Renderer};
-use dispmap::scene::{Camera, Scene};
+use dispmap::method::Method;
+use std::path::Path;
 
 fn main() -> anyhow::Result<()> {
-    // `cargo bench` passes `--bench`; any other argument filters methods by name.
     let filter: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with('-'))
         .collect();
-    let ctx = Context::headless(&ContextOptions::default())?;
-    let field = dispmap::bundled::rocks()?;
-    let frames = 9;
-    let base = RenderSettings {
-        width: 480,
-        height: 270,
-        method: Method::Bump,
-        params: MethodParams::default(),
-        scene: Scene {
-            camera: Camera {
-                elevation_deg: 20.0,
-                ..Camera::default()
-            },
-            ..Scene::default()
-        },
+    let methods: Vec<Method> = Method::ALL
+        .iter()
+        .copied()
+        .filter(|m| filter.is_empty() || filter.iter().any(|f| m.name().contains(f.as_str())))
+        .collect();
+    anyhow::ensure!(!methods.is_empty(), "no method matches {filter:?}");
+    let config = BenchConfig {
+        frame: [480, 270],
+        frames: 3,
+        error_frames: Some(1),
+        steps: vec![75, 150],
+        methods,
+        sizes: vec![256, 2048],
+        ..BenchConfig::default()
     };
-    println!(
-        "dispmap bench: {} on {} ({}), {}x{}, median of {frames} frames",
-        field.label(),
+    let ctx = Context::headless(&ContextOptions::default())?;
+    let maps = bench::bundled_maps()?;
+    let rocks = MapSpec::bundled("rocks")?;
+    eprintln!(
+        "cargo bench: reduced dispmap bench on {} ({}), {}x{}, {} frames, steps 75/150",
         ctx.info().name,
         ctx.info().driver,
-        base.width,
-        base.height
+        config.frame[0],
+        config.frame[1],
+        config.frames
     );
-    let mut renderer = Renderer::new(&ctx, &field, base)?;
-    let reference = Reference::new(&field, base.scene.addressing());
-    let frame_ref = renderer.reference(&reference)?;
+    let mut last = 0;
+    let results = bench::run(&ctx, &config, &maps, Some(&rocks), &mut |p| {
+        let percent = p.done * 100 / p.total.max(1);
+        if percent >= last + 10 {
+            last = percent - percent % 10;
+            eprintln!("{percent:>3}% {}", p.stage);
+        }
+    })?;
+    let out = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/dispmap-bench");
+    bench::write_outputs(&out, &results, "cargo bench (benches/passes.rs)")?;
     println!(
-        "{:<12} {:>6} {:>10} {:>10} {:>10} {:>8} {:>10}",
-        "method", "steps", "trace ms", "total ms", "vs bump", "iters", "artifact%"
+        "{}",
+        bench::report::markdown(&results, "cargo bench (benches/passes.rs)")
     );
-    let mut bump_trace = None;
-    for &method in Method::ALL {
-        if !filter.is_empty() && !filter.iter().any(|f| method.name().contains(f.as_str())) {
-            continue;
-        }
-        // Methods without a step count (bump, pyramid, exact) run once.
-        let steps_list: &[u32] = match method {
-            Method::Bump | Method::Pyramid | Method::Exact => &[1],
-            Method::Secant => &[15, 30],
-            _ => &[32, 64, 128],
-        };
-        for &steps in steps_list {
-            renderer.set_method(method, MethodParams::with_steps(steps))?;
-            let m = renderer.measure(&frame_ref, frames)?;
-            let get = |n: &str| {
-                m.timings_ms
-                    .iter()
-                    .find(|(k, _)| k == n)
-                    .map_or(0.0, |(_, v)| *v)
-            };
-            let trace = get("trace");
-            if method == Method::Bump {
-                bump_trace = Some(trace);
-            }
-            let ratio = bump_trace.map_or(f64::NAN, |b| trace / b);
-            println!(
-                "{:<12} {:>6} {:>10.3} {:>10.3} {:>9.1}x {:>8.1} {:>10.3}",
-                method.name(),
-                steps,
-                trace,
-                get("total"),
-                ratio,
-                m.error.mean_iterations,
-                100.0 * m.error.artifact_fraction
-            );
-        }
-    }
+    println!("outputs: {}", out.display());
     Ok(())
 }

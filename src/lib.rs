@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod abi;
+pub mod bench;
 pub mod bundled;
 pub mod context;
 pub mod error;

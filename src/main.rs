@@ -10,7 +10,7 @@ use dispmap::metrics::ErrorMetrics;
 use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Geometry, Light, Scene};
-use dispmap::{bundled, output};
+use dispmap::{bench, bundled, output};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -44,6 +44,59 @@ enum Command {
     Render(RenderArgs),
     /// The default job: every method on the bundled map (what `dispmap` alone runs).
     Demo(DemoArgs),
+    /// The speed-versus-error benchmark: every method on the rocks, bricks and mountains
+    /// maps at each quality setting over a turning camera, timed with GPU timestamps and
+    /// measured against the exact reference; writes results.csv, report.md, Pareto plots,
+    /// heat maps and a map-size sweep into --out.
+    Bench(BenchArgs),
+}
+
+#[derive(Args, Debug)]
+struct BenchArgs {
+    /// Output folder (created if missing); every file is written atomically.
+    #[arg(long, default_value = "bench-out")]
+    out: PathBuf,
+    /// Frames per run: the camera turns about the vertical axis by 360/K degrees per
+    /// frame; times are medians over the frames.
+    #[arg(long, default_value_t = bench::DEFAULT_FRAMES, value_name = "K")]
+    frames: u32,
+    /// How many of the frames (spread evenly, frame 0 first) are measured against the
+    /// exact reference [default: all of them].
+    #[arg(long, value_name = "N")]
+    error_frames: Option<u32>,
+    /// Quality settings: linear steps over the full depth, the same for every method that
+    /// has a step count (DIG: eps1 = eps2 = 1/steps).
+    #[arg(long, default_value = "75,100,125,150", value_name = "LIST")]
+    steps: String,
+    /// Methods, comma-separated, or `all`: bump, linear, relief, pom, secant, dig,
+    /// dig-guarded, pyramid, exact.
+    #[arg(long, default_value = "all", value_name = "LIST")]
+    methods: String,
+    /// Bundled maps (rocks, bricks, mountains), comma-separated, or `none`.
+    #[arg(long, default_value = "rocks,bricks,mountains", value_name = "LIST")]
+    maps: String,
+    /// Add this height map (PNG 8/16-bit, JPEG, OpenEXR) to the maps; needs --convention.
+    #[arg(long, requires = "convention", value_name = "FILE")]
+    heightmap: Option<PathBuf>,
+    /// How --heightmap encodes heights: `height` (white = high) or `depth` (white = low).
+    #[arg(long, requires = "heightmap")]
+    convention: Option<Convention>,
+    /// Frame size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "640x360", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Map-size sweep: map sides (the map is resampled to each), comma-separated, or
+    /// `none`; pyramid, exact, dig and pom are timed at --size-steps.
+    #[arg(long, default_value = "256,512,1024,2048", value_name = "LIST")]
+    sizes: String,
+    /// The setting of the map-size sweep.
+    #[arg(long, default_value_t = bench::DEFAULT_SIZE_STEPS, value_name = "N")]
+    size_steps: u32,
+    /// The bundled map the map-size sweep resamples.
+    #[arg(long, default_value = "rocks", value_name = "NAME")]
+    size_map: String,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -312,6 +365,7 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::Info) => info(&options),
         Some(Command::Render(args)) => render(&options, &args),
         Some(Command::Demo(args)) => demo(&options, &args),
+        Some(Command::Bench(args)) => bench_command(&options, &args),
         None => {
             let args = DemoArgs::parse_defaults();
             demo(&options, &args)
@@ -560,4 +614,144 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         );
     }
     finish(&ctx)
+}
+
+fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
+    // Everything that can be wrong with the input fails here, before any GPU work.
+    let mut config = bench::BenchConfig {
+        frame: [args.size.0, args.size.1],
+        frames: args.frames,
+        error_frames: args.error_frames,
+        steps: bench::parse_steps(&args.steps)?,
+        methods: bench::parse_methods(&args.methods)?,
+        sizes: bench::parse_sizes(&args.sizes)?,
+        size_steps: args.size_steps,
+        ..bench::BenchConfig::default()
+    };
+    config.validate()?;
+    let mut maps = Vec::new();
+    for name in bench::parse_maps(&args.maps)? {
+        maps.push(bench::MapSpec::bundled(&name)?);
+    }
+    if let (Some(path), Some(convention)) = (&args.heightmap, args.convention) {
+        maps.push(bench::MapSpec::load(path, convention)?);
+    }
+    let size_source = if config.sizes.is_empty() {
+        None
+    } else {
+        Some(bench::MapSpec {
+            name: args.size_map.clone(),
+            field: bundled::by_name(&args.size_map, "--size-map")?,
+        })
+    };
+    if maps.is_empty() && size_source.is_none() {
+        bail!("invalid --maps: no map to benchmark (give --maps or --heightmap)");
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("invalid --out: cannot create {}", args.out.display()))?;
+    output::check_writable(&args.out.join("report.md")).context("invalid --out")?;
+
+    let ctx = Context::headless(options)?;
+    let bar = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        let bar = indicatif::ProgressBar::with_draw_target(
+            Some(1),
+            indicatif::ProgressDrawTarget::stderr(),
+        );
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "[{elapsed_precise}] {wide_bar} {percent:>3}% ETA {eta:>4} {msg}",
+            )
+            .expect("the template is valid")
+            .progress_chars("=> "),
+        );
+        bar
+    };
+    eprintln!(
+        "dispmap bench: {} map(s), {} method(s), steps {}, {}x{}, {} frames, on {} ({})",
+        maps.len(),
+        config.methods.len(),
+        args.steps,
+        config.frame[0],
+        config.frame[1],
+        config.frames,
+        ctx.info().name,
+        ctx.info().driver
+    );
+    let results = bench::run(&ctx, &config, &maps, size_source.as_ref(), &mut |p| {
+        bar.set_length(p.total);
+        bar.set_position(p.done);
+        bar.set_message(p.stage.clone());
+    });
+    bar.finish_and_clear();
+    let results = results?;
+    let command = command_line();
+    let written = bench::write_outputs(&args.out, &results, &command)?;
+    print_bench_summary(&results);
+    println!(
+        "\nwrote {} files to {} in {:.0} s (report.md, results.csv, plots, heat maps)",
+        written.len(),
+        args.out.display(),
+        results.wall.as_secs_f64()
+    );
+    finish(&ctx)
+}
+
+/// The command line as typed (arguments with spaces or quotes are single-quoted).
+fn command_line() -> String {
+    let mut parts = vec!["dispmap".to_owned()];
+    for a in std::env::args().skip(1) {
+        if a.is_empty() || a.contains(|c: char| c.is_whitespace() || c == '\'' || c == '"') {
+            parts.push(format!("'{}'", a.replace('\'', r"'\''")));
+        } else {
+            parts.push(a);
+        }
+    }
+    parts.join(" ")
+}
+
+fn print_bench_summary(results: &bench::BenchResults) {
+    use bench::report::{Measure, equal_error_speedup, same_setting_speedup};
+    use dispmap::bench::TimeToError;
+    let cell = |s: Option<TimeToError>| match s {
+        Some(TimeToError::Reached(x)) => format!("{x:.2}x"),
+        Some(TimeToError::AtMost(x)) => format!(">={x:.2}x"),
+        Some(TimeToError::NotReached) => "n/r".into(),
+        None => "-".into(),
+    };
+    println!(
+        "\nDIG speed-up (method time: dig_corners + trace) over pom / relief, at the same \
+         setting and at equal artifact fraction (n/r: DIG does not reach that error):"
+    );
+    println!(
+        "{:<12} {:>6} {:>10} {:>10} {:>12} {:>12}",
+        "map", "iter", "pom", "relief", "pom eq.err", "relief eq.err"
+    );
+    for map in &results.maps {
+        for &steps in &results.config.steps {
+            let same = |m| {
+                same_setting_speedup(&results.rows, &map.name, m, steps)
+                    .map_or_else(|| "-".into(), |(x, _)| format!("{x:.2}x"))
+            };
+            let eq = |m| {
+                cell(equal_error_speedup(
+                    &results.rows,
+                    &map.name,
+                    m,
+                    steps,
+                    Measure::ArtifactFraction,
+                ))
+            };
+            println!(
+                "{:<12} {:>6} {:>10} {:>10} {:>12} {:>12}",
+                map.name,
+                steps,
+                same(Method::Pom),
+                same(Method::Relief),
+                eq(Method::Pom),
+                eq(Method::Relief)
+            );
+        }
+    }
 }

@@ -1,0 +1,1213 @@
+//! The speed-versus-error benchmark behind `dispmap bench` and `cargo bench`: every
+//! method on several height maps at several quality settings, timed with GPU timestamps
+//! and measured against the exact reference, written as a CSV, a Markdown report and
+//! plots.
+//!
+//! # Protocol (after the DIG paper, section 8)
+//!
+//! * **Scene.** The effectively infinite tiled plane ([`Geometry::TiledPlane`]), the eye
+//!   0.25 tiles above it, depth scale 0.1. The camera's central ray is
+//!   [`CAMERA_ELEVATION_DEG`] below the horizon and the vertical field of view is
+//!   [`FOV_Y_DEG`], so the bottom row of the frame looks 40 degrees down and the top row
+//!   0.5 degrees down (the paper: "from 40 degrees at the bottom of the screen to less
+//!   than 1 degree near the horizon"). Over the `K` frames of a run the camera turns
+//!   about the vertical axis: frame `f` has azimuth `(f + 0.5) 360 / K` degrees (the
+//!   half step keeps the views off the map's axes).
+//! * **Settings.** Each `--steps` value `iter` is the number of linear steps over the
+//!   full depth, the same step size for every method that has one: `linear`, `relief`,
+//!   `dig` and `dig-guarded` march `iter` steps, `pom` gets `n_max = iter` (and its
+//!   default `n_min`), `secant` `N = iter` samples. DIG uses `eps1 = eps2 = 1 / iter`,
+//!   4x4 blocks; every binary search has 5 steps. Methods without a step count
+//!   (`bump`, `pyramid`, `exact`) run once per map (their `steps` is empty).
+//! * **Time.** Per run one untimed warm-up frame (it also builds the pyramid, whose one
+//!   build is reported as `pyramid_build_ms`), then `K` timed frames; every pass's time
+//!   is the median over the frames of its timestamp interval. The *method time*
+//!   (`method_ms`) is the median per-frame sum of the method's own passes (`trace`, plus
+//!   `dig_corners` for DIG): what the speed-ups and plots compare. `total_ms` is the median whole
+//!   frame (G-buffer, corner pass, trace, shade; without the one-off pyramid build).
+//! * **Error.** The reference of a frame (the exact CPU intersection of its rays,
+//!   [`Renderer::reference`]) is computed once per map and error frame and shared by
+//!   every method. `--error-frames N` picks frames `floor(i K / N)`, `i < N` (frame 0
+//!   always; all frames by default). Each error measure of a run is the mean of the
+//!   per-frame measures ([`crate::metrics`]) over its error frames, except `max_texels`
+//!   (the maximum) and `nonfinite_pixels` (the sum). Iterations are the trace pass's
+//!   per-pixel counts (mean and p99 over covered pixels, averaged over the error
+//!   frames); for the DIG methods `corner_iterations` adds the corner pass's fetches per
+//!   covered pixel.
+//! * **Map-size sweep.** One map (rocks by default) resampled to each `--sizes` side
+//!   (Catmull-Rom, keeping the map's precision), and `pyramid`, `exact`, `dig` and
+//!   `pom` run at one setting (`size_steps`) with the same frames, the pyramid build
+//!   reported apart from the trace.
+//!
+//! [`run`] does the sweep and returns [`BenchResults`]; [`write_outputs`] writes
+//! `results.csv`, `report.md`, `pareto_<map>.png`, `sizes.png` and the heat maps.
+//! Timings on lavapipe are CPU timings: compare ratios within one run, never absolute
+//! numbers across runs.
+
+pub mod plot;
+pub mod report;
+
+pub use report::{CurvePoint, TimeToError, time_to_reach};
+
+use crate::context::Context;
+use crate::error::{Error, Result};
+use crate::heatmap;
+use crate::heightfield::{HeightField, Texels};
+use crate::method::{MAX_STEPS, Method, MethodParams, PyramidKind};
+use crate::metrics::{self, ErrorMetrics};
+use crate::reference::Reference;
+use crate::renderer::{FrameReference, MAX_FRAME_SIDE, RenderSettings, Renderer};
+use crate::scene::{Camera, Geometry, Scene};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant, SystemTime};
+
+/// The central view ray's angle below the horizon, degrees: with [`FOV_Y_DEG`] the
+/// frame spans 40 degrees (bottom row) to 0.5 degrees (top row) below the horizon.
+pub const CAMERA_ELEVATION_DEG: f32 = 20.25;
+
+/// Vertical field of view of the benchmark camera, degrees.
+pub const FOV_Y_DEG: f32 = 39.5;
+
+/// The DIG paper's quality settings (iterations).
+pub const DEFAULT_STEPS: [u32; 4] = [75, 100, 125, 150];
+
+/// Map sides of the map-size sweep (the pyramid paper's Fig. 21).
+pub const DEFAULT_SIZES: [u32; 4] = [256, 512, 1024, 2048];
+
+/// Methods timed in the map-size sweep.
+pub const SIZE_METHODS: [Method; 4] = [Method::Pyramid, Method::Exact, Method::Dig, Method::Pom];
+
+/// The setting of the map-size sweep.
+pub const DEFAULT_SIZE_STEPS: u32 = 100;
+
+/// Default frame size: keeps the default run under 15 minutes on 2 CPU cores of lavapipe.
+pub const DEFAULT_FRAME: [u32; 2] = [640, 360];
+
+/// Default number of frames (camera azimuths) per run.
+pub const DEFAULT_FRAMES: u32 = 8;
+
+/// Largest `--frames`.
+pub const MAX_FRAMES: u32 = 10_000;
+
+/// Largest side of the map-size sweep (the device's limit applies too).
+pub const MAX_MAP_SIDE: u32 = 16384;
+
+/// Binary-search steps of every method that has them (the paper's 5).
+pub const REFINE_STEPS: u32 = 5;
+
+/// Does `method` read a step count (`--steps`)? `bump`, `pyramid` and `exact` do not:
+/// they run once per map.
+pub fn has_steps(method: Method) -> bool {
+    !matches!(method, Method::Bump | Method::Pyramid | Method::Exact)
+}
+
+/// The parameters of `method` at `steps` under the protocol (module docs).
+pub fn protocol_params(steps: Option<u32>) -> MethodParams {
+    MethodParams {
+        steps: steps.unwrap_or(MethodParams::default().steps),
+        refine_steps: REFINE_STEPS,
+        eps: None,
+        ..MethodParams::default()
+    }
+}
+
+/// The benchmark scene (module docs), camera at azimuth 0.
+pub fn protocol_scene() -> Scene {
+    Scene {
+        geometry: Geometry::TiledPlane,
+        camera: Camera {
+            elevation_deg: CAMERA_ELEVATION_DEG,
+            azimuth_deg: 0.0,
+            fov_y_deg: FOV_Y_DEG,
+            height: Camera::default().height,
+        },
+        ..Scene::default()
+    }
+}
+
+/// A height map of the sweep and the short name used in tables and file names.
+#[derive(Clone, Debug)]
+pub struct MapSpec {
+    /// Short name (`rocks`; a file's stem), used in file names after [`file_stem`].
+    pub name: String,
+    /// The map, in the height convention.
+    pub field: HeightField,
+}
+
+impl MapSpec {
+    /// A bundled map by name ([`crate::bundled::NAMES`]); the error names `--maps`.
+    pub fn bundled(name: &str) -> Result<Self> {
+        Ok(MapSpec {
+            name: name.to_owned(),
+            field: crate::bundled::by_name(name, "--maps")?,
+        })
+    }
+
+    /// A map file, named after its stem.
+    pub fn load(path: &Path, convention: crate::heightfield::Convention) -> Result<Self> {
+        let field = HeightField::load(path, convention)?;
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "map".into());
+        Ok(MapSpec { name, field })
+    }
+}
+
+/// The default maps: every bundled map ([`crate::bundled::NAMES`]: rocks, bricks,
+/// mountains).
+pub fn bundled_maps() -> Result<Vec<MapSpec>> {
+    crate::bundled::NAMES
+        .iter()
+        .map(|name| MapSpec::bundled(name))
+        .collect()
+}
+
+/// `name` reduced to `[A-Za-z0-9_-]` (other characters become `_`), for file names.
+pub fn file_stem(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() { "map".into() } else { s }
+}
+
+/// What to sweep. [`BenchConfig::default`] is the protocol's default run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchConfig {
+    /// Frame width and height in pixels (`--size`).
+    pub frame: [u32; 2],
+    /// Frames (camera azimuths) per run (`--frames`).
+    pub frames: u32,
+    /// Frames that get the reference and the error measures (`--error-frames`); `None`:
+    /// all of them.
+    pub error_frames: Option<u32>,
+    /// Quality settings (`--steps`), ascending.
+    pub steps: Vec<u32>,
+    /// Methods (`--methods`), in [`Method::ALL`] order.
+    pub methods: Vec<Method>,
+    /// Map sides of the map-size sweep (`--sizes`), ascending; empty: no sweep.
+    pub sizes: Vec<u32>,
+    /// Methods of the map-size sweep.
+    pub size_methods: Vec<Method>,
+    /// The setting of the map-size sweep (`--size-steps`).
+    pub size_steps: u32,
+    /// The scene of frame 0 (the azimuth is set per frame).
+    pub scene: Scene,
+}
+
+impl Default for BenchConfig {
+    fn default() -> Self {
+        BenchConfig {
+            frame: DEFAULT_FRAME,
+            frames: DEFAULT_FRAMES,
+            error_frames: None,
+            steps: DEFAULT_STEPS.to_vec(),
+            methods: Method::ALL.to_vec(),
+            sizes: DEFAULT_SIZES.to_vec(),
+            size_methods: SIZE_METHODS.to_vec(),
+            size_steps: DEFAULT_SIZE_STEPS,
+            scene: protocol_scene(),
+        }
+    }
+}
+
+impl BenchConfig {
+    /// Checks every value and puts the lists in order (sorted, without duplicates); the
+    /// error names the command-line option.
+    pub fn validate(&mut self) -> Result<()> {
+        let [w, h] = self.frame;
+        if w == 0 || h == 0 || w > MAX_FRAME_SIDE || h > MAX_FRAME_SIDE {
+            return Err(Error::invalid(
+                "--size",
+                format!("{w}x{h} is outside 1..={MAX_FRAME_SIDE} per side"),
+            ));
+        }
+        if self.frames == 0 || self.frames > MAX_FRAMES {
+            return Err(Error::invalid(
+                "--frames",
+                format!("{} is outside 1..={MAX_FRAMES}", self.frames),
+            ));
+        }
+        if let Some(n) = self.error_frames
+            && (n == 0 || n > self.frames)
+        {
+            return Err(Error::invalid(
+                "--error-frames",
+                format!("{n} is outside 1..={} (--frames)", self.frames),
+            ));
+        }
+        if self.steps.is_empty() {
+            return Err(Error::invalid("--steps", "the list is empty"));
+        }
+        if let Some(bad) = self.steps.iter().find(|&&s| s == 0 || s > MAX_STEPS) {
+            return Err(Error::invalid(
+                "--steps",
+                format!("{bad} is outside 1..={MAX_STEPS}"),
+            ));
+        }
+        self.steps.sort_unstable();
+        self.steps.dedup();
+        if self.methods.is_empty() {
+            return Err(Error::invalid("--methods", "the list is empty"));
+        }
+        self.methods = in_report_order(&self.methods);
+        if let Some(bad) = self
+            .sizes
+            .iter()
+            .find(|&&s| !(2..=MAX_MAP_SIDE).contains(&s))
+        {
+            return Err(Error::invalid(
+                "--sizes",
+                format!("{bad} is outside 2..={MAX_MAP_SIDE}"),
+            ));
+        }
+        self.sizes.sort_unstable();
+        self.sizes.dedup();
+        self.size_methods = in_report_order(&self.size_methods);
+        if self.size_steps == 0 || self.size_steps > MAX_STEPS {
+            return Err(Error::invalid(
+                "--size-steps",
+                format!("{} is outside 1..={MAX_STEPS}", self.size_steps),
+            ));
+        }
+        self.scene.validate()
+    }
+
+    /// The frames that get the reference (module docs), ascending.
+    pub fn error_frame_indices(&self) -> Vec<u32> {
+        error_frames(self.frames, self.error_frames.unwrap_or(self.frames))
+    }
+
+    /// The scene of frame `f`: the camera turned to azimuth `(f + 0.5) 360 / K`.
+    pub fn frame_scene(&self, f: u32) -> Scene {
+        let mut scene = self.scene;
+        scene.camera.azimuth_deg = azimuth_deg(f, self.frames);
+        scene
+    }
+
+    /// The frame set as one CSV-safe phrase (azimuths and error frames).
+    pub fn frame_set(&self) -> String {
+        let k = self.frames;
+        let errors: Vec<String> = self
+            .error_frame_indices()
+            .iter()
+            .map(|f| f.to_string())
+            .collect();
+        format!(
+            "azimuth (f+0.5)*{}deg for f<{k}; error frames {}",
+            trim_float(360.0 / f64::from(k)),
+            errors.join(" ")
+        )
+    }
+
+    /// The quality settings of `method`: every `--steps` value, or one run without a
+    /// step count.
+    pub fn settings_of(&self, method: Method) -> Vec<Option<u32>> {
+        if has_steps(method) {
+            self.steps.iter().copied().map(Some).collect()
+        } else {
+            vec![None]
+        }
+    }
+
+    /// The setting whose heat maps are written: the largest `--steps`.
+    pub fn heatmap_steps(&self) -> u32 {
+        self.steps
+            .iter()
+            .copied()
+            .max()
+            .unwrap_or(DEFAULT_SIZE_STEPS)
+    }
+}
+
+/// The methods of `list`, once each, in [`Method::ALL`] order.
+fn in_report_order(list: &[Method]) -> Vec<Method> {
+    Method::ALL
+        .iter()
+        .copied()
+        .filter(|m| list.contains(m))
+        .collect()
+}
+
+/// Frames `floor(i k / n)` for `i < n` (`n` clamped to `1..=k`).
+pub fn error_frames(k: u32, n: u32) -> Vec<u32> {
+    let k = k.max(1);
+    let n = n.clamp(1, k);
+    (0..n)
+        .map(|i| (u64::from(i) * u64::from(k) / u64::from(n)) as u32)
+        .collect()
+}
+
+/// The camera azimuth of frame `f` of `k`, degrees: `(f + 0.5) 360 / k`.
+pub fn azimuth_deg(f: u32, k: u32) -> f32 {
+    ((f64::from(f) + 0.5) * 360.0 / f64::from(k.max(1))) as f32
+}
+
+fn trim_float(x: f64) -> String {
+    let s = format!("{x:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_owned()
+}
+
+/// Parses a comma-separated list; empty items are an error naming `option`.
+fn parse_list<T>(
+    option: &str,
+    s: &str,
+    parse: impl Fn(&str) -> std::result::Result<T, String>,
+) -> Result<Vec<T>> {
+    if s.trim().is_empty() {
+        return Err(Error::invalid(option, "the list is empty"));
+    }
+    s.split(',')
+        .map(|item| {
+            let item = item.trim();
+            if item.is_empty() {
+                return Err(Error::invalid(option, format!("empty item in '{s}'")));
+            }
+            parse(item).map_err(|m| Error::invalid(option, m))
+        })
+        .collect()
+}
+
+/// Parses `--steps` (`75,100,125,150`): positive step counts up to [`MAX_STEPS`].
+pub fn parse_steps(s: &str) -> Result<Vec<u32>> {
+    parse_list("--steps", s, |item| match item.parse::<u32>() {
+        Ok(n) if (1..=MAX_STEPS).contains(&n) => Ok(n),
+        _ => Err(format!("'{item}' is not a step count in 1..={MAX_STEPS}")),
+    })
+}
+
+/// Parses `--methods` (`relief,pom,dig`, or `all`).
+pub fn parse_methods(s: &str) -> Result<Vec<Method>> {
+    if s.trim() == "all" {
+        return Ok(Method::ALL.to_vec());
+    }
+    parse_list("--methods", s, |item| {
+        item.parse::<Method>().map_err(|e| match e {
+            Error::InvalidInput { message, .. } => message,
+            other => other.to_string(),
+        })
+    })
+}
+
+/// Parses `--sizes` (`256,512,1024,2048`, or `none`): map sides in 2..=[`MAX_MAP_SIDE`].
+pub fn parse_sizes(s: &str) -> Result<Vec<u32>> {
+    if s.trim() == "none" {
+        return Ok(Vec::new());
+    }
+    parse_list("--sizes", s, |item| match item.parse::<u32>() {
+        Ok(n) if (2..=MAX_MAP_SIDE).contains(&n) => Ok(n),
+        _ => Err(format!("'{item}' is not a map side in 2..={MAX_MAP_SIDE}")),
+    })
+}
+
+/// Parses `--maps` (`rocks,bricks,mountains`, or `none`): bundled map names.
+pub fn parse_maps(s: &str) -> Result<Vec<String>> {
+    if s.trim() == "none" {
+        return Ok(Vec::new());
+    }
+    parse_list("--maps", s, |item| {
+        if crate::bundled::NAMES.contains(&item) {
+            Ok(item.to_owned())
+        } else {
+            Err(format!(
+                "unknown bundled map '{item}' (known: {}; add a file with --heightmap)",
+                crate::bundled::NAMES.join(", ")
+            ))
+        }
+    })
+}
+
+/// `field` resampled to `width x height` with a Catmull-Rom filter, at its precision
+/// (8-bit stays 8-bit, 16-bit 16-bit, float float clamped to `[0, 1]`).
+pub fn resample(field: &HeightField, width: u32, height: u32, label: &str) -> Result<HeightField> {
+    use image::imageops::{FilterType, resize};
+    use image::{DynamicImage, ImageBuffer, Luma};
+    if width == 0 || height == 0 {
+        return Err(Error::invalid("--sizes", "a map side is zero"));
+    }
+    let (w, h) = (field.width(), field.height());
+    let bad = || Error::invalid(label, "texel count does not match the map size");
+    let filter = FilterType::CatmullRom;
+    match field.texels() {
+        Texels::R8(v) => {
+            let img = ImageBuffer::<Luma<u8>, _>::from_raw(w, h, v.clone()).ok_or_else(bad)?;
+            let out = resize(&img, width, height, filter);
+            HeightField::from_image(
+                DynamicImage::ImageLuma8(out),
+                crate::heightfield::Convention::Height,
+                label.to_owned(),
+            )
+        }
+        Texels::R16(v) => {
+            let img = ImageBuffer::<Luma<u16>, _>::from_raw(w, h, v.clone()).ok_or_else(bad)?;
+            let out = resize(&img, width, height, filter);
+            HeightField::from_image(
+                DynamicImage::ImageLuma16(out),
+                crate::heightfield::Convention::Height,
+                label.to_owned(),
+            )
+        }
+        Texels::R32F(v) => {
+            let img = ImageBuffer::<Luma<f32>, _>::from_raw(w, h, v.clone()).ok_or_else(bad)?;
+            let out = resize(&img, width, height, filter);
+            let values = out
+                .into_raw()
+                .into_iter()
+                .map(|x| x.clamp(0.0, 1.0))
+                .collect();
+            HeightField::from_heights(width, height, values, label)
+        }
+    }
+}
+
+/// Which part of the benchmark a row belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sweep {
+    /// Every method and setting on every map.
+    Methods,
+    /// One map resampled to several sizes.
+    MapSize,
+}
+
+/// One run: a (map, method, setting, frame set), as one row of `results.csv`. Times are
+/// milliseconds; empty optional cells mean "no such pass" (module docs for every value).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunRow {
+    /// Which sweep.
+    pub sweep: Sweep,
+    /// The map's short name.
+    pub map: String,
+    /// Map width in texels.
+    pub map_width: u32,
+    /// Map height in texels.
+    pub map_height: u32,
+    /// The method's CLI name.
+    pub method: String,
+    /// Linear steps (`iter`); empty for methods without a step count.
+    pub steps: Option<u32>,
+    /// Frame width in pixels.
+    pub frame_width: u32,
+    /// Frame height in pixels.
+    pub frame_height: u32,
+    /// Timed frames.
+    pub frames: u32,
+    /// Frames measured against the reference.
+    pub error_frames: u32,
+    /// The frames (azimuths and error frames) in words.
+    pub frame_set: String,
+    /// Median G-buffer pass.
+    pub gbuffer_ms: f64,
+    /// The pyramid's one build (once per map and pyramid kind), if the method uses one.
+    pub pyramid_build_ms: Option<f64>,
+    /// Median DIG corner pass, DIG methods only.
+    pub dig_corners_ms: Option<f64>,
+    /// Median trace pass.
+    pub trace_ms: f64,
+    /// Median shade pass.
+    pub shade_ms: f64,
+    /// Median per-frame `dig_corners + trace`: the method's time.
+    pub method_ms: f64,
+    /// Median per-frame total (without the pyramid build).
+    pub total_ms: f64,
+    /// Mean per-pixel iterations of the trace pass.
+    pub iterations_mean: f64,
+    /// p99 per-pixel iterations of the trace pass.
+    pub iterations_p99: f64,
+    /// Lockstep cost of 8x1 pixel groups (lavapipe's 8-lane SIMD subgroups): the mean
+    /// over groups with a covered pixel of the group's largest iteration count
+    /// ([`lockstep_iterations`]).
+    pub iterations_simd8: f64,
+    /// The same for 8x4 groups (a 32-lane GPU warp in an 8x8 workgroup).
+    pub iterations_warp32: f64,
+    /// DIG: corner-pass fetches per covered pixel.
+    pub corner_iterations: Option<f64>,
+    /// Mean hit distance, texels.
+    pub mean_texels: f64,
+    /// p99 hit distance, texels.
+    pub p99_texels: f64,
+    /// Largest hit distance over the error frames, texels.
+    pub max_texels: f64,
+    /// Fraction of covered pixels more than one texel off (or hit/miss mismatched).
+    pub artifact_fraction: f64,
+    /// PSNR of the shaded frame against the shaded reference, dB.
+    pub psnr_db: f64,
+    /// Non-finite hit texels summed over the error frames (must be 0).
+    pub nonfinite_pixels: u64,
+}
+
+impl RunRow {
+    /// The parsed method (rows written by this module always parse).
+    pub fn method(&self) -> Option<Method> {
+        self.method.parse().ok()
+    }
+}
+
+/// An RGBA8 image produced by the sweep (heat maps, interval maps).
+#[derive(Clone, Debug)]
+pub struct NamedImage {
+    /// File name inside the output folder.
+    pub file_name: String,
+    /// What it shows.
+    pub caption: String,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// RGBA8 pixels, row by row.
+    pub rgba: Vec<u8>,
+}
+
+/// A map of the sweep as the report describes it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapInfo {
+    /// Short name.
+    pub name: String,
+    /// The field's label (file name).
+    pub label: String,
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Storage format (`R8_UNORM`, ...).
+    pub format: String,
+    /// Mean height.
+    pub mean_height: f64,
+}
+
+/// Everything a sweep measured.
+#[derive(Clone, Debug)]
+pub struct BenchResults {
+    /// The (validated) configuration.
+    pub config: BenchConfig,
+    /// Device name.
+    pub device: String,
+    /// Driver name and version.
+    pub driver: String,
+    /// Vulkan API version.
+    pub api_version: String,
+    /// The maps of the methods sweep.
+    pub maps: Vec<MapInfo>,
+    /// The map resampled by the map-size sweep, if it ran.
+    pub size_source: Option<MapInfo>,
+    /// One row per run, methods sweep first.
+    pub rows: Vec<RunRow>,
+    /// Heat maps and interval maps.
+    pub images: Vec<NamedImage>,
+    /// When the sweep started.
+    pub started: SystemTime,
+    /// Wall-clock duration of the sweep.
+    pub wall: Duration,
+}
+
+/// The sweep's progress, reported after each unit of work.
+#[derive(Clone, Debug)]
+pub struct Progress {
+    /// Work done, in [`Progress::total`]'s units.
+    pub done: u64,
+    /// All the work: a timed frame at `N` steps weighs `N` (methods without steps
+    /// [`NO_STEPS_WEIGHT`]), a reference frame [`REFERENCE_WEIGHT`]: roughly
+    /// proportional to lavapipe's time.
+    pub total: u64,
+    /// What runs now, e.g. `rocks dig 100 (frame 3/8)`.
+    pub stage: String,
+}
+
+/// Progress weight of one frame of a method without a step count.
+pub const NO_STEPS_WEIGHT: u64 = 100;
+
+/// Progress weight of one reference frame (CPU intersection).
+pub const REFERENCE_WEIGHT: u64 = 150;
+
+fn run_weight(steps: Option<u32>, frames: u32) -> u64 {
+    u64::from(frames + 1) * steps.map_or(NO_STEPS_WEIGHT, u64::from)
+}
+
+/// The total progress weight of a sweep over `maps` maps (and the size sweep if
+/// `size_sweep`).
+fn total_weight(config: &BenchConfig, maps: usize, size_sweep: bool) -> u64 {
+    let refs = config.error_frame_indices().len() as u64 * REFERENCE_WEIGHT;
+    let per_map: u64 = config
+        .methods
+        .iter()
+        .flat_map(|&m| config.settings_of(m))
+        .map(|s| run_weight(s, config.frames))
+        .sum::<u64>()
+        + refs;
+    let per_size: u64 = config
+        .size_methods
+        .iter()
+        .map(|&m| run_weight(has_steps(m).then_some(config.size_steps), config.frames))
+        .sum::<u64>()
+        + refs;
+    per_map * maps as u64
+        + if size_sweep {
+            per_size * config.sizes.len() as u64
+        } else {
+            0
+        }
+}
+
+struct Tracker<'p> {
+    done: u64,
+    total: u64,
+    sink: &'p mut dyn FnMut(&Progress),
+}
+
+impl Tracker<'_> {
+    fn advance(&mut self, weight: u64, stage: String) {
+        self.done = (self.done + weight).min(self.total);
+        (self.sink)(&Progress {
+            done: self.done,
+            total: self.total,
+            stage,
+        });
+    }
+}
+
+/// Runs the sweep: the methods sweep over `maps`, then (if `config.sizes` is not empty
+/// and `size_source` is given) the map-size sweep on `size_source`. `progress` is called
+/// after every frame. Validates `config` first.
+pub fn run(
+    ctx: &Context,
+    config: &BenchConfig,
+    maps: &[MapSpec],
+    size_source: Option<&MapSpec>,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<BenchResults> {
+    let mut config = config.clone();
+    config.validate()?;
+    if maps.is_empty() && (config.sizes.is_empty() || size_source.is_none()) {
+        return Err(Error::invalid(
+            "--maps",
+            "no map to benchmark (give --maps or --heightmap)",
+        ));
+    }
+    let mut names = std::collections::HashSet::new();
+    for m in maps {
+        if !names.insert(file_stem(&m.name)) {
+            return Err(Error::invalid(
+                "--maps",
+                format!("two maps are named '{}'", m.name),
+            ));
+        }
+    }
+    let size_sweep = !config.sizes.is_empty() && size_source.is_some();
+    let started = SystemTime::now();
+    let clock = Instant::now();
+    let mut tracker = Tracker {
+        done: 0,
+        total: total_weight(&config, maps.len(), size_sweep),
+        sink: progress,
+    };
+    let mut rows = Vec::new();
+    let mut images = Vec::new();
+    for map in maps {
+        let mut sweep = MapSweep::new(ctx, &config, map, Sweep::Methods, &mut tracker)?;
+        for &method in &config.methods {
+            for steps in config.settings_of(method) {
+                let heat = steps.is_none_or(|s| s == config.heatmap_steps());
+                let (row, imgs) = sweep.run(method, steps, heat, &mut tracker)?;
+                rows.push(row);
+                images.extend(imgs);
+            }
+        }
+    }
+    let mut size_info = None;
+    if let (true, Some(source)) = (size_sweep, size_source) {
+        size_info = Some(map_info(&source.name, &source.field));
+        for &side in &config.sizes {
+            let label = format!("{}@{side}", source.name);
+            let field = resample(&source.field, side, side, &label)?;
+            let spec = MapSpec { name: label, field };
+            let mut sweep = MapSweep::new(ctx, &config, &spec, Sweep::MapSize, &mut tracker)?;
+            for &method in &config.size_methods {
+                let steps = has_steps(method).then_some(config.size_steps);
+                let (row, _) = sweep.run(method, steps, false, &mut tracker)?;
+                rows.push(row);
+            }
+        }
+    }
+    let info = ctx.info();
+    Ok(BenchResults {
+        maps: maps.iter().map(|m| map_info(&m.name, &m.field)).collect(),
+        size_source: size_info,
+        device: info.name.clone(),
+        driver: info.driver.clone(),
+        api_version: info.api_version.clone(),
+        config,
+        rows,
+        images,
+        started,
+        wall: clock.elapsed(),
+    })
+}
+
+fn map_info(name: &str, field: &HeightField) -> MapInfo {
+    MapInfo {
+        name: name.to_owned(),
+        label: field.label().to_owned(),
+        width: field.width(),
+        height: field.height(),
+        format: format!("{:?}", field.format()),
+        mean_height: field.mean(),
+    }
+}
+
+/// One map's renderer, references and pyramid build times.
+struct MapSweep<'a> {
+    config: &'a BenchConfig,
+    name: String,
+    map_size: [u32; 2],
+    sweep: Sweep,
+    renderer: Renderer<'a>,
+    /// (frame index, reference), ascending.
+    references: Vec<(u32, FrameReference)>,
+    pyramid_ms: HashMap<PyramidKind, f64>,
+}
+
+impl<'a> MapSweep<'a> {
+    fn new(
+        ctx: &'a Context,
+        config: &'a BenchConfig,
+        map: &MapSpec,
+        sweep: Sweep,
+        tracker: &mut Tracker<'_>,
+    ) -> Result<Self> {
+        let settings = RenderSettings {
+            width: config.frame[0],
+            height: config.frame[1],
+            method: Method::Bump,
+            params: protocol_params(None),
+            scene: config.frame_scene(0),
+        };
+        let mut renderer = Renderer::new(ctx, &map.field, settings)?;
+        let reference = Reference::new(&map.field, settings.scene.addressing());
+        let mut references = Vec::new();
+        for f in config.error_frame_indices() {
+            renderer.set_scene(config.frame_scene(f))?;
+            references.push((f, renderer.reference(&reference)?));
+            tracker.advance(
+                REFERENCE_WEIGHT,
+                format!("{} reference (frame {})", map.name, f + 1),
+            );
+        }
+        Ok(MapSweep {
+            config,
+            name: map.name.clone(),
+            map_size: [map.field.width(), map.field.height()],
+            sweep,
+            renderer,
+            references,
+            pyramid_ms: HashMap::new(),
+        })
+    }
+
+    /// Times one (method, setting) over the frames and measures its error; with `heat`,
+    /// also returns the heat map (and for `dig` the interval map) of frame 0.
+    fn run(
+        &mut self,
+        method: Method,
+        steps: Option<u32>,
+        heat: bool,
+        tracker: &mut Tracker<'_>,
+    ) -> Result<(RunRow, Vec<NamedImage>)> {
+        let config = self.config;
+        let params = protocol_params(steps);
+        let setting = steps.map_or("-".to_owned(), |s| s.to_string());
+        let stage = |f: u32| {
+            format!(
+                "{} {} {} (frame {}/{})",
+                self.name, method, setting, f, config.frames
+            )
+        };
+        let weight = steps.map_or(NO_STEPS_WEIGHT, u64::from);
+        self.renderer.set_method(method, params)?;
+        // Warm-up (untimed): first use of the pipelines; builds the pyramid if needed.
+        self.renderer.set_scene(config.frame_scene(0))?;
+        let warm = self.renderer.render()?;
+        if let (Some(kind), Some((_, ms))) = (
+            method.needs().pyramid,
+            warm.iter().find(|(n, _)| *n == "pyramid"),
+        ) {
+            self.pyramid_ms.insert(kind, *ms);
+        }
+        tracker.advance(weight, stage(0));
+
+        let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
+        let (mut method_ms, mut total_ms) = (Vec::new(), Vec::new());
+        let mut errors: Vec<ErrorMetrics> = Vec::new();
+        let mut corner_iterations = Vec::new();
+        let mut lockstep = Vec::new();
+        let mut images = Vec::new();
+        let mut next_ref = 0;
+        for f in 0..config.frames {
+            self.renderer.set_scene(config.frame_scene(f))?;
+            let times = self.renderer.render()?;
+            let mut frame_method = 0.0;
+            let mut frame_total = 0.0;
+            for &(name, ms) in &times {
+                if name == "pyramid" {
+                    continue;
+                }
+                frame_total += ms;
+                if name == "trace" || name == "dig_corners" {
+                    frame_method += ms;
+                }
+                match passes.iter_mut().find(|(n, _)| *n == name) {
+                    Some((_, v)) => v.push(ms),
+                    None => passes.push((name, vec![ms])),
+                }
+            }
+            method_ms.push(frame_method);
+            total_ms.push(frame_total);
+            if let Some((rf, reference)) = self.references.get(next_ref)
+                && *rf == f
+            {
+                next_ref += 1;
+                let hits = self.renderer.read_hits()?;
+                let color = self.renderer.read_color()?;
+                let mut e = metrics::hit_errors(
+                    &hits,
+                    &reference.hits,
+                    &reference.rays,
+                    self.renderer.map_geometry(),
+                );
+                e.psnr_db = metrics::psnr_rgba8(&color, &reference.color);
+                let covered = heatmap::coverage(&hits, Some(&reference.rays));
+                lockstep.push([
+                    lockstep_iterations(&hits, &covered, config.frame[0], [8, 1]),
+                    lockstep_iterations(&hits, &covered, config.frame[0], [8, 4]),
+                ]);
+                let corners = if method.needs().dig_corners {
+                    self.renderer.read_corners()?
+                } else {
+                    None
+                };
+                if let Some((_, c)) = &corners {
+                    let stats = heatmap::corner_stats(c);
+                    corner_iterations.push(if e.compared_pixels == 0 {
+                        0.0
+                    } else {
+                        stats.total / e.compared_pixels as f64
+                    });
+                }
+                if heat && f == 0 {
+                    images.extend(self.images(method, &hits, &reference.rays, corners)?);
+                }
+                errors.push(e);
+            }
+            tracker.advance(weight, stage(f + 1));
+        }
+        let median_of = |name: &str| {
+            passes
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, v)| crate::timing::median(v))
+        };
+        let mean = |get: fn(&ErrorMetrics) -> f64| {
+            if errors.is_empty() {
+                0.0
+            } else {
+                errors.iter().map(get).sum::<f64>() / errors.len() as f64
+            }
+        };
+        let row = RunRow {
+            sweep: self.sweep,
+            map: self.name.clone(),
+            map_width: self.map_size[0],
+            map_height: self.map_size[1],
+            method: method.name().to_owned(),
+            steps,
+            frame_width: config.frame[0],
+            frame_height: config.frame[1],
+            frames: config.frames,
+            error_frames: errors.len() as u32,
+            frame_set: config.frame_set(),
+            gbuffer_ms: median_of("gbuffer").unwrap_or(0.0),
+            pyramid_build_ms: method
+                .needs()
+                .pyramid
+                .and_then(|k| self.pyramid_ms.get(&k).copied()),
+            dig_corners_ms: median_of("dig_corners"),
+            trace_ms: median_of("trace").unwrap_or(0.0),
+            shade_ms: median_of("shade").unwrap_or(0.0),
+            method_ms: crate::timing::median(&method_ms),
+            total_ms: crate::timing::median(&total_ms),
+            iterations_mean: mean(|e| e.mean_iterations),
+            iterations_p99: mean(|e| e.p99_iterations),
+            iterations_simd8: mean_of(lockstep.iter().map(|l| l[0])),
+            iterations_warp32: mean_of(lockstep.iter().map(|l| l[1])),
+            corner_iterations: (!corner_iterations.is_empty())
+                .then(|| corner_iterations.iter().sum::<f64>() / corner_iterations.len() as f64),
+            mean_texels: mean(|e| e.mean_texels),
+            p99_texels: mean(|e| e.p99_texels),
+            max_texels: errors.iter().map(|e| e.max_texels).fold(0.0, f64::max),
+            artifact_fraction: mean(|e| e.artifact_fraction),
+            psnr_db: mean(|e| e.psnr_db),
+            nonfinite_pixels: errors.iter().map(|e| e.nonfinite_pixels).sum(),
+        };
+        Ok((row, images))
+    }
+
+    /// The heat map of `hits` (fixed scale: the largest setting plus the binary search)
+    /// and, for `dig`, the interval map of the same frame.
+    fn images(
+        &self,
+        method: Method,
+        hits: &[metrics::HitTexel],
+        rays: &[Option<crate::reference::Ray>],
+        corners: Option<([u32; 2], Vec<crate::passes::dig::Corner>)>,
+    ) -> Result<Vec<NamedImage>> {
+        let config = self.config;
+        let [w, h] = config.frame;
+        let stem = file_stem(&self.name);
+        let scale = (config.heatmap_steps() + REFINE_STEPS) as f32;
+        let covered = heatmap::coverage(hits, Some(rays));
+        let mut out = vec![NamedImage {
+            file_name: format!("heatmap_{stem}_{}.png", method.name()),
+            caption: format!(
+                "{} on {}: trace iterations per pixel, frame 0 (0 to {scale}, saturating)",
+                method.name(),
+                self.name
+            ),
+            width: w,
+            height: h,
+            rgba: heatmap::iteration_heatmap(hits, &covered, Some(scale))?,
+        }];
+        if method == Method::Dig
+            && let Some((grid, corners)) = corners
+        {
+            let params = self.renderer.settings().params;
+            let intervals = heatmap::block_intervals(grid, &corners, params.dig_eps())?;
+            out.push(NamedImage {
+                file_name: format!("intervals_{stem}.png"),
+                caption: format!(
+                    "dig on {}: depth interval length per block, frame 0 (darker = longer; \
+                     red = no interval)",
+                    self.name
+                ),
+                width: w,
+                height: h,
+                rgba: heatmap::interval_map(
+                    &intervals,
+                    heatmap::block_count(grid),
+                    params.block,
+                    [w, h],
+                )?,
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// The mean of `values` (0 for none).
+fn mean_of(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
+/// The lockstep cost of a hit buffer: pixels are grouped in aligned `group[0] x
+/// group[1]` tiles of a frame `width` pixels wide (row by row), and each tile with a
+/// covered pixel costs the largest iteration count among its covered pixels (a SIMD
+/// group runs until its slowest lane is done). Returns the mean cost per such tile (0
+/// if none). Non-finite counts are skipped.
+pub fn lockstep_iterations(
+    hits: &[metrics::HitTexel],
+    covered: &[bool],
+    width: u32,
+    group: [u32; 2],
+) -> f64 {
+    let w = width.max(1) as usize;
+    let [gx, gy] = group.map(|g| g.max(1) as usize);
+    let tiles_x = w.div_ceil(gx);
+    let mut max: HashMap<usize, f32> = HashMap::new();
+    for (i, (t, &c)) in hits.iter().zip(covered).enumerate() {
+        if !c || !t[3].is_finite() {
+            continue;
+        }
+        let (x, y) = (i % w, i / w);
+        let tile = (y / gy) * tiles_x + x / gx;
+        let m = max.entry(tile).or_insert(0.0);
+        *m = m.max(t[3]);
+    }
+    mean_of(max.values().map(|&m| f64::from(m)))
+}
+
+/// Writes every output of `results` into `dir` (created if missing), each file
+/// atomically: `results.csv`, `report.md`, `pareto_<map>.png` per map, `sizes.png` (if
+/// the map-size sweep ran) and the heat and interval maps. `command` is the command line
+/// quoted in the report. Returns the paths written.
+pub fn write_outputs(dir: &Path, results: &BenchResults, command: &str) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    let mut written = Vec::new();
+    let csv_path = dir.join("results.csv");
+    crate::output::write_atomic(&csv_path, &report::csv_bytes(&results.rows)?)?;
+    written.push(csv_path);
+    for map in &results.maps {
+        let path = dir.join(report::pareto_file(&map.name));
+        plot::pareto(&path, &map.name, &results.rows)?;
+        written.push(path);
+    }
+    if results.rows.iter().any(|r| r.sweep == Sweep::MapSize) {
+        let path = dir.join(report::SIZES_PLOT);
+        plot::sizes(&path, &results.rows)?;
+        written.push(path);
+    }
+    for image in &results.images {
+        let path = dir.join(&image.file_name);
+        crate::output::write_png(&path, image.width, image.height, &image.rgba)?;
+        written.push(path);
+    }
+    let md_path = dir.join("report.md");
+    crate::output::write_atomic(&md_path, report::markdown(results, command).as_bytes())?;
+    written.push(md_path);
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_frames_are_spread_and_start_at_zero() {
+        assert_eq!(error_frames(8, 8), (0..8).collect::<Vec<_>>());
+        assert_eq!(error_frames(8, 2), [0, 4]);
+        assert_eq!(error_frames(8, 3), [0, 2, 5]);
+        assert_eq!(error_frames(1, 5), [0]);
+        assert_eq!(error_frames(5, 0), [0]);
+        assert_eq!(azimuth_deg(0, 8), 22.5);
+        assert_eq!(azimuth_deg(7, 8), 337.5);
+    }
+
+    #[test]
+    fn the_protocol_scene_spans_40_to_half_a_degree() {
+        let s = protocol_scene();
+        let bottom = s.camera.elevation_deg + s.camera.fov_y_deg / 2.0;
+        let top = s.camera.elevation_deg - s.camera.fov_y_deg / 2.0;
+        assert_eq!((bottom, top), (40.0, 0.5));
+        assert!(s.validate().is_ok());
+    }
+
+    #[test]
+    fn lists_parse_and_bad_items_name_the_option() {
+        assert_eq!(parse_steps("75, 100,125,150").unwrap(), [75, 100, 125, 150]);
+        assert_eq!(
+            parse_methods("pom,dig").unwrap(),
+            [Method::Pom, Method::Dig]
+        );
+        assert_eq!(parse_methods("all").unwrap(), Method::ALL);
+        assert_eq!(parse_sizes("256,2048").unwrap(), [256, 2048]);
+        assert!(parse_sizes("none").unwrap().is_empty());
+        assert_eq!(parse_maps("rocks").unwrap(), ["rocks"]);
+        for (result, option, needle) in [
+            (parse_steps("").map(|_| ()), "--steps", "empty"),
+            (parse_steps("0").map(|_| ()), "--steps", "'0'"),
+            (parse_steps("10,,20").map(|_| ()), "--steps", "empty"),
+            (parse_steps("x").map(|_| ()), "--steps", "'x'"),
+            (parse_methods("pom,magic").map(|_| ()), "--methods", "magic"),
+            (parse_sizes("1").map(|_| ()), "--sizes", "'1'"),
+            (parse_sizes("256,abc").map(|_| ()), "--sizes", "abc"),
+            (parse_maps("moon").map(|_| ()), "--maps", "moon"),
+        ] {
+            let err = result.unwrap_err().to_string();
+            assert!(err.contains(option) && err.contains(needle), "{err}");
+        }
+    }
+
+    #[test]
+    fn config_validation_names_options_and_orders_lists() {
+        let mut c = BenchConfig {
+            steps: vec![150, 75, 75],
+            methods: vec![Method::Pom, Method::Bump, Method::Pom],
+            sizes: vec![512, 256],
+            ..BenchConfig::default()
+        };
+        c.validate().unwrap();
+        assert_eq!(c.steps, [75, 150]);
+        assert_eq!(c.methods, [Method::Bump, Method::Pom]);
+        assert_eq!(c.sizes, [256, 512]);
+        type Spoil = fn(&mut BenchConfig);
+        let cases: [(&str, Spoil); 7] = [
+            ("--steps", |c| c.steps.clear()),
+            ("--steps", |c| c.steps = vec![0]),
+            ("--methods", |c| c.methods.clear()),
+            ("--frames", |c| c.frames = 0),
+            ("--error-frames", |c| c.error_frames = Some(99)),
+            ("--sizes", |c| c.sizes = vec![1]),
+            ("--size", |c| c.frame = [0, 10]),
+        ];
+        for (option, spoil) in cases {
+            let mut c = BenchConfig::default();
+            spoil(&mut c);
+            let err = c.validate().unwrap_err().to_string();
+            assert!(err.contains(option), "{option}: {err}");
+        }
+    }
+
+    #[test]
+    fn lockstep_cost_is_the_group_maximum() {
+        let t = |n: f32| [0.0, 0.0, 0.5, n];
+        // A 4x2 frame: groups of 2x1 -> (1, 5), (2, 2), (7, -), (3, 4 uncovered).
+        let hits = [
+            t(1.0),
+            t(5.0),
+            t(2.0),
+            t(2.0),
+            t(7.0),
+            t(0.0),
+            t(3.0),
+            t(9.0),
+        ];
+        let covered = [true, true, true, true, true, false, true, false];
+        let cost = lockstep_iterations(&hits, &covered, 4, [2, 1]);
+        assert_eq!(cost, (5.0 + 2.0 + 7.0 + 3.0) / 4.0);
+        // One 4x2 group: the largest covered count.
+        assert_eq!(lockstep_iterations(&hits, &covered, 4, [4, 2]), 7.0);
+        assert_eq!(lockstep_iterations(&hits, &[false; 8], 4, [2, 1]), 0.0);
+    }
+
+    #[test]
+    fn settings_and_weights() {
+        let c = BenchConfig {
+            steps: vec![10, 20],
+            frames: 2,
+            ..BenchConfig::default()
+        };
+        assert_eq!(c.settings_of(Method::Bump), [None]);
+        assert_eq!(c.settings_of(Method::Dig), [Some(10), Some(20)]);
+        assert_eq!(run_weight(Some(10), 2), 30);
+        assert_eq!(run_weight(None, 2), 3 * NO_STEPS_WEIGHT);
+        assert!(c.frame_set().contains("error frames 0 1"));
+        assert!(!c.frame_set().contains(','));
+    }
+
+    #[test]
+    fn resampling_keeps_the_precision_and_the_range() {
+        let rocks = crate::bundled::rocks().unwrap();
+        let small = resample(&rocks, 64, 32, "rocks@64").unwrap();
+        assert_eq!((small.width(), small.height()), (64, 32));
+        assert_eq!(small.format(), rocks.format());
+        assert!((small.mean() - rocks.mean()).abs() < 0.02);
+        let f = HeightField::from_fn(8, 8, "f", |u, _| u).unwrap();
+        let big = resample(&f, 16, 16, "f@16").unwrap();
+        assert_eq!(big.format(), f.format());
+        let (lo, hi) = (0..16).fold((1.0f32, 0.0f32), |(lo, hi), i| {
+            let v = big.texel(i, 3);
+            (lo.min(v), hi.max(v))
+        });
+        assert!(lo >= 0.0 && hi <= 1.0 && hi > lo);
+        assert_eq!(file_stem("rocks@256 x/y"), "rocks_256_x_y");
+    }
+}

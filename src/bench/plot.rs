@@ -1,0 +1,427 @@
+//! The benchmark's plots, drawn with `plotters` into an RGB buffer and written as PNG
+//! through [`crate::output::write_png`] (atomically). Text uses the bundled DejaVu Sans
+//! subset (`assets/fonts`, registered with plotters' `ab_glyph` backend), so no system
+//! font is needed.
+//!
+//! * [`pareto`]: per map, method time (x, log) against error (y, log) with one curve per
+//!   method through its settings (labelled with the first and last `iter`); methods
+//!   without a step count are single larger markers. Left: artifact fraction; right:
+//!   mean hit distance. Errors of 0 are drawn on the axis floor.
+//! * [`sizes`]: the map-size sweep: method time per frame against map size (log), the
+//!   same relative to the smallest map, and the pyramid's one build (log).
+
+use super::report::curve_rows;
+use super::{RunRow, Sweep, has_steps};
+use crate::error::{Error, Result};
+use crate::method::Method;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::OnceLock;
+
+/// The bundled font (DejaVu Sans, subset to Latin-1, Greek, punctuation and maths;
+/// license in `assets/fonts/LICENSE-DejaVu.txt`).
+pub const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
+
+/// The font family name the plots use.
+const FAMILY: &str = "sans-serif";
+
+/// Pareto plot size in pixels.
+pub const PARETO_SIZE: (u32, u32) = (1280, 560);
+
+/// Map-size plot size in pixels.
+pub const SIZES_SIZE: (u32, u32) = (1500, 460);
+
+fn register_font() -> Result<()> {
+    static REGISTERED: OnceLock<std::result::Result<(), String>> = OnceLock::new();
+    REGISTERED
+        .get_or_init(|| {
+            plotters::style::register_font(FAMILY, FontStyle::Normal, FONT)
+                .map_err(|_| "the bundled font does not parse".to_owned())
+        })
+        .clone()
+        .map_err(|m| Error::invalid("font", m))
+}
+
+/// The colour of a method (fixed across plots).
+pub fn method_color(method: Method) -> RGBColor {
+    match method {
+        Method::Bump => RGBColor(140, 140, 140),
+        Method::Linear => RGBColor(102, 194, 255),
+        Method::Relief => RGBColor(31, 119, 180),
+        Method::Pom => RGBColor(255, 127, 14),
+        Method::Secant => RGBColor(148, 103, 189),
+        Method::Dig => RGBColor(214, 39, 40),
+        Method::DigGuarded => RGBColor(227, 119, 194),
+        Method::Pyramid => RGBColor(44, 160, 44),
+        Method::Exact => RGBColor(0, 0, 0),
+    }
+}
+
+/// Draws into an RGB buffer with `draw` and writes it to `path` as PNG.
+fn render_png(
+    path: &Path,
+    (w, h): (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> std::result::Result<(), String>,
+) -> Result<()> {
+    register_font()?;
+    let mut rgb = vec![0u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE)
+            .map_err(|e| e.to_string())
+            .and_then(|_| draw(&root))
+            .and_then(|_| root.present().map_err(|e| e.to_string()))
+            .map_err(|message| Error::Image {
+                path: path.to_owned(),
+                message: format!("cannot draw the plot: {message}"),
+            })?;
+    }
+    let rgba: Vec<u8> = rgb
+        .chunks_exact(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect();
+    crate::output::write_png(path, w, h, &rgba)
+}
+
+/// Lower and upper bound for a log axis over `values` (positive ones, at least `floor`;
+/// `floor` to `10 floor` if none), widened to whole decades so that every decade gets
+/// tick labels.
+fn log_range(values: impl Iterator<Item = f64>, floor: f64) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() {
+        return (floor, floor * 10.0);
+    }
+    let lo = lo.max(floor);
+    let hi = hi.max(lo);
+    let lo = 10f64.powf((lo / 1.05).log10().floor());
+    let hi = 10f64.powf((hi * 1.05).log10().ceil());
+    // A hair below the decade, so rounding cannot drop the first tick label.
+    (lo * (1.0 - 1e-9), hi.max(lo * 10.0))
+}
+
+/// One panel of the Pareto plot: `value` of each row against its method time.
+fn pareto_panel(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    title: &str,
+    y_desc: &str,
+    curves: &[(Method, Vec<&RunRow>)],
+    value: fn(&RunRow) -> f64,
+    floor: f64,
+    cap: f64,
+) -> std::result::Result<(), String> {
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let all = || curves.iter().flat_map(|(_, rows)| rows.iter());
+    let (x0, x1) = log_range(all().map(|r| r.method_ms), 1e-3);
+    let (y0, y1) = log_range(all().map(|r| value(r)), floor);
+    let y1 = y1.min(cap).max(y0 * 10.0);
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, (FAMILY, 20))
+        .margin(12)
+        .x_label_area_size(44)
+        .y_label_area_size(72)
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+        .map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .x_desc("method time per frame (ms, log; dig_corners + trace)")
+        .y_desc(y_desc)
+        .label_style((FAMILY, 14))
+        .axis_desc_style((FAMILY, 15))
+        .x_label_formatter(&|x| format_tick(*x))
+        .y_label_formatter(&|y| format_tick(*y))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|x| e(&x))?;
+    for (method, rows) in curves {
+        let color = method_color(*method);
+        let points: Vec<(f64, f64)> = rows
+            .iter()
+            .map(|r| (r.method_ms, value(r).clamp(y0, y1)))
+            .collect();
+        let name = method.name();
+        if has_steps(*method) {
+            chart
+                .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
+                .map_err(|x| e(&x))?
+                .label(name)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 22, y)], color.stroke_width(2))
+                });
+            chart
+                .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+                .map_err(|x| e(&x))?;
+            let ends = [rows.first(), rows.last()];
+            for (r, p) in ends.into_iter().zip([points.first(), points.last()]) {
+                if let (Some(r), Some(&p), Some(steps)) = (r, p, r.and_then(|r| r.steps)) {
+                    chart
+                        .draw_series(std::iter::once(
+                            EmptyElement::at(p)
+                                + Text::new(
+                                    steps.to_string(),
+                                    (5, -16),
+                                    (FAMILY, 12).into_font().color(&color),
+                                ),
+                        ))
+                        .map_err(|x| e(&x))?;
+                    let _ = r;
+                }
+            }
+        } else {
+            chart
+                .draw_series(
+                    points
+                        .iter()
+                        .map(|&p| TriangleMarker::new(p, 8, color.filled())),
+                )
+                .map_err(|x| e(&x))?
+                .label(format!("{name} (one run)"))
+                .legend(move |(x, y)| TriangleMarker::new((x + 11, y), 6, color.filled()));
+        }
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font((FAMILY, 13))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(160, 160, 160))
+        .draw()
+        .map_err(|x| e(&x))
+}
+
+/// Tick label: up to 3 significant digits without trailing zeros.
+fn format_tick(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return "0".into();
+    }
+    let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 6) as usize;
+    let s = format!("{v:.digits$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    }
+}
+
+/// Writes the Pareto plot of `map` (methods sweep rows) to `path`.
+pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<()> {
+    let curves: Vec<(Method, Vec<&RunRow>)> = Method::ALL
+        .iter()
+        .map(|&m| (m, curve_rows(rows, map, m)))
+        .filter(|(_, r)| !r.is_empty())
+        .collect();
+    render_png(path, PARETO_SIZE, |root| {
+        let (left, right) = root.split_horizontally(PARETO_SIZE.0 / 2);
+        pareto_panel(
+            &left,
+            &format!("{map}: artifacts against time"),
+            "artifacts (% of covered pixels, log; 0 on the bottom edge)",
+            &curves,
+            |r| 100.0 * r.artifact_fraction,
+            1e-3,
+            100.0,
+        )?;
+        pareto_panel(
+            &right,
+            &format!("{map}: mean hit distance against time"),
+            "mean hit distance (texels, log; 0 on the bottom edge)",
+            &curves,
+            |r| r.mean_texels,
+            1e-4,
+            f64::INFINITY,
+        )
+    })
+}
+
+/// Writes the map-size plot (map-size sweep rows) to `path`: method time per frame
+/// (log), the same relative to the smallest map, and the pyramid's one build (log).
+pub fn sizes(path: &Path, rows: &[RunRow]) -> Result<()> {
+    let rows: Vec<&RunRow> = rows.iter().filter(|r| r.sweep == Sweep::MapSize).collect();
+    let mut sides: Vec<u32> = rows.iter().map(|r| r.map_width).collect();
+    sides.sort_unstable();
+    sides.dedup();
+    let methods: Vec<Method> = Method::ALL
+        .iter()
+        .copied()
+        .filter(|m| rows.iter().any(|r| r.method == m.name()))
+        .collect();
+    let value_at = |m: Method, side: u32, value: fn(&RunRow) -> Option<f64>| {
+        rows.iter()
+            .find(|r| r.map_width == side && r.method == m.name())
+            .and_then(|r| value(r))
+            .filter(|v| v.is_finite() && *v > 0.0)
+    };
+    let series = |value: fn(&RunRow) -> Option<f64>, relative: bool| {
+        methods
+            .iter()
+            .map(|&m| {
+                let base = sides.first().and_then(|&s| value_at(m, s, value));
+                let points: Vec<(usize, f64)> = sides
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, &side)| {
+                        let v = value_at(m, side, value)?;
+                        if relative {
+                            base.map(|b| (i, v / b))
+                        } else {
+                            Some((i, v))
+                        }
+                    })
+                    .collect();
+                (m, points)
+            })
+            .filter(|(_, p)| !p.is_empty())
+            .collect::<Vec<_>>()
+    };
+    let method_ms: fn(&RunRow) -> Option<f64> = |r| Some(r.method_ms);
+    let build_ms: fn(&RunRow) -> Option<f64> = |r| r.pyramid_build_ms;
+    let panels = [
+        (
+            "method time per frame",
+            "method time (ms, log)",
+            series(method_ms, false),
+            true,
+        ),
+        (
+            "relative to the smallest map",
+            "method time / time at the smallest map",
+            series(method_ms, true),
+            false,
+        ),
+        (
+            "pyramid build (once per map)",
+            "build time (ms, log)",
+            series(build_ms, false),
+            true,
+        ),
+    ];
+    render_png(path, SIZES_SIZE, |root| {
+        let areas = root.split_evenly((1, 3));
+        for (area, (title, y_desc, series, log)) in areas.iter().zip(panels) {
+            size_panel(area, &sides, title, y_desc, &series, log)?;
+        }
+        Ok(())
+    })
+}
+
+/// One panel of the map-size plot: `series` (index into `sides`, value) per method.
+fn size_panel(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    sides: &[u32],
+    title: &str,
+    y_desc: &str,
+    series: &[(Method, Vec<(usize, f64)>)],
+    log: bool,
+) -> std::result::Result<(), String> {
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let n = sides.len().max(1);
+    let label = |i: &SegmentValue<usize>| match i {
+        SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => {
+            sides.get(*i).map_or_else(String::new, |s| s.to_string())
+        }
+        SegmentValue::Last => String::new(),
+    };
+    let values = || series.iter().flat_map(|(_, s)| s.iter().map(|p| p.1));
+    let x_desc = "height-map side (texels)";
+    // Segmented ranges include their end: 0..n-1 gives n segments.
+    let x = (0..n - 1).into_segmented();
+    macro_rules! draw {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc(x_desc)
+                .y_desc(y_desc)
+                .label_style((FAMILY, 13))
+                .axis_desc_style((FAMILY, 14))
+                .x_label_formatter(&label)
+                .y_label_formatter(&|y| format_tick(*y))
+                .light_line_style(RGBColor(235, 235, 235))
+                .draw()
+                .map_err(|x| e(&x))?;
+            for (m, s) in series {
+                let color = method_color(*m);
+                let points: Vec<(SegmentValue<usize>, f64)> = s
+                    .iter()
+                    .map(|&(i, v)| (SegmentValue::CenterOf(i), v))
+                    .collect();
+                chart
+                    .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
+                    .map_err(|x| e(&x))?
+                    .label(m.name())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 22, y)], color.stroke_width(2))
+                    });
+                chart
+                    .draw_series(
+                        points
+                            .into_iter()
+                            .map(|p| Circle::new(p, 4, color.filled())),
+                    )
+                    .map_err(|x| e(&x))?;
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .label_font((FAMILY, 13))
+                .background_style(WHITE.mix(0.85))
+                .border_style(RGBColor(160, 160, 160))
+                .draw()
+                .map_err(|x| e(&x))?;
+        }};
+    }
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(title, (FAMILY, 18))
+        .margin(12)
+        .x_label_area_size(44)
+        .y_label_area_size(60);
+    if log {
+        let (y0, y1) = log_range(values(), 1e-3);
+        draw!(
+            builder
+                .build_cartesian_2d(x, (y0..y1).log_scale())
+                .map_err(|x| e(&x))?
+        );
+    } else {
+        let hi = values().fold(1.0f64, f64::max) * 1.15;
+        let lo = values().fold(1.0f64, f64::min).min(1.0) * 0.9;
+        draw!(
+            builder
+                .build_cartesian_2d(x, lo.min(0.9)..hi.max(1.1))
+                .map_err(|x| e(&x))?
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_and_ranges() {
+        assert_eq!(format_tick(1.0), "1");
+        assert_eq!(format_tick(0.0125), "0.0125");
+        assert_eq!(format_tick(250.0), "250");
+        assert_eq!(format_tick(12.34), "12.3");
+        let close = |(a, b): (f64, f64), (c, d): (f64, f64)| {
+            assert!(
+                (a - c).abs() < 1e-6 * c && (b - d).abs() < 1e-6 * d,
+                "{a} {b}"
+            )
+        };
+        close(log_range([0.0, 2.0, 8.0].into_iter(), 1e-3), (1.0, 10.0));
+        close(log_range([1.1, 50.0].into_iter(), 1e-3), (1.0, 100.0));
+        assert_eq!(log_range(std::iter::empty(), 0.5), (0.5, 5.0));
+    }
+
+    #[test]
+    fn the_font_registers() {
+        register_font().unwrap();
+    }
+}

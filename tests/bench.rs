@@ -1,0 +1,257 @@
+//! The benchmark on a tiny sweep, through the library and through the binary, with
+//! validation on: every output exists and is well formed. No timing is asserted.
+
+mod common;
+
+use common::{assert_validation_clean, validated_context};
+use dispmap::bench::{self, BenchConfig, MapSpec, Sweep, report};
+use dispmap::method::Method;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dispmap-bench-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// Reads `results.csv`: checks the header and that every non-empty numeric cell is a
+/// finite number; returns the rows.
+fn read_csv(path: &Path) -> Vec<bench::RunRow> {
+    let bytes = std::fs::read(path).unwrap();
+    let mut reader = csv::Reader::from_reader(bytes.as_slice());
+    let header: Vec<String> = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(header, report::CSV_HEADER);
+    let text_columns = ["sweep", "map", "method", "frame_set"];
+    for record in csv::Reader::from_reader(bytes.as_slice()).records() {
+        let record = record.unwrap();
+        assert_eq!(record.len(), header.len());
+        for (name, cell) in header.iter().zip(record.iter()) {
+            if text_columns.contains(&name.as_str()) || cell.is_empty() {
+                continue;
+            }
+            let v: f64 = cell
+                .parse()
+                .unwrap_or_else(|_| panic!("{name} = '{cell}' is not a number"));
+            assert!(v.is_finite() && v >= 0.0, "{name} = {v}");
+        }
+    }
+    reader.deserialize().map(|r| r.unwrap()).collect()
+}
+
+fn png_size(path: &Path) -> (u32, u32) {
+    let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    (img.width(), img.height())
+}
+
+fn no_temporary_files(dir: &Path) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(!name.ends_with(".tmp"), "left {name}");
+    }
+}
+
+#[test]
+fn library_sweep_writes_every_output() {
+    let ctx = validated_context();
+    let config = BenchConfig {
+        frame: [96, 54],
+        frames: 1,
+        error_frames: None,
+        steps: vec![32, 16],
+        methods: vec![Method::Dig, Method::Relief],
+        sizes: vec![64, 32],
+        size_methods: vec![Method::Pyramid, Method::Pom],
+        size_steps: 16,
+        ..BenchConfig::default()
+    };
+    let rocks = MapSpec::bundled("rocks").unwrap();
+    let mut events = Vec::new();
+    let results = bench::run(
+        &ctx,
+        &config,
+        std::slice::from_ref(&rocks),
+        Some(&rocks),
+        &mut |p| events.push((p.done, p.total)),
+    )
+    .unwrap();
+    assert_validation_clean(&ctx);
+
+    // Progress: monotone, ends complete.
+    assert!(events.windows(2).all(|w| w[0].0 <= w[1].0), "{events:?}");
+    let (done, total) = *events.last().unwrap();
+    assert_eq!(done, total);
+
+    // Lists are put in order; 2 methods x 2 settings, then 2 sizes x 2 methods.
+    assert_eq!(results.config.steps, [16, 32]);
+    assert_eq!(results.config.sizes, [32, 64]);
+    let main: Vec<_> = results
+        .rows
+        .iter()
+        .filter(|r| r.sweep == Sweep::Methods)
+        .collect();
+    let sizes: Vec<_> = results
+        .rows
+        .iter()
+        .filter(|r| r.sweep == Sweep::MapSize)
+        .collect();
+    assert_eq!(main.len(), 4);
+    assert_eq!(sizes.len(), 4);
+    for r in &results.rows {
+        assert!(r.trace_ms > 0.0 && r.method_ms >= r.trace_ms, "{r:?}");
+        assert!(r.total_ms >= r.method_ms, "{r:?}");
+        assert_eq!(r.nonfinite_pixels, 0, "{r:?}");
+        assert_eq!(r.error_frames, 1);
+        assert!(r.iterations_mean > 0.0 && r.iterations_simd8 >= r.iterations_mean * 0.5);
+        assert!((0.0..=1.0).contains(&r.artifact_fraction));
+        let dig = r.method == "dig";
+        assert_eq!(r.dig_corners_ms.is_some(), dig, "{r:?}");
+        assert_eq!(r.corner_iterations.is_some(), dig, "{r:?}");
+        assert_eq!(r.pyramid_build_ms.is_some(), r.method == "pyramid", "{r:?}");
+    }
+    let side: Vec<u32> = sizes.iter().map(|r| r.map_width).collect();
+    assert_eq!(side, [32, 32, 64, 64]);
+
+    let dir = scratch("lib");
+    let written = bench::write_outputs(&dir, &results, "dispmap bench (test)").unwrap();
+    for path in &written {
+        assert!(path.is_file(), "{}", path.display());
+    }
+    let rows = read_csv(&dir.join("results.csv"));
+    assert_eq!(rows, results.rows);
+
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    for needle in [
+        "## rocks",
+        "| method | steps |",
+        "DIG's speed-up at the same setting",
+        "DIG's speed-up at equal error",
+        "## Map-size sweep",
+        "(pareto_rocks.png)",
+        "(sizes.png)",
+        "dispmap bench (test)",
+        &ctx.info().name,
+    ] {
+        assert!(md.contains(needle), "report.md lacks '{needle}'");
+    }
+    // One table line per run of the map.
+    assert_eq!(md.matches("| `relief` | ").count(), 2);
+
+    assert_eq!(
+        png_size(&dir.join("pareto_rocks.png")),
+        bench::plot::PARETO_SIZE
+    );
+    assert_eq!(png_size(&dir.join("sizes.png")), bench::plot::SIZES_SIZE);
+    for name in [
+        "heatmap_rocks_relief.png",
+        "heatmap_rocks_dig.png",
+        "intervals_rocks.png",
+    ] {
+        assert_eq!(png_size(&dir.join(name)), (96, 54), "{name}");
+    }
+    no_temporary_files(&dir);
+}
+
+fn dispmap() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dispmap"));
+    c.env("DISPMAP_VALIDATION", "1");
+    c
+}
+
+#[test]
+fn cli_bench_writes_every_output() {
+    let dir = scratch("cli");
+    let out = dispmap()
+        .args(["bench", "--out"])
+        .arg(&dir)
+        .args(["--size", "64x36", "--frames", "1", "--steps", "8,16"])
+        .args([
+            "--methods",
+            "bump,pom",
+            "--maps",
+            "rocks",
+            "--sizes",
+            "32,64",
+        ])
+        .args(["--size-steps", "8", "--quiet"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("Validation"), "{stderr}");
+    let rows = read_csv(&dir.join("results.csv"));
+    // bump once, pom twice; 2 sizes x (pyramid, exact, dig, pom).
+    let methods: Vec<(&str, Option<u32>)> = rows
+        .iter()
+        .filter(|r| r.sweep == Sweep::Methods)
+        .map(|r| (r.method.as_str(), r.steps))
+        .collect();
+    assert_eq!(
+        methods,
+        [("bump", None), ("pom", Some(8)), ("pom", Some(16))]
+    );
+    assert_eq!(rows.iter().filter(|r| r.sweep == Sweep::MapSize).count(), 8);
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("## rocks") && md.contains("## Map-size sweep"));
+    assert!(
+        md.contains("--methods bump,pom"),
+        "the command line is quoted"
+    );
+    assert_eq!(
+        png_size(&dir.join("pareto_rocks.png")),
+        bench::plot::PARETO_SIZE
+    );
+    assert_eq!(png_size(&dir.join("sizes.png")), bench::plot::SIZES_SIZE);
+    for name in ["heatmap_rocks_bump.png", "heatmap_rocks_pom.png"] {
+        assert_eq!(png_size(&dir.join(name)), (64, 36), "{name}");
+    }
+    no_temporary_files(&dir);
+}
+
+/// Each bad option fails before any work, names the option and writes nothing.
+#[test]
+fn cli_bench_rejects_bad_options_by_name() {
+    let dir = scratch("bad");
+    let cases: [(&[&str], &str); 10] = [
+        (&["--methods", "pom,magic"], "--methods"),
+        (&["--methods", ""], "--methods"),
+        (&["--steps", "0"], "--steps"),
+        (&["--steps", ""], "--steps"),
+        (&["--steps", "75,,100"], "--steps"),
+        (&["--sizes", "256,1"], "--sizes"),
+        (&["--frames", "0"], "--frames"),
+        (&["--frames", "2", "--error-frames", "3"], "--error-frames"),
+        (&["--maps", "moon"], "--maps"),
+        (&["--heightmap", "/no/such/map.png"], "--convention"),
+    ];
+    for (args, needle) in cases {
+        let out = dispmap()
+            .args(["bench", "--quiet", "--out"])
+            .arg(&dir)
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(
+            stderr.contains(needle),
+            "{args:?}: '{needle}' not in: {stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(!dir.exists(), "{args:?} created {}", dir.display());
+    }
+    let out = dispmap()
+        .args(["bench", "--quiet", "--out"])
+        .arg(&dir)
+        .args(["--heightmap", "/no/such/map.png", "--convention", "height"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such/map.png"));
+    assert!(!dir.exists());
+}
