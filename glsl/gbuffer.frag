@@ -1,13 +1,9 @@
 #version 460
-// G-buffer pass, fragment stage: writes the tangent-space ray and the shading frame.
-//   out_ray     rgba32f  (uv0.x, uv0.y, P.x, P.y): entry uv (reduced to [0,1) for repeat
-//                        addressing, so rays keep full precision far from the origin) and
-//                        the parallax vector P = depth_scale * V.xy / -V.z in UV units.
-//   out_normal  rgba16f  world-space normal N (xyz), w = surface id (1: the one surface
-//                        drawn; 0 = cleared, no geometry). See src/passes/gbuffer.rs.
-//   out_tangent rgba16f  world-space tangent T = dP/du (xyz), w = handedness: B = w * cross(N, T).
-// Back faces (viewer below the surface) are discarded: nothing to displace.
+// G-buffer pass, fragment stage: writes the tangent-space ray and the shading frame with
+// the same include a host engine uses (glsl/include/dispmap_gbuffer.glsl documents every
+// channel). Back faces (viewer below the surface) are discarded: nothing to displace.
 #include "gbuffer.glsl"
+#include "include/dispmap_gbuffer.glsl"
 
 layout(location = 0) in vec3 v_world;
 layout(location = 1) in vec2 v_uv;
@@ -21,17 +17,10 @@ const float SURFACE_ID = 1.0;
 
 void main() {
     // The quad lies on y = 0 with u along +x and v along +z.
-    const vec3 N = vec3(0.0, 1.0, 0.0);
-    const vec3 T = vec3(1.0, 0.0, 0.0);
-    const vec3 B = vec3(0.0, 0.0, 1.0);
-    vec3 V = normalize(v_world - pc.camera_pos.xyz);
-    vec3 v_ts = vec3(dot(V, T), dot(V, B), dot(V, N));
-    if (v_ts.z >= 0.0) {
+    DispmapSurface s = DispmapSurface(v_world, pc.camera_pos.xyz, v_uv, vec3(0.0, 1.0, 0.0),
+        vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), SURFACE_ID, pc.depth_scale, pc.min_cos,
+        pc.addressing);
+    if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {
         discard;
     }
-    vec2 P = pc.depth_scale * v_ts.xy / max(-v_ts.z, pc.min_cos);
-    vec2 uv0 = pc.addressing == ADDRESSING_REPEAT ? v_uv - floor(v_uv) : v_uv;
-    out_ray = vec4(uv0, P);
-    out_normal = vec4(N, SURFACE_ID);
-    out_tangent = vec4(T, dot(cross(N, T), B) < 0.0 ? -1.0 : 1.0);
 }

@@ -16,6 +16,7 @@ pub mod abi;
 pub mod bench;
 pub mod bundled;
 pub mod context;
+pub mod embed;
 pub mod error;
 pub mod gpu;
 pub mod heatmap;

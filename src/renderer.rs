@@ -402,7 +402,7 @@ impl<'a> Renderer<'a> {
             pass.record(
                 ctx,
                 cmd,
-                &self.gbuffer,
+                self.gbuffer.views(),
                 &self.height,
                 corners,
                 self.settings.params.steps,
@@ -427,9 +427,9 @@ impl<'a> Renderer<'a> {
             ctx,
             cmd,
             TraceInputs {
-                gbuffer: &self.gbuffer,
+                gbuffer: self.gbuffer.views(),
                 height: &self.height,
-                hit: &self.hit,
+                hit: self.hit.view_ref(),
                 pyramid: self.extras.pyramid.as_ref(),
                 corners: self.extras.corners.as_ref(),
             },
@@ -501,10 +501,10 @@ impl<'a> Renderer<'a> {
             ctx,
             cmd,
             ShadeInputs {
-                hit: &self.hit,
-                gbuffer: &self.gbuffer,
+                hit: self.hit.view,
+                gbuffer: self.gbuffer.views(),
                 height: &self.height,
-                color: &self.color,
+                color: self.color.view_ref(),
             },
             params,
         );

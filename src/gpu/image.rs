@@ -22,6 +22,16 @@ pub struct Image {
     name: String,
 }
 
+/// A view of a 2-D image and the size of the image behind it: one of dispmap's own
+/// images or a host engine's (the passes bind views, never own them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ViewRef {
+    /// The image view.
+    pub view: vk::ImageView,
+    /// Size of the viewed mip level.
+    pub extent: vk::Extent2D,
+}
+
 /// The aspect a view of `format` covers.
 pub fn aspect_of(format: vk::Format) -> vk::ImageAspectFlags {
     match format {
@@ -132,6 +142,14 @@ impl Image {
             allocation: Some(allocation),
             name: name.into(),
         })
+    }
+
+    /// The view of every level and the size of level 0.
+    pub fn view_ref(&self) -> ViewRef {
+        ViewRef {
+            view: self.view,
+            extent: self.extent,
+        }
     }
 
     /// The debug name.

@@ -189,9 +189,15 @@ impl FetchPipeline {
 
     /// Descriptor info of `image` read with `texelFetch` (`SHADER_READ_ONLY_OPTIMAL`).
     pub fn fetch(&self, image: &Image) -> [vk::DescriptorImageInfo; 1] {
+        self.fetch_view(image.view)
+    }
+
+    /// Descriptor info of any image view read with `texelFetch`
+    /// (`SHADER_READ_ONLY_OPTIMAL`), e.g. a host's G-buffer.
+    pub fn fetch_view(&self, view: vk::ImageView) -> [vk::DescriptorImageInfo; 1] {
         [vk::DescriptorImageInfo {
             sampler: self.sampler,
-            image_view: image.view,
+            image_view: view,
             image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         }]
     }
@@ -207,9 +213,14 @@ impl FetchPipeline {
 
 /// Descriptor info of `image` as a storage image (`GENERAL`).
 pub fn storage(image: &Image) -> [vk::DescriptorImageInfo; 1] {
+    storage_view(image.view)
+}
+
+/// Descriptor info of any image view as a storage image (`GENERAL`).
+pub fn storage_view(view: vk::ImageView) -> [vk::DescriptorImageInfo; 1] {
     [vk::DescriptorImageInfo {
         sampler: vk::Sampler::null(),
-        image_view: image.view,
+        image_view: view,
         image_layout: vk::ImageLayout::GENERAL,
     }]
 }

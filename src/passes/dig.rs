@@ -24,7 +24,7 @@ use crate::gpu::commands::read_image;
 use crate::gpu::pipeline::{FetchPipeline, image_write, numbered, storage};
 use crate::gpu::sync::Access;
 use crate::gpu::{HeightTexture, Image, OneShot};
-use crate::passes::gbuffer::GBuffer;
+use crate::passes::gbuffer::GBufferViews;
 use crate::scene::addressing_code;
 use crate::shaders;
 use ash::vk;
@@ -136,15 +136,15 @@ impl DigCornerPass {
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
-        gbuffer: &GBuffer,
+        gbuffer: GBufferViews,
         height: &HeightTexture,
         grid: &CornerGrid,
         steps: u32,
     ) {
-        let fetch = |image: &Image| self.pipeline.fetch(image);
-        let ray = fetch(&gbuffer.ray);
-        let depth = fetch(&gbuffer.depth);
-        let normal = fetch(&gbuffer.normal);
+        let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
+        let ray = fetch(gbuffer.ray);
+        let depth = fetch(gbuffer.depth);
+        let normal = fetch(gbuffer.normal);
         let heights = [height.descriptor()];
         let corners = storage(&grid.image);
         let writes = [
@@ -154,7 +154,7 @@ impl DigCornerPass {
             image_write(3, BINDINGS[3], &heights),
             image_write(4, BINDINGS[4], &corners),
         ];
-        let frame = gbuffer.ray.extent;
+        let frame = gbuffer.extent;
         let size = grid.size();
         let push = CornerParams {
             frame_size: [frame.width, frame.height],

@@ -31,6 +31,22 @@ pub const FRAME_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 /// Format of the depth attachment.
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 
+/// The views of a G-buffer the compute passes read (dispmap's own [`GBuffer`] or a host
+/// engine's images with the same formats and meaning, see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GBufferViews {
+    /// `uv0.xy, P.xy` (`R32G32B32A32_SFLOAT`).
+    pub ray: vk::ImageView,
+    /// World normal, `w` = surface id (`R16G16B16A16_SFLOAT`).
+    pub normal: vk::ImageView,
+    /// World tangent, `w` = handedness (`R16G16B16A16_SFLOAT`).
+    pub tangent: vk::ImageView,
+    /// Reverse-Z depth, 0 = no geometry (`D32_SFLOAT`, depth aspect).
+    pub depth: vk::ImageView,
+    /// Frame size in pixels (every image's size).
+    pub extent: vk::Extent2D,
+}
+
 /// The G-buffer images of one frame size.
 pub struct GBuffer {
     /// `uv0.xy, P.xy`.
@@ -64,6 +80,17 @@ impl GBuffer {
                     | vk::ImageUsageFlags::TRANSFER_SRC,
             )?,
         })
+    }
+
+    /// The views the compute passes bind.
+    pub fn views(&self) -> GBufferViews {
+        GBufferViews {
+            ray: self.ray.view,
+            normal: self.normal.view,
+            tangent: self.tangent.view,
+            depth: self.depth.view,
+            extent: self.ray.extent,
+        }
     }
 
     /// The colour attachments in binding order.

@@ -13,9 +13,9 @@
 use crate::abi::ShadeParams;
 use crate::context::Context;
 use crate::error::Result;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage};
-use crate::gpu::{HeightTexture, Image};
-use crate::passes::gbuffer::GBuffer;
+use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::{HeightTexture, ViewRef};
+use crate::passes::gbuffer::GBufferViews;
 use crate::shaders;
 use ash::vk;
 
@@ -34,13 +34,13 @@ const BINDINGS: [vk::DescriptorType; 5] = [
 #[derive(Clone, Copy)]
 pub struct ShadeInputs<'a> {
     /// The hit buffer (read).
-    pub hit: &'a Image,
+    pub hit: vk::ImageView,
     /// The G-buffer (normal and tangent are read).
-    pub gbuffer: &'a GBuffer,
+    pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
-    /// The colour output (written).
-    pub color: &'a Image,
+    /// The colour output (written; the frame's size).
+    pub color: ViewRef,
 }
 
 /// The shade pass.
@@ -76,12 +76,11 @@ impl ShadePass {
             height,
             color,
         } = inputs;
-        let fetch = |image: &Image| self.pipeline.fetch(image);
-        let hits = storage(hit);
-        let normal = fetch(&gbuffer.normal);
-        let tangent = fetch(&gbuffer.tangent);
+        let hits = storage_view(hit);
+        let normal = self.pipeline.fetch_view(gbuffer.normal);
+        let tangent = self.pipeline.fetch_view(gbuffer.tangent);
         let heights = [height.descriptor()];
-        let colors = storage(color);
+        let colors = storage_view(color.view);
         let writes = [
             image_write(0, BINDINGS[0], &hits),
             image_write(1, BINDINGS[1], &normal),

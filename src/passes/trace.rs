@@ -20,11 +20,11 @@ use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TraceParams};
 use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage};
-use crate::gpu::{HeightTexture, Image};
+use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::{HeightTexture, ViewRef};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
 use crate::passes::dig::CornerGrid;
-use crate::passes::gbuffer::GBuffer;
+use crate::passes::gbuffer::GBufferViews;
 use crate::passes::pyramid::Pyramid;
 use crate::scene::addressing_code;
 use ash::vk;
@@ -54,12 +54,12 @@ fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
 /// The images the trace pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct TraceInputs<'a> {
-    /// The G-buffer (ray and depth are read).
-    pub gbuffer: &'a GBuffer,
+    /// The G-buffer (ray and depth are read; normal by the DIG methods).
+    pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
-    /// The hit buffer (written).
-    pub hit: &'a Image,
+    /// The hit buffer (written; the frame's size).
+    pub hit: ViewRef,
     /// The pyramid, for methods that need one (built, `SHADER_READ_ONLY_OPTIMAL`).
     pub pyramid: Option<&'a Pyramid>,
     /// The DIG corner grid, for `dig` methods (written by this frame's corner pass,
@@ -126,14 +126,14 @@ impl TracePass {
             (true, None) => return Err(missing("the DIG corner grid")),
             (false, _) => None,
         };
-        let fetch = |image: &Image| self.pipeline.fetch(image);
-        let ray = fetch(&gbuffer.ray);
-        let depth = fetch(&gbuffer.depth);
+        let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
+        let ray = fetch(gbuffer.ray);
+        let depth = fetch(gbuffer.depth);
         let heights = [height.descriptor()];
-        let hits = storage(hit);
+        let hits = storage_view(hit.view);
         let pyramids = pyramid.map(|p| [p.descriptor()]);
-        let grid = corners.map(|c| fetch(&c.image));
-        let normal = fetch(&gbuffer.normal);
+        let grid = corners.map(|c| fetch(c.image.view));
+        let normal = fetch(gbuffer.normal);
         let mut writes = vec![
             image_write(0, SAMPLED, &ray),
             image_write(1, SAMPLED, &depth),

@@ -1,0 +1,31 @@
+#version 460
+// examples/host_engine.rs: the host engine's own G-buffer fragment shader, writing
+// dispmap's channels with the provided include.
+#include "../include/dispmap_gbuffer.glsl"
+
+layout(push_constant) uniform EngineParams {
+    mat4 view_proj;
+    vec4 camera_pos;
+    float depth_scale;
+    float min_cos;
+    uint addressing;
+    uint pad;
+} pc;
+
+layout(location = 0) in vec3 v_world;
+layout(location = 1) in vec2 v_uv;
+layout(location = 2) flat in vec4 v_normal;     // w: surface id
+layout(location = 3) flat in vec3 v_tangent;
+layout(location = 4) flat in vec3 v_bitangent;
+
+layout(location = 0) out vec4 out_ray;
+layout(location = 1) out vec4 out_normal;
+layout(location = 2) out vec4 out_tangent;
+
+void main() {
+    DispmapSurface s = DispmapSurface(v_world, pc.camera_pos.xyz, v_uv, v_normal.xyz,
+        v_tangent, v_bitangent, v_normal.w, pc.depth_scale, pc.min_cos, pc.addressing);
+    if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {
+        discard;
+    }
+}

@@ -1,0 +1,33 @@
+#version 460
+// examples/host_engine.rs: the host engine's own G-buffer vertex shader (vertex buffers,
+// one tangent frame and surface id per face, passed flat so they reach the fragment
+// shader unchanged).
+layout(location = 0) in vec3 in_pos;
+layout(location = 1) in vec2 in_uv;
+layout(location = 2) in vec4 in_normal;     // xyz: unit normal; w: surface id
+layout(location = 3) in vec3 in_tangent;    // unit +u direction
+layout(location = 4) in vec3 in_bitangent;  // unit +v direction
+
+layout(push_constant) uniform EngineParams {
+    mat4 view_proj;
+    vec4 camera_pos;   // xyz
+    float depth_scale;
+    float min_cos;
+    uint addressing;
+    uint pad;
+} pc;
+
+layout(location = 0) out vec3 v_world;
+layout(location = 1) out vec2 v_uv;
+layout(location = 2) flat out vec4 v_normal;
+layout(location = 3) flat out vec3 v_tangent;
+layout(location = 4) flat out vec3 v_bitangent;
+
+void main() {
+    v_world = in_pos;
+    v_uv = in_uv;
+    v_normal = in_normal;
+    v_tangent = in_tangent;
+    v_bitangent = in_bitangent;
+    gl_Position = pc.view_proj * vec4(in_pos, 1.0);
+}

@@ -1,0 +1,1085 @@
+//! The displacement pass inside a host engine's Vulkan frame.
+//!
+//! The host owns the instance, device, queue, allocator, command buffers and the G-buffer.
+//! It wraps its handles in a [`Context`] with [`Context::from_handles`], builds one
+//! [`DisplacementPass`], and each frame calls [`DisplacementPass::record`], which only
+//! *records* `[height_upload] -> [pyramid] -> [dig_corners] -> trace -> [shade]` into the
+//! host's command buffer. On this path dispmap never creates a device, a command pool or a
+//! fence, and never submits: the host submits with its own fence.
+//!
+//! # Call sequence
+//!
+//! 1. Before `vkCreateDevice`: [`requirements`] lists what to enable,
+//!    [`check_physical_device`] and [`check_device_create_info`] turn a missing feature,
+//!    extension or limit into an [`Error::Unsupported`] naming it (not a validation
+//!    message later).
+//! 2. [`Context::from_handles`] with the host's handles and `Arc<Mutex<Allocator>>`.
+//! 3. [`DisplacementPass::new`] (pipelines, the height texture, per-slot resources).
+//! 4. Per frame: the host renders its G-buffer (formats and channels in
+//!    [`crate::passes::gbuffer`] and `glsl/include/dispmap_gbuffer.glsl`), places the
+//!    entry barriers below, calls [`DisplacementPass::record`], places its own barriers for
+//!    what follows, submits and later waits on its fence; then it may read the timestamps
+//!    ([`DisplacementPass::timings`] or [`read_timestamps`]).
+//! 5. [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] any time between
+//!    records.
+//! 6. After the device is idle (or every fence of a frame recorded with the pass has
+//!    signalled): [`DisplacementPass::destroy`], then drop the context, then the host
+//!    destroys its own objects.
+//!
+//! # Images: layout and access on entry and exit
+//!
+//! | image | owner | entry (the host's barrier makes it so) | exit |
+//! |---|---|---|---|
+//! | G-buffer `ray`, `normal`, `tangent` | host | `SHADER_READ_ONLY_OPTIMAL`, writes visible to `COMPUTE_SHADER` / `SHADER_SAMPLED_READ` | unchanged; last access `COMPUTE_SHADER` sampled read |
+//! | G-buffer `depth` | host | as above (depth aspect) | as above |
+//! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded, earlier accesses finished before `COMPUTE_SHADER` (a WAR dependency) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace), read by `SHADER_STORAGE_READ` (shade) |
+//! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL`, contents discarded, earlier accesses finished before `COMPUTE_SHADER` | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values) |
+//! | height map, pyramid, DIG corner grid | pass | (internal) | (internal; read-only for the host) |
+//!
+//! The pass places every barrier between its own passes, including the hit buffer's
+//! write -> read before `shade` (a global memory barrier, so it needs no `vk::Image`).
+//! Every image it binds must have been created on the context's queue family with
+//! `VK_SHARING_MODE_EXCLUSIVE` and used on that family.
+//!
+//! # Frames in flight
+//!
+//! Descriptors are *pushed* (`VK_KHR_push_descriptor`, see [`crate::gpu::pipeline`]):
+//! they are recorded into the command buffer itself, so no descriptor set is shared
+//! between frames and recording frame N+1 never touches what frame N's GPU work reads.
+//! Resources a frame *writes* are per frame-in-flight slot: the host supplies the hit
+//! buffer and colour image of each slot; the pass owns one DIG corner grid and one range
+//! of its own timestamp queries per slot. The height map and the pyramid are shared and
+//! only read by frames; a new height map gets new images, and the old ones are retired
+//! and destroyed only once every slot has been recorded again (so every frame that could
+//! read them has finished, by the slot contract below).
+//!
+//! **The slot contract**: `FrameInputs::frame_slot` is in `0..frames_in_flight`, and when
+//! `record` is called with slot `s`, the GPU work of the previous frame recorded with
+//! slot `s` has completed (the host waited on that frame's fence), as in any
+//! frames-in-flight loop. Command buffers recorded by `record` are submitted to the
+//! context's queue in the order they were recorded (the pyramid built in one frame is
+//! read by the next), and every recorded command buffer is submitted.
+
+use crate::abi::ShadeParams;
+use crate::context::{Context, requirements as context_requirements};
+use crate::error::{Error, Result, VkContext};
+use crate::gpu::sync::{self, Access};
+use crate::gpu::{Buffer, HeightTexture, ViewRef};
+use crate::heightfield::{Addressing, HeightField};
+use crate::method::{Method, MethodParams, Needs};
+use crate::passes::dig::{CornerGrid, DigCornerPass};
+use crate::passes::gbuffer::GBufferViews;
+use crate::passes::pyramid::{Pyramid, PyramidPass};
+use crate::passes::shade::{ShadeInputs, ShadePass};
+use crate::passes::trace::{TraceInputs, TracePass};
+use ash::vk;
+use glam::{Mat4, Vec3};
+use std::ffi::CStr;
+use std::sync::Arc;
+
+pub use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, RAY_FORMAT};
+pub use crate::passes::shade::COLOR_FORMAT;
+pub use crate::passes::trace::HIT_FORMAT;
+
+/// Timestamp queries one [`DisplacementPass::record`] writes at most: a begin/end pair
+/// for each of `height_upload`, `pyramid`, `dig_corners`, `trace` and `shade`.
+pub const MAX_QUERIES: u32 = 10;
+
+/// Largest `frames_in_flight` a pass accepts.
+pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;
+
+/// The push-constant bytes the largest pass uses (`shade`: [`ShadeParams`]).
+pub const PUSH_CONSTANT_BYTES: u32 = std::mem::size_of::<ShadeParams>() as u32;
+
+/// Descriptors the largest pass pushes (`trace` of the DIG methods).
+pub const PUSH_DESCRIPTORS: u32 = 7;
+
+/// What the pass needs from the host's device (see [`requirements`]).
+#[derive(Clone, Debug)]
+pub struct Requirements {
+    /// Minimum `VkPhysicalDeviceProperties::apiVersion`.
+    pub api_version: u32,
+    /// Device extensions to enable.
+    pub device_extensions: &'static [&'static CStr],
+    /// `VkPhysicalDeviceVulkan13Features` members to enable (by their Vulkan names).
+    pub vulkan13_features: &'static [&'static str],
+    /// Minimum `maxPushConstantsSize`, bytes.
+    pub max_push_constants_size: u32,
+    /// Minimum `VkPhysicalDevicePushDescriptorPropertiesKHR::maxPushDescriptors`.
+    pub max_push_descriptors: u32,
+    /// `timestampComputeAndGraphics` must be true (the pass's timestamps).
+    pub timestamp_compute_and_graphics: bool,
+    /// Formats and the optimal-tiling features each needs.
+    pub formats: &'static [(vk::Format, vk::FormatFeatureFlags)],
+}
+
+impl Requirements {
+    /// Sets the required members of a `VkPhysicalDeviceVulkan13Features` the host chains
+    /// into its `VkDeviceCreateInfo` (keeping what the host enabled itself).
+    pub fn enable_vulkan13<'a>(
+        &self,
+        features: vk::PhysicalDeviceVulkan13Features<'a>,
+    ) -> vk::PhysicalDeviceVulkan13Features<'a> {
+        features.synchronization2(true).dynamic_rendering(true)
+    }
+}
+
+/// The device features, extensions and limits the displacement pass needs.
+///
+/// `synchronization2` is used by every barrier and timestamp the pass records;
+/// `dynamicRendering` only by dispmap's own G-buffer pass, but [`Context::from_handles`]
+/// checks one set of requirements for both paths (both are core in Vulkan 1.3).
+pub fn requirements() -> Requirements {
+    Requirements {
+        api_version: context_requirements::API_VERSION,
+        device_extensions: context_requirements::DEVICE_EXTENSIONS,
+        vulkan13_features: &["synchronization2", "dynamicRendering"],
+        max_push_constants_size: PUSH_CONSTANT_BYTES,
+        max_push_descriptors: PUSH_DESCRIPTORS,
+        timestamp_compute_and_graphics: true,
+        formats: context_requirements::FORMATS,
+    }
+}
+
+/// Checks that a physical device *supports* everything in [`requirements`]; the error
+/// ([`Error::Unsupported`]) lists every missing item by its Vulkan name.
+///
+/// # Safety
+/// `physical_device` must have been enumerated from `instance`, which must be alive.
+pub unsafe fn check_physical_device(
+    instance: &ash::Instance,
+    physical_device: vk::PhysicalDevice,
+) -> Result<()> {
+    let mut missing = Vec::new();
+    if let Err(m) = Context::check_device(instance, physical_device) {
+        missing.push(m);
+    }
+    let wanted = requirements();
+    let mut push = vk::PhysicalDevicePushDescriptorPropertiesKHR::default();
+    let mut props = vk::PhysicalDeviceProperties2::default().push_next(&mut push);
+    // SAFETY: the caller guarantees the handles; the chain outlives the call.
+    unsafe { instance.get_physical_device_properties2(physical_device, &mut props) };
+    let limits = props.properties.limits;
+    let name = props
+        .properties
+        .device_name_as_c_str()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    if limits.max_push_constants_size < wanted.max_push_constants_size {
+        missing.push(format!(
+            "maxPushConstantsSize >= {} (has {})",
+            wanted.max_push_constants_size, limits.max_push_constants_size
+        ));
+    }
+    if push.max_push_descriptors < wanted.max_push_descriptors {
+        missing.push(format!(
+            "maxPushDescriptors >= {} (has {})",
+            wanted.max_push_descriptors, push.max_push_descriptors
+        ));
+    }
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        Err(Error::Unsupported {
+            device: name,
+            what: missing.join(", "),
+        })
+    }
+}
+
+/// Checks that the host's `VkDeviceCreateInfo` *enables* what the pass needs: the
+/// extensions of [`requirements`] and `synchronization2` / `dynamicRendering` (in a
+/// chained `VkPhysicalDeviceVulkan13Features`, `VkPhysicalDeviceSynchronization2Features`
+/// or `VkPhysicalDeviceDynamicRenderingFeatures`). Call it with the same create info
+/// before (or after) `vkCreateDevice`: a device created without them would only show
+/// validation errors later. The error lists every missing item.
+///
+/// # Safety
+/// `info` must be a valid `VkDeviceCreateInfo`: its extension-name array and `pNext`
+/// chain must point to live, correctly typed Vulkan structures.
+pub unsafe fn check_device_create_info(info: &vk::DeviceCreateInfo) -> Result<()> {
+    let mut missing = Vec::new();
+    let names: Vec<&CStr> = (0..info.enabled_extension_count as usize)
+        .map(|i| {
+            // SAFETY: the caller guarantees `pp_enabled_extension_names` holds
+            // `enabled_extension_count` NUL-terminated strings.
+            unsafe { CStr::from_ptr(*info.pp_enabled_extension_names.add(i)) }
+        })
+        .collect();
+    for want in requirements().device_extensions {
+        if !names.contains(want) {
+            missing.push(want.to_string_lossy().into_owned());
+        }
+    }
+    let (mut sync2, mut dynamic) = (false, false);
+    let mut next = info.p_next as *const vk::BaseInStructure<'_>;
+    while !next.is_null() {
+        // SAFETY: every structure of a valid pNext chain starts with sType and pNext.
+        let base = unsafe { &*next };
+        match base.s_type {
+            vk::StructureType::PHYSICAL_DEVICE_VULKAN_1_3_FEATURES => {
+                // SAFETY: the sType says which structure this is.
+                let f = unsafe { &*(next as *const vk::PhysicalDeviceVulkan13Features<'_>) };
+                sync2 |= f.synchronization2 == vk::TRUE;
+                dynamic |= f.dynamic_rendering == vk::TRUE;
+            }
+            vk::StructureType::PHYSICAL_DEVICE_SYNCHRONIZATION_2_FEATURES => {
+                // SAFETY: as above.
+                let f =
+                    unsafe { &*(next as *const vk::PhysicalDeviceSynchronization2Features<'_>) };
+                sync2 |= f.synchronization2 == vk::TRUE;
+            }
+            vk::StructureType::PHYSICAL_DEVICE_DYNAMIC_RENDERING_FEATURES => {
+                // SAFETY: as above.
+                let f =
+                    unsafe { &*(next as *const vk::PhysicalDeviceDynamicRenderingFeatures<'_>) };
+                dynamic |= f.dynamic_rendering == vk::TRUE;
+            }
+            _ => {}
+        }
+        next = base.p_next;
+    }
+    if !sync2 {
+        missing.push("synchronization2 (not enabled)".into());
+    }
+    if !dynamic {
+        missing.push("dynamicRendering (not enabled)".into());
+    }
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        Err(Error::Unsupported {
+            device: "the host's VkDeviceCreateInfo".into(),
+            what: missing.join(", "),
+        })
+    }
+}
+
+/// How the pass is configured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PassSettings {
+    /// The intersection method.
+    pub method: Method,
+    /// Its parameters.
+    pub params: MethodParams,
+    /// Displacement depth in uv (tile) units: the value the host's G-buffer used for `P`.
+    pub depth_scale: f32,
+    /// Height-map addressing: `Repeat` for tiled surfaces, `Clamp` for decals (must match
+    /// the `addressing` the host's G-buffer shader used for `uv0`).
+    pub addressing: Addressing,
+    /// Frame size in pixels (the G-buffer's, hit buffer's and colour image's size).
+    pub extent: vk::Extent2D,
+    /// Frames the host keeps in flight (1..=[`MAX_FRAMES_IN_FLIGHT`]): the number of
+    /// slots of the per-frame resources the pass owns.
+    pub frames_in_flight: u32,
+}
+
+/// What `shade` needs to light the hits (only when the host wants dispmap's colour).
+#[derive(Clone, Copy, Debug)]
+pub struct ShadeTarget {
+    /// The colour image view (`R8G8B8A8_UNORM`, storage usage; see the module table).
+    pub color: vk::ImageView,
+    /// World to clip of the frame (the inverse gives each pixel's view ray).
+    pub view_proj: Mat4,
+    /// Eye position, world space.
+    pub camera_pos: Vec3,
+    /// Unit vector towards a directional light, world space.
+    pub light_dir: Vec3,
+    /// Light intensity.
+    pub light_intensity: f32,
+}
+
+/// One frame's host images (layouts and access on entry and exit: module docs).
+#[derive(Clone, Copy, Debug)]
+pub struct FrameInputs {
+    /// The frame-in-flight slot, `0..frames_in_flight` (the slot contract: module docs).
+    pub frame_slot: u32,
+    /// The host's G-buffer views; `extent` must equal the pass's.
+    pub gbuffer: GBufferViews,
+    /// The hit buffer view this frame writes (`R32G32B32A32_SFLOAT`, storage usage).
+    pub hit: vk::ImageView,
+    /// Shade the hits into a colour image (`None`: the host shades from the hit buffer).
+    pub shade: Option<ShadeTarget>,
+}
+
+/// Where [`DisplacementPass::record`] writes its timestamps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Timestamps {
+    /// No timestamps.
+    Off,
+    /// The pass's own query pool (one range per frame slot, created on first use);
+    /// read with [`DisplacementPass::timings`] after the frame's fence.
+    Owned,
+    /// The host's `TIMESTAMP` query pool: the pass resets, in the command buffer, and
+    /// writes queries `first_query .. first_query + MAX_QUERIES` (the host must not use
+    /// them in the same frame); read with [`read_timestamps`] or the host's profiler.
+    Host {
+        /// A `VK_QUERY_TYPE_TIMESTAMP` pool of the host's device.
+        pool: vk::QueryPool,
+        /// First of the [`MAX_QUERIES`] queries the pass may use.
+        first_query: u32,
+    },
+}
+
+/// One timed pass of a recorded frame: its name and its begin/end queries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TimestampScope {
+    /// `height_upload`, `pyramid`, `dig_corners`, `trace` or `shade`.
+    pub name: &'static str,
+    /// The pool holding the queries.
+    pub pool: vk::QueryPool,
+    /// Query written before the pass.
+    pub begin_query: u32,
+    /// Query written after the pass.
+    pub end_query: u32,
+}
+
+/// What [`DisplacementPass::record`] recorded.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RecordedFrame {
+    /// The passes recorded, in order.
+    pub passes: Vec<&'static str>,
+    /// Their timestamp queries (empty with [`Timestamps::Off`]).
+    pub timestamps: Vec<TimestampScope>,
+}
+
+/// Per-pass milliseconds of a frame's timestamps, in recording order.
+///
+/// # Safety
+/// The pools in `scopes` must be alive and belong to `ctx`'s device, and the frame that
+/// wrote them must have completed (its fence signalled) and not been re-recorded since.
+pub unsafe fn read_timestamps(
+    ctx: &Context,
+    scopes: &[TimestampScope],
+) -> Result<Vec<(&'static str, f64)>> {
+    let bits = ctx.info().timestamp_valid_bits;
+    let mask = if bits >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << bits) - 1
+    };
+    let period = ctx.info().timestamp_period_ns as f64;
+    scopes
+        .iter()
+        .map(|s| {
+            let mut begin = [0u64; 1];
+            let mut end = [0u64; 1];
+            // SAFETY: the caller guarantees the pool and that the frame completed; without
+            // WAIT an unavailable query is reported (NOT_READY), never waited for.
+            unsafe {
+                let dev = ctx.device();
+                dev.get_query_pool_results(
+                    s.pool,
+                    s.begin_query,
+                    &mut begin,
+                    vk::QueryResultFlags::TYPE_64,
+                )
+                .vk("vkGetQueryPoolResults")?;
+                dev.get_query_pool_results(
+                    s.pool,
+                    s.end_query,
+                    &mut end,
+                    vk::QueryResultFlags::TYPE_64,
+                )
+                .vk("vkGetQueryPoolResults")?;
+            }
+            let ticks = (end[0] & mask).wrapping_sub(begin[0] & mask) & mask;
+            Ok((s.name, ticks as f64 * period / 1e6))
+        })
+        .collect()
+}
+
+/// A resource replaced while frames may still read it; destroyed once every slot in
+/// `pending` has been recorded again.
+struct Retired {
+    pending: u64,
+    resource: Resource,
+}
+
+enum Resource {
+    Buffer(Buffer),
+    Height(HeightTexture),
+    Pyramid(Pyramid),
+    Corners(CornerGrid),
+}
+
+impl Resource {
+    fn destroy(&mut self, ctx: &Context) {
+        match self {
+            Resource::Buffer(b) => b.destroy(ctx),
+            Resource::Height(h) => h.destroy(ctx),
+            Resource::Pyramid(p) => p.destroy(ctx),
+            Resource::Corners(c) => c.destroy(ctx),
+        }
+    }
+}
+
+/// The displacement pass for a host engine (see the module docs for the contract).
+///
+/// Owns its pipelines, the height texture (and pyramid when the method needs one), one
+/// DIG corner grid per frame slot (DIG methods) and, with [`Timestamps::Owned`], a query
+/// pool. Destroy it explicitly with [`DisplacementPass::destroy`]; in debug builds one
+/// dropped without it logs a warning (and leaks its objects).
+pub struct DisplacementPass {
+    ctx: Arc<Context>,
+    settings: PassSettings,
+    needs: Needs,
+    trace: TracePass,
+    shade: ShadePass,
+    pyramid_pass: Option<PyramidPass>,
+    corner_pass: Option<DigCornerPass>,
+    height: HeightTexture,
+    /// Staging buffer of a height map not yet copied (the next `record` copies it).
+    pending_upload: Option<Buffer>,
+    pyramid: Option<Pyramid>,
+    pyramid_built: bool,
+    /// One grid per frame slot (empty unless the method is a DIG).
+    corners: Vec<CornerGrid>,
+    query_pool: Option<vk::QueryPool>,
+    /// The owned-pool scopes each slot recorded last.
+    slot_scopes: Vec<Vec<TimestampScope>>,
+    retired: Vec<Retired>,
+    destroyed: bool,
+}
+
+impl DisplacementPass {
+    /// Builds the pipelines and the per-slot resources and stages `field` for upload
+    /// (the first [`DisplacementPass::record`] copies it and builds the pyramid). Records
+    /// and submits nothing.
+    pub fn new(ctx: Arc<Context>, field: &HeightField, settings: PassSettings) -> Result<Self> {
+        validate(&ctx, &settings)?;
+        let needs = settings.method.needs();
+        let c = &*ctx;
+        // Built in order; on failure everything built so far is destroyed (`Partial`).
+        let mut p = Partial::default();
+        let result = (|| {
+            p.trace = Some(TracePass::new(c, settings.method)?);
+            p.shade = Some(ShadePass::new(c)?);
+            let (height, staging) =
+                HeightTexture::create_for_upload(c, field, settings.addressing)?;
+            p.height = Some(height);
+            p.staging = Some(staging);
+            if let Some(kind) = needs.pyramid {
+                p.pyramid_pass = Some(PyramidPass::new(c)?);
+                p.pyramid = Some(Pyramid::new(
+                    c,
+                    field_size(field),
+                    kind,
+                    settings.addressing,
+                )?);
+            }
+            if needs.dig_corners {
+                p.corner_pass = Some(DigCornerPass::new(c)?);
+                p.corners = corner_grids(c, &settings)?;
+            }
+            Ok(())
+        })();
+        if let Err(e) = result {
+            p.destroy(c);
+            return Err(e);
+        }
+        let built = "built above";
+        Ok(DisplacementPass {
+            settings,
+            needs,
+            trace: p.trace.take().expect(built),
+            shade: p.shade.take().expect(built),
+            pyramid_pass: p.pyramid_pass.take(),
+            corner_pass: p.corner_pass.take(),
+            height: p.height.take().expect(built),
+            pending_upload: p.staging.take(),
+            pyramid: p.pyramid.take(),
+            pyramid_built: false,
+            corners: std::mem::take(&mut p.corners),
+            query_pool: None,
+            slot_scopes: vec![Vec::new(); settings.frames_in_flight as usize],
+            retired: Vec::new(),
+            destroyed: false,
+            ctx,
+        })
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> &PassSettings {
+        &self.settings
+    }
+
+    /// The context the pass was built with.
+    pub fn context(&self) -> &Arc<Context> {
+        &self.ctx
+    }
+
+    /// Whether the next [`DisplacementPass::record`] uploads a height map and (for the
+    /// pyramid methods) rebuilds the pyramid.
+    pub fn rebuild_pending(&self) -> bool {
+        self.pending_upload.is_some() || (self.pyramid.is_some() && !self.pyramid_built)
+    }
+
+    /// Records the pass into the host's command buffer `cmd`: the height-map upload and
+    /// the pyramid build when pending, the DIG corner pass, `trace` into `inputs.hit`
+    /// and, with `inputs.shade`, `shade`; each pass between debug labels and, unless
+    /// `timestamps` is [`Timestamps::Off`], timestamps. Returns the passes and their
+    /// queries.
+    ///
+    /// Resources that must not be in use by the GPU: those of `inputs.frame_slot` (its
+    /// corner grid and owned timestamp range, the hit buffer and colour image passed in)
+    /// and the pass's retired resources: the slot contract of the module docs guarantees
+    /// both. The shared height texture and pyramid may be read by frames in flight.
+    ///
+    /// # Safety
+    /// * `cmd` is a primary command buffer of the context's device in the recording state,
+    ///   outside a render pass, for a queue of the context's queue family; it is submitted
+    ///   (after any command buffer recorded earlier with this pass) to that queue.
+    /// * The views in `inputs` are alive until the frame completes, belong to the
+    ///   device, have the formats, usages, extent and entry layouts/accesses of the module
+    ///   docs; the slot contract holds.
+    /// * With [`Timestamps::Host`], `pool` is a live timestamp pool of the device with at
+    ///   least `first_query + MAX_QUERIES` queries, not used by other commands of the
+    ///   frame.
+    pub unsafe fn record(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        inputs: &FrameInputs,
+        timestamps: Timestamps,
+    ) -> Result<RecordedFrame> {
+        self.check_alive()?;
+        let slot = inputs.frame_slot;
+        if slot >= self.settings.frames_in_flight {
+            return Err(Error::invalid(
+                "frame_slot",
+                format!(
+                    "{slot} is not below frames_in_flight ({})",
+                    self.settings.frames_in_flight
+                ),
+            ));
+        }
+        let extent = self.settings.extent;
+        if inputs.gbuffer.extent != extent {
+            return Err(Error::invalid(
+                "gbuffer",
+                format!(
+                    "extent {}x{} differs from the pass's {}x{} (call resize)",
+                    inputs.gbuffer.extent.width,
+                    inputs.gbuffer.extent.height,
+                    extent.width,
+                    extent.height
+                ),
+            ));
+        }
+        let (pool, first) = match timestamps {
+            Timestamps::Off => (None, 0),
+            Timestamps::Owned => (Some(self.owned_pool()?), slot * MAX_QUERIES),
+            Timestamps::Host { pool, first_query } => (Some(pool), first_query),
+        };
+        // Slot `slot`'s previous frame has completed: nothing retired before now is
+        // read by it any more.
+        self.release_retired(slot);
+        let ctx = &*self.ctx;
+        let mut timer = ScopeWriter {
+            pool,
+            first,
+            frame: RecordedFrame::default(),
+        };
+        timer.reset(ctx, cmd);
+
+        if let Some(staging) = self.pending_upload.take() {
+            timer.scope(ctx, cmd, "height_upload", |cmd| {
+                self.height.record_upload(ctx, cmd, &staging)
+            });
+            // Read by this frame's copy: destroyed when this slot is next recorded.
+            self.retired.push(Retired {
+                pending: 1 << slot,
+                resource: Resource::Buffer(staging),
+            });
+        }
+        if let (Some(pass), Some(pyramid), false) =
+            (&self.pyramid_pass, &self.pyramid, self.pyramid_built)
+        {
+            timer.scope(ctx, cmd, "pyramid", |cmd| {
+                pass.record(ctx, cmd, &self.height, pyramid)
+            });
+            self.pyramid_built = true;
+        }
+        let grid = self.corners.get(slot as usize);
+        if let (Some(pass), Some(grid)) = (&self.corner_pass, grid) {
+            let discard = Access {
+                stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
+                ..Access::UNDEFINED
+            };
+            sync::record(
+                ctx,
+                cmd,
+                &[sync::image_barrier(
+                    grid.image.raw,
+                    grid.image.range(),
+                    discard,
+                    Access::COMPUTE_STORAGE_WRITE,
+                )],
+            );
+            timer.scope(ctx, cmd, "dig_corners", |cmd| {
+                pass.record(
+                    ctx,
+                    cmd,
+                    inputs.gbuffer,
+                    &self.height,
+                    grid,
+                    self.settings.params.steps,
+                )
+            });
+            sync::record(
+                ctx,
+                cmd,
+                &[sync::image_barrier(
+                    grid.image.raw,
+                    grid.image.range(),
+                    Access::COMPUTE_STORAGE_WRITE,
+                    Access::COMPUTE_SAMPLED,
+                )],
+            );
+        }
+        let hit = ViewRef {
+            view: inputs.hit,
+            extent,
+        };
+        let mut traced = Ok(());
+        timer.scope(ctx, cmd, "trace", |cmd| {
+            traced = self.trace.record(
+                ctx,
+                cmd,
+                TraceInputs {
+                    gbuffer: inputs.gbuffer,
+                    height: &self.height,
+                    hit,
+                    pyramid: self.pyramid.as_ref(),
+                    corners: grid,
+                },
+                &self.settings.params,
+                self.settings.depth_scale,
+            )
+        });
+        traced?;
+        if let Some(target) = &inputs.shade {
+            // The hit buffer stays in GENERAL: a memory barrier orders trace's writes
+            // before shade's reads.
+            let hit_barrier = [vk::MemoryBarrier2::default()
+                .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
+                .src_access_mask(vk::AccessFlags2::SHADER_STORAGE_WRITE)
+                .dst_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
+                .dst_access_mask(vk::AccessFlags2::SHADER_STORAGE_READ)];
+            let dep = vk::DependencyInfo::default().memory_barriers(&hit_barrier);
+            // SAFETY: `cmd` is recording outside a render pass (this function's contract).
+            unsafe { ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
+            let params = ShadeParams {
+                inv_view_proj: target.view_proj.inverse(),
+                camera_pos: target.camera_pos.extend(1.0),
+                light_dir: target.light_dir.extend(target.light_intensity),
+                frame_size: [extent.width, extent.height],
+                map_size: self.height.size(),
+                depth_scale: self.settings.depth_scale,
+                ambient: 0.18,
+                specular: 0.25,
+                shininess: 48.0,
+            };
+            timer.scope(ctx, cmd, "shade", |cmd| {
+                self.shade.record(
+                    ctx,
+                    cmd,
+                    ShadeInputs {
+                        hit: inputs.hit,
+                        gbuffer: inputs.gbuffer,
+                        height: &self.height,
+                        color: ViewRef {
+                            view: target.color,
+                            extent,
+                        },
+                    },
+                    &params,
+                )
+            });
+        }
+        let frame = timer.frame;
+        if matches!(timestamps, Timestamps::Owned) {
+            self.slot_scopes[slot as usize] = frame.timestamps.clone();
+        } else {
+            self.slot_scopes[slot as usize].clear();
+        }
+        Ok(frame)
+    }
+
+    /// Per-pass milliseconds of the last frame recorded in `frame_slot` with
+    /// [`Timestamps::Owned`] (empty if it recorded none). Call after that frame's fence
+    /// signalled and before the slot is recorded again; an unfinished frame gives an
+    /// error (`VK_NOT_READY`), never a wait.
+    pub fn timings(&self, frame_slot: u32) -> Result<Vec<(&'static str, f64)>> {
+        let scopes = self
+            .slot_scopes
+            .get(frame_slot as usize)
+            .ok_or_else(|| Error::invalid("frame_slot", format!("no slot {frame_slot}")))?;
+        // SAFETY: the scopes name the pass's own live pool; reading without WAIT cannot
+        // block, and an unwritten or unfinished query is an error, not undefined.
+        unsafe { read_timestamps(&self.ctx, scopes) }
+    }
+
+    /// Swaps in a new height map (any size; same addressing). The next
+    /// [`DisplacementPass::record`] uploads it and, for the pyramid methods, rebuilds the
+    /// pyramid (the min-reduce chain, timed as its own `pyramid` pass). The old texture
+    /// and pyramid stay alive for frames in flight and are destroyed once every slot has
+    /// been recorded again. Needs no GPU idle.
+    pub fn set_height_map(&mut self, field: &HeightField) -> Result<()> {
+        self.check_alive()?;
+        let all = self.all_slots();
+        let ctx = &*self.ctx;
+        let (height, staging) =
+            HeightTexture::create_for_upload(ctx, field, self.settings.addressing)?;
+        let pyramid = match self.needs.pyramid {
+            Some(kind) => {
+                match Pyramid::new(ctx, field_size(field), kind, self.settings.addressing) {
+                    Ok(p) => Some(p),
+                    Err(e) => {
+                        let (mut h, mut s) = (height, staging);
+                        h.destroy(ctx);
+                        s.destroy(ctx);
+                        return Err(e);
+                    }
+                }
+            }
+            None => None,
+        };
+        let old_height = std::mem::replace(&mut self.height, height);
+        self.retired.push(Retired {
+            pending: all,
+            resource: Resource::Height(old_height),
+        });
+        if let Some(old) = self.pending_upload.replace(staging) {
+            // Never recorded: no frame reads it.
+            let mut old = old;
+            old.destroy(ctx);
+        }
+        if let Some(old) = std::mem::replace(&mut self.pyramid, pyramid) {
+            self.retired.push(Retired {
+                pending: all,
+                resource: Resource::Pyramid(old),
+            });
+        }
+        self.pyramid_built = false;
+        Ok(())
+    }
+
+    /// Changes the frame size (the host's G-buffer, hit buffer and colour image must
+    /// have the new size from the next record on). Per-slot resources of the old size are
+    /// retired, not destroyed at once, so this needs no GPU idle.
+    pub fn resize(&mut self, extent: vk::Extent2D) -> Result<()> {
+        self.check_alive()?;
+        let settings = PassSettings {
+            extent,
+            ..self.settings
+        };
+        validate(&self.ctx, &settings)?;
+        let grids = if self.needs.dig_corners {
+            corner_grids(&self.ctx, &settings)?
+        } else {
+            Vec::new()
+        };
+        let all = self.all_slots();
+        for old in std::mem::replace(&mut self.corners, grids) {
+            self.retired.push(Retired {
+                pending: all,
+                resource: Resource::Corners(old),
+            });
+        }
+        self.settings = settings;
+        Ok(())
+    }
+
+    /// Destroys every object and frees every allocation the pass made. Afterwards any
+    /// other call returns an error.
+    ///
+    /// # Safety
+    /// No GPU work recorded with this pass may be pending: every frame recorded with it
+    /// has completed (the host waited on all their fences, or for the device to idle),
+    /// or was never submitted.
+    pub unsafe fn destroy(&mut self) {
+        if self.destroyed {
+            return;
+        }
+        let ctx = &*self.ctx;
+        for mut r in self.retired.drain(..) {
+            r.resource.destroy(ctx);
+        }
+        if let Some(mut b) = self.pending_upload.take() {
+            b.destroy(ctx);
+        }
+        for mut c in self.corners.drain(..) {
+            c.destroy(ctx);
+        }
+        if let Some(mut p) = self.pyramid.take() {
+            p.destroy(ctx);
+        }
+        self.height.destroy(ctx);
+        if let Some(mut p) = self.corner_pass.take() {
+            p.destroy(ctx);
+        }
+        if let Some(mut p) = self.pyramid_pass.take() {
+            p.destroy(ctx);
+        }
+        self.shade.destroy(ctx);
+        self.trace.destroy(ctx);
+        if let Some(pool) = self.query_pool.take() {
+            // SAFETY: this function's contract: no pending use.
+            unsafe { ctx.device().destroy_query_pool(pool, None) };
+        }
+        self.destroyed = true;
+    }
+
+    fn check_alive(&self) -> Result<()> {
+        if self.destroyed {
+            Err(Error::invalid("DisplacementPass", "used after destroy()"))
+        } else {
+            Ok(())
+        }
+    }
+
+    fn all_slots(&self) -> u64 {
+        (1u64 << self.settings.frames_in_flight) - 1
+    }
+
+    fn release_retired(&mut self, slot: u32) {
+        let ctx = &*self.ctx;
+        self.retired.retain_mut(|r| {
+            r.pending &= !(1u64 << slot);
+            if r.pending == 0 {
+                r.resource.destroy(ctx);
+                false
+            } else {
+                true
+            }
+        });
+    }
+
+    fn owned_pool(&mut self) -> Result<vk::QueryPool> {
+        if let Some(pool) = self.query_pool {
+            return Ok(pool);
+        }
+        if self.ctx.info().timestamp_valid_bits == 0 {
+            return Err(Error::Unsupported {
+                device: self.ctx.info().name.clone(),
+                what: "timestamps on the queue family in use (timestampValidBits = 0)".into(),
+            });
+        }
+        let info = vk::QueryPoolCreateInfo::default()
+            .query_type(vk::QueryType::TIMESTAMP)
+            .query_count(MAX_QUERIES * self.settings.frames_in_flight);
+        // SAFETY: valid device and create info.
+        let pool =
+            unsafe { self.ctx.device().create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
+        self.ctx.set_name(pool, "embed.timestamps");
+        self.query_pool = Some(pool);
+        Ok(pool)
+    }
+}
+
+impl Drop for DisplacementPass {
+    fn drop(&mut self) {
+        #[cfg(debug_assertions)]
+        if !self.destroyed {
+            log::warn!(
+                "DisplacementPass dropped without destroy(): its Vulkan objects and \
+                 allocations leak (call destroy() once the GPU is done with it)"
+            );
+        }
+    }
+}
+
+fn validate(ctx: &Context, s: &PassSettings) -> Result<()> {
+    s.params.validate()?;
+    if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&s.frames_in_flight) {
+        return Err(Error::invalid(
+            "frames_in_flight",
+            format!(
+                "{} is outside 1..={MAX_FRAMES_IN_FLIGHT}",
+                s.frames_in_flight
+            ),
+        ));
+    }
+    if !s.depth_scale.is_finite() || s.depth_scale < 0.0 {
+        return Err(Error::invalid(
+            "depth_scale",
+            format!("{} is not a finite value >= 0", s.depth_scale),
+        ));
+    }
+    let max = ctx.info().max_image_dimension_2d;
+    let e = s.extent;
+    if e.width == 0 || e.height == 0 || e.width > max || e.height > max {
+        return Err(Error::invalid(
+            "extent",
+            format!(
+                "{}x{} is outside 1..={max} per side (maxImageDimension2D)",
+                e.width, e.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn field_size(field: &HeightField) -> [u32; 2] {
+    [field.width(), field.height()]
+}
+
+fn corner_grids(ctx: &Context, s: &PassSettings) -> Result<Vec<CornerGrid>> {
+    let mut grids = Vec::new();
+    for _ in 0..s.frames_in_flight {
+        match CornerGrid::new(ctx, [s.extent.width, s.extent.height], s.params.block) {
+            Ok(g) => grids.push(g),
+            Err(e) => {
+                for mut g in grids {
+                    g.destroy(ctx);
+                }
+                return Err(e);
+            }
+        }
+    }
+    Ok(grids)
+}
+
+/// Writes the begin/end timestamps of each pass into the chosen range.
+struct ScopeWriter {
+    pool: Option<vk::QueryPool>,
+    first: u32,
+    frame: RecordedFrame,
+}
+
+impl ScopeWriter {
+    fn reset(&self, ctx: &Context, cmd: vk::CommandBuffer) {
+        if let Some(pool) = self.pool {
+            // SAFETY: `cmd` is recording outside a render pass and the range exists
+            // (`record`'s contract); the frame writes these queries after the reset.
+            unsafe {
+                ctx.device()
+                    .cmd_reset_query_pool(cmd, pool, self.first, MAX_QUERIES)
+            };
+        }
+    }
+
+    /// Records `body` between a debug label and, with a pool, two timestamps.
+    fn scope(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        name: &'static str,
+        body: impl FnOnce(vk::CommandBuffer),
+    ) {
+        ctx.begin_label(cmd, name);
+        let queries = self.pool.map(|pool| {
+            let begin = self.first + 2 * self.frame.timestamps.len() as u32;
+            (pool, begin, begin + 1)
+        });
+        if let Some((pool, begin, _)) = queries {
+            // SAFETY: `cmd` is recording; the query was reset by `reset` in this frame.
+            unsafe {
+                ctx.device().cmd_write_timestamp2(
+                    cmd,
+                    vk::PipelineStageFlags2::ALL_COMMANDS,
+                    pool,
+                    begin,
+                )
+            };
+        }
+        body(cmd);
+        if let Some((pool, begin_query, end_query)) = queries {
+            // SAFETY: as above.
+            unsafe {
+                ctx.device().cmd_write_timestamp2(
+                    cmd,
+                    vk::PipelineStageFlags2::ALL_COMMANDS,
+                    pool,
+                    end_query,
+                )
+            };
+            self.frame.timestamps.push(TimestampScope {
+                name,
+                pool,
+                begin_query,
+                end_query,
+            });
+        }
+        ctx.end_label(cmd);
+        self.frame.passes.push(name);
+    }
+}
+
+/// The pass's parts while [`DisplacementPass::new`] builds them.
+#[derive(Default)]
+struct Partial {
+    trace: Option<TracePass>,
+    shade: Option<ShadePass>,
+    height: Option<HeightTexture>,
+    staging: Option<Buffer>,
+    pyramid_pass: Option<PyramidPass>,
+    pyramid: Option<Pyramid>,
+    corner_pass: Option<DigCornerPass>,
+    corners: Vec<CornerGrid>,
+}
+
+impl Partial {
+    fn destroy(&mut self, ctx: &Context) {
+        for mut c in self.corners.drain(..) {
+            c.destroy(ctx);
+        }
+        if let Some(mut p) = self.corner_pass.take() {
+            p.destroy(ctx);
+        }
+        if let Some(mut p) = self.pyramid.take() {
+            p.destroy(ctx);
+        }
+        if let Some(mut p) = self.pyramid_pass.take() {
+            p.destroy(ctx);
+        }
+        if let Some(mut b) = self.staging.take() {
+            b.destroy(ctx);
+        }
+        if let Some(mut h) = self.height.take() {
+            h.destroy(ctx);
+        }
+        if let Some(mut s) = self.shade.take() {
+            s.destroy(ctx);
+        }
+        if let Some(mut t) = self.trace.take() {
+            t.destroy(ctx);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn create_info_without_the_extension_or_features_is_a_clear_error() {
+        let info = vk::DeviceCreateInfo::default();
+        // SAFETY: a default create info has no extensions and no chain.
+        let err = unsafe { check_device_create_info(&info) }
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("VK_KHR_push_descriptor"), "{err}");
+        assert!(err.contains("synchronization2"), "{err}");
+
+        let exts = [ash::khr::push_descriptor::NAME.as_ptr()];
+        let mut f13 = requirements().enable_vulkan13(vk::PhysicalDeviceVulkan13Features::default());
+        let info = vk::DeviceCreateInfo::default()
+            .enabled_extension_names(&exts)
+            .push_next(&mut f13);
+        // SAFETY: the names and the chain live on this stack frame.
+        unsafe { check_device_create_info(&info) }.unwrap();
+    }
+
+    #[test]
+    fn requirements_cover_the_largest_pass() {
+        let r = requirements();
+        assert_eq!(r.max_push_constants_size, 128);
+        assert!(
+            r.device_extensions
+                .contains(&ash::khr::push_descriptor::NAME)
+        );
+        assert!(r.formats.iter().any(|(f, _)| *f == HIT_FORMAT));
+    }
+}
