@@ -712,31 +712,45 @@ fn command_line() -> String {
 }
 
 fn print_bench_summary(results: &bench::BenchResults) {
-    use bench::report::{Measure, equal_error_speedup, same_setting_speedup};
-    use dispmap::bench::TimeToError;
-    let cell = |s: Option<TimeToError>| match s {
-        Some(TimeToError::Reached(x)) => format!("{x:.2}x"),
-        Some(TimeToError::AtMost(x)) => format!(">={x:.2}x"),
-        Some(TimeToError::NotReached) => "n/r".into(),
+    use bench::report::{
+        Measure, Speedup, equal_error_speedup, equal_error_speedup_at_dig, same_setting_speedup,
+    };
+    let cell = |s: Option<Speedup>| match s {
+        Some(Speedup::Ratio(x)) => format!("{x:.2}x"),
+        Some(Speedup::AtLeast(x)) => format!(">={x:.2}x"),
+        Some(Speedup::AtMost(x)) => format!("<={x:.2}x"),
+        Some(Speedup::OtherNeverReaches) => "never".into(),
+        Some(Speedup::DigNeverReaches) => "dig never".into(),
         None => "-".into(),
     };
     println!(
-        "\nDIG speed-up (method time: dig_corners + trace) over pom / relief, at the same \
-         setting and at equal artifact fraction (n/r: DIG does not reach that error):"
+        "\nDIG's speed-up (method time: dig_corners + trace) over pom / relief: at the same \
+         setting; at equal artifact fraction (a) on DIG's curve at the other's error, (b) on \
+         the other's curve at DIG's error (never: the other never gets that low):"
     );
     println!(
-        "{:<12} {:>6} {:>10} {:>10} {:>12} {:>12}",
-        "map", "iter", "pom", "relief", "pom eq.err", "relief eq.err"
+        "{:<10} {:>5} {:>8} {:>10} {:>10} {:>8} {:>10} {:>10}",
+        "map", "iter", "pom", "pom (a)", "pom (b)", "relief", "relief (a)", "relief (b)"
     );
     for map in &results.maps {
         for &steps in &results.config.steps {
+            let rows = &results.rows;
             let same = |m| {
-                same_setting_speedup(&results.rows, &map.name, m, steps)
+                same_setting_speedup(rows, &map.name, m, steps)
                     .map_or_else(|| "-".into(), |(x, _)| format!("{x:.2}x"))
             };
-            let eq = |m| {
+            let a = |m| {
                 cell(equal_error_speedup(
-                    &results.rows,
+                    rows,
+                    &map.name,
+                    m,
+                    steps,
+                    Measure::ArtifactFraction,
+                ))
+            };
+            let b = |m| {
+                cell(equal_error_speedup_at_dig(
+                    rows,
                     &map.name,
                     m,
                     steps,
@@ -744,13 +758,15 @@ fn print_bench_summary(results: &bench::BenchResults) {
                 ))
             };
             println!(
-                "{:<12} {:>6} {:>10} {:>10} {:>12} {:>12}",
+                "{:<10} {:>5} {:>8} {:>10} {:>10} {:>8} {:>10} {:>10}",
                 map.name,
                 steps,
                 same(Method::Pom),
+                a(Method::Pom),
+                b(Method::Pom),
                 same(Method::Relief),
-                eq(Method::Pom),
-                eq(Method::Relief)
+                a(Method::Relief),
+                b(Method::Relief)
             );
         }
     }

@@ -11,10 +11,15 @@
 //! (linearly in the error where an end is 0); if its cheapest setting is already at or
 //! below `E`, the time is *at most* that setting's (marked `<=`: fewer steps might do);
 //! if no setting reaches `E`, it is *not reached*. A method without a step count has one
-//! point: its time if its error is at or below `E`, else not reached. The report's
-//! targets are the errors of `pom` and of `relief` at each setting, so "DIG's speed-up
-//! over POM at equal error" at `iter = 100` is `POM's time at 100 / the time DIG needs
-//! for POM's error at 100`.
+//! point: its time if its error is at or below `E`, else not reached.
+//!
+//! DIG's speed-up over POM (or relief) at equal error is read both ways at each setting
+//! `iter`: (a) [`equal_error_speedup`], `POM's time at iter / the time DIG needs for POM's
+//! error at iter`; (b) [`equal_error_speedup_at_dig`], `the time POM needs for DIG's error
+//! at iter / DIG's time at iter`. When DIG is more accurate at every setting, (a) is only
+//! a lower bound (`>=`, DIG's cheapest setting already beats the target) and (b) says
+//! whether POM gets there at all. The report also lists the time every method needs for
+//! fixed targets ([`ARTIFACT_TARGETS`], [`TEXEL_TARGETS`]).
 
 use super::{BenchResults, RunRow, Sweep, file_stem};
 use crate::error::{Error, Result};
@@ -180,6 +185,14 @@ impl Measure {
         }
     }
 
+    /// Words for tables.
+    pub fn label(self) -> &'static str {
+        match self {
+            Measure::ArtifactFraction => "artifact fraction",
+            Measure::MeanTexels => "mean hit distance",
+        }
+    }
+
     fn format(self, v: f64) -> String {
         match self {
             Measure::ArtifactFraction => format!("{:.3}%", 100.0 * v),
@@ -218,42 +231,99 @@ pub fn same_setting_speedup(
     Some((o.method_ms / dig.method_ms, o.total_ms / dig.total_ms))
 }
 
-/// DIG's speed-up over `other` on `map` at equal error: `other`'s time at `steps` over
-/// the time DIG needs to reach `other`'s error there ([`time_to_reach`]).
+/// DIG's speed-up over another method at equal error.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Speedup {
+    /// This ratio.
+    Ratio(f64),
+    /// At least this ratio (DIG's cheapest setting already reaches the target).
+    AtLeast(f64),
+    /// At most this ratio (the other method's cheapest setting already reaches it).
+    AtMost(f64),
+    /// The other method reaches DIG's error at no setting.
+    OtherNeverReaches,
+    /// DIG reaches the other method's error at no setting.
+    DigNeverReaches,
+}
+
+impl Speedup {
+    /// The ratio, if there is one (a bound for `AtLeast` / `AtMost`).
+    pub fn ratio(self) -> Option<f64> {
+        match self {
+            Speedup::Ratio(x) | Speedup::AtLeast(x) | Speedup::AtMost(x) => Some(x),
+            _ => None,
+        }
+    }
+
+    /// Short text for tables: `2.10x`, `>= 2.10x`, `<= 2.10x`, or who never reaches the
+    /// target.
+    pub fn cell(self, other: Method) -> String {
+        match self {
+            Speedup::Ratio(x) => format!("{x:.2}x"),
+            Speedup::AtLeast(x) => format!(">= {x:.2}x"),
+            Speedup::AtMost(x) => format!("<= {x:.2}x"),
+            Speedup::OtherNeverReaches => format!("`{other}` never reaches it"),
+            Speedup::DigNeverReaches => "`dig` never reaches it".into(),
+        }
+    }
+}
+
+/// DIG's speed-up over `other` on `map` at equal error, reading DIG's curve: `other`'s
+/// time at `steps` over the time DIG needs to reach `other`'s error there
+/// ([`time_to_reach`]). `None` if either has no such run.
 pub fn equal_error_speedup(
     rows: &[RunRow],
     map: &str,
     other: Method,
     steps: u32,
     measure: Measure,
-) -> Option<TimeToError> {
+) -> Option<Speedup> {
     let o = row_at(rows, map, other, steps)?;
     let dig = curve(rows, map, Method::Dig, measure);
     if dig.is_empty() {
         return None;
     }
     Some(match time_to_reach(&dig, measure.of(o)) {
-        TimeToError::Reached(t) => TimeToError::Reached(o.method_ms / t),
+        TimeToError::Reached(t) => Speedup::Ratio(o.method_ms / t),
         // DIG needs at most t: the speed-up is at least the ratio.
-        TimeToError::AtMost(t) => TimeToError::AtMost(o.method_ms / t),
-        TimeToError::NotReached => TimeToError::NotReached,
+        TimeToError::AtMost(t) => Speedup::AtLeast(o.method_ms / t),
+        TimeToError::NotReached => Speedup::DigNeverReaches,
     })
 }
 
-fn speedup_cell(s: Option<TimeToError>) -> String {
-    match s {
-        Some(TimeToError::Reached(x)) => format!("{x:.2}x"),
-        Some(TimeToError::AtMost(x)) => format!(">= {x:.2}x"),
-        Some(TimeToError::NotReached) => "not reached".into(),
-        None => "-".into(),
+/// The other reading: the time `other` needs to reach DIG's error at `steps` (read off
+/// `other`'s curve) over DIG's time at `steps`. `None` if either has no such run.
+pub fn equal_error_speedup_at_dig(
+    rows: &[RunRow],
+    map: &str,
+    other: Method,
+    steps: u32,
+    measure: Measure,
+) -> Option<Speedup> {
+    let dig = row_at(rows, map, Method::Dig, steps)?;
+    let o = curve(rows, map, other, measure);
+    if o.is_empty() {
+        return None;
     }
+    Some(match time_to_reach(&o, measure.of(dig)) {
+        TimeToError::Reached(t) => Speedup::Ratio(t / dig.method_ms),
+        // The other needs at most t: the speed-up is at most the ratio.
+        TimeToError::AtMost(t) => Speedup::AtMost(t / dig.method_ms),
+        TimeToError::NotReached => Speedup::OtherNeverReaches,
+    })
 }
+
+/// The fixed error targets of the report's time-to-error table.
+pub const ARTIFACT_TARGETS: [f64; 6] = [0.2, 0.1, 0.05, 0.02, 0.01, 0.001];
+
+/// The fixed mean-texel targets of the report's time-to-error table.
+pub const TEXEL_TARGETS: [f64; 6] = [20.0, 10.0, 5.0, 2.0, 1.0, 0.1];
 
 fn time_cell(t: TimeToError) -> String {
     match t {
         TimeToError::Reached(x) => format!("{x:.2}"),
         TimeToError::AtMost(x) => format!("<= {x:.2}"),
-        TimeToError::NotReached => "not reached".into(),
+        TimeToError::NotReached => "-".into(),
     }
 }
 
@@ -426,34 +496,49 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
         }
         let _ = writeln!(
             s,
-            "\n**DIG's speed-up at equal error** (the other method's time at `iter` over the \
-             time DIG needs to reach its error there):\n"
+            "\n**DIG's speed-up at equal error**, two readings: (a) the other method's error at \
+             `iter` is the target and DIG's time for it is read off DIG's curve, speed-up = \
+             other's time at `iter` / that; (b) DIG's error at `iter` is the target and the \
+             other's time for it is read off the other's curve, speed-up = that / DIG's time \
+             at `iter`.\n"
         );
         let _ = writeln!(
             s,
-            "| iter | `pom` artifacts | over `pom` | `pom` mean tx | over `pom` | `relief` artifacts | over `relief` | `relief` mean tx | over `relief` |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "| iter | vs | measure | its error | (a) speed-up | `dig`'s error | (b) speed-up |\n|---:|---|---|---:|---:|---:|---:|"
         );
         for &st in &c.steps {
-            let mut line = format!("| {st} |");
             for other in [Method::Pom, Method::Relief] {
+                if !has(other) {
+                    continue;
+                }
                 for measure in [Measure::ArtifactFraction, Measure::MeanTexels] {
-                    let target = row_at(rows, name, other, st)
-                        .map_or_else(|| "-".into(), |r| measure.format(measure.of(r)));
-                    let _ = write!(
-                        line,
-                        " {target} | {} |",
-                        speedup_cell(equal_error_speedup(rows, name, other, st, measure))
+                    let err = |m: Method| {
+                        row_at(rows, name, m, st)
+                            .map_or_else(|| "-".into(), |r| measure.format(measure.of(r)))
+                    };
+                    let cell = |x: Option<Speedup>| x.map_or_else(|| "-".into(), |x| x.cell(other));
+                    let _ = writeln!(
+                        s,
+                        "| {st} | `{other}` | {} | {} | {} | {} | {} |",
+                        measure.label(),
+                        err(other),
+                        cell(equal_error_speedup(rows, name, other, st, measure)),
+                        err(Method::Dig),
+                        cell(equal_error_speedup_at_dig(rows, name, other, st, measure)),
                     );
                 }
             }
-            let _ = writeln!(s, "{line}");
         }
     }
-    if has(Method::Pom) {
+    for (measure, targets) in [
+        (Measure::ArtifactFraction, &ARTIFACT_TARGETS[..]),
+        (Measure::MeanTexels, &TEXEL_TARGETS[..]),
+    ] {
         let _ = writeln!(
             s,
-            "\n**Time each method needs to reach `pom`'s artifact fraction** (method ms, read \
-             off its speed-error curve):\n"
+            "\n**Time each method needs to reach a given {}** (method ms, read off its \
+             speed-error curve; `-`: no setting gets there):\n",
+            measure.label()
         );
         let mut header = "| target |".to_owned();
         let mut rule = "|---|".to_owned();
@@ -462,14 +547,14 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
             rule.push_str("---:|");
         }
         let _ = writeln!(s, "{header}\n{rule}");
-        for &st in &c.steps {
-            let Some(p) = row_at(rows, name, Method::Pom, st) else {
-                continue;
+        for &target in targets {
+            let target_text = match measure {
+                Measure::ArtifactFraction => format!("{}%", super::trim_float(100.0 * target)),
+                Measure::MeanTexels => format!("{} tx", super::trim_float(target)),
             };
-            let target = p.artifact_fraction;
-            let mut line = format!("| `pom` {st}: {:.3}% |", 100.0 * target);
+            let mut line = format!("| {target_text} |");
             for &m in &c.methods {
-                let t = time_to_reach(&curve(rows, name, m, Measure::ArtifactFraction), target);
+                let t = time_to_reach(&curve(rows, name, m, measure), target);
                 let _ = write!(line, " {} |", time_cell(t));
             }
             let _ = writeln!(s, "{line}");
@@ -715,7 +800,7 @@ mod tests {
         // POM at 75 has 10% artifacts; DIG reaches 10% halfway in log between 20% and 5%.
         let s = equal_error_speedup(&rows, "rocks", Method::Pom, 75, Measure::ArtifactFraction)
             .unwrap();
-        let TimeToError::Reached(x) = s else {
+        let Speedup::Ratio(x) = s else {
             panic!("{s:?}")
         };
         let frac = (0.2f64.ln() - 0.1f64.ln()) / (0.2f64.ln() - 0.05f64.ln());
