@@ -19,12 +19,16 @@
 //!   default `n_min`), `secant` `N = iter` samples. DIG uses `eps1 = eps2 = 1 / iter`,
 //!   4x4 blocks; every binary search has 5 steps. Methods without a step count
 //!   (`bump`, `pyramid`, `exact`) run once per map (their `steps` is empty).
-//! * **Time.** Per run one untimed warm-up frame (it also builds the pyramid, whose one
-//!   build is reported as `pyramid_build_ms`), then `K` timed frames; every pass's time
-//!   is the median over the frames of its timestamp interval. The *method time*
-//!   (`method_ms`) is the median per-frame sum of the method's own passes (`trace`, plus
-//!   `dig_corners` for DIG): what the speed-ups and plots compare. `total_ms` is the median whole
-//!   frame (G-buffer, corner pass, trace, shade; without the one-off pyramid build).
+//! * **Time.** One renderer per method and map, each with one untimed warm-up frame (the
+//!   first use of its pipelines; it also builds the pyramid, whose one build is reported
+//!   as `pyramid_build_ms`). Then the runs are interleaved frame by frame: frame 0 of
+//!   every (method, setting), then frame 1, and so on, so that load from other processes
+//!   spreads over all methods instead of skewing the ones that ran while it lasted.
+//!   Every pass's time is the median over the `K` frames of its timestamp interval. The
+//!   *method time* (`method_ms`) is the median per-frame sum of the method's own passes
+//!   (`trace`, plus `dig_corners` for DIG): what the speed-ups and plots compare.
+//!   `total_ms` is the median whole frame (G-buffer, corner pass, trace, shade; without
+//!   the one-off pyramid build).
 //! * **Error.** The reference of a frame (the exact CPU intersection of its rays,
 //!   [`Renderer::reference`]) is computed once per map and error frame and shared by
 //!   every method. `--error-frames N` picks frames `floor(i K / N)`, `i < N` (frame 0
@@ -53,12 +57,11 @@ use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::heatmap;
 use crate::heightfield::{HeightField, Texels};
-use crate::method::{MAX_STEPS, Method, MethodParams, PyramidKind};
+use crate::method::{MAX_STEPS, Method, MethodParams};
 use crate::metrics::{self, ErrorMetrics};
 use crate::reference::Reference;
 use crate::renderer::{FrameReference, MAX_FRAME_SIDE, RenderSettings, Renderer};
 use crate::scene::{Camera, Geometry, Scene};
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -628,7 +631,7 @@ pub const NO_STEPS_WEIGHT: u64 = 100;
 pub const REFERENCE_WEIGHT: u64 = 150;
 
 fn run_weight(steps: Option<u32>, frames: u32) -> u64 {
-    u64::from(frames + 1) * steps.map_or(NO_STEPS_WEIGHT, u64::from)
+    u64::from(frames) * steps.map_or(NO_STEPS_WEIGHT, u64::from)
 }
 
 /// The total progress weight of a sweep over `maps` maps (and the size sweep if
@@ -710,16 +713,26 @@ pub fn run(
     };
     let mut rows = Vec::new();
     let mut images = Vec::new();
+    let heat_steps = config.heatmap_steps();
+    let runs: Vec<RunSpec> = config
+        .methods
+        .iter()
+        .flat_map(|&method| {
+            config
+                .settings_of(method)
+                .into_iter()
+                .map(move |steps| RunSpec {
+                    method,
+                    steps,
+                    heat: steps.is_none_or(|s| s == heat_steps),
+                })
+        })
+        .collect();
     for map in maps {
-        let mut sweep = MapSweep::new(ctx, &config, map, Sweep::Methods, &mut tracker)?;
-        for &method in &config.methods {
-            for steps in config.settings_of(method) {
-                let heat = steps.is_none_or(|s| s == config.heatmap_steps());
-                let (row, imgs) = sweep.run(method, steps, heat, &mut tracker)?;
-                rows.push(row);
-                images.extend(imgs);
-            }
-        }
+        let sweep = MapSweep::new(ctx, &config, map, Sweep::Methods, &mut tracker)?;
+        let (r, imgs) = sweep.run(&runs, &mut tracker)?;
+        rows.extend(r);
+        images.extend(imgs);
     }
     let mut size_info = None;
     if let (true, Some(source)) = (size_sweep, size_source) {
@@ -728,12 +741,17 @@ pub fn run(
             let label = format!("{}@{side}", source.name);
             let field = resample(&source.field, side, side, &label)?;
             let spec = MapSpec { name: label, field };
-            let mut sweep = MapSweep::new(ctx, &config, &spec, Sweep::MapSize, &mut tracker)?;
-            for &method in &config.size_methods {
-                let steps = has_steps(method).then_some(config.size_steps);
-                let (row, _) = sweep.run(method, steps, false, &mut tracker)?;
-                rows.push(row);
-            }
+            let runs: Vec<RunSpec> = config
+                .size_methods
+                .iter()
+                .map(|&method| RunSpec {
+                    method,
+                    steps: has_steps(method).then_some(config.size_steps),
+                    heat: false,
+                })
+                .collect();
+            let sweep = MapSweep::new(ctx, &config, &spec, Sweep::MapSize, &mut tracker)?;
+            rows.extend(sweep.run(&runs, &mut tracker)?.0);
         }
     }
     let info = ctx.info();
@@ -762,35 +780,84 @@ fn map_info(name: &str, field: &HeightField) -> MapInfo {
     }
 }
 
-/// One map's renderer, references and pyramid build times.
+/// One (method, setting) of a map's sweep.
+#[derive(Clone, Copy, Debug)]
+struct RunSpec {
+    method: Method,
+    steps: Option<u32>,
+    /// Write the heat map (and DIG's interval map) of frame 0.
+    heat: bool,
+}
+
+/// What a run has measured so far.
+#[derive(Default)]
+struct RunAccumulator {
+    passes: Vec<(&'static str, Vec<f64>)>,
+    method_ms: Vec<f64>,
+    total_ms: Vec<f64>,
+    errors: Vec<ErrorMetrics>,
+    corner_iterations: Vec<f64>,
+    lockstep: Vec<[f64; 2]>,
+}
+
+impl RunAccumulator {
+    fn add_times(&mut self, times: &[(&'static str, f64)]) {
+        let mut frame_method = 0.0;
+        let mut frame_total = 0.0;
+        for &(name, ms) in times {
+            if name == "pyramid" {
+                continue;
+            }
+            frame_total += ms;
+            if name == "trace" || name == "dig_corners" {
+                frame_method += ms;
+            }
+            match self.passes.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, v)) => v.push(ms),
+                None => self.passes.push((name, vec![ms])),
+            }
+        }
+        self.method_ms.push(frame_method);
+        self.total_ms.push(frame_total);
+    }
+
+    fn median_of(&self, name: &str) -> Option<f64> {
+        self.passes
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, v)| crate::timing::median(v))
+    }
+
+    fn mean(&self, get: fn(&ErrorMetrics) -> f64) -> f64 {
+        mean_of(self.errors.iter().map(get))
+    }
+}
+
+/// One map's references and one renderer per method. The runs are interleaved frame by
+/// frame (frame 0 of every run, then frame 1, ...), so a load that comes and goes on
+/// the machine spreads over every method's frames instead of skewing the methods that
+/// happened to run at that time; the per-pass medians then discard the slow frames.
 struct MapSweep<'a> {
+    ctx: &'a Context,
     config: &'a BenchConfig,
     name: String,
-    map_size: [u32; 2],
+    field: &'a HeightField,
     sweep: Sweep,
-    renderer: Renderer<'a>,
     /// (frame index, reference), ascending.
     references: Vec<(u32, FrameReference)>,
-    pyramid_ms: HashMap<PyramidKind, f64>,
 }
 
 impl<'a> MapSweep<'a> {
+    /// Computes the references of the error frames (with a `bump` renderer).
     fn new(
         ctx: &'a Context,
         config: &'a BenchConfig,
-        map: &MapSpec,
+        map: &'a MapSpec,
         sweep: Sweep,
         tracker: &mut Tracker<'_>,
     ) -> Result<Self> {
-        let settings = RenderSettings {
-            width: config.frame[0],
-            height: config.frame[1],
-            method: Method::Bump,
-            params: protocol_params(None),
-            scene: config.frame_scene(0),
-        };
-        let mut renderer = Renderer::new(ctx, &map.field, settings)?;
-        let reference = Reference::new(&map.field, settings.scene.addressing());
+        let mut renderer = Renderer::new(ctx, &map.field, Self::settings(config, Method::Bump))?;
+        let reference = Reference::new(&map.field, renderer.settings().scene.addressing());
         let mut references = Vec::new();
         for f in config.error_frame_indices() {
             renderer.set_scene(config.frame_scene(f))?;
@@ -801,167 +868,185 @@ impl<'a> MapSweep<'a> {
             );
         }
         Ok(MapSweep {
+            ctx,
             config,
             name: map.name.clone(),
-            map_size: [map.field.width(), map.field.height()],
+            field: &map.field,
             sweep,
-            renderer,
             references,
-            pyramid_ms: HashMap::new(),
         })
     }
 
-    /// Times one (method, setting) over the frames and measures its error; with `heat`,
-    /// also returns the heat map (and for `dig` the interval map) of frame 0.
-    fn run(
-        &mut self,
-        method: Method,
-        steps: Option<u32>,
-        heat: bool,
-        tracker: &mut Tracker<'_>,
-    ) -> Result<(RunRow, Vec<NamedImage>)> {
-        let config = self.config;
-        let params = protocol_params(steps);
-        let setting = steps.map_or("-".to_owned(), |s| s.to_string());
-        let stage = |f: u32| {
-            format!(
-                "{} {} {} (frame {}/{})",
-                self.name, method, setting, f, config.frames
-            )
-        };
-        let weight = steps.map_or(NO_STEPS_WEIGHT, u64::from);
-        self.renderer.set_method(method, params)?;
-        // Warm-up (untimed): first use of the pipelines; builds the pyramid if needed.
-        self.renderer.set_scene(config.frame_scene(0))?;
-        let warm = self.renderer.render()?;
-        if let (Some(kind), Some((_, ms))) = (
-            method.needs().pyramid,
-            warm.iter().find(|(n, _)| *n == "pyramid"),
-        ) {
-            self.pyramid_ms.insert(kind, *ms);
+    fn settings(config: &BenchConfig, method: Method) -> RenderSettings {
+        RenderSettings {
+            width: config.frame[0],
+            height: config.frame[1],
+            method,
+            params: protocol_params(None),
+            scene: config.frame_scene(0),
         }
-        tracker.advance(weight, stage(0));
+    }
 
-        let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
-        let (mut method_ms, mut total_ms) = (Vec::new(), Vec::new());
-        let mut errors: Vec<ErrorMetrics> = Vec::new();
-        let mut corner_iterations = Vec::new();
-        let mut lockstep = Vec::new();
+    /// Times every run over the frames (interleaved, see the type's docs) and measures
+    /// their errors; returns one row per run, in order, and the heat and interval maps.
+    fn run(
+        &self,
+        runs: &[RunSpec],
+        tracker: &mut Tracker<'_>,
+    ) -> Result<(Vec<RunRow>, Vec<NamedImage>)> {
+        let config = self.config;
+        // One renderer per method; each gets one untimed warm-up frame (first use of its
+        // pipelines; it builds the pyramid, whose time is kept).
+        let mut renderers: Vec<(Method, Renderer<'a>, Option<f64>)> = Vec::new();
+        for run in runs {
+            if renderers.iter().any(|(m, _, _)| *m == run.method) {
+                continue;
+            }
+            let mut settings = Self::settings(config, run.method);
+            settings.params = protocol_params(run.steps);
+            let mut renderer = Renderer::new(self.ctx, self.field, settings)?;
+            let warm = renderer.render()?;
+            let pyramid = warm.iter().find(|(n, _)| *n == "pyramid").map(|t| t.1);
+            renderers.push((run.method, renderer, pyramid));
+        }
+        let mut acc: Vec<RunAccumulator> = runs.iter().map(|_| RunAccumulator::default()).collect();
         let mut images = Vec::new();
         let mut next_ref = 0;
         for f in 0..config.frames {
-            self.renderer.set_scene(config.frame_scene(f))?;
-            let times = self.renderer.render()?;
-            let mut frame_method = 0.0;
-            let mut frame_total = 0.0;
-            for &(name, ms) in &times {
-                if name == "pyramid" {
-                    continue;
+            let reference = match self.references.get(next_ref) {
+                Some((rf, r)) if *rf == f => {
+                    next_ref += 1;
+                    Some(r)
                 }
-                frame_total += ms;
-                if name == "trace" || name == "dig_corners" {
-                    frame_method += ms;
+                _ => None,
+            };
+            for (run, acc) in runs.iter().zip(acc.iter_mut()) {
+                let (_, renderer, _) = renderers
+                    .iter_mut()
+                    .find(|(m, _, _)| *m == run.method)
+                    .expect("a renderer per method was made above");
+                renderer.set_method(run.method, protocol_params(run.steps))?;
+                renderer.set_scene(config.frame_scene(f))?;
+                let times = renderer.render()?;
+                acc.add_times(&times);
+                if let Some(reference) = reference {
+                    let img = self.measure(renderer, run, f, reference, acc)?;
+                    images.extend(img);
                 }
-                match passes.iter_mut().find(|(n, _)| *n == name) {
-                    Some((_, v)) => v.push(ms),
-                    None => passes.push((name, vec![ms])),
-                }
-            }
-            method_ms.push(frame_method);
-            total_ms.push(frame_total);
-            if let Some((rf, reference)) = self.references.get(next_ref)
-                && *rf == f
-            {
-                next_ref += 1;
-                let hits = self.renderer.read_hits()?;
-                let color = self.renderer.read_color()?;
-                let mut e = metrics::hit_errors(
-                    &hits,
-                    &reference.hits,
-                    &reference.rays,
-                    self.renderer.map_geometry(),
+                tracker.advance(
+                    run.steps.map_or(NO_STEPS_WEIGHT, u64::from),
+                    format!(
+                        "{} {} {} (frame {}/{})",
+                        self.name,
+                        run.method,
+                        run.steps.map_or("-".to_owned(), |s| s.to_string()),
+                        f + 1,
+                        config.frames
+                    ),
                 );
-                e.psnr_db = metrics::psnr_rgba8(&color, &reference.color);
-                let covered = heatmap::coverage(&hits, Some(&reference.rays));
-                lockstep.push([
-                    lockstep_iterations(&hits, &covered, config.frame[0], [8, 1]),
-                    lockstep_iterations(&hits, &covered, config.frame[0], [8, 4]),
-                ]);
-                let corners = if method.needs().dig_corners {
-                    self.renderer.read_corners()?
-                } else {
-                    None
-                };
-                if let Some((_, c)) = &corners {
-                    let stats = heatmap::corner_stats(c);
-                    corner_iterations.push(if e.compared_pixels == 0 {
-                        0.0
-                    } else {
-                        stats.total / e.compared_pixels as f64
-                    });
-                }
-                if heat && f == 0 {
-                    images.extend(self.images(method, &hits, &reference.rays, corners)?);
-                }
-                errors.push(e);
             }
-            tracker.advance(weight, stage(f + 1));
         }
-        let median_of = |name: &str| {
-            passes
-                .iter()
-                .find(|(n, _)| *n == name)
-                .map(|(_, v)| crate::timing::median(v))
+        let rows = runs
+            .iter()
+            .zip(&acc)
+            .map(|(run, acc)| {
+                let pyramid = renderers
+                    .iter()
+                    .find(|(m, _, _)| *m == run.method)
+                    .and_then(|r| r.2);
+                self.row(run, acc, pyramid)
+            })
+            .collect();
+        Ok((rows, images))
+    }
+
+    /// Measures the last frame of `renderer` against `reference` into `acc`; returns the
+    /// heat and interval maps when the run wants them and `f` is frame 0.
+    fn measure(
+        &self,
+        renderer: &Renderer<'_>,
+        run: &RunSpec,
+        f: u32,
+        reference: &FrameReference,
+        acc: &mut RunAccumulator,
+    ) -> Result<Vec<NamedImage>> {
+        let frame = self.config.frame;
+        let hits = renderer.read_hits()?;
+        let color = renderer.read_color()?;
+        let mut e = metrics::hit_errors(
+            &hits,
+            &reference.hits,
+            &reference.rays,
+            renderer.map_geometry(),
+        );
+        e.psnr_db = metrics::psnr_rgba8(&color, &reference.color);
+        let covered = heatmap::coverage(&hits, Some(&reference.rays));
+        acc.lockstep.push([
+            lockstep_iterations(&hits, &covered, frame[0], [8, 1]),
+            lockstep_iterations(&hits, &covered, frame[0], [8, 4]),
+        ]);
+        let corners = if run.method.needs().dig_corners {
+            renderer.read_corners()?
+        } else {
+            None
         };
-        let mean = |get: fn(&ErrorMetrics) -> f64| {
-            if errors.is_empty() {
+        if let Some((_, c)) = &corners {
+            let stats = heatmap::corner_stats(c);
+            acc.corner_iterations.push(if e.compared_pixels == 0 {
                 0.0
             } else {
-                errors.iter().map(get).sum::<f64>() / errors.len() as f64
-            }
-        };
-        let row = RunRow {
+                stats.total / e.compared_pixels as f64
+            });
+        }
+        acc.errors.push(e);
+        if run.heat && f == 0 {
+            self.images(renderer, run.method, &hits, &reference.rays, corners)
+        } else {
+            Ok(Vec::new())
+        }
+    }
+
+    fn row(&self, run: &RunSpec, acc: &RunAccumulator, pyramid_ms: Option<f64>) -> RunRow {
+        let config = self.config;
+        RunRow {
             sweep: self.sweep,
             map: self.name.clone(),
-            map_width: self.map_size[0],
-            map_height: self.map_size[1],
-            method: method.name().to_owned(),
-            steps,
+            map_width: self.field.width(),
+            map_height: self.field.height(),
+            method: run.method.name().to_owned(),
+            steps: run.steps,
             frame_width: config.frame[0],
             frame_height: config.frame[1],
             frames: config.frames,
-            error_frames: errors.len() as u32,
+            error_frames: acc.errors.len() as u32,
             frame_set: config.frame_set(),
-            gbuffer_ms: median_of("gbuffer").unwrap_or(0.0),
-            pyramid_build_ms: method
-                .needs()
-                .pyramid
-                .and_then(|k| self.pyramid_ms.get(&k).copied()),
-            dig_corners_ms: median_of("dig_corners"),
-            trace_ms: median_of("trace").unwrap_or(0.0),
-            shade_ms: median_of("shade").unwrap_or(0.0),
-            method_ms: crate::timing::median(&method_ms),
-            total_ms: crate::timing::median(&total_ms),
-            iterations_mean: mean(|e| e.mean_iterations),
-            iterations_p99: mean(|e| e.p99_iterations),
-            iterations_simd8: mean_of(lockstep.iter().map(|l| l[0])),
-            iterations_warp32: mean_of(lockstep.iter().map(|l| l[1])),
-            corner_iterations: (!corner_iterations.is_empty())
-                .then(|| corner_iterations.iter().sum::<f64>() / corner_iterations.len() as f64),
-            mean_texels: mean(|e| e.mean_texels),
-            p99_texels: mean(|e| e.p99_texels),
-            max_texels: errors.iter().map(|e| e.max_texels).fold(0.0, f64::max),
-            artifact_fraction: mean(|e| e.artifact_fraction),
-            psnr_db: mean(|e| e.psnr_db),
-            nonfinite_pixels: errors.iter().map(|e| e.nonfinite_pixels).sum(),
-        };
-        Ok((row, images))
+            gbuffer_ms: acc.median_of("gbuffer").unwrap_or(0.0),
+            pyramid_build_ms: run.method.needs().pyramid.and(pyramid_ms),
+            dig_corners_ms: acc.median_of("dig_corners"),
+            trace_ms: acc.median_of("trace").unwrap_or(0.0),
+            shade_ms: acc.median_of("shade").unwrap_or(0.0),
+            method_ms: crate::timing::median(&acc.method_ms),
+            total_ms: crate::timing::median(&acc.total_ms),
+            iterations_mean: acc.mean(|e| e.mean_iterations),
+            iterations_p99: acc.mean(|e| e.p99_iterations),
+            iterations_simd8: mean_of(acc.lockstep.iter().map(|l| l[0])),
+            iterations_warp32: mean_of(acc.lockstep.iter().map(|l| l[1])),
+            corner_iterations: (!acc.corner_iterations.is_empty())
+                .then(|| mean_of(acc.corner_iterations.iter().copied())),
+            mean_texels: acc.mean(|e| e.mean_texels),
+            p99_texels: acc.mean(|e| e.p99_texels),
+            max_texels: acc.errors.iter().map(|e| e.max_texels).fold(0.0, f64::max),
+            artifact_fraction: acc.mean(|e| e.artifact_fraction),
+            psnr_db: acc.mean(|e| e.psnr_db),
+            nonfinite_pixels: acc.errors.iter().map(|e| e.nonfinite_pixels).sum(),
+        }
     }
 
     /// The heat map of `hits` (fixed scale: the largest setting plus the binary search)
     /// and, for `dig`, the interval map of the same frame.
     fn images(
         &self,
+        renderer: &Renderer<'_>,
         method: Method,
         hits: &[metrics::HitTexel],
         rays: &[Option<crate::reference::Ray>],
@@ -986,7 +1071,7 @@ impl<'a> MapSweep<'a> {
         if method == Method::Dig
             && let Some((grid, corners)) = corners
         {
-            let params = self.renderer.settings().params;
+            let params = renderer.settings().params;
             let intervals = heatmap::block_intervals(grid, &corners, params.dig_eps())?;
             out.push(NamedImage {
                 file_name: format!("intervals_{stem}.png"),
@@ -1029,7 +1114,7 @@ pub fn lockstep_iterations(
     let w = width.max(1) as usize;
     let [gx, gy] = group.map(|g| g.max(1) as usize);
     let tiles_x = w.div_ceil(gx);
-    let mut max: HashMap<usize, f32> = HashMap::new();
+    let mut max: std::collections::HashMap<usize, f32> = std::collections::HashMap::new();
     for (i, (t, &c)) in hits.iter().zip(covered).enumerate() {
         if !c || !t[3].is_finite() {
             continue;
@@ -1187,8 +1272,8 @@ mod tests {
         };
         assert_eq!(c.settings_of(Method::Bump), [None]);
         assert_eq!(c.settings_of(Method::Dig), [Some(10), Some(20)]);
-        assert_eq!(run_weight(Some(10), 2), 30);
-        assert_eq!(run_weight(None, 2), 3 * NO_STEPS_WEIGHT);
+        assert_eq!(run_weight(Some(10), 2), 20);
+        assert_eq!(run_weight(None, 2), 2 * NO_STEPS_WEIGHT);
         assert!(c.frame_set().contains("error frames 0 1"));
         assert!(!c.frame_set().contains(','));
     }

@@ -401,7 +401,8 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     );
     let _ = writeln!(
         s,
-        "\nTimes are milliseconds of GPU timestamps, medians over the frames. **method** = \
+        "\nTimes are milliseconds of GPU timestamps, medians over the frames (the runs are \
+         interleaved frame by frame, so a passing load spreads over every method). **method** = \
          `dig_corners` + `trace` (what the speed-ups compare), **frame** = the whole frame \
          (G-buffer, corner pass, trace, shade; without the one-off pyramid build, listed as \
          **pyr. build**). Errors are means over the error frames against the exact CPU \
