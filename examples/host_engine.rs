@@ -354,7 +354,11 @@ impl Engine {
                 bail!("no Vulkan device supports the displacement pass");
             };
             let dev_exts: Vec<_> = reqs.device_extensions.iter().map(|e| e.as_ptr()).collect();
-            let mut f13 = reqs.enable_vulkan13(vk::PhysicalDeviceVulkan13Features::default());
+            // The engine's own G-buffer pass uses dynamic rendering; the pass adds what it
+            // needs (synchronization2).
+            let mut f13 = reqs.enable_vulkan13(
+                vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(true),
+            );
             let queues = [vk::DeviceQueueCreateInfo::default()
                 .queue_family_index(family)
                 .queue_priorities(&[1.0])];

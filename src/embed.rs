@@ -20,8 +20,10 @@
 //!    entry barriers below, calls [`DisplacementPass::record`], places its own barriers for
 //!    what follows, submits and later waits on its fence; then it may read the timestamps
 //!    ([`DisplacementPass::timings`] or [`read_timestamps`]).
-//! 5. [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] any time between
-//!    records.
+//! 5. [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] /
+//!    [`DisplacementPass::set_method`] any time between records, with frames in flight
+//!    (what they replace is retired, see below; for `resize` the host's images of the
+//!    new size are used from the next record on).
 //! 6. After the device is idle (or every fence of a frame recorded with the pass has
 //!    signalled): [`DisplacementPass::destroy`], then drop the context, then the host
 //!    destroys its own objects.
@@ -51,7 +53,9 @@
 //! of its own timestamp queries per slot. The height map and the pyramid are shared and
 //! only read by frames; a new height map gets new images, and the old ones are retired
 //! and destroyed only once every slot has been recorded again (so every frame that could
-//! read them has finished, by the slot contract below).
+//! read them has finished, by the slot contract below). `resize` retires the old corner
+//! grids and `set_method` what the old method used (its `trace` pipeline, pyramid and
+//! grids it no longer needs) the same way.
 //!
 //! **The slot contract**: `FrameInputs::frame_slot` is in `0..frames_in_flight`, and when
 //! `record` is called with slot `s`, the GPU work of the previous frame recorded with
@@ -115,25 +119,36 @@ pub struct Requirements {
 
 impl Requirements {
     /// Sets the required members of a `VkPhysicalDeviceVulkan13Features` the host chains
-    /// into its `VkDeviceCreateInfo` (keeping what the host enabled itself).
+    /// into its `VkDeviceCreateInfo` (keeping what the host enabled itself, e.g. its own
+    /// `dynamicRendering`).
     pub fn enable_vulkan13<'a>(
         &self,
         features: vk::PhysicalDeviceVulkan13Features<'a>,
     ) -> vk::PhysicalDeviceVulkan13Features<'a> {
-        features.synchronization2(true).dynamic_rendering(true)
+        features.synchronization2(true)
     }
 }
 
 /// The device features, extensions and limits the displacement pass needs.
 ///
-/// `synchronization2` is used by every barrier and timestamp the pass records;
-/// `dynamicRendering` only by dispmap's own G-buffer pass, but [`Context::from_handles`]
-/// checks one set of requirements for both paths (both are core in Vulkan 1.3).
+/// Only what the pass records needs to be *enabled*: `VK_KHR_push_descriptor` (every
+/// pass pushes its descriptors) and `synchronization2` (every barrier and timestamp).
+/// `dynamicRendering` is not listed: only dispmap's own G-buffer pass (the standalone
+/// [`crate::renderer::Renderer`]) uses it, and the host enables it only if its own
+/// rendering does.
+///
+/// What is *checked on the physical device* ([`check_physical_device`], and
+/// [`Context::from_handles`] again) stays the standalone set of
+/// [`Context::check_device`], which also asks for `dynamicRendering` *support* and the
+/// attachment features of the G-buffer formats: both checks then accept the same
+/// devices. This excludes no Vulkan 1.3 device that could run the pass with a
+/// rasterised G-buffer: `dynamicRendering` support is mandatory in Vulkan 1.3, and the
+/// host renders its G-buffer into those formats as attachments itself.
 pub fn requirements() -> Requirements {
     Requirements {
         api_version: context_requirements::API_VERSION,
         device_extensions: context_requirements::DEVICE_EXTENSIONS,
-        vulkan13_features: &["synchronization2", "dynamicRendering"],
+        vulkan13_features: &["synchronization2"],
         max_push_constants_size: PUSH_CONSTANT_BYTES,
         max_push_descriptors: PUSH_DESCRIPTORS,
         timestamp_compute_and_graphics: true,
@@ -188,9 +203,9 @@ pub unsafe fn check_physical_device(
 }
 
 /// Checks that the host's `VkDeviceCreateInfo` *enables* what the pass needs: the
-/// extensions of [`requirements`] and `synchronization2` / `dynamicRendering` (in a
-/// chained `VkPhysicalDeviceVulkan13Features`, `VkPhysicalDeviceSynchronization2Features`
-/// or `VkPhysicalDeviceDynamicRenderingFeatures`). Call it with the same create info
+/// extensions of [`requirements`] and `synchronization2` (in a chained
+/// `VkPhysicalDeviceVulkan13Features` or `VkPhysicalDeviceSynchronization2Features`;
+/// `dynamicRendering` is not needed by the pass). Call it with the same create info
 /// before (or after) `vkCreateDevice`: a device created without them would only show
 /// validation errors later. The error lists every missing item.
 ///
@@ -211,7 +226,7 @@ pub unsafe fn check_device_create_info(info: &vk::DeviceCreateInfo) -> Result<()
             missing.push(want.to_string_lossy().into_owned());
         }
     }
-    let (mut sync2, mut dynamic) = (false, false);
+    let mut sync2 = false;
     let mut next = info.p_next as *const vk::BaseInStructure<'_>;
     while !next.is_null() {
         // SAFETY: every structure of a valid pNext chain starts with sType and pNext.
@@ -221,7 +236,6 @@ pub unsafe fn check_device_create_info(info: &vk::DeviceCreateInfo) -> Result<()
                 // SAFETY: the sType says which structure this is.
                 let f = unsafe { &*(next as *const vk::PhysicalDeviceVulkan13Features<'_>) };
                 sync2 |= f.synchronization2 == vk::TRUE;
-                dynamic |= f.dynamic_rendering == vk::TRUE;
             }
             vk::StructureType::PHYSICAL_DEVICE_SYNCHRONIZATION_2_FEATURES => {
                 // SAFETY: as above.
@@ -229,21 +243,12 @@ pub unsafe fn check_device_create_info(info: &vk::DeviceCreateInfo) -> Result<()
                     unsafe { &*(next as *const vk::PhysicalDeviceSynchronization2Features<'_>) };
                 sync2 |= f.synchronization2 == vk::TRUE;
             }
-            vk::StructureType::PHYSICAL_DEVICE_DYNAMIC_RENDERING_FEATURES => {
-                // SAFETY: as above.
-                let f =
-                    unsafe { &*(next as *const vk::PhysicalDeviceDynamicRenderingFeatures<'_>) };
-                dynamic |= f.dynamic_rendering == vk::TRUE;
-            }
             _ => {}
         }
         next = base.p_next;
     }
     if !sync2 {
         missing.push("synchronization2 (not enabled)".into());
-    }
-    if !dynamic {
-        missing.push("dynamicRendering (not enabled)".into());
     }
     if missing.is_empty() {
         Ok(())
@@ -401,6 +406,9 @@ enum Resource {
     Height(HeightTexture),
     Pyramid(Pyramid),
     Corners(CornerGrid),
+    Trace(TracePass),
+    PyramidPass(PyramidPass),
+    CornerPass(DigCornerPass),
 }
 
 impl Resource {
@@ -410,6 +418,9 @@ impl Resource {
             Resource::Height(h) => h.destroy(ctx),
             Resource::Pyramid(p) => p.destroy(ctx),
             Resource::Corners(c) => c.destroy(ctx),
+            Resource::Trace(t) => t.destroy(ctx),
+            Resource::PyramidPass(p) => p.destroy(ctx),
+            Resource::CornerPass(p) => p.destroy(ctx),
         }
     }
 }
@@ -791,6 +802,103 @@ impl DisplacementPass {
         Ok(())
     }
 
+    /// Switches the intersection method and its parameters, building only what the new
+    /// method needs that the pass does not have yet: its `trace` pipeline, the pyramid
+    /// pipeline and a pyramid of the new kind (built by the next
+    /// [`DisplacementPass::record`], timed as its `pyramid` pass), the DIG corner pipeline
+    /// and one corner grid per slot (new grids also when `params.block` changed). What is
+    /// kept (the height map, a pyramid of the same kind, grids of the same block) is
+    /// reused; `depth_scale`, addressing, extent and `frames_in_flight` stay.
+    ///
+    /// GPU-use contract: needs no GPU idle. What the old method used and the new one does
+    /// not (pipelines, pyramid, grids) may still be read by frames in flight, so it is
+    /// retired like a replaced height map: destroyed once every slot has been recorded
+    /// again (by the slot contract, every frame that could use it has completed), or by
+    /// [`DisplacementPass::destroy`]. Frames recorded before the call keep the old method;
+    /// every `record` after it uses the new one.
+    ///
+    /// On error (invalid `params`, an allocation or pipeline failure) the pass is
+    /// unchanged and keeps its old method.
+    pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {
+        self.check_alive()?;
+        params.validate()?;
+        let ctx = &*self.ctx;
+        let needs = method.needs();
+        let settings = PassSettings {
+            method,
+            params,
+            ..self.settings
+        };
+        // Build everything new first; on failure destroy it and leave the pass as it was.
+        let mut p = Partial::default();
+        let result = (|| {
+            if method != self.trace.method() {
+                p.trace = Some(TracePass::new(ctx, method)?);
+            }
+            if let Some(kind) = needs.pyramid {
+                if self.pyramid_pass.is_none() {
+                    p.pyramid_pass = Some(PyramidPass::new(ctx)?);
+                }
+                if self.pyramid.as_ref().is_none_or(|old| old.kind != kind) {
+                    let map = self.height.size();
+                    p.pyramid = Some(Pyramid::new(ctx, map, kind, self.settings.addressing)?);
+                }
+            }
+            if needs.dig_corners {
+                if self.corner_pass.is_none() {
+                    p.corner_pass = Some(DigCornerPass::new(ctx)?);
+                }
+                let same_grids = !self.corners.is_empty()
+                    && self.corners.iter().all(|g| g.block == params.block);
+                if !same_grids {
+                    p.corners = corner_grids(ctx, &settings)?;
+                }
+            }
+            Ok(())
+        })();
+        if let Err(e) = result {
+            p.destroy(ctx);
+            return Err(e);
+        }
+        // Commit: swap in what was built, retire what the new method does not use.
+        let all = self.all_slots();
+        let mut retire = Vec::new();
+        if let Some(trace) = p.trace.take() {
+            retire.push(Resource::Trace(std::mem::replace(&mut self.trace, trace)));
+        }
+        if let Some(pass) = p.pyramid_pass.take() {
+            self.pyramid_pass = Some(pass);
+        }
+        if let Some(pyramid) = p.pyramid.take() {
+            retire.extend(self.pyramid.replace(pyramid).map(Resource::Pyramid));
+            self.pyramid_built = false;
+        }
+        if needs.pyramid.is_none() {
+            retire.extend(self.pyramid.take().map(Resource::Pyramid));
+            retire.extend(self.pyramid_pass.take().map(Resource::PyramidPass));
+            self.pyramid_built = false;
+        }
+        if let Some(pass) = p.corner_pass.take() {
+            self.corner_pass = Some(pass);
+        }
+        if !p.corners.is_empty() {
+            let old = std::mem::replace(&mut self.corners, std::mem::take(&mut p.corners));
+            retire.extend(old.into_iter().map(Resource::Corners));
+        }
+        if !needs.dig_corners {
+            retire.extend(self.corners.drain(..).map(Resource::Corners));
+            retire.extend(self.corner_pass.take().map(Resource::CornerPass));
+        }
+        self.retired
+            .extend(retire.into_iter().map(|resource| Retired {
+                pending: all,
+                resource,
+            }));
+        self.settings = settings;
+        self.needs = needs;
+        Ok(())
+    }
+
     /// Destroys every object and frees every allocation the pass made. Afterwards any
     /// other call returns an error.
     ///
@@ -1069,6 +1177,21 @@ mod tests {
             .enabled_extension_names(&exts)
             .push_next(&mut f13);
         // SAFETY: the names and the chain live on this stack frame.
+        unsafe { check_device_create_info(&info) }.unwrap();
+        assert_eq!(
+            f13.dynamic_rendering,
+            vk::FALSE,
+            "the pass needs no dynamicRendering"
+        );
+        assert_eq!(requirements().vulkan13_features, ["synchronization2"]);
+
+        // synchronization2 through its own (pre-1.3 extension) structure counts too.
+        let mut sync2 =
+            vk::PhysicalDeviceSynchronization2Features::default().synchronization2(true);
+        let info = vk::DeviceCreateInfo::default()
+            .enabled_extension_names(&exts)
+            .push_next(&mut sync2);
+        // SAFETY: as above.
         unsafe { check_device_create_info(&info) }.unwrap();
     }
 

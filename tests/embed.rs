@@ -1,0 +1,525 @@
+//! `DisplacementPass::resize` and `DisplacementPass::set_method` called while frames are
+//! in flight, under validation (core + synchronization): zero messages from context
+//! creation to device destruction, no allocation left after `destroy`, and the hits of
+//! the frames recorded afterwards are bit-identical to the standalone `Renderer`'s for
+//! the same scene, method and size.
+//!
+//! The "host" here is a minimal frames-in-flight loop written in the test: dispmap's own
+//! headless context (validated), its `GBuffer` images and `GBufferPass` as the host's
+//! G-buffer (so the rays equal the standalone renderer's bit for bit), and per slot a
+//! hit image, a command buffer and a fence. It follows the slot contract of
+//! `dispmap::embed`: slot `s` is recorded again only after waiting on its previous fence,
+//! and command buffers are submitted in recording order.
+
+mod common;
+
+use ash::vk;
+use common::{asset_map, validated_context};
+use dispmap::Context;
+use dispmap::embed::{DisplacementPass, FrameInputs, HIT_FORMAT, PassSettings, Timestamps};
+use dispmap::gpu::commands::read_image;
+use dispmap::gpu::sync::{self, Access};
+use dispmap::gpu::{Image, OneShot};
+use dispmap::heightfield::{Convention, HeightField};
+use dispmap::method::{Method, MethodParams};
+use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
+use dispmap::renderer::{RenderSettings, Renderer};
+use dispmap::scene::Scene;
+use std::sync::Arc;
+
+const SLOTS: usize = 2;
+
+/// Before an image whose contents are discarded: every earlier access (the slot's
+/// previous frame, a read-back copy) has finished before the new writes (WAR).
+const DISCARD: Access = Access {
+    stage: vk::PipelineStageFlags2::ALL_COMMANDS,
+    access: vk::AccessFlags2::NONE,
+    layout: vk::ImageLayout::UNDEFINED,
+};
+
+/// One frame-in-flight slot of the test host.
+struct Slot {
+    gbuffer: GBuffer,
+    hit: Image,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+    submitted: bool,
+}
+
+/// The test host: its command pool, G-buffer pipeline and slots.
+struct Host {
+    ctx: Arc<Context>,
+    scene: Scene,
+    extent: vk::Extent2D,
+    pool: vk::CommandPool,
+    gbuffer_pass: GBufferPass,
+    slots: Vec<Slot>,
+    frame: usize,
+}
+
+fn images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, Image) {
+    let gbuffer = GBuffer::new(ctx, extent).unwrap();
+    let hit = Image::new(
+        ctx,
+        &format!("host.hit{s}"),
+        HIT_FORMAT,
+        extent,
+        1,
+        vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+    )
+    .unwrap();
+    (gbuffer, hit)
+}
+
+impl Host {
+    fn new(ctx: Arc<Context>, scene: Scene, extent: vk::Extent2D) -> Host {
+        let dev = ctx.device();
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(ctx.queue_family_index())
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: valid device and create info.
+        let pool = unsafe { dev.create_command_pool(&info, None) }.unwrap();
+        ctx.set_name(pool, "host.pool");
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(SLOTS as u32);
+        // SAFETY: `pool` is valid.
+        let cmds = unsafe { dev.allocate_command_buffers(&alloc) }.unwrap();
+        let slots = cmds
+            .into_iter()
+            .enumerate()
+            .map(|(s, cmd)| {
+                // SAFETY: valid device.
+                let fence =
+                    unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.unwrap();
+                ctx.set_name(cmd, &format!("host.cmd{s}"));
+                ctx.set_name(fence, &format!("host.fence{s}"));
+                let (gbuffer, hit) = images(&ctx, extent, s);
+                Slot {
+                    gbuffer,
+                    hit,
+                    cmd,
+                    fence,
+                    submitted: false,
+                }
+            })
+            .collect();
+        let gbuffer_pass = GBufferPass::new(&ctx).unwrap();
+        Host {
+            ctx,
+            scene,
+            extent,
+            pool,
+            gbuffer_pass,
+            slots,
+            frame: 0,
+        }
+    }
+
+    /// Waits for slot `s`'s previous frame (the slot contract).
+    fn wait(&mut self, s: usize) {
+        let slot = &mut self.slots[s];
+        if slot.submitted {
+            // SAFETY: the fence was submitted with the slot's last frame.
+            unsafe {
+                let dev = self.ctx.device();
+                dev.wait_for_fences(&[slot.fence], true, u64::MAX).unwrap();
+                dev.reset_fences(&[slot.fence]).unwrap();
+            }
+            slot.submitted = false;
+        }
+    }
+
+    fn wait_all(&mut self) {
+        for s in 0..SLOTS {
+            self.wait(s);
+        }
+    }
+
+    /// The host's own resize: it changes the size of the frames it records from now on;
+    /// each slot's images are replaced when that slot is next recorded (after its fence),
+    /// so frames in flight keep theirs.
+    fn resize(&mut self, extent: vk::Extent2D) {
+        self.extent = extent;
+    }
+
+    /// Records and submits one frame (G-buffer, then the pass) without waiting for it.
+    /// Returns the passes the displacement pass recorded.
+    fn frame(&mut self, pass: &mut DisplacementPass) -> Vec<&'static str> {
+        let s = self.frame % SLOTS;
+        self.frame += 1;
+        self.wait(s);
+        let ctx = self.ctx.clone();
+        if self.slots[s].hit.extent != self.extent {
+            // Slot `s`'s last frame has completed: its old images are unused.
+            let (gbuffer, hit) = images(&ctx, self.extent, s);
+            let slot = &mut self.slots[s];
+            std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
+            std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
+        }
+        let slot = &mut self.slots[s];
+        let dev = ctx.device();
+        let camera = self
+            .scene
+            .frame_camera(self.extent.width, self.extent.height);
+        let params = self.scene.gbuffer_params(&camera);
+        // SAFETY: the slot's previous frame completed (waited above), so its command
+        // buffer may be reset and its images rewritten.
+        unsafe {
+            dev.reset_command_buffer(slot.cmd, vk::CommandBufferResetFlags::empty())
+                .unwrap();
+            dev.begin_command_buffer(
+                slot.cmd,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .unwrap();
+        }
+        let cmd = slot.cmd;
+        let g = &slot.gbuffer;
+        let mut to_attachments: Vec<_> = g
+            .colors()
+            .iter()
+            .map(|i| sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE))
+            .collect();
+        to_attachments.push(sync::image_barrier(
+            g.depth.raw,
+            g.depth.range(),
+            DISCARD,
+            Access::DEPTH_ATTACHMENT_WRITE,
+        ));
+        sync::record(&ctx, cmd, &to_attachments);
+        self.gbuffer_pass.record(&ctx, cmd, g, &params);
+        // The pass's entry state (module docs of `dispmap::embed`).
+        let mut entry: Vec<_> = g
+            .colors()
+            .iter()
+            .map(|i| {
+                sync::image_barrier(
+                    i.raw,
+                    i.range(),
+                    Access::COLOR_ATTACHMENT_WRITE,
+                    Access::COMPUTE_SAMPLED,
+                )
+            })
+            .collect();
+        entry.push(sync::image_barrier(
+            g.depth.raw,
+            g.depth.range(),
+            Access::DEPTH_ATTACHMENT_WRITE,
+            Access::COMPUTE_SAMPLED,
+        ));
+        entry.push(sync::image_barrier(
+            slot.hit.raw,
+            slot.hit.range(),
+            DISCARD,
+            Access::COMPUTE_STORAGE_WRITE,
+        ));
+        sync::record(&ctx, cmd, &entry);
+        let inputs = FrameInputs {
+            frame_slot: s as u32,
+            gbuffer: g.views(),
+            hit: slot.hit.view,
+            shade: None,
+        };
+        // SAFETY: `cmd` is recording outside a render pass on the context's queue family;
+        // the views are alive until the frame completes (replaced only after its fence),
+        // in the entry layouts above; the slot contract holds (`wait`); the buffer is
+        // submitted below, in recording order.
+        let recorded = unsafe { pass.record(cmd, &inputs, Timestamps::Off) }.unwrap();
+        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
+        let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
+        // SAFETY: the buffer was begun above; the fence is unsignalled (reset in `wait`).
+        unsafe {
+            dev.end_command_buffer(cmd).unwrap();
+            dev.queue_submit2(ctx.queue(), &submit, slot.fence).unwrap();
+        }
+        slot.submitted = true;
+        recorded.passes
+    }
+
+    /// The hit buffer of slot `s` (its last frame must have completed: `wait_all`).
+    fn hits(&self, s: usize, shot: &OneShot) -> Vec<[f32; 4]> {
+        assert!(!self.slots[s].submitted);
+        let bytes = read_image(
+            &self.ctx,
+            shot,
+            &self.slots[s].hit,
+            Access::COMPUTE_STORAGE_WRITE,
+        )
+        .unwrap();
+        bytemuck::cast_slice::<u8, [f32; 4]>(&bytes).to_vec()
+    }
+
+    fn destroy(mut self) {
+        self.wait_all();
+        let ctx = self.ctx.clone();
+        for slot in &mut self.slots {
+            slot.gbuffer.destroy(&ctx);
+            slot.hit.destroy(&ctx);
+            // SAFETY: the slot's frame completed (`wait_all`).
+            unsafe { ctx.device().destroy_fence(slot.fence, None) };
+        }
+        self.gbuffer_pass.destroy(&ctx);
+        // SAFETY: nothing recorded from the pool is pending (`wait_all`).
+        unsafe { ctx.device().destroy_command_pool(self.pool, None) };
+    }
+}
+
+fn settings(method: Method, params: MethodParams, extent: vk::Extent2D) -> PassSettings {
+    let scene = Scene::default();
+    PassSettings {
+        method,
+        params,
+        depth_scale: scene.depth_scale,
+        addressing: scene.addressing(),
+        extent,
+        frames_in_flight: SLOTS as u32,
+    }
+}
+
+/// The standalone renderer's hits for the same scene, map, method and size.
+fn standalone(
+    ctx: &Context,
+    field: &HeightField,
+    method: Method,
+    params: MethodParams,
+    extent: vk::Extent2D,
+) -> Vec<[f32; 4]> {
+    let mut r = Renderer::new(
+        ctx,
+        field,
+        RenderSettings {
+            width: extent.width,
+            height: extent.height,
+            method,
+            params,
+            scene: Scene::default(),
+        },
+    )
+    .unwrap();
+    r.render().unwrap();
+    r.read_hits().unwrap()
+}
+
+fn assert_bit_identical(got: &[[f32; 4]], want: &[[f32; 4]], what: &str) {
+    assert_eq!(got.len(), want.len(), "{what}: pixel count");
+    let mut hits = 0;
+    for (i, (g, w)) in got.iter().zip(want).enumerate() {
+        assert_eq!(
+            g.map(f32::to_bits),
+            w.map(f32::to_bits),
+            "{what}, pixel {i}: {g:?} vs {w:?}"
+        );
+        hits += usize::from(w[3] > 0.0);
+    }
+    // Not a trivially empty frame: the plane covers most of it.
+    assert!(hits > got.len() / 2, "{what}: only {hits} traced pixels");
+}
+
+/// Tears down pass, host and context in the documented order and checks: no allocation
+/// left after `destroy`, and no validation message up to and including the device's
+/// destruction (the object tracker reports any object still alive there).
+fn teardown(ctx: Arc<Context>, mut pass: DisplacementPass, host: Host, shot: OneShot) {
+    let mut shot = shot;
+    host.destroy();
+    shot.destroy(&ctx);
+    // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
+    unsafe { pass.destroy() };
+    drop(pass);
+    let leaked = ctx
+        .allocator()
+        .lock()
+        .unwrap()
+        .generate_report()
+        .allocations
+        .len();
+    assert_eq!(leaked, 0, "allocations left after destroy");
+    assert!(ctx.has_messenger(), "validation messages would go unseen");
+    let messages = ctx.messages().clone();
+    let ctx = Arc::into_inner(ctx).expect("nothing else holds the context");
+    drop(ctx); // destroys the device, then the messenger
+    assert_eq!(
+        (messages.errors(), messages.warnings()),
+        (0, 0),
+        "validation reported errors/warnings (see the log)"
+    );
+}
+
+#[test]
+fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
+    let ctx = Arc::new(validated_context());
+    let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
+    // DIG with the pyramid guard: a per-slot corner grid (which resize replaces) and a
+    // shared pyramid (which it keeps).
+    let method = Method::DigGuarded;
+    let params = MethodParams::for_method(method);
+    let small = vk::Extent2D {
+        width: 96,
+        height: 64,
+    };
+    let large = vk::Extent2D {
+        width: 128,
+        height: 72,
+    };
+    let shot = OneShot::new(&ctx, "test.readback").unwrap();
+    let mut host = Host::new(ctx.clone(), Scene::default(), small);
+    let mut pass =
+        DisplacementPass::new(ctx.clone(), &rocks, settings(method, params, small)).unwrap();
+
+    // Frames at the first size; the first uploads the map and builds the pyramid.
+    assert_eq!(
+        host.frame(&mut pass),
+        ["height_upload", "pyramid", "dig_corners", "trace"]
+    );
+    for _ in 0..3 {
+        assert_eq!(host.frame(&mut pass), ["dig_corners", "trace"]);
+    }
+    // Resize while both slots' frames are in flight (no wait): the pass retires its
+    // old grids, the host replaces each slot's images once that slot's fence signals.
+    assert!(host.slots.iter().all(|s| s.submitted));
+    pass.resize(large).unwrap();
+    host.resize(large);
+    assert_eq!(pass.settings().extent, large);
+    for _ in 0..4 {
+        // The pyramid does not depend on the frame size: not rebuilt.
+        assert_eq!(host.frame(&mut pass), ["dig_corners", "trace"]);
+    }
+    host.wait_all();
+
+    let expected = standalone(&ctx, &rocks, method, params, large);
+    for s in 0..SLOTS {
+        assert_eq!(host.slots[s].hit.extent, large);
+        let got = host.hits(s, &shot);
+        assert_bit_identical(&got, &expected, &format!("slot {s} after resize"));
+    }
+
+    // And back down, again with frames in flight; a record with the old size is refused.
+    host.frame(&mut pass);
+    host.frame(&mut pass);
+    pass.resize(small).unwrap();
+    host.resize(small);
+    for _ in 0..2 {
+        host.frame(&mut pass);
+    }
+    host.wait_all();
+    let expected = standalone(&ctx, &rocks, method, params, small);
+    for s in 0..SLOTS {
+        let got = host.hits(s, &shot);
+        assert_bit_identical(&got, &expected, &format!("slot {s} after resizing back"));
+    }
+    assert!(
+        pass.resize(vk::Extent2D {
+            width: 0,
+            height: 64
+        })
+        .is_err()
+    );
+    assert_eq!(
+        pass.settings().extent,
+        small,
+        "a refused resize changes nothing"
+    );
+    teardown(ctx, pass, host, shot);
+}
+
+#[test]
+fn set_method_with_frames_in_flight_matches_standalone_for_each_method() {
+    let ctx = Arc::new(validated_context());
+    let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
+    let extent = vk::Extent2D {
+        width: 96,
+        height: 64,
+    };
+    let dig8 = MethodParams {
+        block: [8, 8],
+        ..MethodParams::for_method(Method::DigGuarded)
+    };
+    let relief16 = MethodParams {
+        steps: 16,
+        ..MethodParams::for_method(Method::Relief)
+    };
+    // Each step: the method, its parameters, and the passes its first and later frames
+    // record (what the switch had to build: a pyramid only when its kind changed, grids
+    // only when absent or of another block size).
+    #[allow(clippy::type_complexity)]
+    let steps: [(Method, MethodParams, &[&str], &[&str]); 6] = [
+        (
+            Method::Relief,
+            MethodParams::for_method(Method::Relief),
+            &["height_upload", "trace"],
+            &["trace"],
+        ),
+        (
+            Method::Exact,
+            MethodParams::for_method(Method::Exact),
+            &["pyramid", "trace"],
+            &["trace"],
+        ),
+        (
+            Method::Dig,
+            MethodParams::for_method(Method::Dig),
+            &["dig_corners", "trace"],
+            &["dig_corners", "trace"],
+        ),
+        (
+            Method::DigGuarded,
+            dig8,
+            &["pyramid", "dig_corners", "trace"],
+            &["dig_corners", "trace"],
+        ),
+        (
+            Method::Pyramid,
+            MethodParams::for_method(Method::Pyramid),
+            &["pyramid", "trace"],
+            &["trace"],
+        ),
+        (Method::Relief, relief16, &["trace"], &["trace"]),
+    ];
+    let shot = OneShot::new(&ctx, "test.readback").unwrap();
+    let mut host = Host::new(ctx.clone(), Scene::default(), extent);
+    let (m0, p0, _, _) = steps[0];
+    let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(m0, p0, extent)).unwrap();
+    for (i, &(method, params, first, later)) in steps.iter().enumerate() {
+        assert_eq!(
+            host.frame(&mut pass),
+            first,
+            "{} first frame",
+            method.name()
+        );
+        for _ in 0..2 {
+            assert_eq!(
+                host.frame(&mut pass),
+                later,
+                "{} later frame",
+                method.name()
+            );
+        }
+        // Switch while this method's frames are in flight (both slots submitted); a
+        // refused switch changes nothing.
+        assert!(host.slots.iter().all(|s| s.submitted));
+        let bad = MethodParams {
+            steps: 0,
+            ..MethodParams::default()
+        };
+        assert!(pass.set_method(Method::Dig, bad).is_err());
+        assert_eq!(
+            (pass.settings().method, pass.settings().params),
+            (method, params)
+        );
+        if let Some(&(next, next_params, _, _)) = steps.get(i + 1) {
+            pass.set_method(next, next_params).unwrap();
+            assert_eq!(pass.settings().method, next);
+        }
+        // The frames recorded before the switch finish with the old method (whose
+        // retired resources are still alive) and match the standalone renderer.
+        host.wait_all();
+        let expected = standalone(&ctx, &rocks, method, params, extent);
+        for s in 0..SLOTS {
+            let got = host.hits(s, &shot);
+            assert_bit_identical(&got, &expected, &format!("{} slot {s}", method.name()));
+        }
+    }
+    teardown(ctx, pass, host, shot);
+}
