@@ -1,12 +1,13 @@
 //! The benchmark's plots, drawn with `plotters` into an RGB buffer and written as PNG
-//! through [`crate::output::write_png`] (atomically). Text uses the bundled DejaVu Sans
-//! subset (`assets/fonts`, registered with plotters' `ab_glyph` backend), so no system
-//! font is needed.
+//! (RGB, best compression) through [`crate::output::write_atomic`]. Text uses the
+//! bundled DejaVu Sans subset (`assets/fonts`, registered with plotters' `ab_glyph`
+//! backend), so no system font is needed.
 //!
-//! * [`pareto`]: per map, method time (x, log) against error (y, log) with one curve per
-//!   method through its settings (labelled with the first and last `iter`); methods
-//!   without a step count are single larger markers. Left: artifact fraction; right:
-//!   mean hit distance. Errors of 0 are drawn on the axis floor.
+//! * [`pareto`]: per map, method time (x) against error (y, log) with one curve per
+//!   method through its settings; methods without a step count are single larger
+//!   markers. Left: artifact fraction; right: mean hit distance. Top: every method, log
+//!   time axis; bottom: the marching methods, linear time axis, every point labelled
+//!   with its `iter`. Errors of 0 are drawn on the axis floor.
 //! * [`sizes`]: the map-size sweep: method time per frame against map size (log), the
 //!   same relative to the smallest map, and the pyramid's one build (log).
 
@@ -27,7 +28,7 @@ pub const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf
 const FAMILY: &str = "sans-serif";
 
 /// Pareto plot size in pixels.
-pub const PARETO_SIZE: (u32, u32) = (1280, 560);
+pub const PARETO_SIZE: (u32, u32) = (1280, 1040);
 
 /// Map-size plot size in pixels.
 pub const SIZES_SIZE: (u32, u32) = (1500, 460);
@@ -77,11 +78,20 @@ fn render_png(
                 message: format!("cannot draw the plot: {message}"),
             })?;
     }
-    let rgba: Vec<u8> = rgb
-        .chunks_exact(3)
-        .flat_map(|p| [p[0], p[1], p[2], 255])
-        .collect();
-    crate::output::write_png(path, w, h, &rgba)
+    // RGB, best compression: plots are mostly flat colour, so this keeps them small.
+    let mut png = Vec::new();
+    let encoder = image::codecs::png::PngEncoder::new_with_quality(
+        &mut png,
+        image::codecs::png::CompressionType::Best,
+        image::codecs::png::FilterType::Adaptive,
+    );
+    image::ImageEncoder::write_image(encoder, &rgb, w, h, image::ExtendedColorType::Rgb8).map_err(
+        |e| Error::Image {
+            path: path.to_owned(),
+            message: format!("cannot encode PNG: {e}"),
+        },
+    )?;
+    crate::output::write_atomic(path, &png)
 }
 
 /// Lower and upper bound for a log axis over `values` (positive ones, at least `floor`;
@@ -104,93 +114,137 @@ fn log_range(values: impl Iterator<Item = f64>, floor: f64) -> (f64, f64) {
     (lo * (1.0 - 1e-9), hi.max(lo * 10.0))
 }
 
-/// One panel of the Pareto plot: `value` of each row against its method time.
+/// What a Pareto panel shows.
+struct Panel<'a> {
+    title: String,
+    y_desc: &'a str,
+    value: fn(&RunRow) -> f64,
+    /// Smallest value drawn (zeros are drawn on it).
+    floor: f64,
+    /// Largest upper bound of the y axis.
+    cap: f64,
+    /// Linear time axis over the data, with each point labelled by its steps (the zoom
+    /// on the marching methods); otherwise a log time axis and only the curves' ends
+    /// labelled.
+    zoom: bool,
+}
+
+/// One panel of the Pareto plot: `panel.value` of each row against its method time.
 fn pareto_panel(
     area: &DrawingArea<BitMapBackend<'_>, Shift>,
-    title: &str,
-    y_desc: &str,
+    panel: &Panel<'_>,
     curves: &[(Method, Vec<&RunRow>)],
-    value: fn(&RunRow) -> f64,
-    floor: f64,
-    cap: f64,
 ) -> std::result::Result<(), String> {
     let e = |e: &dyn std::fmt::Display| e.to_string();
+    let value = panel.value;
     let all = || curves.iter().flat_map(|(_, rows)| rows.iter());
-    let (x0, x1) = log_range(all().map(|r| r.method_ms), 1e-3);
-    let (y0, y1) = log_range(all().map(|r| value(r)), floor);
-    let y1 = y1.min(cap).max(y0 * 10.0);
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, (FAMILY, 20))
+    let (y0, y1) = log_range(all().map(|r| value(r)), panel.floor);
+    let y1 = y1.min(panel.cap).max(y0 * 10.0);
+    let x_desc = if panel.zoom {
+        "method time per frame (ms; dig_corners + trace)"
+    } else {
+        "method time per frame (ms, log; dig_corners + trace)"
+    };
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(&panel.title, (FAMILY, 19))
         .margin(12)
         .x_label_area_size(44)
-        .y_label_area_size(72)
-        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
-        .map_err(|x| e(&x))?;
-    chart
-        .configure_mesh()
-        .x_desc("method time per frame (ms, log; dig_corners + trace)")
-        .y_desc(y_desc)
-        .label_style((FAMILY, 14))
-        .axis_desc_style((FAMILY, 15))
-        .x_label_formatter(&|x| format_tick(*x))
-        .y_label_formatter(&|y| format_tick(*y))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|x| e(&x))?;
-    for (method, rows) in curves {
-        let color = method_color(*method);
-        let points: Vec<(f64, f64)> = rows
-            .iter()
-            .map(|r| (r.method_ms, value(r).clamp(y0, y1)))
-            .collect();
-        let name = method.name();
-        if has_steps(*method) {
+        .y_label_area_size(72);
+    macro_rules! draw {
+        ($chart:expr) => {{
+            let mut chart = $chart;
             chart
-                .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
-                .map_err(|x| e(&x))?
-                .label(name)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 22, y)], color.stroke_width(2))
-                });
-            chart
-                .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+                .configure_mesh()
+                .x_desc(x_desc)
+                .y_desc(panel.y_desc)
+                .label_style((FAMILY, 14))
+                .axis_desc_style((FAMILY, 15))
+                .x_label_formatter(&|x| format_tick(*x))
+                .y_label_formatter(&|y| format_tick(*y))
+                .light_line_style(RGBColor(235, 235, 235))
+                .draw()
                 .map_err(|x| e(&x))?;
-            let ends = [rows.first(), rows.last()];
-            for (r, p) in ends.into_iter().zip([points.first(), points.last()]) {
-                if let (Some(r), Some(&p), Some(steps)) = (r, p, r.and_then(|r| r.steps)) {
+            for (method, rows) in curves {
+                let color = method_color(*method);
+                let points: Vec<(f64, f64)> = rows
+                    .iter()
+                    .map(|r| (r.method_ms, value(r).clamp(y0, y1)))
+                    .collect();
+                let name = method.name();
+                if has_steps(*method) {
                     chart
-                        .draw_series(std::iter::once(
-                            EmptyElement::at(p)
-                                + Text::new(
-                                    steps.to_string(),
-                                    (5, -16),
-                                    (FAMILY, 12).into_font().color(&color),
-                                ),
-                        ))
+                        .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
+                        .map_err(|x| e(&x))?
+                        .label(name)
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 22, y)], color.stroke_width(2))
+                        });
+                    chart
+                        .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
                         .map_err(|x| e(&x))?;
-                    let _ = r;
+                    let last = rows.len().saturating_sub(1);
+                    for (i, (r, &p)) in rows.iter().zip(&points).enumerate() {
+                        let labelled = panel.zoom || i == 0 || i == last;
+                        if let (true, Some(steps)) = (labelled, r.steps) {
+                            chart
+                                .draw_series(std::iter::once(
+                                    EmptyElement::at(p)
+                                        + Text::new(
+                                            steps.to_string(),
+                                            (5, -16),
+                                            (FAMILY, 12).into_font().color(&color),
+                                        ),
+                                ))
+                                .map_err(|x| e(&x))?;
+                        }
+                    }
+                } else {
+                    chart
+                        .draw_series(
+                            points
+                                .iter()
+                                .map(|&p| TriangleMarker::new(p, 8, color.filled())),
+                        )
+                        .map_err(|x| e(&x))?
+                        .label(format!("{name} (one run)"))
+                        .legend(move |(x, y)| TriangleMarker::new((x + 11, y), 6, color.filled()));
                 }
             }
-        } else {
             chart
-                .draw_series(
-                    points
-                        .iter()
-                        .map(|&p| TriangleMarker::new(p, 8, color.filled())),
-                )
-                .map_err(|x| e(&x))?
-                .label(format!("{name} (one run)"))
-                .legend(move |(x, y)| TriangleMarker::new((x + 11, y), 6, color.filled()));
-        }
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .label_font((FAMILY, 13))
+                .background_style(WHITE.mix(0.85))
+                .border_style(RGBColor(160, 160, 160))
+                .draw()
+                .map_err(|x| e(&x))?;
+        }};
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .label_font((FAMILY, 13))
-        .background_style(WHITE.mix(0.85))
-        .border_style(RGBColor(160, 160, 160))
-        .draw()
-        .map_err(|x| e(&x))
+    if panel.zoom {
+        let (lo, hi) = all()
+            .map(|r| r.method_ms)
+            .filter(|t| t.is_finite())
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), t| {
+                (lo.min(t), hi.max(t))
+            });
+        let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
+        let pad = ((hi - lo) * 0.08).max(hi * 0.02).max(1e-3);
+        // The legend sits in the lower left: leave room for it there.
+        draw!(
+            builder
+                .build_cartesian_2d((lo - 4.0 * pad).max(0.0)..hi + pad, (y0..y1).log_scale())
+                .map_err(|x| e(&x))?
+        );
+    } else {
+        let (x0, x1) = log_range(all().map(|r| r.method_ms), 1e-3);
+        draw!(
+            builder
+                .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+                .map_err(|x| e(&x))?
+        );
+    }
+    Ok(())
 }
 
 /// Tick label: up to 3 significant digits without trailing zeros.
@@ -207,33 +261,61 @@ fn format_tick(v: f64) -> String {
     }
 }
 
-/// Writes the Pareto plot of `map` (methods sweep rows) to `path`.
+/// The marching methods the zoomed panels of the Pareto plot show (the DIG paper's
+/// comparison plus `linear` and `secant`).
+pub const ZOOM_METHODS: [Method; 5] = [
+    Method::Linear,
+    Method::Relief,
+    Method::Pom,
+    Method::Secant,
+    Method::Dig,
+];
+
+/// Writes the Pareto plot of `map` (methods sweep rows) to `path`: top, every method
+/// (log-log); bottom, the marching methods ([`ZOOM_METHODS`]) with a linear time axis
+/// and every point labelled with its steps.
 pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<()> {
     let curves: Vec<(Method, Vec<&RunRow>)> = Method::ALL
         .iter()
         .map(|&m| (m, curve_rows(rows, map, m)))
         .filter(|(_, r)| !r.is_empty())
         .collect();
+    let zoomed: Vec<(Method, Vec<&RunRow>)> = curves
+        .iter()
+        .filter(|(m, _)| ZOOM_METHODS.contains(m))
+        .cloned()
+        .collect();
+    let artifacts = |zoom: bool| Panel {
+        title: format!(
+            "{map}: artifacts against time{}",
+            if zoom { " (marching methods)" } else { "" }
+        ),
+        y_desc: "artifacts (% of covered pixels, log; 0 on the bottom edge)",
+        value: |r| 100.0 * r.artifact_fraction,
+        floor: 1e-3,
+        cap: 100.0,
+        zoom,
+    };
+    let texels = |zoom: bool| Panel {
+        title: format!(
+            "{map}: mean hit distance against time{}",
+            if zoom { " (marching methods)" } else { "" }
+        ),
+        y_desc: "mean hit distance (texels, log; 0 on the bottom edge)",
+        value: |r| r.mean_texels,
+        floor: 1e-4,
+        cap: f64::INFINITY,
+        zoom,
+    };
     render_png(path, PARETO_SIZE, |root| {
-        let (left, right) = root.split_horizontally(PARETO_SIZE.0 / 2);
-        pareto_panel(
-            &left,
-            &format!("{map}: artifacts against time"),
-            "artifacts (% of covered pixels, log; 0 on the bottom edge)",
-            &curves,
-            |r| 100.0 * r.artifact_fraction,
-            1e-3,
-            100.0,
-        )?;
-        pareto_panel(
-            &right,
-            &format!("{map}: mean hit distance against time"),
-            "mean hit distance (texels, log; 0 on the bottom edge)",
-            &curves,
-            |r| r.mean_texels,
-            1e-4,
-            f64::INFINITY,
-        )
+        let areas = root.split_evenly((2, 2));
+        pareto_panel(&areas[0], &artifacts(false), &curves)?;
+        pareto_panel(&areas[1], &texels(false), &curves)?;
+        if !zoomed.is_empty() {
+            pareto_panel(&areas[2], &artifacts(true), &zoomed)?;
+            pareto_panel(&areas[3], &texels(true), &zoomed)?;
+        }
+        Ok(())
     })
 }
 
