@@ -361,30 +361,35 @@ pub fn sizes(path: &Path, rows: &[RunRow]) -> Result<()> {
     };
     let method_ms: fn(&RunRow) -> Option<f64> = |r| Some(r.method_ms);
     let build_ms: fn(&RunRow) -> Option<f64> = |r| r.pyramid_build_ms;
+    // Legends where the lines are not: under the (flat) time curves, above the rising
+    // ratio and build curves.
     let panels = [
         (
             "method time per frame",
             "method time (ms, log)",
             series(method_ms, false),
             true,
+            SeriesLabelPosition::LowerRight,
         ),
         (
             "relative to the smallest map",
             "method time / time at the smallest map",
             series(method_ms, true),
             false,
+            SeriesLabelPosition::UpperLeft,
         ),
         (
             "pyramid build (once per map)",
             "build time (ms, log)",
             series(build_ms, false),
             true,
+            SeriesLabelPosition::UpperLeft,
         ),
     ];
     render_png(path, SIZES_SIZE, |root| {
         let areas = root.split_evenly((1, 3));
-        for (area, (title, y_desc, series, log)) in areas.iter().zip(panels) {
-            size_panel(area, &sides, title, y_desc, &series, log)?;
+        for (area, (title, y_desc, series, log, legend)) in areas.iter().zip(panels) {
+            size_panel(area, &sides, title, y_desc, &series, log, legend)?;
         }
         Ok(())
     })
@@ -398,6 +403,7 @@ fn size_panel(
     y_desc: &str,
     series: &[(Method, Vec<(usize, f64)>)],
     log: bool,
+    legend: SeriesLabelPosition,
 ) -> std::result::Result<(), String> {
     let e = |e: &dyn std::fmt::Display| e.to_string();
     let n = sides.len().max(1);
@@ -448,7 +454,7 @@ fn size_panel(
             }
             chart
                 .configure_series_labels()
-                .position(SeriesLabelPosition::UpperLeft)
+                .position(legend.clone())
                 .label_font((FAMILY, 13))
                 .background_style(WHITE.mix(0.85))
                 .border_style(RGBColor(160, 160, 160))
