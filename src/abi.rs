@@ -46,13 +46,20 @@ pub struct TraceParams {
     pub pyramid_levels: u32,
     /// Displacement depth in tile units (`pom`: `N . V` from the parallax vector).
     pub depth_scale: f32,
+    /// With `TRACE_FLAG_LOD`: the footprint mip level from which a pixel takes the bump
+    /// result without tracing (a one-level band below it blends toward bump).
+    pub lod_threshold: f32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 2],
+    pub pad: u32,
 }
 
 /// `TRACE_FLAG_AUTO_LEVEL` in `glsl/common/trace.glsl`: the pyramid method derives its
 /// coarsest level from each pixel's texel footprint.
 pub const TRACE_FLAG_AUTO_LEVEL: u32 = 1;
+
+/// `TRACE_FLAG_LOD` in `glsl/common/trace.glsl`: the level-of-detail blend to bump
+/// mapping at `TraceParams::lod_threshold` (Tatarchuk 2006), for every method.
+pub const TRACE_FLAG_LOD: u32 = 2;
 
 /// `PyramidParams` in `glsl/pyramid.comp`.
 #[repr(C)]
@@ -132,6 +139,26 @@ pub struct ShadeParams {
     pub specular: f32,
     /// Blinn-Phong exponent.
     pub shininess: f32,
+}
+
+/// `HitDepthParams` in `glsl/hit_depth.comp` (built by `HitDepthParams::new` in
+/// `src/passes/hit_depth.rs`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct HitDepthParams {
+    /// Clip to eye-relative world (`inverse(view_proj * translation(eye))`): unprojects
+    /// the G-buffer depth to the entry point's offset from the eye.
+    pub inv_eye_clip: Mat4,
+    /// Row 2 of `view_proj * translation(eye)`: the clip-space `z` of an eye offset.
+    pub clip_z_row: Vec4,
+    /// Row 3 of `view_proj * translation(eye)`: the clip-space `w` of an eye offset.
+    pub clip_w_row: Vec4,
+    /// Frame size in pixels.
+    pub frame_size: [u32; 2],
+    /// Displacement depth in tile units.
+    pub depth_scale: f32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
 }
 
 #[cfg(test)]
@@ -251,6 +278,7 @@ mod tests {
                 ("max_level", offset_of!(TraceParams, max_level)),
                 ("pyramid_levels", offset_of!(TraceParams, pyramid_levels)),
                 ("depth_scale", offset_of!(TraceParams, depth_scale)),
+                ("lod_threshold", offset_of!(TraceParams, lod_threshold)),
                 ("pad", offset_of!(TraceParams, pad)),
             ],
             size_of::<TraceParams>(),
@@ -333,11 +361,29 @@ mod tests {
     }
 
     #[test]
+    fn hit_depth_params_layout() {
+        check(
+            &shaders::HIT_DEPTH_COMP,
+            "HitDepthParams",
+            &[
+                ("inv_eye_clip", offset_of!(HitDepthParams, inv_eye_clip)),
+                ("clip_z_row", offset_of!(HitDepthParams, clip_z_row)),
+                ("clip_w_row", offset_of!(HitDepthParams, clip_w_row)),
+                ("frame_size", offset_of!(HitDepthParams, frame_size)),
+                ("depth_scale", offset_of!(HitDepthParams, depth_scale)),
+                ("pad", offset_of!(HitDepthParams, pad)),
+            ],
+            size_of::<HitDepthParams>(),
+        );
+        assert_eq!(size_of::<HitDepthParams>(), 112);
+    }
+
+    #[test]
     fn every_trace_method_shares_the_block() {
         for s in shaders::ALL.iter().filter(|s| s.name.starts_with("trace/")) {
             let words = s.words().unwrap();
             let offs = block_offsets(&words, "TraceParams");
-            assert_eq!(offs.len(), 15, "{}", s.name);
+            assert_eq!(offs.len(), 16, "{}", s.name);
         }
     }
 }

@@ -134,6 +134,11 @@ struct RenderArgs {
     /// trace falls back to the unconstrained search).
     #[arg(long, value_name = "FILE")]
     interval_map: Option<PathBuf>,
+    /// Also write the corrected depth (the reverse-Z clip depth of each pixel's displaced
+    /// hit point; 0 where there is none) of the last frame: `.exr` as 32-bit float (the
+    /// value in R, G and B) or `.png` as 16-bit grey (depth * 65535, rounded).
+    #[arg(long, value_name = "FILE")]
+    depth_out: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -170,6 +175,11 @@ struct CommonArgs {
     /// texel footprint).
     #[arg(long, default_value = "0")]
     max_level: MaxLevel,
+    /// Level of detail, every method (off by default): pixels whose texel footprint is at
+    /// least 2^L texels take the bump result without tracing; between 2^(L-1) and 2^L
+    /// the traced hit is blended toward it.
+    #[arg(long, value_name = "L")]
+    lod_threshold: Option<f32>,
     /// Displacement depth in tile units.
     #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     depth_scale: f32,
@@ -235,6 +245,7 @@ impl CommonArgs {
                 block: [self.block.0, self.block.1],
                 eps: self.eps,
                 max_level: self.max_level,
+                lod_threshold: self.lod_threshold,
             },
             scene: Scene {
                 geometry: self.geometry,
@@ -435,11 +446,23 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
     {
         bail!("invalid --heatmap-max: {max} is not a positive finite number");
     }
+    if let Some(path) = &args.depth_out {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("exr" | "png")) {
+            bail!(
+                "invalid --depth-out: {} must end in .exr (32-bit float) or .png (16-bit)",
+                path.display()
+            );
+        }
+    }
     let outputs = [
         ("--out", Some(&args.out)),
         ("--metrics", args.metrics.as_ref()),
         ("--heatmap", args.heatmap.as_ref()),
         ("--interval-map", args.interval_map.as_ref()),
+        ("--depth-out", args.depth_out.as_ref()),
     ];
     for (option, path) in outputs {
         if let Some(path) = path {
@@ -450,6 +473,7 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
     let ctx = Context::headless(options)?;
     {
         let mut renderer = Renderer::new(&ctx, &field, settings)?;
+        renderer.set_depth_output(args.depth_out.is_some())?;
         let (timings, color, error, hits, rays) = if args.metrics.is_some() {
             let reference = Reference::new(&field, settings.scene.addressing());
             let frame_ref = renderer.reference(&reference)?;
@@ -475,6 +499,12 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
         if let Some(path) = &args.heatmap {
             let rgba = heatmap::iteration_heatmap(&hits, &covered, args.heatmap_max)?;
             output::write_png(path, settings.width, settings.height, &rgba)?;
+        }
+        if let Some(path) = &args.depth_out {
+            let depth = renderer
+                .read_depth()?
+                .context("the renderer kept no corrected depth")?;
+            output::write_depth(path, settings.width, settings.height, &depth)?;
         }
         if let Some(path) = &args.interval_map {
             let (grid, corners) = corners

@@ -182,6 +182,9 @@ pub const MAX_BLOCK: u32 = 64;
 /// Largest `secant` segment count.
 pub const MAX_SEGMENTS: u32 = 64;
 
+/// Largest `--lod-threshold`: a footprint of 2^31 texels per pixel is beyond any map.
+pub const MAX_LOD_THRESHOLD: f32 = 31.0;
+
 /// The coarsest level the `pyramid` method may stop at (minification).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -229,6 +232,13 @@ pub struct MethodParams {
     pub eps: Option<f32>,
     /// `pyramid`: the coarsest traversal level (minification).
     pub max_level: MaxLevel,
+    /// Level of detail for every method (Tatarchuk 2006), `None` = off: a pixel whose
+    /// footprint level `l = log2(texels per pixel)` (0 when magnified) reaches this
+    /// threshold `L` takes the bump result without tracing; in `L - 1 < l < L` the traced
+    /// hit is blended toward it (see `trace_lod` in `glsl/common/trace.glsl`). `L >= 1`
+    /// leaves every magnified pixel untouched.
+    #[serde(default)]
+    pub lod_threshold: Option<f32>,
 }
 
 impl Default for MethodParams {
@@ -241,6 +251,7 @@ impl Default for MethodParams {
             block: [4, 4],
             eps: None,
             max_level: MaxLevel::Fixed(0),
+            lod_threshold: None,
         }
     }
 }
@@ -313,6 +324,14 @@ impl MethodParams {
                 format!("{eps} is outside 0..=1 (a fraction of the full depth)"),
             ));
         }
+        if let Some(l) = self.lod_threshold
+            && !(0.0..=MAX_LOD_THRESHOLD).contains(&l)
+        {
+            return Err(Error::invalid(
+                "lod-threshold",
+                format!("{l} is outside 0..={MAX_LOD_THRESHOLD} (a mip level)"),
+            ));
+        }
         if let MaxLevel::Fixed(l) = self.max_level
             && l > 31
         {
@@ -372,6 +391,20 @@ mod tests {
                 "eps",
                 MethodParams {
                     eps: Some(f32::NAN),
+                    ..Default::default()
+                },
+            ),
+            (
+                "lod-threshold",
+                MethodParams {
+                    lod_threshold: Some(f32::NAN),
+                    ..Default::default()
+                },
+            ),
+            (
+                "lod-threshold",
+                MethodParams {
+                    lod_threshold: Some(-1.0),
                     ..Default::default()
                 },
             ),

@@ -74,6 +74,58 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
     write_atomic(path, &encoded)
 }
 
+/// Writes a depth image (one `f32` per pixel, row by row) atomically, encoded by the
+/// extension of `path`: `.exr`, OpenEXR with 32-bit float RGB channels all holding the
+/// exact value (image's EXR encoder has no single-channel mode); `.png`, 16-bit greyscale
+/// with `round(clamp(depth, 0, 1) * 65535)` (quantised). Any other extension is an error
+/// naming the path; nothing is written then.
+pub fn write_depth(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<()> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let err = |message: String| Error::Image {
+        path: path.to_owned(),
+        message,
+    };
+    let (bytes, color, format) = match ext.as_deref() {
+        Some("exr") => {
+            let rgb: Vec<f32> = depth.iter().flat_map(|&d| [d, d, d]).collect();
+            (
+                bytemuck::cast_slice::<f32, u8>(&rgb).to_vec(),
+                image::ExtendedColorType::Rgb32F,
+                image::ImageFormat::OpenExr,
+            )
+        }
+        Some("png") => {
+            let grey: Vec<u16> = depth
+                .iter()
+                .map(|&d| (d.clamp(0.0, 1.0) * 65535.0).round() as u16)
+                .collect();
+            (
+                bytemuck::cast_slice::<u16, u8>(&grey).to_vec(),
+                image::ExtendedColorType::L16,
+                image::ImageFormat::Png,
+            )
+        }
+        _ => {
+            return Err(err(
+                "unknown depth format: use .exr (32-bit float) or .png (16-bit)".into(),
+            ));
+        }
+    };
+    let mut encoded = Vec::new();
+    image::write_buffer_with_format(
+        &mut std::io::Cursor::new(&mut encoded),
+        &bytes,
+        width,
+        height,
+        color,
+        format,
+    )
+    .map_err(|e| err(format!("cannot encode the depth image: {e}")))?;
+    write_atomic(path, &encoded)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -95,5 +147,25 @@ mod tests {
             .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
             .collect();
         assert!(leftovers.is_empty());
+    }
+
+    #[test]
+    fn depth_round_trips() {
+        let dir = std::env::temp_dir().join("dispmap-output-depth-test");
+        std::fs::create_dir_all(&dir).unwrap();
+        let depth = [0.0f32, 1.0, 0.123_456_79, 3.0e-5, 0.5, 0.75];
+        let exr = dir.join("d.exr");
+        write_depth(&exr, 3, 2, &depth).unwrap();
+        let back = image::open(&exr).unwrap().to_rgb32f();
+        let red: Vec<f32> = back.pixels().map(|p| p.0[0]).collect();
+        assert_eq!(red, depth);
+        let png = dir.join("d.png");
+        write_depth(&png, 3, 2, &depth).unwrap();
+        let back = image::open(&png).unwrap().to_luma16();
+        let grey: Vec<u16> = back.pixels().map(|p| p.0[0]).collect();
+        assert_eq!(grey, [0, 65535, 8091, 2, 32768, 49151]);
+        let bad = dir.join("d.tif");
+        assert!(write_depth(&bad, 3, 2, &depth).is_err());
+        assert!(!bad.exists());
     }
 }

@@ -18,8 +18,12 @@
 //! 3. Hit buffer: storage write -> storage read (`GENERAL`); colour: discarded ->
 //!    `GENERAL`; `shade` writes the colour.
 //!
+//! 4. With [`Renderer::set_depth_output`] on: the corrected depth, discarded ->
+//!    `GENERAL`; `hit_depth` writes it from the hit buffer (still `GENERAL`, storage read)
+//!    and the G-buffer.
+//!
 //! After a frame the hit buffer is in `GENERAL` (last access: storage read), the colour
-//! in `GENERAL` (last access: storage write) and the G-buffer in
+//! and the corrected depth in `GENERAL` (last access: storage write) and the G-buffer in
 //! `SHADER_READ_ONLY_OPTIMAL`; the read-back helpers use exactly those states.
 
 use crate::context::Context;
@@ -32,6 +36,7 @@ use crate::method::{Method, MethodParams, Needs};
 use crate::metrics::{self, ErrorMetrics, HitTexel, MapGeometry};
 use crate::passes::dig::{Corner, CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::{GBuffer, GBufferPass};
+use crate::passes::hit_depth::{HIT_DEPTH_FORMAT, HitDepthInputs, HitDepthPass};
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::{COLOR_FORMAT, ShadeInputs, ShadePass};
 use crate::passes::trace::{HIT_FORMAT, TraceInputs, TracePass};
@@ -117,6 +122,21 @@ pub struct Renderer<'a> {
     shade: ShadePass,
     /// What the method needs, built by [`Renderer::prepare`].
     extras: Extras,
+    /// The corrected-depth pass and image ([`Renderer::set_depth_output`]).
+    depth: Option<DepthOutput>,
+}
+
+/// The corrected depth of the displaced surface: its pass and `R32_SFLOAT` image.
+struct DepthOutput {
+    pass: HitDepthPass,
+    image: Image,
+}
+
+impl DepthOutput {
+    fn destroy(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        self.image.destroy(ctx);
+    }
 }
 
 /// The resources and passes only some methods need.
@@ -225,6 +245,7 @@ impl<'a> Renderer<'a> {
             trace: parts.trace.take().expect(built),
             shade: parts.shade.take().expect(built),
             extras: Extras::default(),
+            depth: None,
         };
         // On failure the renderer's Drop destroys everything built so far.
         renderer.prepare()?;
@@ -440,6 +461,7 @@ impl<'a> Renderer<'a> {
         ctx.end_label(cmd);
 
         self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE)?;
+        self.record_hit_depth(cmd, &camera)?;
         self.shot.submit_and_wait(ctx)?;
         let times = self.timer.read(ctx)?;
         if self.extras.pyramid.is_some() && !self.extras.pyramid_built {
@@ -468,6 +490,116 @@ impl<'a> Renderer<'a> {
             (Some(p), true) => Ok(Some(p.read_levels(self.ctx, &self.shot)?)),
             _ => Ok(None),
         }
+    }
+
+    /// Turns the corrected-depth output on (builds the `hit_depth` pass and its
+    /// `R32_SFLOAT` image; every later [`Renderer::render`] runs it after `shade`) or off
+    /// (destroys them).
+    pub fn set_depth_output(&mut self, on: bool) -> Result<()> {
+        match (on, self.depth.take()) {
+            (true, Some(d)) => self.depth = Some(d),
+            (true, None) => {
+                let ctx = self.ctx;
+                let mut pass = HitDepthPass::new(ctx)?;
+                let extent = vk::Extent2D {
+                    width: self.settings.width,
+                    height: self.settings.height,
+                };
+                let image = Image::new(
+                    ctx,
+                    "hit_depth",
+                    HIT_DEPTH_FORMAT,
+                    extent,
+                    1,
+                    vk::ImageUsageFlags::STORAGE
+                        | vk::ImageUsageFlags::SAMPLED
+                        | vk::ImageUsageFlags::TRANSFER_SRC,
+                );
+                match image {
+                    Ok(image) => self.depth = Some(DepthOutput { pass, image }),
+                    Err(e) => {
+                        pass.destroy(ctx);
+                        return Err(e);
+                    }
+                }
+            }
+            (false, Some(mut d)) => {
+                // SAFETY: every submission was waited for (render waits for its frame).
+                unsafe {
+                    let _ = self.ctx.device().device_wait_idle();
+                }
+                d.destroy(self.ctx);
+            }
+            (false, None) => {}
+        }
+        Ok(())
+    }
+
+    /// The corrected-depth image (`R32_SFLOAT`, reverse-Z clip depth of each pixel's hit,
+    /// 0 without one; see [`crate::passes::hit_depth`]) when the output is on. After a
+    /// frame it is in `GENERAL`, last written by a compute-shader storage write; a caller
+    /// that reads it in its own submission (e.g. [`crate::passes::depth_resolve`]) places
+    /// the barrier from that state.
+    pub fn hit_depth(&self) -> Option<&Image> {
+        self.depth.as_ref().map(|d| &d.image)
+    }
+
+    /// The last frame's corrected depth, row by row (`None` when the output is off).
+    pub fn read_depth(&self) -> Result<Option<Vec<f32>>> {
+        match &self.depth {
+            Some(d) => {
+                let bytes = read_image(
+                    self.ctx,
+                    &self.shot,
+                    &d.image,
+                    Access::COMPUTE_STORAGE_WRITE,
+                )?;
+                Ok(Some(bytemuck::cast_slice::<u8, f32>(&bytes).to_vec()))
+            }
+            None => Ok(None),
+        }
+    }
+
+    fn record_hit_depth(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        camera: &crate::scene::FrameCamera,
+    ) -> Result<()> {
+        let Some(depth) = &self.depth else {
+            return Ok(());
+        };
+        let ctx = self.ctx;
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                depth.image.raw,
+                depth.image.range(),
+                DISCARD,
+                Access::COMPUTE_STORAGE_WRITE,
+            )],
+        );
+        let params = crate::abi::HitDepthParams::new(
+            camera.view_proj,
+            camera.eye,
+            self.frame_size(),
+            self.settings.scene.depth_scale,
+        );
+        ctx.begin_label(cmd, "hit_depth");
+        self.timer.begin(ctx, cmd, "hit_depth")?;
+        depth.pass.record(
+            ctx,
+            cmd,
+            HitDepthInputs {
+                hit: self.hit.view,
+                gbuffer: self.gbuffer.views(),
+                hit_depth: depth.image.view_ref(),
+            },
+            &params,
+        );
+        self.timer.end(ctx, cmd);
+        ctx.end_label(cmd);
+        Ok(())
     }
 
     fn record_shade(
@@ -574,6 +706,18 @@ impl<'a> Renderer<'a> {
                 })
             })
             .collect())
+    }
+
+    /// The last frame's G-buffer depth (reverse-Z depth of the macro surface, 0 where
+    /// there is no geometry), row by row.
+    pub fn read_macro_depth(&self) -> Result<Vec<f32>> {
+        let depth = read_image(
+            self.ctx,
+            &self.shot,
+            &self.gbuffer.depth,
+            Access::COMPUTE_SAMPLED,
+        )?;
+        Ok(bytemuck::cast_slice::<u8, f32>(&depth).to_vec())
     }
 
     /// The last frame's hit buffer.
@@ -683,6 +827,9 @@ impl Drop for Renderer<'_> {
             let _ = ctx.device().device_wait_idle();
         }
         self.extras.destroy(ctx);
+        if let Some(d) = &mut self.depth {
+            d.destroy(ctx);
+        }
         self.shade.destroy(ctx);
         self.trace.destroy(ctx);
         self.gbuffer_pass.destroy(ctx);

@@ -34,11 +34,15 @@ layout(push_constant) uniform TraceParams {
     uint max_level;     // pyramid: coarsest traversal level
     uint pyramid_levels;// levels of the bound pyramid (0: none)
     float depth_scale;  // displacement depth in tile units
-    uvec2 pad;
+    float lod_threshold;// TRACE_FLAG_LOD: the mip level from which pixels take bump mapping
+    uint pad;
 } pc;
 
 // The pyramid method picks its coarsest level from the pixel's texel footprint.
 #define TRACE_FLAG_AUTO_LEVEL 1u
+// Level of detail (Tatarchuk 2006): pixels whose footprint level reaches lod_threshold
+// take the bump result without tracing; a one-level band below it blends toward it.
+#define TRACE_FLAG_LOD 2u
 
 #include "march.glsl"
 #include "texels.glsl"
@@ -88,7 +92,79 @@ Hit relief_search(Ray ray, inout uint iterations) {
     return hit_at(ray, bisect(ray, h_below + dh, h_below, pc.refine_steps, iterations), iterations);
 }
 
+// The texels one pixel spans: the larger of the entry point's steps to the right and
+// down neighbours (the left / upper one at the frame's last column / row), with the tile
+// wraps of uv0 (reduced to [0, 1) for repeat addressing) removed by taking the nearest
+// image of the difference. A neighbour without geometry gives no step; with neither, the
+// footprint is 0 (no minification known: full detail). Compute shaders have no implicit
+// derivatives, so this is the finite-difference |d uv / d pixel| the hardware would use.
+float footprint_texels(ivec2 pixel, vec2 uv0) {
+    float texels = 0.0;
+    for (int a = 0; a < 2; ++a) {
+        ivec2 q = pixel;
+        q[a] += q[a] + 1 < int(pc.frame_size[a]) ? 1 : -1;
+        if (q[a] < 0 || texelFetch(u_depth, q, 0).r <= 0.0) {
+            continue;
+        }
+        vec2 d = texelFetch(u_ray, q, 0).xy - uv0;
+        if (pc.addressing == ADDRESSING_REPEAT) {
+            d -= round(d);
+        }
+        texels = max(texels, length(d * vec2(pc.map_size)));
+    }
+    return texels;
+}
+
+// The pixel's mip level: log2 of its texel footprint, 0 when magnified (<= 1 texel).
+// Shared by the pyramid's automatic coarsest level (Oh et al. 3.4: floor of it) and the
+// LOD blend to bump mapping (Tatarchuk 2006).
+float footprint_level(ivec2 pixel, vec2 uv0) {
+    return log2(max(footprint_texels(pixel, uv0), 1.0));
+}
+
+// The pixel's footprint level, set by main() before trace_ray when a flag needs it
+// (TRACE_FLAG_AUTO_LEVEL or TRACE_FLAG_LOD); 0 otherwise.
+float g_footprint_level = 0.0;
+
+// The bump-mapping result (the far-LOD fallback and the `bump` method): the surface point
+// below the entry point, one fetch.
+Hit bump_hit(Ray ray) {
+    if (leaves_domain(ray.uv0)) {
+        return miss(ray, 0u);
+    }
+    return Hit(ray.uv0, height_at(ray.uv0), 1u);
+}
+
 Hit trace_ray(Ray ray, ivec2 pixel);
+
+// trace_ray with the LOD blend (TRACE_FLAG_LOD, Tatarchuk 2006 section 5.4). With the
+// pixel's level l and the threshold L, w = clamp(l - (L - 1), 0, 1):
+//   w = 0 (l <= L - 1): the method's hit, untouched;
+//   w = 1 (l >= L): the bump hit (uv0, H(uv0)) without tracing (1 fetch);
+//   in between: the traced hit blended toward the bump hit, (u, v, h) = mix(traced,
+//   bump, w): the hit point slides along the straight line from the traced point to the
+//   surface point under the entry, so the parallax offset fades out continuously and the
+//   shading normal, read at the blended uv, with it. A traced miss (a clamp-addressed ray
+//   leaving the decal) stays a miss in the band, keeping the silhouette until bump
+//   mapping takes over. Iterations: the trace's plus the bump fetch.
+Hit trace_lod(Ray ray, ivec2 pixel) {
+    if ((pc.flags & TRACE_FLAG_LOD) == 0u) {
+        return trace_ray(ray, pixel);
+    }
+    float w = clamp(g_footprint_level - (pc.lod_threshold - 1.0), 0.0, 1.0);
+    if (w >= 1.0) {
+        return bump_hit(ray);
+    }
+    Hit traced = trace_ray(ray, pixel);
+    if (w <= 0.0 || traced.h < 0.0) {
+        return traced;
+    }
+    Hit bump = bump_hit(ray);
+    if (bump.h < 0.0) {
+        return traced;
+    }
+    return Hit(mix(traced.uv, bump.uv, w), mix(traced.h, bump.h, w), traced.iterations + bump.iterations);
+}
 
 void main() {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -100,7 +176,10 @@ void main() {
         return;
     }
     vec4 g = texelFetch(u_ray, pixel, 0);
-    Hit hit = trace_ray(Ray(g.xy, g.zw), pixel);
+    if ((pc.flags & (TRACE_FLAG_AUTO_LEVEL | TRACE_FLAG_LOD)) != 0u) {
+        g_footprint_level = footprint_level(pixel, g.xy);
+    }
+    Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);
     imageStore(u_hit, pixel, vec4(hit.uv, hit.h, float(hit.iterations)));
 }
 

@@ -5,8 +5,5 @@
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
-    if (leaves_domain(ray.uv0)) {
-        return miss(ray, 0u);
-    }
-    return Hit(ray.uv0, height_at(ray.uv0), 1u);
+    return bump_hit(ray);
 }

@@ -34,33 +34,14 @@
 // fetches; every remaining miss dips less than 1e-3 of the depth under the surface.
 //
 // Section 3.4, minification: the traversal stops at a coarsest level (`--max-level`, or
-// with TRACE_FLAG_AUTO_LEVEL the log2 of the pixel's texel footprint from the G-buffer's
-// neighbouring entry points); a hit at a level above 0 is where the ray meets that
-// node's bound, without the bilinear refinement (the surface flattens with distance, as
+// with TRACE_FLAG_AUTO_LEVEL the floor of footprint_level in trace.glsl: the log2 of the
+// pixel's texel footprint from the G-buffer's neighbouring entry points, the same level
+// the LOD blend uses); a hit at a level above 0 is where the ray meets that node's bound, without the bilinear refinement (the surface flattens with distance, as
 // in the paper's Fig. 18).
 //
 // Iterations: one per pyramid fetch, two per refinement, one per quarter check.
 #include "trace.glsl"
 #include "pyramid.glsl"
-
-// Texels a pixel spans: the larger of the entry point's steps to the right and down
-// (tile wraps of uv0 removed for repeat addressing).
-float footprint_texels(ivec2 pixel, vec2 uv0) {
-    float texels = 0.0;
-    for (int a = 0; a < 2; ++a) {
-        ivec2 q = pixel;
-        q[a] += q[a] + 1 < int(pc.frame_size[a]) ? 1 : -1;
-        if (texelFetch(u_depth, q, 0).r <= 0.0) {
-            continue;
-        }
-        vec2 d = texelFetch(u_ray, q, 0).xy - uv0;
-        if (pc.addressing == ADDRESSING_REPEAT) {
-            d -= round(d);
-        }
-        texels = max(texels, length(d * vec2(pc.map_size)));
-    }
-    return texels;
-}
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
     ivec2 n_cells = ivec2(pc.map_size);
@@ -70,8 +51,8 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     int top = int(pc.pyramid_levels) - 1;
     int leaf = min(int(pc.max_level), top);
     if ((pc.flags & TRACE_FLAG_AUTO_LEVEL) != 0u) {
-        float texels = footprint_texels(pixel, ray.uv0);
-        leaf = texels > 1.0 ? min(int(floor(log2(texels))), top) : 0;
+        // The shared footprint level (trace.glsl), set by main().
+        leaf = min(int(floor(g_footprint_level)), top);
     }
     float t_end = 1.0;
     if (pc.addressing == ADDRESSING_CLAMP) {

@@ -1,11 +1,15 @@
 //! The passes of a frame, one file each: `gbuffer` (graphics), `pyramid` (the min-reduce
-//! chain), `dig` (the DIG corner pass), `trace` (the method) and `shade`. Every pass only
+//! chain), `dig` (the DIG corner pass), `trace` (the method) and `shade`; on request
+//! `hit_depth` (the corrected depth of the displaced surface) and `depth_resolve`
+//! (graphics: that depth into a depth attachment). Every pass only
 //! records into a command buffer it is given; the caller places the barriers between
 //! passes (see [`crate::renderer`] for the order and
 //! the layouts each pass expects).
 
+pub mod depth_resolve;
 pub mod dig;
 pub mod gbuffer;
+pub mod hit_depth;
 pub mod pyramid;
 pub mod shade;
 pub mod trace;

@@ -16,7 +16,7 @@
 //!
 //! Each pixel's hit is `(u, v, height, iterations)`; `height < 0` means no hit.
 
-use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TraceParams};
+use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TRACE_FLAG_LOD, TraceParams};
 use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
@@ -148,10 +148,13 @@ impl TracePass {
             writes.push(image_write(NORMAL_BINDING, SAMPLED, &normal));
         }
         let extent = hit.extent;
-        let (max_level, flags) = match params.max_level {
+        let (max_level, mut flags) = match params.max_level {
             MaxLevel::Fixed(l) => (l, 0),
             MaxLevel::Auto => (0, TRACE_FLAG_AUTO_LEVEL),
         };
+        if params.lod_threshold.is_some() {
+            flags |= TRACE_FLAG_LOD;
+        }
         let push = TraceParams {
             frame_size: [extent.width, extent.height],
             map_size: height.size(),
@@ -167,7 +170,8 @@ impl TracePass {
             max_level,
             pyramid_levels: pyramid.map_or(0, Pyramid::levels),
             depth_scale,
-            pad: [0; 2],
+            lod_threshold: params.lod_threshold.unwrap_or(0.0),
+            pad: 0,
         };
         self.pipeline.pipeline.dispatch(
             ctx,

@@ -1,0 +1,218 @@
+//! The `depth_resolve` pass (graphics): writes the corrected depth of the displaced
+//! surface ([`crate::passes::hit_depth`], `R32_SFLOAT`) into a `D32_SFLOAT` depth
+//! attachment with one full-screen triangle whose fragment shader sets `gl_FragDepth`
+//! (`glsl/depth_resolve.vert` / `.frag`), so that geometry drawn afterwards, fog or SSAO
+//! meet the displaced surface instead of the macro polygon. Depth test `ALWAYS`, depth
+//! writes on, no colour attachment: every pixel of the render area gets the source's
+//! value (0, the reverse-Z clear value, where there is no displaced surface).
+//!
+//! `record` expects the source in `SHADER_READ_ONLY_OPTIMAL`, visible to fragment-shader
+//! sampled reads, and the target in `DEPTH_ATTACHMENT_OPTIMAL` (contents discarded: the
+//! pass overwrites every pixel); it leaves the target written in that layout. The two
+//! images have the same size. It begins and ends its own dynamic rendering instance
+//! (the device needs `dynamicRendering`).
+
+use crate::context::Context;
+use crate::error::{Result, VkContext};
+use crate::shaders;
+use ash::vk;
+
+/// The depth format the pass writes.
+pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+/// The depth-resolve pipeline.
+pub struct DepthResolvePass {
+    pipeline: vk::Pipeline,
+    layout: vk::PipelineLayout,
+    set_layout: vk::DescriptorSetLayout,
+    sampler: vk::Sampler,
+}
+
+impl DepthResolvePass {
+    /// Builds the pipeline (dynamic rendering, `D32_SFLOAT` depth attachment only).
+    pub fn new(ctx: &Context) -> Result<Self> {
+        let dev = ctx.device();
+        let sampler = crate::passes::sampler(
+            ctx,
+            "depth_resolve.sampler",
+            vk::Filter::NEAREST,
+            vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        )?;
+        let mut pass = DepthResolvePass {
+            pipeline: vk::Pipeline::null(),
+            layout: vk::PipelineLayout::null(),
+            set_layout: vk::DescriptorSetLayout::null(),
+            sampler,
+        };
+        // On failure `pass` is destroyed with what exists.
+        match pass.build(ctx, dev) {
+            Ok(()) => Ok(pass),
+            Err(e) => {
+                pass.destroy(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    fn build(&mut self, ctx: &Context, dev: &ash::Device) -> Result<()> {
+        let bindings = [vk::DescriptorSetLayoutBinding::default()
+            .binding(0)
+            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+            .descriptor_count(1)
+            .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
+            .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+            .bindings(&bindings);
+        // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
+        self.set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
+            .vk("vkCreateDescriptorSetLayout")?;
+        ctx.set_name(self.set_layout, "depth_resolve.set_layout");
+        let set_layouts = [self.set_layout];
+        let layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
+        // SAFETY: valid device and set layout.
+        self.layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
+            .vk("vkCreatePipelineLayout")?;
+        ctx.set_name(self.layout, "depth_resolve.layout");
+        let vert = shaders::DEPTH_RESOLVE_VERT.module(ctx)?;
+        let frag = match shaders::DEPTH_RESOLVE_FRAG.module(ctx) {
+            Ok(f) => f,
+            Err(e) => {
+                // SAFETY: the module is unused.
+                unsafe { dev.destroy_shader_module(vert, None) };
+                return Err(e);
+            }
+        };
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::VERTEX)
+                .module(vert)
+                .name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(frag)
+                .name(c"main"),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default()
+            .viewport_count(1)
+            .scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(true)
+            .depth_write_enable(true)
+            .depth_compare_op(vk::CompareOp::ALWAYS);
+        let blend = vk::PipelineColorBlendStateCreateInfo::default();
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let mut rendering =
+            vk::PipelineRenderingCreateInfo::default().depth_attachment_format(DEPTH_FORMAT);
+        let info = [vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(self.layout)
+            .push_next(&mut rendering)];
+        // SAFETY: every referenced state lives until the call returns; dynamic rendering
+        // is enabled on the device.
+        let result =
+            unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+        // SAFETY: the modules are not needed after pipeline creation.
+        unsafe {
+            dev.destroy_shader_module(vert, None);
+            dev.destroy_shader_module(frag, None);
+        }
+        self.pipeline = result.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0];
+        ctx.set_name(self.pipeline, "depth_resolve.pipeline");
+        Ok(())
+    }
+
+    /// Records the pass: every pixel of `target` (a `D32_SFLOAT` view of `extent`) gets
+    /// the value of `source` (an `R32_SFLOAT` view of the same size). Layouts: module docs.
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        source: vk::ImageView,
+        target: vk::ImageView,
+        extent: vk::Extent2D,
+    ) {
+        let depth_attachment = vk::RenderingAttachmentInfo::default()
+            .image_view(target)
+            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+            .load_op(vk::AttachmentLoadOp::DONT_CARE)
+            .store_op(vk::AttachmentStoreOp::STORE);
+        let area = vk::Rect2D {
+            offset: vk::Offset2D::default(),
+            extent,
+        };
+        let rendering = vk::RenderingInfo::default()
+            .render_area(area)
+            .layer_count(1)
+            .depth_attachment(&depth_attachment);
+        let viewport = vk::Viewport {
+            x: 0.0,
+            y: 0.0,
+            width: extent.width as f32,
+            height: extent.height as f32,
+            min_depth: 0.0,
+            max_depth: 1.0,
+        };
+        let image_info = [vk::DescriptorImageInfo {
+            sampler: self.sampler,
+            image_view: source,
+            image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        }];
+        let writes = [vk::WriteDescriptorSet::default()
+            .dst_binding(0)
+            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+            .image_info(&image_info)];
+        let dev = ctx.device();
+        // SAFETY: `cmd` is recording outside a render pass (caller's contract); source and
+        // target are alive and in the layouts documented above.
+        unsafe {
+            dev.cmd_begin_rendering(cmd, &rendering);
+            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+            ctx.push_descriptor().cmd_push_descriptor_set(
+                cmd,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.layout,
+                0,
+                &writes,
+            );
+            dev.cmd_set_viewport(cmd, 0, &[viewport]);
+            dev.cmd_set_scissor(cmd, 0, &[area]);
+            dev.cmd_draw(cmd, 3, 1, 0, 0);
+            dev.cmd_end_rendering(cmd);
+        }
+    }
+
+    /// Destroys the pipeline, layouts and sampler. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        let dev = ctx.device();
+        // SAFETY: caller guarantees no pending use; null handles are ignored.
+        unsafe {
+            dev.destroy_pipeline(self.pipeline, None);
+            dev.destroy_pipeline_layout(self.layout, None);
+            dev.destroy_descriptor_set_layout(self.set_layout, None);
+            dev.destroy_sampler(self.sampler, None);
+        }
+        self.pipeline = vk::Pipeline::null();
+        self.layout = vk::PipelineLayout::null();
+        self.set_layout = vk::DescriptorSetLayout::null();
+        self.sampler = vk::Sampler::null();
+    }
+}

@@ -1,0 +1,352 @@
+//! Level of detail (Tatarchuk 2006; `MethodParams::lod_threshold`, `--lod-threshold`):
+//! on a far, minified tiled plane LOD cuts the trace cost of relief, pom and dig at an
+//! error cost measured against the exact reference (README "Level of detail and depth"
+//! lists the numbers), every pixel follows the documented rule (bump beyond the
+//! threshold, the method's own hit below the band, the blend in it), and a magnified
+//! close-up is bit-identical with LOD on and off. Validation on throughout.
+
+mod common;
+
+use common::{assert_validation_clean, asset_map, validated_context};
+use dispmap::heightfield::Convention;
+use dispmap::method::{MaxLevel, Method, MethodParams};
+use dispmap::metrics::{self, ErrorMetrics, HitTexel};
+use dispmap::reference::{Ray, Reference};
+use dispmap::renderer::{RenderSettings, Renderer};
+use dispmap::scene::{Camera, Scene};
+
+const WIDTH: u32 = 256;
+const HEIGHT: u32 = 144;
+
+/// The LOD threshold of the far-plane test: pixels spanning 128 texels or more take bump
+/// mapping, 64 to 128 texels blend (on this scene the footprints span levels 5 to 9).
+const THRESHOLD: f32 = 7.0;
+
+/// Far plane: the eye 2 tiles above the plane looking 10 degrees down, so the 1024^2
+/// rocks map is minified on almost every pixel.
+fn far_scene() -> Scene {
+    Scene {
+        camera: Camera {
+            elevation_deg: 10.0,
+            height: 2.0,
+            ..Camera::default()
+        },
+        ..Scene::default()
+    }
+}
+
+/// Close-up: the eye 0.05 tiles above the plane looking 60 degrees down: every pixel
+/// spans less than a texel (checked below).
+fn close_scene() -> Scene {
+    Scene {
+        camera: Camera {
+            elevation_deg: 60.0,
+            height: 0.05,
+            ..Camera::default()
+        },
+        ..Scene::default()
+    }
+}
+
+fn settings(method: Method, scene: Scene, lod: Option<f32>) -> RenderSettings {
+    RenderSettings {
+        width: WIDTH,
+        height: HEIGHT,
+        method,
+        params: MethodParams {
+            lod_threshold: lod,
+            ..MethodParams::for_method(method)
+        },
+        scene,
+    }
+}
+
+/// The CPU twin of `footprint_level` in glsl/common/trace.glsl: log2 of the larger uv0
+/// step (in texels, tile wraps removed) to the right / lower neighbour (left / upper at
+/// the last column / row), 0 when magnified or without neighbours.
+fn footprint_levels(rays: &[Option<Ray>], map: [u32; 2]) -> Vec<Option<f64>> {
+    let (w, h) = (WIDTH as usize, HEIGHT as usize);
+    (0..w * h)
+        .map(|i| {
+            let ray = rays[i].as_ref()?;
+            let (x, y) = (i % w, i / w);
+            let mut texels: f64 = 0.0;
+            for (q, ok) in [
+                (if x + 1 < w { i + 1 } else { i.wrapping_sub(1) }, w > 1),
+                (if y + 1 < h { i + w } else { i.wrapping_sub(w) }, h > 1),
+            ] {
+                if !ok {
+                    continue;
+                }
+                if let Some(n) = &rays[q] {
+                    let mut d = [n.uv0[0] - ray.uv0[0], n.uv0[1] - ray.uv0[1]];
+                    for c in &mut d {
+                        *c -= c.round();
+                    }
+                    let t = (d[0] * map[0] as f64).hypot(d[1] * map[1] as f64);
+                    texels = texels.max(t);
+                }
+            }
+            Some(texels.max(1.0).log2())
+        })
+        .collect()
+}
+
+fn bits(t: &HitTexel) -> [u32; 4] {
+    t.map(f32::to_bits)
+}
+
+/// One method's far-plane numbers with LOD off and on.
+struct Row {
+    method: Method,
+    off: ErrorMetrics,
+    on: ErrorMetrics,
+    /// Mean hit distance in pixel footprints (texels / texels per pixel), off and on.
+    footprints: [f64; 2],
+    /// Pixels per LOD region: untouched, blended, bump.
+    regions: [usize; 3],
+}
+
+/// Measured bounds (the measured value plus a small margin; README lists the values).
+/// Iterations: LOD-on mean over LOD-off mean (measured 0.519 relief, 0.470 pom, 0.480
+/// dig).
+const MAX_ITERATION_RATIO: f64 = 0.55;
+/// artifact_fraction, mean_texels and the mean distance in pixel footprints with LOD on,
+/// per method (measured: 76.32% / 343.59 / 1.127 relief, 77.74% / 343.54 / 1.127 pom,
+/// 76.38% / 343.66 / 1.128 dig; off: 8.2% / 323.8 / 0.775, 33.2% / 324.7 / 0.782,
+/// 9.6% / 330.6 / 0.797). On a minified plane a pixel spans 32 to 512 texels, so the
+/// one-texel artifact criterion counts nearly every bump pixel; the footprint distance
+/// says how far the hit moves on screen.
+fn error_bound(method: Method) -> (f64, f64, f64) {
+    match method {
+        Method::Relief => (0.775, 346.0, 1.14),
+        Method::Pom => (0.79, 346.0, 1.14),
+        Method::Dig => (0.775, 346.0, 1.14),
+        _ => unreachable!(),
+    }
+}
+
+#[test]
+fn lod_on_a_far_plane_trades_error_for_iterations() {
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let scene = far_scene();
+    let reference = Reference::new(&field, scene.addressing());
+    let mut renderer = Renderer::new(&ctx, &field, settings(Method::Bump, scene, None)).unwrap();
+    let frame_ref = renderer.reference(&reference).unwrap();
+    let map = [field.width(), field.height()];
+    let levels = footprint_levels(&frame_ref.rays, map);
+    let covered = levels.iter().flatten().count();
+    let minified = levels.iter().flatten().filter(|&&l| l >= 1.0).count();
+    println!("far plane: {covered} covered pixels, {minified} minified (> 2 texels per pixel)");
+    let mut histogram = [0usize; 12];
+    for l in levels.iter().flatten() {
+        histogram[(l.floor() as usize).min(11)] += 1;
+    }
+    println!("pixels per footprint level (floor, 0..=11+): {histogram:?}");
+    assert!(
+        minified * 10 >= covered * 9,
+        "the far plane is not minified enough"
+    );
+
+    renderer.render().unwrap();
+    let bump = renderer.read_hits().unwrap();
+    let l = f64::from(THRESHOLD);
+    // Within this of a region boundary the f32 GPU level may fall on either side.
+    let margin = 1e-3;
+    let mut rows = Vec::new();
+    for method in [Method::Relief, Method::Pom, Method::Dig] {
+        let s = settings(method, scene, None);
+        renderer.set_method(method, s.params).unwrap();
+        let off = renderer.measure(&frame_ref, 1).unwrap();
+        let s = settings(method, scene, Some(THRESHOLD));
+        renderer.set_method(method, s.params).unwrap();
+        let on = renderer.measure(&frame_ref, 1).unwrap();
+        assert_eq!(on.error.nonfinite_pixels, 0, "{method}");
+
+        // Every pixel follows the rule of trace_lod (glsl/common/trace.glsl).
+        let mut regions = [0usize; 3];
+        for (i, level) in levels.iter().enumerate() {
+            let Some(level) = *level else { continue };
+            let (traced, blended, b) = (off.hits[i], on.hits[i], bump[i]);
+            if level >= l + margin {
+                regions[2] += 1;
+                assert_eq!(
+                    bits(&blended),
+                    bits(&b),
+                    "{method} pixel {i}: not the bump hit"
+                );
+            } else if level <= l - 1.0 - margin {
+                regions[0] += 1;
+                assert_eq!(bits(&blended), bits(&traced), "{method} pixel {i}: changed");
+            } else if level > l - 1.0 + margin && level < l - margin {
+                regions[1] += 1;
+                let w = (level - (l - 1.0)) as f32;
+                for c in 0..3 {
+                    let want = traced[c] + (b[c] - traced[c]) * w;
+                    let tol = 1e-3 * (b[c] - traced[c]).abs() + 1e-6;
+                    assert!(
+                        (blended[c] - want).abs() <= tol,
+                        "{method} pixel {i} channel {c}: {} vs blend {want} (w {w})",
+                        blended[c]
+                    );
+                }
+                assert_eq!(
+                    blended[3],
+                    traced[3] + 1.0,
+                    "{method} pixel {i}: iterations"
+                );
+            }
+        }
+        let geo = renderer.map_geometry();
+        let footprints = [&off.hits, &on.hits].map(|hits| {
+            let d: Vec<f64> = (0..hits.len())
+                .filter_map(|i| {
+                    let (Some(level), Some(want)) = (levels[i], frame_ref.hits[i]) else {
+                        return None;
+                    };
+                    (hits[i][2] >= 0.0)
+                        .then(|| metrics::hit_distance_texels(&hits[i], &want, geo) / level.exp2())
+                })
+                .collect();
+            d.iter().sum::<f64>() / d.len().max(1) as f64
+        });
+        rows.push(Row {
+            method,
+            off: off.error,
+            on: on.error,
+            footprints,
+            regions,
+        });
+    }
+    println!(
+        "threshold {THRESHOLD}: method | iterations off -> on | artifact% off -> on | \
+         mean texels off -> on | mean pixel footprints off -> on | PSNR off -> on | \
+         pixels untouched / blended / bump"
+    );
+    for r in &rows {
+        println!(
+            "{:7} | {:6.2} -> {:5.2} ({:.3}x) | {:6.2} -> {:6.2} | {:7.3} -> {:7.3} | {:5.3} -> {:5.3} | {:5.2} -> {:5.2} | {:?}",
+            r.method.name(),
+            r.off.mean_iterations,
+            r.on.mean_iterations,
+            r.on.mean_iterations / r.off.mean_iterations,
+            100.0 * r.off.artifact_fraction,
+            100.0 * r.on.artifact_fraction,
+            r.off.mean_texels,
+            r.on.mean_texels,
+            r.footprints[0],
+            r.footprints[1],
+            r.off.psnr_db,
+            r.on.psnr_db,
+            r.regions
+        );
+    }
+    for r in &rows {
+        let ratio = r.on.mean_iterations / r.off.mean_iterations;
+        assert!(
+            ratio <= MAX_ITERATION_RATIO,
+            "{}: LOD keeps {ratio:.3} of the iterations",
+            r.method
+        );
+        let (artifacts, texels, footprints) = error_bound(r.method);
+        assert!(
+            r.on.artifact_fraction <= artifacts
+                && r.on.mean_texels <= texels
+                && r.footprints[1] <= footprints,
+            "{}: LOD error {} artifacts, {} mean texels, {} footprints over the bound",
+            r.method,
+            r.on.artifact_fraction,
+            r.on.mean_texels,
+            r.footprints[1]
+        );
+        assert!(
+            r.regions.iter().all(|&n| n > 0),
+            "{}: {:?}",
+            r.method,
+            r.regions
+        );
+    }
+    drop(renderer);
+    assert_validation_clean(&ctx);
+}
+
+#[test]
+fn lod_leaves_a_magnified_close_up_bit_identical() {
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let scene = close_scene();
+    let mut renderer = Renderer::new(&ctx, &field, settings(Method::Relief, scene, None)).unwrap();
+    renderer.render().unwrap();
+    let rays = renderer.read_rays().unwrap();
+    let levels = footprint_levels(&rays, [field.width(), field.height()]);
+    // (The G-buffer leaves part of the last column empty on this close-up: the clipped
+    // 8192-tile plane falls short of the frame's right edge by a fraction of a pixel.
+    // Those pixels have no ray and are equal in both frames.)
+    let covered = levels.iter().flatten().count();
+    assert!(
+        covered * 100 >= levels.len() * 99,
+        "the close-up has sky: {covered} covered"
+    );
+    let max_level = levels.iter().flatten().copied().fold(0.0, f64::max);
+    assert_eq!(max_level, 0.0, "the close-up is not magnified everywhere");
+    for method in [Method::Relief, Method::Pom, Method::Dig, Method::Pyramid] {
+        let mut frames = Vec::new();
+        for lod in [None, Some(1.0)] {
+            let mut s = settings(method, scene, lod);
+            if method == Method::Pyramid {
+                s.params.max_level = MaxLevel::Auto;
+            }
+            renderer.set_method(method, s.params).unwrap();
+            renderer.render().unwrap();
+            frames.push((
+                renderer.read_hits().unwrap(),
+                renderer.read_color().unwrap(),
+            ));
+        }
+        let (off, on) = (&frames[0], &frames[1]);
+        let differing = off
+            .0
+            .iter()
+            .zip(&on.0)
+            .filter(|(a, b)| bits(a) != bits(b))
+            .count();
+        assert_eq!(
+            differing, 0,
+            "{method}: {differing} hits differ with LOD on"
+        );
+        assert!(off.1 == on.1, "{method}: the shaded frames differ");
+    }
+    drop(renderer);
+    assert_validation_clean(&ctx);
+}
+
+#[test]
+fn pyramid_auto_level_uses_the_footprint_level() {
+    // Oh et al. 3.4 through the shared footprint function: on the far plane the automatic
+    // coarsest level must cut the traversal, and stay finite.
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let scene = far_scene();
+    let reference = Reference::new(&field, scene.addressing());
+    let mut renderer = Renderer::new(&ctx, &field, settings(Method::Pyramid, scene, None)).unwrap();
+    let frame_ref = renderer.reference(&reference).unwrap();
+    let full = renderer.measure(&frame_ref, 1).unwrap();
+    let mut s = settings(Method::Pyramid, scene, None);
+    s.params.max_level = MaxLevel::Auto;
+    renderer.set_method(Method::Pyramid, s.params).unwrap();
+    let auto = renderer.measure(&frame_ref, 1).unwrap();
+    println!(
+        "pyramid far plane: iterations {:.2} -> {:.2} (auto), artifacts {:.2}% -> {:.2}%, mean texels {:.3} -> {:.3}",
+        full.error.mean_iterations,
+        auto.error.mean_iterations,
+        100.0 * full.error.artifact_fraction,
+        100.0 * auto.error.artifact_fraction,
+        full.error.mean_texels,
+        auto.error.mean_texels
+    );
+    assert_eq!(auto.error.nonfinite_pixels, 0);
+    assert!(auto.error.mean_iterations < full.error.mean_iterations);
+    drop(renderer);
+    assert_validation_clean(&ctx);
+}
