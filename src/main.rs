@@ -178,7 +178,7 @@ struct CommonArgs {
     /// Level of detail, every method (off by default): pixels whose texel footprint is at
     /// least 2^L texels take the bump result without tracing; between 2^(L-1) and 2^L
     /// the traced hit is blended toward it.
-    #[arg(long, value_name = "L")]
+    #[arg(long, value_name = "L", allow_negative_numbers = true)]
     lod_threshold: Option<f32>,
     /// Displacement depth in tile units.
     #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]

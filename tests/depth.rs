@@ -586,3 +586,81 @@ fn destroy_all(
     depth.destroy(ctx);
     shot.destroy(ctx);
 }
+
+fn dispmap_cli() -> std::process::Command {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_dispmap"));
+    c.env("DISPMAP_VALIDATION", "1");
+    c
+}
+
+#[test]
+fn cli_depth_out_writes_the_corrected_depth() {
+    let dir = std::env::temp_dir().join(format!("dispmap-depth-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let map =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/heightmaps/rocks_depth.jpg");
+    let run = |depth_out: &std::path::Path, extra: &[&str]| {
+        dispmap_cli()
+            .args(["render", "--heightmap"])
+            .arg(&map)
+            .args([
+                "--convention",
+                "depth",
+                "--method",
+                "exact",
+                "--size",
+                "64x36",
+            ])
+            .args(["--camera-elevation", "15", "--frames", "1", "--out"])
+            .arg(dir.join("color.png"))
+            .arg("--depth-out")
+            .arg(depth_out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let (exr, png) = (dir.join("depth.exr"), dir.join("depth.png"));
+    for path in [&exr, &png] {
+        let out = run(path, &[]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(!stderr.contains("Validation"), "{stderr}");
+    }
+
+    // The same frame through the library.
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let mut s = settings(Geometry::TiledPlane, 15.0);
+    (s.width, s.height) = (64, 36);
+    let mut renderer = Renderer::new(&ctx, &field, s).unwrap();
+    renderer.set_depth_output(true).unwrap();
+    renderer.render().unwrap();
+    let want = renderer.read_depth().unwrap().unwrap();
+    drop(renderer);
+    assert_validation_clean(&ctx);
+
+    let got = image::open(&exr).unwrap().to_rgb32f();
+    assert_eq!((got.width(), got.height()), (64, 36));
+    let red: Vec<f32> = got.pixels().map(|p| p.0[0]).collect();
+    assert_eq!(red, want, "the EXR holds the renderer's corrected depth");
+    assert!(want.iter().any(|&d| d == 0.0) && want.iter().any(|&d| d > 0.0));
+    let grey = image::open(&png).unwrap().to_luma16();
+    for (g, d) in grey.pixels().zip(&want) {
+        assert_eq!(g.0[0], (d.clamp(0.0, 1.0) * 65535.0).round() as u16);
+    }
+
+    // Bad outputs are named and leave no file.
+    let bad = dir.join("depth.tif");
+    let out = run(&bad, &[]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--depth-out"));
+    assert!(!bad.exists());
+    let missing = dir.join("no-such-folder").join("depth.exr");
+    let out = run(&missing, &[]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--depth-out"));
+    let out = run(&exr, &["--lod-threshold", "-1"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("lod-threshold"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
