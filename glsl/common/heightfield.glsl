@@ -3,9 +3,14 @@
 #ifndef DISPMAP_HEIGHTFIELD_GLSL
 #define DISPMAP_HEIGHTFIELD_GLSL
 
+// The mip level height_at samples: 0 (the map itself) unless the trace pass sets it to
+// the pixel's footprint level (level of detail on, glsl/common/trace.glsl), where the
+// box-filtered mip chain (src/gpu/height_texture.rs) keeps the marchers from aliasing.
+float g_height_lod = 0.0;
+
 // Bilinear height in [0, 1] (1 = macro surface) at uv; texel centres at (i + 0.5) / W.
 float height_at(vec2 uv) {
-    return textureLod(u_height, uv, 0.0).r;
+    return textureLod(u_height, uv, g_height_lod).r;
 }
 
 // Tangent-space normal (z out of the surface) of the displaced surface at uv.

@@ -137,16 +137,21 @@ Hit bump_hit(Ray ray) {
 
 Hit trace_ray(Ray ray, ivec2 pixel);
 
-// trace_ray with the LOD blend (TRACE_FLAG_LOD, Tatarchuk 2006 section 5.4). With the
-// pixel's level l and the threshold L, w = clamp(l - (L - 1), 0, 1):
+// trace_ray with the LOD blend (TRACE_FLAG_LOD; Tatarchuk 2006 section 3.3: bump mapping
+// beyond a threshold mip level, and near it "the fractional part of the current mip
+// level as the interpolation parameter"). With the pixel's footprint level l and the
+// threshold L, w = clamp(l - (L - 1), 0, 1):
 //   w = 0 (l <= L - 1): the method's hit, untouched;
 //   w = 1 (l >= L): the bump hit (uv0, H(uv0)) without tracing (1 fetch);
 //   in between: the traced hit blended toward the bump hit, (u, v, h) = mix(traced,
 //   bump, w): the hit point slides along the straight line from the traced point to the
 //   surface point under the entry, so the parallax offset fades out continuously and the
-//   shading normal, read at the blended uv, with it. A traced miss (a clamp-addressed ray
-//   leaving the decal) stays a miss in the band, keeping the silhouette until bump
-//   mapping takes over. Iterations: the trace's plus the bump fetch.
+//   shading normal, read at the blended uv, with it (the paper lerps the two lit
+//   colours; a hit buffer holds points, and shading the lerped point is the same
+//   transition for one shade pass). A traced miss (a clamp-addressed ray leaving the
+//   decal) stays a miss in the band, keeping the silhouette until bump mapping takes
+//   over. Iterations: the trace's plus the bump fetch. Every height_at here (the
+//   method's and the bump fetch) samples the mip chain at level l (main).
 Hit trace_lod(Ray ray, ivec2 pixel) {
     if ((pc.flags & TRACE_FLAG_LOD) == 0u) {
         return trace_ray(ray, pixel);
@@ -178,6 +183,12 @@ void main() {
     vec4 g = texelFetch(u_ray, pixel, 0);
     if ((pc.flags & (TRACE_FLAG_AUTO_LEVEL | TRACE_FLAG_LOD)) != 0u) {
         g_footprint_level = footprint_level(pixel, g.xy);
+    }
+    if ((pc.flags & TRACE_FLAG_LOD) != 0u) {
+        // The marchers' height_at (and the bump fallback) sample the prefiltered map at
+        // the footprint level; the exact texel reads (texel_height: pyramid, exact, the
+        // DIG guard) stay on level 0.
+        g_height_lod = g_footprint_level;
     }
     Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);
     imageStore(u_hit, pixel, vec4(hit.uv, hit.h, float(hit.iterations)));

@@ -10,7 +10,8 @@
 //      exit at the first sample on or below the surface.
 //   3. The hit is the intersection of the ray with the line through the last two height
 //      samples (the paper's piecewise-linear approximation of the height profile).
-// Not here: the soft shadows and the LOD blend to bump mapping belong to shading.
+// Not here: the soft shadows (shading) and the LOD blend to bump mapping (trace_lod in
+// trace.glsl, shared by every method).
 #include "trace.glsl"
 
 uint pom_sample_count(Ray ray) {

@@ -1,7 +1,13 @@
 //! The height field on the GPU: a sampled image at the map's precision and a linear
 //! sampler with the map's addressing.
+//!
+//! The image has a mip chain (box-filtered by linear 2:1 blits) where the format supports
+//! linear blits; every method reads level 0 (`textureLod(.., 0)`, `texelFetch(.., 0)`)
+//! unless level of detail is on, when the marchers sample at the pixel's footprint level
+//! (`glsl/common/heightfield.glsl`). Without blit support the image has one level and the
+//! level-of-detail sampling reads level 0.
 
-use super::commands::{OneShot, upload_image};
+use super::commands::OneShot;
 use super::sync::{self, Access};
 use super::{Buffer, Image};
 use crate::context::Context;
@@ -22,43 +28,26 @@ pub struct HeightTexture {
 }
 
 impl HeightTexture {
-    /// Uploads `field` and leaves it readable by compute shaders.
+    /// Uploads `field` (and builds its mip chain) and leaves it readable by compute
+    /// shaders.
     pub fn upload(
         ctx: &Context,
         shot: &OneShot,
         field: &HeightField,
         addressing: Addressing,
     ) -> Result<Self> {
-        let extent = vk::Extent2D {
-            width: field.width(),
-            height: field.height(),
-        };
-        let mut image = Image::new(
-            ctx,
-            &format!("heightfield[{}]", field.label()),
-            field.format(),
-            extent,
-            1,
-            vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
-        )?;
-        if let Err(e) = upload_image(ctx, shot, &image, field.bytes(), Access::COMPUTE_SAMPLED) {
-            image.destroy(ctx);
+        let (mut texture, mut staging) = Self::create_for_upload(ctx, field, addressing)?;
+        let result = (|| {
+            let cmd = shot.begin(ctx)?;
+            texture.record_upload(ctx, cmd, &staging);
+            shot.submit_and_wait(ctx)
+        })();
+        staging.destroy(ctx);
+        if let Err(e) = result {
+            texture.destroy(ctx);
             return Err(e);
         }
-        let mode = address_mode(addressing);
-        let sampler =
-            match crate::passes::sampler(ctx, "heightfield.sampler", vk::Filter::LINEAR, mode) {
-                Ok(s) => s,
-                Err(e) => {
-                    image.destroy(ctx);
-                    return Err(e);
-                }
-            };
-        Ok(HeightTexture {
-            image,
-            sampler,
-            addressing,
-        })
+        Ok(texture)
     }
 
     /// Creates the image and sampler without touching a queue, plus a filled staging
@@ -88,16 +77,22 @@ impl HeightTexture {
             }
         }
         let texture = (|| {
+            let extent = vk::Extent2D {
+                width: field.width(),
+                height: field.height(),
+            };
+            let levels = mip_levels(ctx, field.format(), extent);
+            let mut usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
+            if levels > 1 {
+                usage |= vk::ImageUsageFlags::TRANSFER_SRC;
+            }
             let mut image = Image::new(
                 ctx,
                 &format!("heightfield[{}]", field.label()),
                 field.format(),
-                vk::Extent2D {
-                    width: field.width(),
-                    height: field.height(),
-                },
-                1,
-                vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
+                extent,
+                levels,
+                usage,
             )?;
             match crate::passes::sampler(
                 ctx,
@@ -125,31 +120,41 @@ impl HeightTexture {
         }
     }
 
-    /// Records the copy of `staging` (from [`HeightTexture::create_for_upload`]) into the
-    /// image: discarded -> `TRANSFER_DST_OPTIMAL`, copy, -> `SHADER_READ_ONLY_OPTIMAL`
-    /// visible to compute-shader sampled reads.
+    /// Records the copy of `staging` (from [`HeightTexture::create_for_upload`]) into
+    /// level 0 and the mip chain: every level discarded -> `TRANSFER_DST_OPTIMAL`, copy,
+    /// then per level a linear 2:1 blit from the level above (the box average of the
+    /// heights, for the level-of-detail sampling; level 0 stays the map, bit for bit),
+    /// and every level -> `SHADER_READ_ONLY_OPTIMAL` visible to
+    /// compute-shader sampled reads. All transfer work is in the `ALL_TRANSFER` stage.
     pub fn record_upload(&self, ctx: &Context, cmd: vk::CommandBuffer, staging: &Buffer) {
-        let range = self.image.range();
+        let image = &self.image;
+        let level = |l: u32| vk::ImageSubresourceRange {
+            base_mip_level: l,
+            level_count: 1,
+            ..image.range()
+        };
         sync::record(
             ctx,
             cmd,
             &[sync::image_barrier(
-                self.image.raw,
-                range,
+                image.raw,
+                image.range(),
                 Access::UNDEFINED,
-                Access::TRANSFER_WRITE,
+                TRANSFER_WRITE,
             )],
         );
+        let aspect = image.range().aspect_mask;
+        let layers = |l: u32| vk::ImageSubresourceLayers {
+            aspect_mask: aspect,
+            mip_level: l,
+            base_array_layer: 0,
+            layer_count: 1,
+        };
         let region = vk::BufferImageCopy::default()
-            .image_subresource(vk::ImageSubresourceLayers {
-                aspect_mask: range.aspect_mask,
-                mip_level: 0,
-                base_array_layer: 0,
-                layer_count: 1,
-            })
+            .image_subresource(layers(0))
             .image_extent(vk::Extent3D {
-                width: self.image.extent.width,
-                height: self.image.extent.height,
+                width: image.extent.width,
+                height: image.extent.height,
                 depth: 1,
             });
         // SAFETY: `cmd` is recording outside a render pass (caller's contract); the buffer
@@ -158,21 +163,66 @@ impl HeightTexture {
             ctx.device().cmd_copy_buffer_to_image(
                 cmd,
                 staging.raw,
-                self.image.raw,
+                image.raw,
                 vk::ImageLayout::TRANSFER_DST_OPTIMAL,
                 &[region],
             )
         };
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                self.image.raw,
-                range,
-                Access::TRANSFER_WRITE,
+        let corner = |l: u32| vk::Offset3D {
+            x: (image.extent.width >> l).max(1) as i32,
+            y: (image.extent.height >> l).max(1) as i32,
+            z: 1,
+        };
+        for l in 1..image.mip_levels {
+            sync::record(
+                ctx,
+                cmd,
+                &[sync::image_barrier(
+                    image.raw,
+                    level(l - 1),
+                    TRANSFER_WRITE,
+                    TRANSFER_READ,
+                )],
+            );
+            let blit = vk::ImageBlit::default()
+                .src_subresource(layers(l - 1))
+                .src_offsets([vk::Offset3D::default(), corner(l - 1)])
+                .dst_subresource(layers(l))
+                .dst_offsets([vk::Offset3D::default(), corner(l)]);
+            // SAFETY: as above; the levels are in the layouts named, the format supports
+            // linear blits (checked by `mip_levels`).
+            unsafe {
+                ctx.device().cmd_blit_image(
+                    cmd,
+                    image.raw,
+                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                    image.raw,
+                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                    &[blit],
+                    vk::Filter::LINEAR,
+                )
+            };
+        }
+        let last = image.mip_levels - 1;
+        let mut done = vec![sync::image_barrier(
+            image.raw,
+            level(last),
+            TRANSFER_WRITE,
+            Access::COMPUTE_SAMPLED,
+        )];
+        if last > 0 {
+            done.push(sync::image_barrier(
+                image.raw,
+                vk::ImageSubresourceRange {
+                    base_mip_level: 0,
+                    level_count: last,
+                    ..image.range()
+                },
+                TRANSFER_READ,
                 Access::COMPUTE_SAMPLED,
-            )],
-        );
+            ));
+        }
+        sync::record(ctx, cmd, &done);
     }
 
     /// Size in texels.
@@ -195,6 +245,38 @@ impl HeightTexture {
         // SAFETY: caller guarantees no pending use.
         unsafe { ctx.device().destroy_sampler(self.sampler, None) };
         self.sampler = vk::Sampler::null();
+    }
+}
+
+/// Transfer writes (copy and blit destinations).
+const TRANSFER_WRITE: Access = Access {
+    stage: vk::PipelineStageFlags2::ALL_TRANSFER,
+    access: vk::AccessFlags2::TRANSFER_WRITE,
+    layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+};
+
+/// Transfer reads (blit sources).
+const TRANSFER_READ: Access = Access {
+    stage: vk::PipelineStageFlags2::ALL_TRANSFER,
+    access: vk::AccessFlags2::TRANSFER_READ,
+    layout: vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+};
+
+/// The full mip chain of `extent` when `format` supports linear blits (sources and
+/// destinations, optimal tiling), else 1.
+fn mip_levels(ctx: &Context, format: vk::Format, extent: vk::Extent2D) -> u32 {
+    // SAFETY: the physical device belongs to the context's instance.
+    let props = unsafe {
+        ctx.instance()
+            .get_physical_device_format_properties(ctx.physical_device(), format)
+    };
+    let needed = vk::FormatFeatureFlags::BLIT_SRC
+        | vk::FormatFeatureFlags::BLIT_DST
+        | vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR;
+    if props.optimal_tiling_features.contains(needed) {
+        32 - extent.width.max(extent.height).leading_zeros()
+    } else {
+        1
     }
 }
 
