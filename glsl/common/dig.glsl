@@ -6,7 +6,6 @@
 #define DISPMAP_DIG_GLSL
 
 layout(set = 0, binding = 5) uniform sampler2D u_corners;
-layout(set = 0, binding = 6) uniform sampler2D u_normal;
 
 // The interval [h_bottom, h_top] of the pixel's block (equation 1 in heights: the
 // corners' min - eps2 and max + eps1, clamped to [0, 1]). False when the block's corners

@@ -18,6 +18,8 @@ layout(set = 0, binding = 1) uniform sampler2D u_depth;
 layout(set = 0, binding = 2) uniform sampler2D u_height;
 // The hit buffer.
 layout(set = 0, binding = 3, rgba32f) uniform writeonly image2D u_hit;
+// G-buffer normal; w = surface id (DIG's corner test, the footprint's neighbours).
+layout(set = 0, binding = 6) uniform sampler2D u_normal;
 
 layout(push_constant) uniform TraceParams {
     uvec2 frame_size;   // pixels
@@ -95,15 +97,17 @@ Hit relief_search(Ray ray, inout uint iterations) {
 // The texels one pixel spans: the larger of the entry point's steps to the right and
 // down neighbours (the left / upper one at the frame's last column / row), with the tile
 // wraps of uv0 (reduced to [0, 1) for repeat addressing) removed by taking the nearest
-// image of the difference. A neighbour without geometry gives no step; with neither, the
+// image of the difference. A neighbour without geometry or on another surface (another
+// chart: its uvs are not continuous with this pixel's) gives no step; with neither, the
 // footprint is 0 (no minification known: full detail). Compute shaders have no implicit
 // derivatives, so this is the finite-difference |d uv / d pixel| the hardware would use.
 float footprint_texels(ivec2 pixel, vec2 uv0) {
     float texels = 0.0;
+    float surface = texelFetch(u_normal, pixel, 0).w;
     for (int a = 0; a < 2; ++a) {
         ivec2 q = pixel;
         q[a] += q[a] + 1 < int(pc.frame_size[a]) ? 1 : -1;
-        if (q[a] < 0 || texelFetch(u_depth, q, 0).r <= 0.0) {
+        if (q[a] < 0 || texelFetch(u_depth, q, 0).r <= 0.0 || texelFetch(u_normal, q, 0).w != surface) {
             continue;
         }
         vec2 d = texelFetch(u_ray, q, 0).xy - uv0;

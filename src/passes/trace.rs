@@ -10,9 +10,9 @@
 //! | 3 | hit buffer (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
 //! | 4 | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 5 | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 6 | G-buffer `normal` (`w`: surface id; `dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 6 | G-buffer `normal` (`w`: surface id; the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
 //!
-//! A method's pipeline declares only the bindings its [`Needs`] name.
+//! A method's pipeline declares bindings 4 and 5 only when its [`Needs`] name them.
 //!
 //! Each pixel's hit is `(u, v, height, iterations)`; `height < 0` means no hit.
 
@@ -40,13 +40,18 @@ const NORMAL_BINDING: u32 = 6;
 
 /// The bindings of a method with `needs`.
 fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
-    let mut b = vec![(0, SAMPLED), (1, SAMPLED), (2, SAMPLED), (3, STORAGE)];
+    let mut b = vec![
+        (0, SAMPLED),
+        (1, SAMPLED),
+        (2, SAMPLED),
+        (3, STORAGE),
+        (NORMAL_BINDING, SAMPLED),
+    ];
     if needs.pyramid.is_some() {
         b.push((PYRAMID_BINDING, SAMPLED));
     }
     if needs.dig_corners {
         b.push((CORNERS_BINDING, SAMPLED));
-        b.push((NORMAL_BINDING, SAMPLED));
     }
     b
 }
@@ -54,7 +59,7 @@ fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
 /// The images the trace pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct TraceInputs<'a> {
-    /// The G-buffer (ray and depth are read; normal by the DIG methods).
+    /// The G-buffer (ray, depth and normal are read).
     pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
@@ -139,13 +144,13 @@ impl TracePass {
             image_write(1, SAMPLED, &depth),
             image_write(2, SAMPLED, &heights),
             image_write(3, STORAGE, &hits),
+            image_write(NORMAL_BINDING, SAMPLED, &normal),
         ];
         if let Some(p) = &pyramids {
             writes.push(image_write(PYRAMID_BINDING, SAMPLED, p));
         }
         if let Some(g) = &grid {
             writes.push(image_write(CORNERS_BINDING, SAMPLED, g));
-            writes.push(image_write(NORMAL_BINDING, SAMPLED, &normal));
         }
         let extent = hit.extent;
         let (max_level, mut flags) = match params.max_level {
