@@ -2,8 +2,9 @@
 //! on a far, minified tiled plane LOD cuts the trace cost of relief, pom and dig at an
 //! error cost measured against the exact reference (README "Level of detail and depth"
 //! lists the numbers), every pixel follows the documented rule (bump beyond the
-//! threshold, the method's own hit below the band, the blend in it), and a magnified
-//! close-up is bit-identical with LOD on and off. Validation on throughout.
+//! threshold, the method's own hit below the band, the blend in it, a decal's misses
+//! kept in the band), and a magnified close-up is bit-identical with LOD on and off.
+//! Validation on throughout.
 
 mod common;
 
@@ -126,6 +127,62 @@ fn error_bound(method: Method) -> (f64, f64, f64) {
     }
 }
 
+/// Checks every pixel of `on` (LOD at `threshold`) against the rule of `trace_lod`
+/// (glsl/common/trace.glsl), given the method's hits with the same mip sampling and no
+/// blend (`mipped`) and the bump hits with it (`bump`). Returns the pixels per region:
+/// untouched, blended, bump. Pixels within 1e-3 of a region boundary are skipped (the
+/// GPU's f32 level may fall on either side).
+fn check_lod_rule(
+    method: Method,
+    levels: &[Option<f64>],
+    threshold: f32,
+    mipped: &[HitTexel],
+    on: &[HitTexel],
+    bump: &[HitTexel],
+) -> [usize; 3] {
+    let l = f64::from(threshold);
+    let margin = 1e-3;
+    let mut regions = [0usize; 3];
+    for (i, level) in levels.iter().enumerate() {
+        let Some(level) = *level else { continue };
+        let (traced, blended, b) = (mipped[i], on[i], bump[i]);
+        if level >= l + margin {
+            regions[2] += 1;
+            assert_eq!(
+                bits(&blended),
+                bits(&b),
+                "{method} pixel {i}: not the bump hit"
+            );
+        } else if level <= l - 1.0 - margin {
+            regions[0] += 1;
+            assert_eq!(bits(&blended), bits(&traced), "{method} pixel {i}: changed");
+        } else if level > l - 1.0 + margin && level < l - margin {
+            regions[1] += 1;
+            if traced[2] < 0.0 {
+                // A traced miss (a decal's silhouette) stays a miss in the band.
+                assert_eq!(bits(&blended), bits(&traced), "{method} pixel {i}: miss");
+                continue;
+            }
+            let w = (level - (l - 1.0)) as f32;
+            for c in 0..3 {
+                let want = traced[c] + (b[c] - traced[c]) * w;
+                let tol = 1e-3 * (b[c] - traced[c]).abs() + 1e-6;
+                assert!(
+                    (blended[c] - want).abs() <= tol,
+                    "{method} pixel {i} channel {c}: {} vs blend {want} (w {w})",
+                    blended[c]
+                );
+            }
+            assert_eq!(
+                blended[3],
+                traced[3] + 1.0,
+                "{method} pixel {i}: iterations"
+            );
+        }
+    }
+    regions
+}
+
 #[test]
 fn lod_on_a_far_plane_trades_error_for_iterations() {
     let ctx = validated_context();
@@ -158,9 +215,6 @@ fn lod_on_a_far_plane_trades_error_for_iterations() {
         .unwrap();
     renderer.render().unwrap();
     let bump = renderer.read_hits().unwrap();
-    let l = f64::from(THRESHOLD);
-    // Within this of a region boundary the f32 GPU level may fall on either side.
-    let margin = 1e-3;
     let mut rows = Vec::new();
     for method in [Method::Relief, Method::Pom, Method::Dig] {
         let s = settings(method, scene, None);
@@ -175,39 +229,7 @@ fn lod_on_a_far_plane_trades_error_for_iterations() {
         assert_eq!(on.error.nonfinite_pixels, 0, "{method}");
 
         // Every pixel follows the rule of trace_lod (glsl/common/trace.glsl).
-        let mut regions = [0usize; 3];
-        for (i, level) in levels.iter().enumerate() {
-            let Some(level) = *level else { continue };
-            let (traced, blended, b) = (mipped[i], on.hits[i], bump[i]);
-            if level >= l + margin {
-                regions[2] += 1;
-                assert_eq!(
-                    bits(&blended),
-                    bits(&b),
-                    "{method} pixel {i}: not the bump hit"
-                );
-            } else if level <= l - 1.0 - margin {
-                regions[0] += 1;
-                assert_eq!(bits(&blended), bits(&traced), "{method} pixel {i}: changed");
-            } else if level > l - 1.0 + margin && level < l - margin {
-                regions[1] += 1;
-                let w = (level - (l - 1.0)) as f32;
-                for c in 0..3 {
-                    let want = traced[c] + (b[c] - traced[c]) * w;
-                    let tol = 1e-3 * (b[c] - traced[c]).abs() + 1e-6;
-                    assert!(
-                        (blended[c] - want).abs() <= tol,
-                        "{method} pixel {i} channel {c}: {} vs blend {want} (w {w})",
-                        blended[c]
-                    );
-                }
-                assert_eq!(
-                    blended[3],
-                    traced[3] + 1.0,
-                    "{method} pixel {i}: iterations"
-                );
-            }
-        }
+        let regions = check_lod_rule(method, &levels, THRESHOLD, &mipped, &on.hits, &bump);
         let geo = renderer.map_geometry();
         let footprints = [&off.hits, &on.hits].map(|hits| {
             let d: Vec<f64> = (0..hits.len())
@@ -276,6 +298,65 @@ fn lod_on_a_far_plane_trades_error_for_iterations() {
             r.method,
             r.regions
         );
+    }
+    drop(renderer);
+    assert_validation_clean(&ctx);
+}
+
+#[test]
+fn lod_on_a_decal_keeps_its_silhouette_in_the_band() {
+    // The quad (clamp addressing) 1.4 units away: footprints of 4 to 64 texels. A traced
+    // miss (a ray leaving the decal) stays a miss in the blend band; beyond the threshold
+    // the pixel is bump mapped like any other.
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let scene = Scene {
+        geometry: dispmap::scene::Geometry::Quad,
+        camera: Camera {
+            elevation_deg: 20.0,
+            ..Camera::default()
+        },
+        ..Scene::default()
+    };
+    let threshold = 4.5;
+    let mut renderer = Renderer::new(&ctx, &field, settings(Method::Bump, scene, None)).unwrap();
+    renderer.render().unwrap();
+    let rays = renderer.read_rays().unwrap();
+    let levels = footprint_levels(&rays, [field.width(), field.height()]);
+    let mut histogram = [0usize; 6];
+    for l in levels.iter().flatten() {
+        histogram[(l.floor() as usize).min(5)] += 1;
+    }
+    println!("quad: pixels per footprint level (floor, 0..=5+): {histogram:?}");
+    let mip_only = |method: Method| settings(method, scene, Some(31.0)).params;
+    renderer
+        .set_method(Method::Bump, mip_only(Method::Bump))
+        .unwrap();
+    renderer.render().unwrap();
+    let bump = renderer.read_hits().unwrap();
+    for method in [Method::Relief, Method::Exact] {
+        renderer.set_method(method, mip_only(method)).unwrap();
+        renderer.render().unwrap();
+        let mipped = renderer.read_hits().unwrap();
+        renderer
+            .set_method(method, settings(method, scene, Some(threshold)).params)
+            .unwrap();
+        renderer.render().unwrap();
+        let on = renderer.read_hits().unwrap();
+        let regions = check_lod_rule(method, &levels, threshold, &mipped, &on, &bump);
+        let band_misses = levels
+            .iter()
+            .zip(&mipped)
+            .filter(|(l, h)| {
+                l.is_some_and(|l| l > f64::from(threshold) - 1.0 && l < f64::from(threshold))
+                    && h[2] < 0.0
+            })
+            .count();
+        println!(
+            "quad {method}: pixels untouched / blended / bump {regions:?}, {band_misses} misses kept in the band"
+        );
+        assert!(regions.iter().all(|&n| n > 0), "{method}: {regions:?}");
+        assert!(band_misses > 0, "{method}: no silhouette in the band");
     }
     drop(renderer);
     assert_validation_clean(&ctx);
