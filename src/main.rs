@@ -275,6 +275,9 @@ struct MetricsReport<'a> {
     method: &'a str,
     steps: u32,
     refine_steps: u32,
+    /// `--lod-threshold` when level of detail is on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    lod_threshold: Option<f32>,
     width: u32,
     height: u32,
     frames: u32,
@@ -524,6 +527,7 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
                 method: settings.method.name(),
                 steps: settings.params.steps,
                 refine_steps: settings.params.refine_steps,
+                lod_threshold: settings.params.lod_threshold,
                 width: settings.width,
                 height: settings.height,
                 frames: args.common.frames,

@@ -659,6 +659,16 @@ fn cli_depth_out_writes_the_corrected_depth() {
     let out = run(&missing, &[]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--depth-out"));
+    let json = dir.join("m.json");
+    let json_arg = json.to_str().unwrap();
+    let out = run(&exr, &["--lod-threshold", "1.5", "--metrics", json_arg]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(report["lod_threshold"], 1.5);
     let out = run(&exr, &["--lod-threshold", "-1"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("lod-threshold"));
