@@ -130,6 +130,8 @@ pub struct Renderer<'a> {
 struct DepthOutput {
     pass: HitDepthPass,
     image: Image,
+    /// Whether a frame has written the image (before that it has no contents or layout).
+    written: bool,
 }
 
 impl DepthOutput {
@@ -516,7 +518,13 @@ impl<'a> Renderer<'a> {
                         | vk::ImageUsageFlags::TRANSFER_SRC,
                 );
                 match image {
-                    Ok(image) => self.depth = Some(DepthOutput { pass, image }),
+                    Ok(image) => {
+                        self.depth = Some(DepthOutput {
+                            pass,
+                            image,
+                            written: false,
+                        })
+                    }
                     Err(e) => {
                         pass.destroy(ctx);
                         return Err(e);
@@ -536,17 +544,24 @@ impl<'a> Renderer<'a> {
     }
 
     /// The corrected-depth image (`R32_SFLOAT`, reverse-Z clip depth of each pixel's hit,
-    /// 0 without one; see [`crate::passes::hit_depth`]) when the output is on. After a
-    /// frame it is in `GENERAL`, last written by a compute-shader storage write; a caller
-    /// that reads it in its own submission (e.g. [`crate::passes::depth_resolve`]) places
-    /// the barrier from that state.
+    /// 0 without one; see [`crate::passes::hit_depth`]) once a frame has been rendered
+    /// with the output on. It is in `GENERAL`, last written by a compute-shader storage
+    /// write; a caller that reads it in its own submission (e.g.
+    /// [`crate::passes::depth_resolve`]) places the barrier from that state and returns
+    /// it there.
     pub fn hit_depth(&self) -> Option<&Image> {
-        self.depth.as_ref().map(|d| &d.image)
+        self.depth.as_ref().filter(|d| d.written).map(|d| &d.image)
     }
 
-    /// The last frame's corrected depth, row by row (`None` when the output is off).
+    /// The corrected depth of the last [`Renderer::render`]'s hits, row by row (`None`
+    /// when the output is off; an error when no frame has been rendered since it was
+    /// turned on). [`Renderer::shade_hits`] does not update it.
     pub fn read_depth(&self) -> Result<Option<Vec<f32>>> {
         match &self.depth {
+            Some(d) if !d.written => Err(Error::invalid(
+                "depth output",
+                "no frame has been rendered since the depth output was turned on",
+            )),
             Some(d) => {
                 let bytes = read_image(
                     self.ctx,
@@ -565,6 +580,9 @@ impl<'a> Renderer<'a> {
         cmd: vk::CommandBuffer,
         camera: &crate::scene::FrameCamera,
     ) -> Result<()> {
+        if let Some(d) = &mut self.depth {
+            d.written = true;
+        }
         let Some(depth) = &self.depth else {
             return Ok(());
         };

@@ -137,7 +137,11 @@ fn corrected_depth_matches_the_reference_hits() {
         let s = settings(geometry, elevation);
         let reference = Reference::new(&field, s.scene.addressing());
         let mut renderer = Renderer::new(&ctx, &field, s).unwrap();
+        assert!(renderer.read_depth().unwrap().is_none(), "off by default");
         renderer.set_depth_output(true).unwrap();
+        let err = renderer.read_depth().unwrap_err().to_string();
+        assert!(err.contains("no frame"), "{err}");
+        assert!(renderer.hit_depth().is_none());
         let frame_ref = renderer.reference(&reference).unwrap();
         renderer.render().unwrap();
         let hits = renderer.read_hits().unwrap();
@@ -204,6 +208,12 @@ fn corrected_depth_matches_the_reference_hits() {
             skipped * 1000 <= compared,
             "{geometry:?}: {skipped} skipped"
         );
+        let times = renderer.render().unwrap();
+        assert!(times.iter().any(|(n, _)| *n == "hit_depth"), "{times:?}");
+        renderer.set_depth_output(false).unwrap();
+        assert!(renderer.read_depth().unwrap().is_none());
+        let times = renderer.render().unwrap();
+        assert!(!times.iter().any(|(n, _)| *n == "hit_depth"), "{times:?}");
         drop(renderer);
     }
     assert_validation_clean(&ctx);
