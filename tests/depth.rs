@@ -496,6 +496,23 @@ fn a_box_clips_at_the_displaced_height() {
     );
     shot.submit_and_wait(&ctx).unwrap();
     let rgba = read_image(&ctx, &shot, &color, Access::COLOR_ATTACHMENT_WRITE).unwrap();
+    // The resolve copied the corrected depth pixel for pixel (the box wrote only where
+    // it passed the test, so compare outside the box's pixels).
+    let resolved = read_image(&ctx, &shot, &depth, Access::DEPTH_ATTACHMENT_WRITE).unwrap();
+    let resolved: &[f32] = bytemuck::cast_slice(&resolved);
+    let unchanged = (0..resolved.len())
+        .filter(|&i| rgba[4 * i] == 0)
+        .inspect(|&i| {
+            assert_eq!(
+                resolved[i].to_bits(),
+                corrected[i].to_bits(),
+                "pixel {i}: resolved {} vs corrected {}",
+                resolved[i],
+                corrected[i]
+            )
+        })
+        .count();
+    assert!(unchanged > 30000, "{unchanged}");
 
     let cam = CpuCamera::new(&s.scene);
     let geo = renderer.map_geometry();
