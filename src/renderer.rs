@@ -1,5 +1,5 @@
 //! The standalone renderer: owns the images and passes of one frame size and runs
-//! `gbuffer -> [pyramid] -> [dig_corners] -> trace -> shade` on the context's queue,
+//! `gbuffer -> [pyramid] -> [dig_corners] -> trace -> [shadow] -> shade` on the context's queue,
 //! each pass between timestamps. It builds only what the method needs ([`Method::needs`]):
 //! the pyramid (and its pass) only for the pyramid methods, the corner grid only for DIG.
 //! The pyramid is built in the first frame after the method asks for it (the height map
@@ -15,7 +15,11 @@
 //!    DIG: corner grid discarded -> `GENERAL`, `dig_corners` writes it, then ->
 //!    `SHADER_READ_ONLY_OPTIMAL`. Hit buffer: discarded -> `GENERAL` for storage writes;
 //!    `trace` writes the hits.
-//! 3. Hit buffer: storage write -> storage read (`GENERAL`); colour: discarded ->
+//! 3. Self-shadowing on ([`ShadowSettings`]): hit buffer storage write -> storage read,
+//!    visibility discarded -> `GENERAL` storage write; `shadow` writes it, then storage
+//!    write -> storage read. (The stage's own cell pyramid, `pyramid` method only, is
+//!    built with the method's in the `pyramid` scope.)
+//! 4. Hit buffer: storage write -> storage read (`GENERAL`); colour: discarded ->
 //!    `GENERAL`; `shade` writes the colour.
 //!
 //! After a frame the hit buffer is in `GENERAL` (last access: storage read), the colour
@@ -34,6 +38,7 @@ use crate::passes::dig::{Corner, CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::{GBuffer, GBufferPass};
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::{COLOR_FORMAT, ShadeInputs, ShadePass};
+use crate::passes::shadow::{ShadowInputs, ShadowPass, ShadowSettings, ShadowStage};
 use crate::passes::trace::{HIT_FORMAT, TraceInputs, TracePass};
 use crate::reference::{Hit, Ray, Reference};
 use crate::scene::Scene;
@@ -56,6 +61,8 @@ pub struct RenderSettings {
     pub params: MethodParams,
     /// Camera, light, geometry, depth scale.
     pub scene: Scene,
+    /// Self-shadowing (default: off).
+    pub shadows: ShadowSettings,
 }
 
 impl RenderSettings {
@@ -75,6 +82,7 @@ impl RenderSettings {
             ));
         }
         self.params.validate()?;
+        self.shadows.validate()?;
         self.scene.validate()
     }
 }
@@ -117,6 +125,8 @@ pub struct Renderer<'a> {
     shade: ShadePass,
     /// What the method needs, built by [`Renderer::prepare`].
     extras: Extras,
+    /// Self-shadowing (`None` when off), built by [`Renderer::prepare`].
+    shadow: Option<ShadowStage>,
 }
 
 /// The resources and passes only some methods need.
@@ -225,6 +235,7 @@ impl<'a> Renderer<'a> {
             trace: parts.trace.take().expect(built),
             shade: parts.shade.take().expect(built),
             extras: Extras::default(),
+            shadow: None,
         };
         // On failure the renderer's Drop destroys everything built so far.
         renderer.prepare()?;
@@ -285,7 +296,62 @@ impl<'a> Renderer<'a> {
                 c.destroy(ctx);
             }
         }
-        Ok(())
+        self.prepare_shadows()
+    }
+
+    /// Builds or drops the self-shadowing stage and picks the matching shade pass.
+    fn prepare_shadows(&mut self) -> Result<()> {
+        let ctx = self.ctx;
+        let shadows = self.settings.shadows;
+        if self.shade.is_shadowed() != shadows.is_on() {
+            let new = if shadows.is_on() {
+                ShadePass::shadowed(ctx)?
+            } else {
+                ShadePass::new(ctx)?
+            };
+            let mut old = std::mem::replace(&mut self.shade, new);
+            old.destroy(ctx);
+        }
+        let extent = vk::Extent2D {
+            width: self.settings.width,
+            height: self.settings.height,
+        };
+        ShadowStage::sync(
+            ctx,
+            &mut self.shadow,
+            &shadows,
+            self.settings.method,
+            extent,
+            self.height.size(),
+            self.height.addressing,
+        )
+    }
+
+    /// Switches self-shadowing (builds or drops the `shadow` pass and its image).
+    pub fn set_shadows(&mut self, shadows: ShadowSettings) -> Result<()> {
+        shadows.validate()?;
+        self.settings.shadows = shadows;
+        self.prepare()
+    }
+
+    /// The last frame's light visibility (1 = lit), row by row; `None` when
+    /// self-shadowing is off.
+    pub fn read_visibility(&self) -> Result<Option<Vec<f32>>> {
+        let Some(stage) = &self.shadow else {
+            return Ok(None);
+        };
+        let bytes = read_image(
+            self.ctx,
+            &self.shot,
+            &stage.visibility,
+            Access::COMPUTE_STORAGE_READ,
+        )?;
+        Ok(Some(
+            bytes
+                .chunks_exact(2)
+                .map(|b| crate::passes::shadow::f16_to_f32(u16::from_le_bytes([b[0], b[1]])))
+                .collect(),
+        ))
     }
 
     /// The settings in use.
@@ -385,14 +451,21 @@ impl<'a> Renderer<'a> {
         }
         sync::record(ctx, cmd, &to_trace);
 
-        if let (Some(pass), Some(pyramid), false) = (
+        let method_pyramid = match (
             &self.extras.pyramid_pass,
             &self.extras.pyramid,
             self.extras.pyramid_built,
         ) {
+            (Some(pass), Some(pyramid), false) => Some((pass, pyramid)),
+            _ => None,
+        };
+        let shadow_pyramid = self.shadow.as_ref().and_then(ShadowStage::unbuilt_pyramid);
+        if method_pyramid.is_some() || shadow_pyramid.is_some() {
             ctx.begin_label(cmd, "pyramid");
             self.timer.begin(ctx, cmd, "pyramid")?;
-            pass.record(ctx, cmd, &self.height, pyramid);
+            for (pass, pyramid) in method_pyramid.into_iter().chain(shadow_pyramid) {
+                pass.record(ctx, cmd, &self.height, pyramid);
+            }
             self.timer.end(ctx, cmd);
             ctx.end_label(cmd);
         }
@@ -441,6 +514,9 @@ impl<'a> Renderer<'a> {
 
         self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE)?;
         self.shot.submit_and_wait(ctx)?;
+        if let Some(stage) = &mut self.shadow {
+            stage.mark_built();
+        }
         let times = self.timer.read(ctx)?;
         if self.extras.pyramid.is_some() && !self.extras.pyramid_built {
             self.extras.pyramid_built = true;
@@ -477,24 +553,69 @@ impl<'a> Renderer<'a> {
         hit_before: Access,
     ) -> Result<()> {
         let ctx = self.ctx;
-        sync::record(
-            ctx,
-            cmd,
-            &[
-                sync::image_barrier(
-                    self.hit.raw,
-                    self.hit.range(),
-                    hit_before,
-                    Access::COMPUTE_STORAGE_READ,
-                ),
-                sync::image_barrier(
-                    self.color.raw,
-                    self.color.range(),
-                    DISCARD,
-                    Access::COMPUTE_STORAGE_WRITE,
-                ),
-            ],
-        );
+        let mut to_shade = vec![
+            sync::image_barrier(
+                self.hit.raw,
+                self.hit.range(),
+                hit_before,
+                Access::COMPUTE_STORAGE_READ,
+            ),
+            sync::image_barrier(
+                self.color.raw,
+                self.color.range(),
+                DISCARD,
+                Access::COMPUTE_STORAGE_WRITE,
+            ),
+        ];
+        if let Some(stage) = &self.shadow {
+            // The shadow pass reads the hits first; shade then needs only the colour's
+            // and the visibility's barriers.
+            let image = &stage.visibility;
+            let hit_to_read = to_shade.remove(0);
+            sync::record(
+                ctx,
+                cmd,
+                &[
+                    hit_to_read,
+                    sync::image_barrier(
+                        image.raw,
+                        image.range(),
+                        DISCARD,
+                        Access::COMPUTE_STORAGE_WRITE,
+                    ),
+                ],
+            );
+            let shadow_params = ShadowPass::params(
+                &self.settings.shadows,
+                self.settings.params.steps,
+                params,
+                self.height.addressing,
+            );
+            ctx.begin_label(cmd, "shadow");
+            self.timer.begin(ctx, cmd, "shadow")?;
+            let recorded = stage.pass.record(
+                ctx,
+                cmd,
+                ShadowInputs {
+                    hit: self.hit.view,
+                    gbuffer: self.gbuffer.views(),
+                    height: &self.height,
+                    pyramid: stage.pyramid(self.extras.pyramid.as_ref()),
+                    visibility: image.view_ref(),
+                },
+                &shadow_params,
+            );
+            self.timer.end(ctx, cmd);
+            ctx.end_label(cmd);
+            recorded?;
+            to_shade.push(sync::image_barrier(
+                image.raw,
+                image.range(),
+                Access::COMPUTE_STORAGE_WRITE,
+                Access::COMPUTE_STORAGE_READ,
+            ));
+        }
+        sync::record(ctx, cmd, &to_shade);
         ctx.begin_label(cmd, "shade");
         self.timer.begin(ctx, cmd, "shade")?;
         self.shade.record(
@@ -505,9 +626,10 @@ impl<'a> Renderer<'a> {
                 gbuffer: self.gbuffer.views(),
                 height: &self.height,
                 color: self.color.view_ref(),
+                visibility: self.shadow.as_ref().map(|s| s.visibility.view),
             },
             params,
-        );
+        )?;
         self.timer.end(ctx, cmd);
         ctx.end_label(cmd);
         Ok(())
@@ -681,6 +803,9 @@ impl Drop for Renderer<'_> {
         // SAFETY: every submission was waited for; idle makes sure of it on error paths.
         unsafe {
             let _ = ctx.device().device_wait_idle();
+        }
+        if let Some(stage) = &mut self.shadow {
+            stage.destroy(ctx);
         }
         self.extras.destroy(ctx);
         self.shade.destroy(ctx);
