@@ -436,10 +436,12 @@ impl ShadowStage {
         }
     }
 
-    /// The cell pyramid the pass reads: its own (once built) or the method's.
+    /// The cell pyramid the pass reads: its own or the method's. The caller records the
+    /// build of an [unbuilt](ShadowStage::unbuilt_pyramid) one earlier in the same
+    /// frame, as [`Renderer::render`](crate::renderer::Renderer::render) does.
     pub fn pyramid<'a>(&'a self, method_pyramid: Option<&'a Pyramid>) -> Option<&'a Pyramid> {
         match &self.own_pyramid {
-            Some((_, p)) => self.own_built.then_some(p),
+            Some((_, p)) => Some(p),
             None => method_pyramid,
         }
     }
