@@ -286,7 +286,13 @@ impl Reference {
     /// is the exact first-hit search of [`Reference::intersect`] over `t` in
     /// `[0, 1 - height - SHADOW_BIAS]`. The GPU's `shadow` pass (hard mode with the
     /// pyramid methods) answers the same question in `f32`.
-    pub fn occluded(&self, uv: [f64; 2], height: f64, light_ts: [f64; 3], depth_scale: f64) -> bool {
+    pub fn occluded(
+        &self,
+        uv: [f64; 2],
+        height: f64,
+        light_ts: [f64; 3],
+        depth_scale: f64,
+    ) -> bool {
         if !(light_ts[2] > 0.0) {
             return true;
         }

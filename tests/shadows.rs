@@ -101,10 +101,15 @@ fn a_flat_map_casts_no_shadow() {
                 renderer.set_shadows(shadows).unwrap();
                 renderer.render().unwrap();
                 let px = covered(&renderer);
-                assert!(px.len() > 1000, "{geometry:?} {method}: {} pixels", px.len());
+                assert!(
+                    px.len() > 1000,
+                    "{geometry:?} {method}: {} pixels",
+                    px.len()
+                );
                 let dark = px.iter().filter(|(_, v)| *v != 1.0).count();
                 assert_eq!(
-                    dark, 0,
+                    dark,
+                    0,
                     "{geometry:?} {method} {:?}: {dark} of {} pixels shadowed",
                     shadows.mode,
                     px.len()
@@ -120,7 +125,13 @@ fn a_flat_map_casts_no_shadow() {
 /// plateau the light ray climbs 0.8 heights over 0.8 * 0.1 / tan 15 = 0.30 uv.
 fn ridge() -> HeightField {
     let values = (0..64 * 64)
-        .map(|k| if (30..=33).contains(&(k % 64)) { 1.0 } else { 0.2 })
+        .map(|k| {
+            if (30..=33).contains(&(k % 64)) {
+                1.0
+            } else {
+                0.2
+            }
+        })
         .collect();
     HeightField::from_heights(64, 64, values, "ridge").unwrap()
 }
@@ -179,7 +190,10 @@ fn a_ridge_shadows_the_side_away_from_the_light() {
                 front.len(),
                 mean(&front)
             );
-            assert!(front.iter().all(|&v| v == 1.0), "{method}: a lit pixel is dark");
+            assert!(
+                front.iter().all(|&v| v == 1.0),
+                "{method}: a lit pixel is dark"
+            );
             match shadows.mode {
                 ShadowMode::Hard => assert!(
                     behind.iter().all(|&v| v == 0.0),
@@ -194,7 +208,10 @@ fn a_ridge_shadows_the_side_away_from_the_light() {
                 }
             }
         }
-        assert!(soft_means[0] < 0.5 && soft_means[1] == 1.0, "{method}: {soft_means:?}");
+        assert!(
+            soft_means[0] < 0.5 && soft_means[1] == 1.0,
+            "{method}: {soft_means:?}"
+        );
     }
     assert_validation_clean(&ctx);
 }
@@ -246,7 +263,10 @@ fn exact_hard_shadows_match_the_reference() {
             disagree.len()
         );
         assert!(total > 5000);
-        assert!(shadowed * 20 > total, "too few shadowed pixels to test: {shadowed}");
+        assert!(
+            shadowed * 20 > total,
+            "too few shadowed pixels to test: {shadowed}"
+        );
         assert!(
             disagree.is_empty(),
             "{} decided pixels disagree, e.g. {:?}",
@@ -282,7 +302,8 @@ fn soft_shadows_are_in_range_and_darken_with_a_lower_light() {
             renderer.render().unwrap();
             let px = covered(&renderer);
             assert!(
-                px.iter().all(|(_, v)| v.is_finite() && (0.0..=1.0).contains(v)),
+                px.iter()
+                    .all(|(_, v)| v.is_finite() && (0.0..=1.0).contains(v)),
                 "{method} {elevation}: visibility out of [0, 1]"
             );
             let mean = px.iter().map(|(_, v)| f64::from(*v)).sum::<f64>() / px.len() as f64;
@@ -355,4 +376,66 @@ fn the_shadow_pass_is_timed_only_when_on() {
     assert!(err.contains("shadow-samples"), "{err}");
     drop(renderer);
     assert_validation_clean(&ctx);
+}
+
+/// `dispmap render --shadows MODE`: the metrics JSON lists the `shadow` pass only when
+/// shadows are on; bad values are refused by option name, before any file is written.
+#[test]
+fn cli_render_shadows() {
+    let dir = std::env::temp_dir().join(format!("dispmap-shadows-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let map =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/heightmaps/rocks_depth.jpg");
+    let run = |extra: &[&str], png: &std::path::Path, json: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_dispmap"))
+            .env("DISPMAP_VALIDATION", "1")
+            .args(["render", "--heightmap"])
+            .arg(&map)
+            .args(["--convention", "depth", "--size", "64x48", "--frames", "1"])
+            .args(extra)
+            .arg("--out")
+            .arg(png)
+            .arg("--metrics")
+            .arg(json)
+            .output()
+            .unwrap()
+    };
+    for (mode, method, timed) in [
+        ("off", "exact", false),
+        ("hard", "exact", true),
+        ("hard", "relief", true),
+        ("soft", "pom", true),
+    ] {
+        let (png, json) = (
+            dir.join(format!("{mode}-{method}.png")),
+            dir.join(format!("{mode}-{method}.json")),
+        );
+        let out = run(&["--shadows", mode, "--method", method], &png, &json);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{mode} {method}: {stderr}");
+        assert!(!stderr.contains("Validation"), "{stderr}");
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        assert_eq!(v["shadows"], mode);
+        let shadow = v["timings_ms"].get("shadow");
+        assert_eq!(shadow.is_some(), timed, "{mode} {method}: {v}");
+        if let Some(ms) = shadow {
+            assert!(ms.as_f64().unwrap() >= 0.0);
+        }
+        assert!(image::open(&png).is_ok());
+    }
+    for (args, named) in [
+        (&["--shadows", "maybe"][..], "--shadows"),
+        (
+            &["--shadows", "soft", "--shadow-samples", "0"][..],
+            "shadow-samples",
+        ),
+        (&["--shadow-samples", "many"][..], "--shadow-samples"),
+    ] {
+        let (png, json) = (dir.join("bad.png"), dir.join("bad.json"));
+        let out = run(args, &png, &json);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} was accepted");
+        assert!(stderr.contains(named), "{args:?}: {stderr}");
+        assert!(!png.exists() && !json.exists(), "{args:?} wrote a file");
+    }
 }

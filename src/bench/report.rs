@@ -608,7 +608,11 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
 /// With `--shadows` on: the `shadow` pass's median time per run, and over `trace`.
 fn shadow_section(s: &mut String, results: &BenchResults) {
     let mode = results.config.shadows;
-    let rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.shadow_ms.is_some()).collect();
+    let rows: Vec<&RunRow> = results
+        .rows
+        .iter()
+        .filter(|r| r.shadow_ms.is_some())
+        .collect();
     if rows.is_empty() {
         return;
     }

@@ -74,9 +74,17 @@ impl ShadePass {
 
     fn build(ctx: &Context, shadowed: bool) -> Result<Self> {
         let (name, shader, bindings) = if shadowed {
-            ("shade[shadows]", &shaders::SHADE_COMP_SHADOWS, &BINDINGS[..])
+            (
+                "shade[shadows]",
+                &shaders::SHADE_COMP_SHADOWS,
+                &BINDINGS[..],
+            )
         } else {
-            ("shade", &shaders::SHADE_COMP, &BINDINGS[..VISIBILITY_BINDING])
+            (
+                "shade",
+                &shaders::SHADE_COMP,
+                &BINDINGS[..VISIBILITY_BINDING],
+            )
         };
         Ok(ShadePass {
             pipeline: FetchPipeline::new(

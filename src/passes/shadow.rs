@@ -122,10 +122,7 @@ impl std::str::FromStr for ShadowMode {
             .copied()
             .find(|m| m.name() == s)
             .ok_or_else(|| {
-                Error::invalid(
-                    "shadows",
-                    format!("'{s}' is not one of: off, hard, soft"),
-                )
+                Error::invalid("shadows", format!("'{s}' is not one of: off, hard, soft"))
             })
     }
 }
@@ -347,8 +344,8 @@ impl ShadowStage {
     fn wanted(settings: &ShadowSettings, method: Method) -> Option<(ShadowTrace, bool)> {
         settings.is_on().then(|| {
             let trace = ShadowTrace::for_method(settings.mode, method);
-            let own = trace == ShadowTrace::Pyramid
-                && method.needs().pyramid != Some(PyramidKind::Cell);
+            let own =
+                trace == ShadowTrace::Pyramid && method.needs().pyramid != Some(PyramidKind::Cell);
             (trace, own)
         })
     }
