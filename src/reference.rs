@@ -293,7 +293,8 @@ impl Reference {
         light_ts: [f64; 3],
         depth_scale: f64,
     ) -> bool {
-        if !(light_ts[2] > 0.0) {
+        // Facing away, or a NaN component: in shadow.
+        if light_ts[2].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return true;
         }
         let cos = light_ts[2].max(SHADOW_MIN_COS);
@@ -303,7 +304,8 @@ impl Reference {
         ];
         let rise = 1.0 - height;
         let t_stop = rise - SHADOW_BIAS;
-        if !(t_stop >= 0.0) {
+        // Within the bias of the macro surface (or a NaN height): nothing above it.
+        if t_stop.is_nan() || t_stop < 0.0 {
             return false;
         }
         let ray = Ray {
