@@ -103,7 +103,10 @@ fn variants_of(path: &Path) -> Result<Vec<String>> {
         if let Some(name) = line.trim().strip_prefix("// dispmap-variant:") {
             let name = name.trim();
             if name.is_empty() || !name.chars().all(|c| c.is_ascii_uppercase() || c == '_') {
-                bail!("{}: bad variant name '{name}' (A-Z and _ only)", path.display());
+                bail!(
+                    "{}: bad variant name '{name}' (A-Z and _ only)",
+                    path.display()
+                );
             }
             names.push(name.to_owned());
         }

@@ -283,6 +283,83 @@ fn exact_hard_shadows_match_the_reference() {
     assert_validation_clean(&ctx);
 }
 
+/// The marching methods' hard shadows (a linear march with the method's step, from the
+/// surface height under the hit) against the reference's occlusion of the same start
+/// point (`Reference::height` at the hit's uv). The march samples the exact bilinear
+/// surface, so it can only miss shadows (a thin occluder between two samples, or one
+/// within the first step of the receiver), never invent one, and misses fewer with more
+/// steps. Measured on rocks, tiled plane, light 20 degrees, share of covered pixels the
+/// march leaves lit where the reference shadows them: relief 6.17% (64 steps), 2.30%
+/// (256), 0.62% (1024); linear 6.46% and pom 6.69% (64); secant 14.88% (15); falsely
+/// shadowed: 0 in every run.
+#[test]
+fn marching_hard_shadows_against_the_reference() {
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let sun = light(20.0, 60.0);
+    let base = settings(Method::Relief, Geometry::TiledPlane, sun, HARD);
+    let reference = Reference::new(&field, base.scene.addressing());
+    let mut renderer = Renderer::new(&ctx, &field, base).unwrap();
+    let l = light_ts(sun);
+    let depth = f64::from(base.scene.depth_scale);
+    let mut relief_missed = Vec::new();
+    for (method, steps, missed_bound) in [
+        (Method::Relief, 64, 0.07),
+        (Method::Relief, 256, 0.03),
+        (Method::Relief, 1024, 0.01),
+        (Method::Linear, 64, 0.07),
+        (Method::Pom, 64, 0.075),
+        (Method::Secant, 15, 0.16),
+    ] {
+        renderer
+            .set_method(
+                method,
+                MethodParams {
+                    steps,
+                    ..MethodParams::for_method(method)
+                },
+            )
+            .unwrap();
+        renderer.render().unwrap();
+        let px = covered(&renderer);
+        let (mut shadowed, mut missed, mut extra) = (0, 0, 0);
+        for (hit, vis) in &px {
+            let uv = [f64::from(hit[0]), f64::from(hit[1])];
+            let cpu = reference.occluded(uv, reference.height(uv), l, depth);
+            let gpu = *vis == 0.0;
+            shadowed += usize::from(gpu);
+            missed += usize::from(cpu && !gpu);
+            extra += usize::from(gpu && !cpu);
+        }
+        let n = px.len() as f64;
+        let missed = missed as f64 / n;
+        eprintln!(
+            "{method:<7} hard (march, {steps} steps): shadowed {:.2}%, missed (reference \
+             shadowed, march lit) {:.2}%, falsely shadowed {extra} px",
+            100.0 * shadowed as f64 / n,
+            100.0 * missed
+        );
+        // Ties (a sample exactly on a plateau) may go either way in f32: 0 measured.
+        assert!(
+            extra as f64 <= 5e-4 * n,
+            "{method} {steps}: {extra} falsely shadowed"
+        );
+        assert!(
+            missed <= missed_bound,
+            "{method} {steps}: {:.2}% missed",
+            100.0 * missed
+        );
+        if method == Method::Relief {
+            relief_missed.push(missed);
+        }
+    }
+    assert!(
+        relief_missed.windows(2).all(|w| w[1] < w[0]),
+        "more steps must miss fewer shadows: {relief_missed:?}"
+    );
+    assert_validation_clean(&ctx);
+}
+
 #[test]
 fn soft_shadows_are_in_range_and_darken_with_a_lower_light() {
     let ctx = validated_context();
@@ -308,9 +385,18 @@ fn soft_shadows_are_in_range_and_darken_with_a_lower_light() {
             );
             let mean = px.iter().map(|(_, v)| f64::from(*v)).sum::<f64>() / px.len() as f64;
             let dark = px.iter().filter(|(_, v)| *v < 1.0).count() as f64 / px.len() as f64;
+            // For comparison: the hard shadows' fraction under the same light.
+            renderer.set_shadows(HARD).unwrap();
+            renderer.render().unwrap();
+            let hard = covered(&renderer);
+            let hard_dark =
+                hard.iter().filter(|(_, v)| *v == 0.0).count() as f64 / hard.len() as f64;
+            renderer.set_shadows(SOFT).unwrap();
             eprintln!(
-                "{method} soft, light {elevation} deg: mean visibility {mean:.4}, {:.2}% below 1",
-                100.0 * dark
+                "{method} soft, light {elevation} deg: mean visibility {mean:.4}, {:.2}% below 1 \
+                 (hard: {:.2}% shadowed)",
+                100.0 * dark,
+                100.0 * hard_dark
             );
             means.push(mean);
         }
