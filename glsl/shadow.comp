@@ -45,7 +45,11 @@
 //   over the light ray relative to the ray's own climb: 1 = the horizon is twice as
 //   steep as the light) and the visibility is 1 - clamp(max_i d_i / r_i, 0, 1). An
 //   estimate, not a physical area-light integral: blockers below the ray cast nothing,
-//   and features thinner than the sample spacing are missed.
+//   and features thinner than the sample spacing, or nearer the receiver than the first
+//   sample, are missed (the paper's "lack of hard contact shadow"). Its samples are
+//   hardware-filtered fetches, as in the paper: its first sample is far enough from the
+//   receiver for the filter's 8-bit weights not to matter (measured on rocks: the mean
+//   visibility moves by < 0.001 with exact-surface samples).
 //
 // dispmap-variant: PYRAMID
 #include "frame.glsl"

@@ -27,9 +27,11 @@
 //!     pyramid of its own (once, timed with the method's as `pyramid`).
 //!   - every other method (`linear`, `relief`, `pom`, `secant`, `dig`, `bump`): a linear
 //!     march up the light ray with the method's step (`--steps`, `1/steps` of the full
-//!     depth per sample, hardware-filtered fetches), starting from Tatarchuk's reference
-//!     height `H(uv_hit)` (a march's hit can lie up to a step under the surface). It is
-//!     as approximate as the method's own view march.
+//!     depth per sample), starting from Tatarchuk's reference height `H(uv_hit)` (a
+//!     march's hit can lie up to a step under the surface). It samples the exact bilinear
+//!     surface (4 `texelFetch` per sample) rather than the hardware filter, whose 8-bit
+//!     weights cause shadow acne near the receiver; so it only ever misses shadows (thin
+//!     occluders between samples), fewer with more steps.
 //! * `soft`: Tatarchuk's penumbra estimate for every method: `samples` heights along the
 //!   light ray (default [`DEFAULT_SHADOW_SAMPLES`] = the paper's 8), each sample's blocker
 //!   height above the ray divided by the ray's climb to it (the blocker-to-receiver
@@ -52,7 +54,8 @@
 //! # Cost
 //!
 //! One more full-screen dispatch: soft is `samples` filtered fetches per pixel; hard with
-//! a march is up to `(1 - h) * steps` fetches (early exit at the first occluder); the
+//! a march is up to `(1 - h) * steps` samples of 4 texel fetches (early exit at the first
+//! occluder); the
 //! exact traversal costs about what the `exact` view ray costs for a ray of the light's
 //! slope (grazing lights cross more cells).
 
