@@ -12,18 +12,24 @@
 // the light that climbs by dh heights rises dh * depth_scale tiles and therefore moves
 // dh * depth_scale / L_ts.z tiles along L, i.e. by
 //     climb * dh,   climb = depth_scale * L_ts.xy / L_ts.z      (uv per unit height)
-// in uv. From the hit (uv_hit, h_hit) the light ray is uv(h) = uv_hit + (h - h_hit) climb
-// for h in [h_hit, 1]; above h = 1 nothing can occlude. L_ts.z is taken at least
+// in uv. From the receiver (uv_hit, h0) the light ray is uv(h) = uv_hit + (h - h0) climb
+// for h in [h0, 1]; above h = 1 nothing can occlude. L_ts.z is taken at least
 // `min_cos` (as the view ray's MIN_COS), so climb stays finite for a light on the horizon.
 // Where the macro surface faces away from the light (L_ts.z <= 0) the pixel is in shadow
 // (visibility 0), as in the paper, which traces only where N.L > 0.
 //
+// The receiver is the surface point under the hit, (uv_hit, H(uv_hit)) with H the exact
+// bilinear surface (Tatarchuk's reference height h0), not the hit's own height: an
+// approximate hit (a march's, or the pyramid method's refinement) can lie under the
+// surface by more than the bias, and its light ray would start inside the solid (acne).
+// For the exact methods H(uv_hit) is the hit height to f32 rounding.
+//
 // Modes (SHADOW_MODE_*):
 // * hard, PYRAMID variant (methods with a pyramid: exact, dig-guarded, pyramid): exact
 //   "any hit" query with the cell-max pyramid traversal of pyramid.glsl. Reversed, the
-//   light ray is a view ray entering the macro surface at uv_hit + (1 - h_hit) climb with
+//   light ray is a view ray entering the macro surface at uv_hit + (1 - h0) climb with
 //   parallax -climb, its ray parameter t = 1 - h; the hit is occluded when that ray meets
-//   the bilinear surface for t in [0, 1 - h_hit - bias] (the light ray from h_hit + bias
+//   the bilinear surface for t in [0, 1 - h0 - bias] (the light ray from h0 + bias
 //   up to the macro surface; clamp addressing: only inside the decal). The CPU twin is
 //   Reference::occluded (src/reference.rs), in f64.
 // * hard, marching methods: a linear march up the light ray with the method's step
@@ -89,8 +95,8 @@ layout(push_constant) uniform ShadowParams {
 #endif
 
 #ifdef PYRAMID
-bool hard_occluded(vec2 uv, float h, vec2 climb) {
-    float rise = 1.0 - h;
+bool hard_occluded(vec2 uv, vec2 climb) {
+    float rise = 1.0 - height_exact(uv);
     float t_stop = rise - pc.bias;
     if (!(t_stop >= 0.0)) {
         return false; // the hit is within `bias` of the macro surface
@@ -100,7 +106,7 @@ bool hard_occluded(vec2 uv, float h, vec2 climb) {
     return pyramid_segment_hit(light, 0.0, t_stop, int(pc.pyramid_levels) - 1, iterations) >= 0.0;
 }
 #else
-bool hard_occluded(vec2 uv, float h, vec2 climb) {
+bool hard_occluded(vec2 uv, vec2 climb) {
     float h0 = height_exact(uv);
     float dh = 1.0 / float(max(pc.steps, 1u));
     uint n = uint(max(floor((1.0 - h0) / dh), 0.0));
@@ -158,7 +164,7 @@ void main() {
             if (pc.mode == SHADOW_MODE_SOFT) {
                 visibility = soft_visibility(hit.xy, climb);
             } else {
-                visibility = hard_occluded(hit.xy, hit.z, climb) ? 0.0 : 1.0;
+                visibility = hard_occluded(hit.xy, climb) ? 0.0 : 1.0;
             }
         }
     }

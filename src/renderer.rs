@@ -38,7 +38,7 @@ use crate::passes::dig::{Corner, CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::{GBuffer, GBufferPass};
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::{COLOR_FORMAT, ShadeInputs, ShadePass};
-use crate::passes::shadow::{ShadowInputs, ShadowPass, ShadowSettings, ShadowStage};
+use crate::passes::shadow::{ShadowInputs, ShadowMode, ShadowPass, ShadowSettings, ShadowStage};
 use crate::passes::trace::{HIT_FORMAT, TraceInputs, TracePass};
 use crate::reference::{Hit, Ray, Reference};
 use crate::scene::Scene;
@@ -512,7 +512,7 @@ impl<'a> Renderer<'a> {
         self.timer.end(ctx, cmd);
         ctx.end_label(cmd);
 
-        self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE)?;
+        self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE, true)?;
         self.shot.submit_and_wait(ctx)?;
         if let Some(stage) = &mut self.shadow {
             stage.mark_built();
@@ -551,6 +551,7 @@ impl<'a> Renderer<'a> {
         cmd: vk::CommandBuffer,
         params: &crate::abi::ShadeParams,
         hit_before: Access,
+        run_shadow: bool,
     ) -> Result<()> {
         let ctx = self.ctx;
         let mut to_shade = vec![
@@ -567,7 +568,7 @@ impl<'a> Renderer<'a> {
                 Access::COMPUTE_STORAGE_WRITE,
             ),
         ];
-        if let Some(stage) = &self.shadow {
+        if let (Some(stage), true) = (&self.shadow, run_shadow) {
             // The shadow pass reads the hits first; shade then needs only the colour's
             // and the visibility's barriers.
             let image = &stage.visibility;
@@ -720,9 +721,32 @@ impl<'a> Renderer<'a> {
     }
 
     /// Shades `hits` (one texel per pixel) with the current G-buffer and returns the
-    /// colour. Overwrites the hit buffer.
+    /// colour. Overwrites the hit buffer. With self-shadowing on, the `shadow` pass runs
+    /// on `hits` first.
     pub fn shade_hits(&mut self, hits: &[HitTexel]) -> Result<Vec<u8>> {
+        self.shade_hits_with(hits, None)
+    }
+
+    /// [`Renderer::shade_hits`] with the light visibility given (one value per pixel;
+    /// self-shadowing must be on) instead of computed by the `shadow` pass.
+    pub fn shade_hits_with(
+        &mut self,
+        hits: &[HitTexel],
+        visibility: Option<&[f32]>,
+    ) -> Result<Vec<u8>> {
         let ctx = self.ctx;
+        if let Some(values) = visibility {
+            let stage = self.shadow.as_ref().ok_or_else(|| {
+                Error::invalid("visibility", "self-shadowing is off: nothing to shade with")
+            })?;
+            upload_image(
+                ctx,
+                &self.shot,
+                &stage.visibility,
+                &crate::passes::shadow::encode_visibility(values),
+                Access::COMPUTE_STORAGE_READ,
+            )?;
+        }
         upload_image(
             ctx,
             &self.shot,
@@ -735,7 +759,12 @@ impl<'a> Renderer<'a> {
         let params = scene.shade_params(&camera, self.frame_size(), self.height.size());
         let cmd = self.shot.begin(ctx)?;
         self.timer.reset(ctx, cmd);
-        self.record_shade(cmd, &params, Access::COMPUTE_STORAGE_READ)?;
+        self.record_shade(
+            cmd,
+            &params,
+            Access::COMPUTE_STORAGE_READ,
+            visibility.is_none(),
+        )?;
         self.shot.submit_and_wait(ctx)?;
         self.read_color()
     }
@@ -753,8 +782,44 @@ impl<'a> Renderer<'a> {
                 None => [0.0, 0.0, crate::abi::NO_HIT_HEIGHT, 0.0],
             })
             .collect();
-        let color = self.shade_hits(&texels)?;
+        let color = if self.settings.shadows.mode == ShadowMode::Hard {
+            // Hard shadows have an exact answer: the reference is shaded with it,
+            // whichever method (and shadow query) this renderer runs.
+            let visibility = self.reference_visibility(reference, &hits)?;
+            self.shade_hits_with(&texels, Some(&visibility))?
+        } else {
+            // Off, or soft (the same estimate for every method): the pass itself.
+            self.shade_hits(&texels)?
+        };
         Ok(FrameReference { rays, hits, color })
+    }
+
+    /// The exact hard-shadow visibility of `hits` under the current light
+    /// ([`crate::passes::shadow::reference_visibility`]).
+    fn reference_visibility(
+        &self,
+        reference: &Reference,
+        hits: &[Option<Hit>],
+    ) -> Result<Vec<f32>> {
+        let read = |image: &Image| -> Result<Vec<[f32; 4]>> {
+            let bytes = read_image(self.ctx, &self.shot, image, Access::COMPUTE_SAMPLED)?;
+            Ok(crate::passes::shadow::decode_rgba16f(&bytes))
+        };
+        let normal = read(&self.gbuffer.normal)?;
+        let tangent = read(&self.gbuffer.tangent)?;
+        let scene = self.settings.scene;
+        let camera = scene.frame_camera(self.settings.width, self.settings.height);
+        let light = scene
+            .shade_params(&camera, self.frame_size(), self.height.size())
+            .light_dir;
+        Ok(crate::passes::shadow::reference_visibility(
+            reference,
+            hits,
+            &normal,
+            &tangent,
+            [light.x, light.y, light.z],
+            scene.depth_scale,
+        ))
     }
 
     /// Renders a frame with the current method and measures it against `reference`

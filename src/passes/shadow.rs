@@ -19,9 +19,11 @@
 //!   method's family ([`ShadowTrace::for_method`]):
 //!   - `exact`, `dig-guarded`, `pyramid`: the **exact** traversal of the cell-max pyramid
 //!     (`glsl/common/pyramid.glsl`, `pyramid_segment_hit`) on the light ray reversed into
-//!     a view ray; the hit is occluded when the bilinear surface reaches the light ray
-//!     anywhere from `h + SHADOW_BIAS` up to the macro surface (clamp addressing: inside
-//!     the decal). This is [`Reference::occluded`](crate::reference::Reference::occluded)
+//!     a view ray; the pixel is occluded when the bilinear surface reaches the light ray
+//!     anywhere from `H(uv_hit) + SHADOW_BIAS` up to the macro surface (clamp addressing:
+//!     inside the decal). The receiver is the surface point under the hit (`H` the exact
+//!     bilinear surface), so an approximate hit a little under the surface (`pyramid`'s)
+//!     does not shadow itself. This is [`Reference::occluded`](crate::reference::Reference::occluded)
 //!     in `f32`. `exact` and `dig-guarded` share their method's cell pyramid; the
 //!     `pyramid` method's own pyramid bounds texel footprints, so the stage builds a cell
 //!     pyramid of its own (once, timed with the method's as `pyramid`).
@@ -68,7 +70,7 @@ use crate::heightfield::Addressing;
 use crate::method::{Method, PyramidKind};
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::pyramid::{Pyramid, PyramidPass};
-use crate::reference::{SHADOW_BIAS, SHADOW_MIN_COS};
+use crate::reference::{Hit, Reference, SHADOW_BIAS, SHADOW_MIN_COS};
 use crate::scene::addressing_code;
 use crate::shaders;
 use ash::vk;
@@ -384,7 +386,9 @@ impl ShadowStage {
             VISIBILITY_FORMAT,
             extent,
             1,
-            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+            vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::TRANSFER_SRC
+                | vk::ImageUsageFlags::TRANSFER_DST,
         ) {
             Ok(i) => i,
             Err(e) => {
@@ -459,6 +463,98 @@ impl ShadowStage {
     }
 }
 
+/// The exact hard-shadow visibility (1 = lit, 0 = shadowed) of reference hits:
+/// [`Reference::occluded`] per pixel, with `L_ts` from the G-buffer's `normal` and
+/// `tangent` texels (as the pass forms it: `B = w cross(N, T)`) and the frame's world
+/// light direction. Pixels without a hit get 1. This is what the renderer shades the
+/// reference colour with when hard shadows are on, whatever the method.
+pub fn reference_visibility(
+    reference: &Reference,
+    hits: &[Option<Hit>],
+    normal: &[[f32; 4]],
+    tangent: &[[f32; 4]],
+    light_dir: [f32; 3],
+    depth_scale: f32,
+) -> Vec<f32> {
+    use rayon::prelude::*;
+    let l = light_dir.map(f64::from);
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |v: [f32; 4]| {
+        let v = [f64::from(v[0]), f64::from(v[1]), f64::from(v[2])];
+        let n = dot(v, v).sqrt();
+        v.map(|c| c / n)
+    };
+    hits.par_iter()
+        .zip(normal.par_iter().zip(tangent.par_iter()))
+        .map(|(hit, (n4, t4))| {
+            let Some(hit) = hit else { return 1.0 };
+            let (n, t) = (unit(*n4), unit(*t4));
+            let w = f64::from(t4[3]);
+            let b = [
+                w * (n[1] * t[2] - n[2] * t[1]),
+                w * (n[2] * t[0] - n[0] * t[2]),
+                w * (n[0] * t[1] - n[1] * t[0]),
+            ];
+            let l_ts = [dot(l, t), dot(l, b), dot(l, n)];
+            // The receiver as the pass takes it: the surface under the hit's uv.
+            let h = reference.height(hit.uv);
+            if reference.occluded(hit.uv, h, l_ts, f64::from(depth_scale)) {
+                0.0
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+/// RGBA texels of an `R16G16B16A16_SFLOAT` image's bytes (the G-buffer's normal and
+/// tangent).
+pub fn decode_rgba16f(bytes: &[u8]) -> Vec<[f32; 4]> {
+    bytes
+        .chunks_exact(8)
+        .map(|c| {
+            let h = |i: usize| f16_to_f32(u16::from_le_bytes([c[2 * i], c[2 * i + 1]]));
+            [h(0), h(1), h(2), h(3)]
+        })
+        .collect()
+}
+
+/// The visibility image's bytes of `values` (IEEE halves, rounded to nearest; values
+/// outside the half range saturate, NaN stays NaN).
+pub fn encode_visibility(values: &[f32]) -> Vec<u8> {
+    values
+        .iter()
+        .flat_map(|&v| f32_to_f16(v).to_le_bytes())
+        .collect()
+}
+
+/// The IEEE half nearest to `v` (ties away from zero; tiny values flush to zero).
+fn f32_to_f16(v: f32) -> u16 {
+    let sign = if v.is_sign_negative() { 0x8000 } else { 0 };
+    let a = v.abs();
+    if a.is_nan() {
+        return 0x7e00;
+    }
+    if a >= 65520.0 {
+        return sign | 0x7c00;
+    }
+    if a < 2f32.powi(-24) * 0.5 {
+        return sign;
+    }
+    if a < 2f32.powi(-14) {
+        // Subnormal: a multiple of 2^-24.
+        return sign | (a / 2f32.powi(-24)).round() as u16;
+    }
+    let e = a.log2().floor() as i32;
+    let e = if 2f32.powi(e) > a { e - 1 } else { e };
+    let m = ((a / 2f32.powi(e) - 1.0) * 1024.0).round() as u32;
+    let (e, m) = if m == 1024 { (e + 1, 0) } else { (e, m) };
+    if e > 15 {
+        return sign | 0x7c00;
+    }
+    sign | (((e + 15) as u16) << 10) | m as u16
+}
+
 /// `f32` of an IEEE half (the visibility image's texels).
 pub fn f16_to_f32(bits: u16) -> f32 {
     let sign = if bits & 0x8000 != 0 { -1.0f32 } else { 1.0 };
@@ -502,6 +598,23 @@ mod tests {
             assert_eq!(hard, if pyramid { Pyramid } else { Sampled }, "{m}");
             assert_eq!(ShadowTrace::for_method(ShadowMode::Soft, m), Sampled, "{m}");
         }
+    }
+
+    #[test]
+    fn halves_round_trip() {
+        for v in [
+            0.0f32, 1.0, 0.5, 0.25, 0.1, 0.999, 1e-5, 3e-8, -2.0, 65504.0,
+        ] {
+            let back = f16_to_f32(f32_to_f16(v));
+            assert!((back - v).abs() <= v.abs() / 2048.0 + 3e-8, "{v} -> {back}");
+        }
+        assert_eq!(f32_to_f16(1.0), 0x3c00);
+        assert_eq!(f32_to_f16(0.0), 0);
+        assert_eq!(f32_to_f16(1e6), 0x7c00);
+        assert!(f16_to_f32(f32_to_f16(f32::NAN)).is_nan());
+        assert_eq!(encode_visibility(&[1.0, 0.0]), vec![0x00, 0x3c, 0, 0]);
+        let rgba = decode_rgba16f(&[0x00, 0x3c, 0x00, 0xc0, 0, 0, 0x00, 0x38]);
+        assert_eq!(rgba, vec![[1.0, -2.0, 0.0, 0.5]]);
     }
 
     #[test]
