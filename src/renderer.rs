@@ -770,7 +770,10 @@ impl<'a> Renderer<'a> {
     }
 
     /// Renders the G-buffer (with the current method), computes the exact hits of its
-    /// rays on the CPU and shades them.
+    /// rays on the CPU and shades them. With hard shadows the reference is shaded with
+    /// the exact visibility of those hits ([`Reference::occluded`], whatever the method's
+    /// shadow query); with soft shadows the `shadow` pass's estimate (the same for every
+    /// method) runs on them.
     pub fn reference(&mut self, reference: &Reference) -> Result<FrameReference> {
         self.render()?;
         let rays = self.read_rays()?;
