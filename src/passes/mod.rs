@@ -1,5 +1,6 @@
 //! The passes of a frame, one file each: `gbuffer` (graphics), `pyramid` (the min-reduce
-//! chain), `dig` (the DIG corner pass), `trace` (the method) and `shade`. Every pass only
+//! chain), `dig` (the DIG corner pass), `trace` (the method), `shadow` (optional
+//! self-shadowing) and `shade`. Every pass only
 //! records into a command buffer it is given; the caller places the barriers between
 //! passes (see [`crate::renderer`] for the order and
 //! the layouts each pass expects).
@@ -8,6 +9,7 @@ pub mod dig;
 pub mod gbuffer;
 pub mod pyramid;
 pub mod shade;
+pub mod shadow;
 pub mod trace;
 
 use crate::context::Context;
