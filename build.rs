@@ -8,6 +8,10 @@
 //! * Warnings are errors; any error fails the build with `file:line: message`.
 //! * Each shader becomes a constant named after its path: `glsl/trace/relief.comp` is
 //!   `TRACE_RELIEF_COMP`.
+//! * Variants: a line `// dispmap-variant: NAME` in an entry point also compiles it with
+//!   `#define NAME 1`, as the constant `<PATH CONSTANT>_<NAME>` (e.g. `SHADE_COMP_SHADOWS`)
+//!   named `<path>[NAME]`; a pass that needs a binding only sometimes picks the variant
+//!   instead of binding a placeholder.
 //!
 //! Debian 12's split shaderc packages need extra link directives for this build script;
 //! they live in `.cargo/config.toml` (see the comment there).
@@ -35,21 +39,33 @@ fn main() -> Result<()> {
             .to_string_lossy()
             .replace('\\', "/");
         println!("cargo:rerun-if-changed={}", path.display());
-        match compile(&compiler, &root, path, &rel) {
-            Ok(words) => {
-                let const_name = rel.to_uppercase().replace(['/', '.', '-'], "_");
-                let spv = out.join(format!("{}.spv", rel.replace('/', "__")));
-                std::fs::write(&spv, bytemuck_words(&words))
-                    .with_context(|| format!("writing {}", spv.display()))?;
-                writeln!(
-                    generated,
-                    "/// SPIR-V of `glsl/{rel}`.\npub const {const_name}: Shader = Shader {{ \
-                     name: {rel:?}, spirv: include_bytes!({:?}) }};",
-                    spv.display().to_string()
-                )?;
-                all.push(const_name);
+        let base_const = rel.to_uppercase().replace(['/', '.', '-'], "_");
+        let mut variants: Vec<Option<String>> = vec![None];
+        variants.extend(variants_of(path)?.into_iter().map(Some));
+        for variant in variants {
+            match compile(&compiler, &root, path, &rel, variant.as_deref()) {
+                Ok(words) => {
+                    let (const_name, name, file) = match &variant {
+                        None => (base_const.clone(), rel.clone(), rel.replace('/', "__")),
+                        Some(v) => (
+                            format!("{base_const}_{v}"),
+                            format!("{rel}[{v}]"),
+                            format!("{}__{v}", rel.replace('/', "__")),
+                        ),
+                    };
+                    let spv = out.join(format!("{file}.spv"));
+                    std::fs::write(&spv, bytemuck_words(&words))
+                        .with_context(|| format!("writing {}", spv.display()))?;
+                    writeln!(
+                        generated,
+                        "/// SPIR-V of `glsl/{name}`.\npub const {const_name}: Shader = Shader {{ \
+                         name: {name:?}, spirv: include_bytes!({:?}) }};",
+                        spv.display().to_string()
+                    )?;
+                    all.push(const_name);
+                }
+                Err(message) => failures.push(message),
             }
-            Err(message) => failures.push(message),
         }
     }
     if !failures.is_empty() {
@@ -78,6 +94,26 @@ fn collect(root: &Path, dir: &Path, into: &mut Vec<PathBuf>) -> Result<()> {
     Ok(())
 }
 
+/// The `// dispmap-variant: NAME` lines of a shader (see the crate docs above).
+fn variants_of(path: &Path) -> Result<Vec<String>> {
+    let source =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut names = Vec::new();
+    for line in source.lines() {
+        if let Some(name) = line.trim().strip_prefix("// dispmap-variant:") {
+            let name = name.trim();
+            if name.is_empty() || !name.chars().all(|c| c.is_ascii_uppercase() || c == '_') {
+                bail!(
+                    "{}: bad variant name '{name}' (A-Z and _ only)",
+                    path.display()
+                );
+            }
+            names.push(name.to_owned());
+        }
+    }
+    Ok(names)
+}
+
 fn kind_of(path: &Path) -> Option<shaderc::ShaderKind> {
     match path.extension()?.to_str()? {
         "comp" => Some(shaderc::ShaderKind::Compute),
@@ -93,6 +129,7 @@ fn compile(
     root: &Path,
     path: &Path,
     rel: &str,
+    variant: Option<&str>,
 ) -> Result<Vec<u32>, String> {
     let source = std::fs::read_to_string(path).map_err(|e| format!("glsl/{rel}: {e}"))?;
     let mut options = shaderc::CompileOptions::new().map_err(|e| e.to_string())?;
@@ -104,6 +141,9 @@ fn compile(
     options.set_optimization_level(shaderc::OptimizationLevel::Performance);
     options.set_warnings_as_errors();
     options.set_generate_debug_info();
+    if let Some(name) = variant {
+        options.add_macro_definition(name, Some("1"));
+    }
     let common = root.join("common");
     let root_owned = root.to_path_buf();
     options.set_include_callback(move |requested, _kind, requester, _depth| {
@@ -137,7 +177,10 @@ fn compile(
         .compile_into_spirv(
             &source,
             kind,
-            &format!("glsl/{rel}"),
+            &match variant {
+                None => format!("glsl/{rel}"),
+                Some(v) => format!("glsl/{rel}[{v}]"),
+            },
             "main",
             Some(&options),
         )

@@ -16,6 +16,7 @@ fn main() -> anyhow::Result<()> {
     let field = HeightField::load(map.as_ref(), convention.parse()?)?;
     let ctx = Context::headless(&ContextOptions::default())?;
     let settings = RenderSettings {
+        shadows: Default::default(),
         width: 320,
         height: 180,
         method: Method::Relief,

@@ -3,6 +3,9 @@
 // differences), the light is directional (Lambert + Blinn-Phong), the albedo is a stone
 // colour darkened with depth (a cheap cavity term that makes the relief readable).
 // Output: rgba8 (sRGB-encoded values in a UNORM storage image).
+// SHADOWS variant (self-shadowing on): binding 5 holds the `shadow` pass's light
+// visibility (1 = lit), which scales the direct light (diffuse and specular).
+// dispmap-variant: SHADOWS
 #include "frame.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
@@ -12,6 +15,9 @@ layout(set = 0, binding = 1) uniform sampler2D u_normal;
 layout(set = 0, binding = 2) uniform sampler2D u_tangent;
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 layout(set = 0, binding = 4, rgba8) uniform writeonly image2D u_color;
+#ifdef SHADOWS
+layout(set = 0, binding = 5, r16f) uniform readonly image2D u_visibility;
+#endif
 
 layout(push_constant) uniform ShadeParams {
     mat4 inv_view_proj;  // clip -> world
@@ -61,6 +67,10 @@ void main() {
     float diffuse = max(dot(n, L), 0.0);
     float spec = diffuse > 0.0 ? pc.specular * pow(max(dot(n, H), 0.0), pc.shininess) : 0.0;
     vec3 albedo = vec3(0.62, 0.55, 0.47) * mix(0.35, 1.0, hit.z);
-    vec3 color = albedo * (pc.ambient + pc.light_dir.w * diffuse) + vec3(spec * pc.light_dir.w);
+    float light = pc.light_dir.w;
+#ifdef SHADOWS
+    light *= imageLoad(u_visibility, pixel).r;
+#endif
+    vec3 color = albedo * (pc.ambient + light * diffuse) + vec3(spec * light);
     imageStore(u_color, pixel, vec4(srgb_encode(color), 1.0));
 }

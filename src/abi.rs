@@ -161,6 +161,39 @@ pub struct HitDepthParams {
     pub pad: u32,
 }
 
+/// `ShadowParams` in `glsl/shadow.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ShadowParams {
+    /// World-space unit vector towards the light (xyz); w unused.
+    pub light_dir: Vec4,
+    /// Frame size in pixels.
+    pub frame_size: [u32; 2],
+    /// Height-map size in texels.
+    pub map_size: [u32; 2],
+    /// Displacement depth in tile units.
+    pub depth_scale: f32,
+    /// The light ray starts this far (heights) above the hit.
+    pub bias: f32,
+    /// Lower bound of the light's tangent-space `z` when forming its climb.
+    pub min_cos: f32,
+    /// `ADDRESSING_*`.
+    pub addressing: u32,
+    /// `SHADOW_MODE_*`.
+    pub mode: u32,
+    /// Hard shadows of the marching methods: steps over the full depth.
+    pub steps: u32,
+    /// Soft shadows: light samples.
+    pub samples: u32,
+    /// Levels of the bound pyramid (0 without one).
+    pub pyramid_levels: u32,
+}
+
+/// `SHADOW_MODE_HARD` in `glsl/shadow.comp`.
+pub const SHADOW_MODE_HARD: u32 = 1;
+/// `SHADOW_MODE_SOFT` in `glsl/shadow.comp`.
+pub const SHADOW_MODE_SOFT: u32 = 2;
+
 #[cfg(test)]
 pub(crate) mod spirv_layout {
     //! Minimal SPIR-V reader: member offsets of a named block.
@@ -376,6 +409,38 @@ mod tests {
             size_of::<HitDepthParams>(),
         );
         assert_eq!(size_of::<HitDepthParams>(), 112);
+    }
+
+    #[test]
+    fn shadow_params_layout() {
+        for shader in [&shaders::SHADOW_COMP, &shaders::SHADOW_COMP_PYRAMID] {
+            check(
+                shader,
+                "ShadowParams",
+                &[
+                    ("light_dir", offset_of!(ShadowParams, light_dir)),
+                    ("frame_size", offset_of!(ShadowParams, frame_size)),
+                    ("map_size", offset_of!(ShadowParams, map_size)),
+                    ("depth_scale", offset_of!(ShadowParams, depth_scale)),
+                    ("bias", offset_of!(ShadowParams, bias)),
+                    ("min_cos", offset_of!(ShadowParams, min_cos)),
+                    ("addressing", offset_of!(ShadowParams, addressing)),
+                    ("mode", offset_of!(ShadowParams, mode)),
+                    ("steps", offset_of!(ShadowParams, steps)),
+                    ("samples", offset_of!(ShadowParams, samples)),
+                    ("pyramid_levels", offset_of!(ShadowParams, pyramid_levels)),
+                ],
+                size_of::<ShadowParams>(),
+            );
+        }
+        assert_eq!(size_of::<ShadowParams>(), 64);
+    }
+
+    #[test]
+    fn shadowed_shade_shares_the_block() {
+        let plain = block_offsets(&shaders::SHADE_COMP.words().unwrap(), "ShadeParams");
+        let shadowed = block_offsets(&shaders::SHADE_COMP_SHADOWS.words().unwrap(), "ShadeParams");
+        assert_eq!(plain, shadowed);
     }
 
     #[test]

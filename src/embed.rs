@@ -691,8 +691,9 @@ impl DisplacementPass {
                 specular: 0.25,
                 shininess: 48.0,
             };
+            let mut shaded = Ok(());
             timer.scope(ctx, cmd, "shade", |cmd| {
-                self.shade.record(
+                shaded = self.shade.record(
                     ctx,
                     cmd,
                     ShadeInputs {
@@ -703,10 +704,12 @@ impl DisplacementPass {
                             view: target.color,
                             extent,
                         },
+                        visibility: None,
                     },
                     &params,
                 )
             });
+            shaded?;
         }
         let frame = timer.frame;
         if matches!(timestamps, Timestamps::Owned) {

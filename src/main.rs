@@ -7,6 +7,7 @@ use dispmap::heatmap::{self, CornerStats, IterationStats};
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::metrics::ErrorMetrics;
+use dispmap::passes::shadow::{DEFAULT_SHADOW_SAMPLES, ShadowMode, ShadowSettings};
 use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Geometry, Light, Scene};
@@ -94,6 +95,10 @@ struct BenchArgs {
     /// The bundled map the map-size sweep resamples.
     #[arg(long, default_value = "rocks", value_name = "NAME")]
     size_map: String,
+    /// Self-shadowing of every run: `off`, `hard` or `soft` (see `render --shadows`);
+    /// when on, the `shadow` pass's time goes into results.csv (`shadow_ms`) and the report.
+    #[arg(long, default_value = "off", value_name = "MODE")]
+    shadows: ShadowMode,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -204,6 +209,14 @@ struct CommonArgs {
     /// Frames to render; timings are medians over them.
     #[arg(long, default_value_t = 3)]
     frames: u32,
+    /// Self-shadowing (Tatarchuk 2006, 3.2): `off`, `hard` (first occluder along the
+    /// light ray: exact for exact, dig-guarded and pyramid, a linear march with --steps
+    /// otherwise) or `soft` (the paper's penumbra estimate); timed as the `shadow` pass.
+    #[arg(long, default_value = "off")]
+    shadows: ShadowMode,
+    /// Soft shadows: height samples along the light ray (the paper's 8).
+    #[arg(long, default_value_t = DEFAULT_SHADOW_SAMPLES, value_name = "N")]
+    shadow_samples: u32,
 }
 
 fn parse_block(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -258,6 +271,10 @@ impl CommonArgs {
                 },
                 light: Light::default(),
             },
+            shadows: ShadowSettings {
+                mode: self.shadows,
+                samples: self.shadow_samples,
+            },
         }
     }
 
@@ -284,6 +301,7 @@ struct MetricsReport<'a> {
     heightmap: String,
     depth_scale: f32,
     camera_elevation: f32,
+    shadows: &'a str,
     device: &'a str,
     driver: &'a str,
     timings_ms: BTreeMap<String, f64>,
@@ -534,6 +552,7 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
                 heightmap: args.heightmap.display().to_string(),
                 depth_scale: settings.scene.depth_scale,
                 camera_elevation: settings.scene.camera.elevation_deg,
+                shadows: settings.shadows.mode.name(),
                 device: &ctx.info().name,
                 driver: &ctx.info().driver,
                 timings_ms: timings.iter().cloned().collect(),
@@ -660,6 +679,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         methods: bench::parse_methods(&args.methods)?,
         sizes: bench::parse_sizes(&args.sizes)?,
         size_steps: args.size_steps,
+        shadows: args.shadows,
         ..bench::BenchConfig::default()
     };
     config.validate()?;

@@ -73,6 +73,16 @@ use rayon::prelude::*;
 /// cell indices and positions must stay exactly representable.
 const MAX_TEXEL_EXTENT: f64 = (1u64 << 40) as f64;
 
+/// Self-shadowing: the light ray starts this far (in heights, the depth being 1) above
+/// the receiver, so the receiver's own surface does not shadow it where it faces the
+/// light (see [`Reference::occluded`]; the GPU `shadow` pass uses the same value).
+pub const SHADOW_BIAS: f64 = 1.0 / 4096.0;
+
+/// Self-shadowing: lower bound of the light's `L_ts.z` when the light ray's climb
+/// `depth_scale * L.xy / L.z` is formed (the view ray's `MIN_COS` in `scene`), so the
+/// climb stays finite for a light on the horizon.
+pub const SHADOW_MIN_COS: f64 = 1e-4;
+
 /// One pixel's ray as read back from the G-buffer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
@@ -259,8 +269,66 @@ impl Reference {
             .collect()
     }
 
+    /// Self-shadowing: whether the surface point `(uv, height)` is hidden from a
+    /// directional light whose tangent-space direction (towards the light) is `light_ts`
+    /// (`z` along the macro normal), the displacement being `depth_scale` tiles deep.
+    ///
+    /// * `light_ts.z <= 0` (the macro surface faces away from the light): occluded.
+    /// * Otherwise the light ray climbs from the point to the macro surface: going up by
+    ///   `dh` (heights, depth 1) moves it by `dh * depth_scale * L.xy / L.z` in UV (one
+    ///   UV unit is one tile, the depth of height `h` is `(1 - h) * depth_scale` tiles),
+    ///   `L.z` taken at least [`SHADOW_MIN_COS`]. The point is occluded when the bilinear
+    ///   surface reaches the ray anywhere on its part from `height + SHADOW_BIAS` up to
+    ///   `h = 1` (clamp mode: the part inside the decal; outside it there is no surface).
+    ///
+    /// Reversed, the light ray is a view ray entering the macro surface at
+    /// `uv + (1 - height) C` with parallax `-C` (`C` the climb per unit height), so this
+    /// is the exact first-hit search of [`Reference::intersect`] over `t` in
+    /// `[0, 1 - height - SHADOW_BIAS]`. The GPU's `shadow` pass (hard mode with the
+    /// pyramid methods) answers the same question in `f32`.
+    pub fn occluded(
+        &self,
+        uv: [f64; 2],
+        height: f64,
+        light_ts: [f64; 3],
+        depth_scale: f64,
+    ) -> bool {
+        // Facing away, or a NaN component: in shadow.
+        if light_ts[2].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return true;
+        }
+        let cos = light_ts[2].max(SHADOW_MIN_COS);
+        let climb = [
+            depth_scale * light_ts[0] / cos,
+            depth_scale * light_ts[1] / cos,
+        ];
+        let rise = 1.0 - height;
+        let t_stop = rise - SHADOW_BIAS;
+        // Within the bias of the macro surface (or a NaN height): nothing above it.
+        if t_stop.is_nan() || t_stop < 0.0 {
+            return false;
+        }
+        let ray = Ray {
+            uv0: [uv[0] + rise * climb[0], uv[1] + rise * climb[1]],
+            parallax: [-climb[0], -climb[1]],
+        };
+        self.segment_hit(&ray, t_stop).is_some()
+    }
+
     /// The ray parameter `t` of the first hit.
     fn first_hit(&self, ray: &Ray) -> Option<f64> {
+        if self.addressing == Addressing::Clamp && !ray.uv0.iter().all(|u| (0.0..=1.0).contains(u))
+        {
+            return None;
+        }
+        self.segment_hit(ray, 1.0)
+    }
+
+    /// The first `t` in `[0, t_stop]` where `ray` meets the surface, over the part of the
+    /// ray that crosses the height field: in clamp mode a ray starting outside the decal
+    /// enters it further on (the light rays of [`Reference::occluded`]); for a ray
+    /// starting inside the clip changes nothing.
+    fn segment_hit(&self, ray: &Ray, t_stop: f64) -> Option<f64> {
         let dims = [self.size[0] as f64, self.size[1] as f64];
         // Texel space: x(t) = origin + t dir.
         let origin = [ray.uv0[0] * dims[0] - 0.5, ray.uv0[1] * dims[1] - 0.5];
@@ -271,24 +339,26 @@ impl Reference {
             return None;
         }
 
-        // Where the ray ends: t = 1, or where it leaves the decal.
-        let mut t_end: f64 = 1.0;
+        // Where the ray starts and ends: [0, t_stop], clipped to the decal.
+        let mut t_begin: f64 = 0.0;
+        let mut t_end: f64 = t_stop;
         if self.addressing == Addressing::Clamp {
-            if !ray.uv0.iter().all(|u| (0.0..=1.0).contains(u)) {
-                return None;
-            }
             for a in 0..2 {
                 let (lo, hi) = (-0.5, dims[a] - 0.5);
                 if dir[a] > 0.0 {
+                    t_begin = t_begin.max((lo - origin[a]) / dir[a]);
                     t_end = t_end.min((hi - origin[a]) / dir[a]);
                 } else if dir[a] < 0.0 {
+                    t_begin = t_begin.max((hi - origin[a]) / dir[a]);
                     t_end = t_end.min((lo - origin[a]) / dir[a]);
+                } else if !(lo..=hi).contains(&origin[a]) {
+                    return None;
                 }
             }
             t_end = t_end.max(0.0);
         }
         // Nothing can be hit above the highest texel.
-        let t0 = (1.0 - self.global_max).max(0.0);
+        let t0 = (1.0 - self.global_max).max(t_begin);
         if t0 > t_end {
             return None;
         }
@@ -875,6 +945,159 @@ mod tests {
         ]);
         assert_eq!(traced[0], None);
         assert!((traced[1].unwrap().height - 0.5).abs() < 1e-12);
+    }
+
+    /// Unit light direction (towards the light) from `(x, y, z)`.
+    fn light(x: f64, y: f64, z: f64) -> [f64; 3] {
+        let n = (x * x + y * y + z * z).sqrt();
+        [x / n, y / n, z / n]
+    }
+
+    #[test]
+    fn a_flat_map_never_shadows_itself() {
+        let mut rng = Rng(11);
+        let field = HeightField::from_heights(8, 8, vec![0.4; 64], "flat").unwrap();
+        for addressing in [Addressing::Repeat, Addressing::Clamp] {
+            let reference = Reference::new(&field, addressing);
+            for _ in 0..300 {
+                let uv = [rng.range(0.0, 1.0), rng.range(0.0, 1.0)];
+                let l = light(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(1e-3, 1.0),
+                );
+                assert!(!reference.occluded(uv, 0.4, l, 0.1), "{uv:?} {l:?}");
+                // The macro surface facing away from the light: shadowed.
+                assert!(reference.occluded(uv, 0.4, [l[0], l[1], -l[2]], 0.1));
+            }
+            assert!(reference.occluded([0.5, 0.5], 0.4, [1.0, 0.0, 0.0], 0.1));
+        }
+    }
+
+    /// Left half 0.25, right half 0.75 (16 x 2): the wall rises between the texel
+    /// centres x = 7 and x = 8.
+    fn wall() -> HeightField {
+        let values = (0..32)
+            .map(|k| if k % 16 < 8 { 0.25 } else { 0.75 })
+            .collect();
+        HeightField::from_heights(16, 2, values, "wall").unwrap()
+    }
+
+    #[test]
+    fn a_wall_shadows_the_side_behind_it_only() {
+        // Light towards +x with L.z / L.x = 0.2 and depth 0.1: the climb is 0.5 uv =
+        // 8 texels per unit height. From (x_p, 0.25) the ray reaches 0.75 at x_p + 4, so
+        // it is blocked by the wall exactly when x_p > 4 (x_p = 4 grazes its top edge).
+        let field = wall();
+        let towards_wall = light(1.0, 0.0, 0.2);
+        let away = light(-1.0, 0.0, 0.2);
+        for addressing in [Addressing::Repeat, Addressing::Clamp] {
+            let reference = Reference::new(&field, addressing);
+            let uv = |x: f64| [(x + 0.5) / 16.0, 0.5];
+            for x in [1.0, 2.0, 3.0, 3.9] {
+                assert!(
+                    !reference.occluded(uv(x), 0.25, towards_wall, 0.1),
+                    "{addressing:?} x = {x} is lit over the wall"
+                );
+            }
+            for x in [4.1, 5.0, 6.0, 6.9] {
+                assert!(
+                    reference.occluded(uv(x), 0.25, towards_wall, 0.1),
+                    "{addressing:?} x = {x} is behind the wall"
+                );
+            }
+            // The top plateau is lit from both sides.
+            for x in [8.5, 10.0, 14.0] {
+                assert!(!reference.occluded(uv(x), 0.75, towards_wall, 0.1));
+                assert!(!reference.occluded(uv(x), 0.75, away, 0.1));
+            }
+        }
+        // Light from the other side over the low plateau (clamp: no wrap to the wall
+        // of the next tile): lit; the wall's face towards the light: lit.
+        let clamp = Reference::new(&field, Addressing::Clamp);
+        for x in [1.0, 4.0, 6.9] {
+            assert!(!clamp.occluded([(x + 0.5) / 16.0, 0.5], 0.25, away, 0.1));
+        }
+        let face = 0.25 + 0.5 * 0.5; // x = 7.5, on the wall
+        assert!(!clamp.occluded([8.0 / 16.0, 0.5], face, away, 0.1));
+        // Its back, seen from the light on the +x side: in its own shadow.
+        assert!(clamp.occluded([8.0 / 16.0, 0.5], face, towards_wall, 0.1));
+    }
+
+    #[test]
+    fn a_clamp_light_ray_enters_the_decal_from_outside() {
+        // A low light: the ray reaches h = 1 far beyond the decal (u + 0.75 * 2 > 1); the
+        // part inside the decal still meets the wall.
+        let reference = Reference::new(&wall(), Addressing::Clamp);
+        let low = light(1.0, 0.0, 0.05);
+        for x in [2.0, 5.0] {
+            let uv = [(x + 0.5) / 16.0, 0.5];
+            assert!(reference.occluded(uv, 0.25, low, 0.1), "x = {x}");
+        }
+        // The top plateau: its ray leaves the decal without meeting anything.
+        assert!(!reference.occluded([0.75, 0.5], 0.75, low, 0.1));
+    }
+
+    /// Brute force: dense samples of the light ray from `h + SHADOW_BIAS` to 1 (clamp:
+    /// inside the decal). Returns the largest `H - h_ray` seen.
+    fn brute_occlusion(
+        field: &HeightField,
+        addressing: Addressing,
+        uv: [f64; 2],
+        h: f64,
+        climb: [f64; 2],
+    ) -> f64 {
+        let n = 20_000;
+        let start = h + SHADOW_BIAS;
+        let mut worst = f64::NEG_INFINITY;
+        for k in 0..=n {
+            let hr = start + (1.0 - start) * f64::from(k) / f64::from(n);
+            let p = [uv[0] + (hr - h) * climb[0], uv[1] + (hr - h) * climb[1]];
+            if addressing == Addressing::Clamp && p.iter().any(|u| !(0.0..=1.0).contains(u)) {
+                continue;
+            }
+            worst = worst.max(bilinear(field, addressing, p) - hr);
+        }
+        worst
+    }
+
+    #[test]
+    fn occlusion_agrees_with_brute_force_on_random_maps() {
+        let mut rng = Rng(5);
+        for (w, h) in [(9u32, 7u32), (16, 16)] {
+            let field = random_field(w, h, 0.0, 1.0, &mut rng);
+            for addressing in [Addressing::Repeat, Addressing::Clamp] {
+                let reference = Reference::new(&field, addressing);
+                let (mut shadowed, mut lit) = (0, 0);
+                for _ in 0..300 {
+                    let uv = [rng.range(0.0, 1.0), rng.range(0.0, 1.0)];
+                    let height = bilinear(&field, addressing, uv);
+                    let l = light(
+                        rng.range(-1.0, 1.0),
+                        rng.range(-1.0, 1.0),
+                        rng.range(0.05, 1.0),
+                    );
+                    let depth = [0.05, 0.1, 0.3][rng.next() as usize % 3];
+                    let climb = [depth * l[0] / l[2], depth * l[1] / l[2]];
+                    let worst = brute_occlusion(&field, addressing, uv, height, climb);
+                    if worst.abs() < 1e-4 {
+                        continue; // a graze: the sampling cannot decide it
+                    }
+                    let exact = reference.occluded(uv, height, l, depth);
+                    assert_eq!(
+                        exact,
+                        worst > 0.0,
+                        "{w}x{h} {addressing:?} uv {uv:?} h {height} L {l:?}: brute {worst}"
+                    );
+                    if exact {
+                        shadowed += 1;
+                    } else {
+                        lit += 1;
+                    }
+                }
+                assert!(shadowed > 30 && lit > 30, "{shadowed} shadowed, {lit} lit");
+            }
+        }
     }
 
     #[test]

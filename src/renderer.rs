@@ -1,5 +1,5 @@
 //! The standalone renderer: owns the images and passes of one frame size and runs
-//! `gbuffer -> [pyramid] -> [dig_corners] -> trace -> shade` on the context's queue,
+//! `gbuffer -> [pyramid] -> [dig_corners] -> trace -> [shadow] -> shade` on the context's queue,
 //! each pass between timestamps. It builds only what the method needs ([`Method::needs`]):
 //! the pyramid (and its pass) only for the pyramid methods, the corner grid only for DIG.
 //! The pyramid is built in the first frame after the method asks for it (the height map
@@ -15,10 +15,13 @@
 //!    DIG: corner grid discarded -> `GENERAL`, `dig_corners` writes it, then ->
 //!    `SHADER_READ_ONLY_OPTIMAL`. Hit buffer: discarded -> `GENERAL` for storage writes;
 //!    `trace` writes the hits.
-//! 3. Hit buffer: storage write -> storage read (`GENERAL`); colour: discarded ->
+//! 3. Self-shadowing on ([`ShadowSettings`]): hit buffer storage write -> storage read,
+//!    visibility discarded -> `GENERAL` storage write; `shadow` writes it, then storage
+//!    write -> storage read. (The stage's own cell pyramid, `pyramid` method only, is
+//!    built with the method's in the `pyramid` scope.)
+//! 4. Hit buffer: storage write -> storage read (`GENERAL`); colour: discarded ->
 //!    `GENERAL`; `shade` writes the colour.
-//!
-//! 4. With [`Renderer::set_depth_output`] on: the corrected depth, discarded ->
+//! 5. With [`Renderer::set_depth_output`] on: the corrected depth, discarded ->
 //!    `GENERAL`; `hit_depth` writes it from the hit buffer (still `GENERAL`, storage read)
 //!    and the G-buffer.
 //!
@@ -39,6 +42,7 @@ use crate::passes::gbuffer::{GBuffer, GBufferPass};
 use crate::passes::hit_depth::{HIT_DEPTH_FORMAT, HitDepthInputs, HitDepthPass};
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::{COLOR_FORMAT, ShadeInputs, ShadePass};
+use crate::passes::shadow::{ShadowInputs, ShadowMode, ShadowPass, ShadowSettings, ShadowStage};
 use crate::passes::trace::{HIT_FORMAT, TraceInputs, TracePass};
 use crate::reference::{Hit, Ray, Reference};
 use crate::scene::Scene;
@@ -61,6 +65,8 @@ pub struct RenderSettings {
     pub params: MethodParams,
     /// Camera, light, geometry, depth scale.
     pub scene: Scene,
+    /// Self-shadowing (default: off).
+    pub shadows: ShadowSettings,
 }
 
 impl RenderSettings {
@@ -80,6 +86,7 @@ impl RenderSettings {
             ));
         }
         self.params.validate()?;
+        self.shadows.validate()?;
         self.scene.validate()
     }
 }
@@ -122,6 +129,8 @@ pub struct Renderer<'a> {
     shade: ShadePass,
     /// What the method needs, built by [`Renderer::prepare`].
     extras: Extras,
+    /// Self-shadowing (`None` when off), built by [`Renderer::prepare`].
+    shadow: Option<ShadowStage>,
     /// The corrected-depth pass and image ([`Renderer::set_depth_output`]).
     depth: Option<DepthOutput>,
 }
@@ -248,6 +257,7 @@ impl<'a> Renderer<'a> {
             shade: parts.shade.take().expect(built),
             extras: Extras::default(),
             depth: None,
+            shadow: None,
         };
         // On failure the renderer's Drop destroys everything built so far.
         renderer.prepare()?;
@@ -308,7 +318,62 @@ impl<'a> Renderer<'a> {
                 c.destroy(ctx);
             }
         }
-        Ok(())
+        self.prepare_shadows()
+    }
+
+    /// Builds or drops the self-shadowing stage and picks the matching shade pass.
+    fn prepare_shadows(&mut self) -> Result<()> {
+        let ctx = self.ctx;
+        let shadows = self.settings.shadows;
+        if self.shade.is_shadowed() != shadows.is_on() {
+            let new = if shadows.is_on() {
+                ShadePass::shadowed(ctx)?
+            } else {
+                ShadePass::new(ctx)?
+            };
+            let mut old = std::mem::replace(&mut self.shade, new);
+            old.destroy(ctx);
+        }
+        let extent = vk::Extent2D {
+            width: self.settings.width,
+            height: self.settings.height,
+        };
+        ShadowStage::sync(
+            ctx,
+            &mut self.shadow,
+            &shadows,
+            self.settings.method,
+            extent,
+            self.height.size(),
+            self.height.addressing,
+        )
+    }
+
+    /// Switches self-shadowing (builds or drops the `shadow` pass and its image).
+    pub fn set_shadows(&mut self, shadows: ShadowSettings) -> Result<()> {
+        shadows.validate()?;
+        self.settings.shadows = shadows;
+        self.prepare()
+    }
+
+    /// The last frame's light visibility (1 = lit), row by row; `None` when
+    /// self-shadowing is off.
+    pub fn read_visibility(&self) -> Result<Option<Vec<f32>>> {
+        let Some(stage) = &self.shadow else {
+            return Ok(None);
+        };
+        let bytes = read_image(
+            self.ctx,
+            &self.shot,
+            &stage.visibility,
+            Access::COMPUTE_STORAGE_READ,
+        )?;
+        Ok(Some(
+            bytes
+                .chunks_exact(2)
+                .map(|b| crate::passes::shadow::f16_to_f32(u16::from_le_bytes([b[0], b[1]])))
+                .collect(),
+        ))
     }
 
     /// The settings in use.
@@ -408,14 +473,21 @@ impl<'a> Renderer<'a> {
         }
         sync::record(ctx, cmd, &to_trace);
 
-        if let (Some(pass), Some(pyramid), false) = (
+        let method_pyramid = match (
             &self.extras.pyramid_pass,
             &self.extras.pyramid,
             self.extras.pyramid_built,
         ) {
+            (Some(pass), Some(pyramid), false) => Some((pass, pyramid)),
+            _ => None,
+        };
+        let shadow_pyramid = self.shadow.as_ref().and_then(ShadowStage::unbuilt_pyramid);
+        if method_pyramid.is_some() || shadow_pyramid.is_some() {
             ctx.begin_label(cmd, "pyramid");
             self.timer.begin(ctx, cmd, "pyramid")?;
-            pass.record(ctx, cmd, &self.height, pyramid);
+            for (pass, pyramid) in method_pyramid.into_iter().chain(shadow_pyramid) {
+                pass.record(ctx, cmd, &self.height, pyramid);
+            }
             self.timer.end(ctx, cmd);
             ctx.end_label(cmd);
         }
@@ -462,9 +534,12 @@ impl<'a> Renderer<'a> {
         self.timer.end(ctx, cmd);
         ctx.end_label(cmd);
 
-        self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE)?;
+        self.record_shade(cmd, &shade_params, Access::COMPUTE_STORAGE_WRITE, true)?;
         self.record_hit_depth(cmd, &camera)?;
         self.shot.submit_and_wait(ctx)?;
+        if let Some(stage) = &mut self.shadow {
+            stage.mark_built();
+        }
         let times = self.timer.read(ctx)?;
         if self.extras.pyramid.is_some() && !self.extras.pyramid_built {
             self.extras.pyramid_built = true;
@@ -625,26 +700,72 @@ impl<'a> Renderer<'a> {
         cmd: vk::CommandBuffer,
         params: &crate::abi::ShadeParams,
         hit_before: Access,
+        run_shadow: bool,
     ) -> Result<()> {
         let ctx = self.ctx;
-        sync::record(
-            ctx,
-            cmd,
-            &[
-                sync::image_barrier(
-                    self.hit.raw,
-                    self.hit.range(),
-                    hit_before,
-                    Access::COMPUTE_STORAGE_READ,
-                ),
-                sync::image_barrier(
-                    self.color.raw,
-                    self.color.range(),
-                    DISCARD,
-                    Access::COMPUTE_STORAGE_WRITE,
-                ),
-            ],
-        );
+        let mut to_shade = vec![
+            sync::image_barrier(
+                self.hit.raw,
+                self.hit.range(),
+                hit_before,
+                Access::COMPUTE_STORAGE_READ,
+            ),
+            sync::image_barrier(
+                self.color.raw,
+                self.color.range(),
+                DISCARD,
+                Access::COMPUTE_STORAGE_WRITE,
+            ),
+        ];
+        if let (Some(stage), true) = (&self.shadow, run_shadow) {
+            // The shadow pass reads the hits first; shade then needs only the colour's
+            // and the visibility's barriers.
+            let image = &stage.visibility;
+            let hit_to_read = to_shade.remove(0);
+            sync::record(
+                ctx,
+                cmd,
+                &[
+                    hit_to_read,
+                    sync::image_barrier(
+                        image.raw,
+                        image.range(),
+                        DISCARD,
+                        Access::COMPUTE_STORAGE_WRITE,
+                    ),
+                ],
+            );
+            let shadow_params = ShadowPass::params(
+                &self.settings.shadows,
+                self.settings.params.steps,
+                params,
+                self.height.addressing,
+            );
+            ctx.begin_label(cmd, "shadow");
+            self.timer.begin(ctx, cmd, "shadow")?;
+            let recorded = stage.pass.record(
+                ctx,
+                cmd,
+                ShadowInputs {
+                    hit: self.hit.view,
+                    gbuffer: self.gbuffer.views(),
+                    height: &self.height,
+                    pyramid: stage.pyramid(self.extras.pyramid.as_ref()),
+                    visibility: image.view_ref(),
+                },
+                &shadow_params,
+            );
+            self.timer.end(ctx, cmd);
+            ctx.end_label(cmd);
+            recorded?;
+            to_shade.push(sync::image_barrier(
+                image.raw,
+                image.range(),
+                Access::COMPUTE_STORAGE_WRITE,
+                Access::COMPUTE_STORAGE_READ,
+            ));
+        }
+        sync::record(ctx, cmd, &to_shade);
         ctx.begin_label(cmd, "shade");
         self.timer.begin(ctx, cmd, "shade")?;
         self.shade.record(
@@ -655,9 +776,10 @@ impl<'a> Renderer<'a> {
                 gbuffer: self.gbuffer.views(),
                 height: &self.height,
                 color: self.color.view_ref(),
+                visibility: self.shadow.as_ref().map(|s| s.visibility.view),
             },
             params,
-        );
+        )?;
         self.timer.end(ctx, cmd);
         ctx.end_label(cmd);
         Ok(())
@@ -760,9 +882,32 @@ impl<'a> Renderer<'a> {
     }
 
     /// Shades `hits` (one texel per pixel) with the current G-buffer and returns the
-    /// colour. Overwrites the hit buffer.
+    /// colour. Overwrites the hit buffer. With self-shadowing on, the `shadow` pass runs
+    /// on `hits` first.
     pub fn shade_hits(&mut self, hits: &[HitTexel]) -> Result<Vec<u8>> {
+        self.shade_hits_with(hits, None)
+    }
+
+    /// [`Renderer::shade_hits`] with the light visibility given (one value per pixel;
+    /// self-shadowing must be on) instead of computed by the `shadow` pass.
+    pub fn shade_hits_with(
+        &mut self,
+        hits: &[HitTexel],
+        visibility: Option<&[f32]>,
+    ) -> Result<Vec<u8>> {
         let ctx = self.ctx;
+        if let Some(values) = visibility {
+            let stage = self.shadow.as_ref().ok_or_else(|| {
+                Error::invalid("visibility", "self-shadowing is off: nothing to shade with")
+            })?;
+            upload_image(
+                ctx,
+                &self.shot,
+                &stage.visibility,
+                &crate::passes::shadow::encode_visibility(values),
+                Access::COMPUTE_STORAGE_READ,
+            )?;
+        }
         upload_image(
             ctx,
             &self.shot,
@@ -775,13 +920,21 @@ impl<'a> Renderer<'a> {
         let params = scene.shade_params(&camera, self.frame_size(), self.height.size());
         let cmd = self.shot.begin(ctx)?;
         self.timer.reset(ctx, cmd);
-        self.record_shade(cmd, &params, Access::COMPUTE_STORAGE_READ)?;
+        self.record_shade(
+            cmd,
+            &params,
+            Access::COMPUTE_STORAGE_READ,
+            visibility.is_none(),
+        )?;
         self.shot.submit_and_wait(ctx)?;
         self.read_color()
     }
 
     /// Renders the G-buffer (with the current method), computes the exact hits of its
-    /// rays on the CPU and shades them.
+    /// rays on the CPU and shades them. With hard shadows the reference is shaded with
+    /// the exact visibility of those hits ([`Reference::occluded`], whatever the method's
+    /// shadow query); with soft shadows the `shadow` pass's estimate (the same for every
+    /// method) runs on them.
     pub fn reference(&mut self, reference: &Reference) -> Result<FrameReference> {
         self.render()?;
         let rays = self.read_rays()?;
@@ -793,8 +946,44 @@ impl<'a> Renderer<'a> {
                 None => [0.0, 0.0, crate::abi::NO_HIT_HEIGHT, 0.0],
             })
             .collect();
-        let color = self.shade_hits(&texels)?;
+        let color = if self.settings.shadows.mode == ShadowMode::Hard {
+            // Hard shadows have an exact answer: the reference is shaded with it,
+            // whichever method (and shadow query) this renderer runs.
+            let visibility = self.reference_visibility(reference, &hits)?;
+            self.shade_hits_with(&texels, Some(&visibility))?
+        } else {
+            // Off, or soft (the same estimate for every method): the pass itself.
+            self.shade_hits(&texels)?
+        };
         Ok(FrameReference { rays, hits, color })
+    }
+
+    /// The exact hard-shadow visibility of `hits` under the current light
+    /// ([`crate::passes::shadow::reference_visibility`]).
+    fn reference_visibility(
+        &self,
+        reference: &Reference,
+        hits: &[Option<Hit>],
+    ) -> Result<Vec<f32>> {
+        let read = |image: &Image| -> Result<Vec<[f32; 4]>> {
+            let bytes = read_image(self.ctx, &self.shot, image, Access::COMPUTE_SAMPLED)?;
+            Ok(crate::passes::shadow::decode_rgba16f(&bytes))
+        };
+        let normal = read(&self.gbuffer.normal)?;
+        let tangent = read(&self.gbuffer.tangent)?;
+        let scene = self.settings.scene;
+        let camera = scene.frame_camera(self.settings.width, self.settings.height);
+        let light = scene
+            .shade_params(&camera, self.frame_size(), self.height.size())
+            .light_dir;
+        Ok(crate::passes::shadow::reference_visibility(
+            reference,
+            hits,
+            &normal,
+            &tangent,
+            [light.x, light.y, light.z],
+            scene.depth_scale,
+        ))
     }
 
     /// Renders a frame with the current method and measures it against `reference`
@@ -843,6 +1032,9 @@ impl Drop for Renderer<'_> {
         // SAFETY: every submission was waited for; idle makes sure of it on error paths.
         unsafe {
             let _ = ctx.device().device_wait_idle();
+        }
+        if let Some(stage) = &mut self.shadow {
+            stage.destroy(ctx);
         }
         self.extras.destroy(ctx);
         if let Some(d) = &mut self.depth {

@@ -53,6 +53,7 @@ fn settings(geometry: Geometry, elevation: f32) -> RenderSettings {
             },
             ..Scene::default()
         },
+        shadows: Default::default(),
     }
 }
 

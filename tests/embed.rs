@@ -291,6 +291,7 @@ fn standalone(
         ctx,
         field,
         RenderSettings {
+            shadows: Default::default(),
             width: extent.width,
             height: extent.height,
             method,

@@ -30,6 +30,7 @@ fn standalone_hits(method: Method) -> Vec<[f32; 4]> {
             &ctx,
             &host_engine::rocks().unwrap(),
             RenderSettings {
+                shadows: Default::default(),
                 width: W,
                 height: H,
                 method,

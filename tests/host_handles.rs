@@ -15,6 +15,7 @@ use std::sync::{Arc, Mutex};
 
 fn settings() -> RenderSettings {
     RenderSettings {
+        shadows: Default::default(),
         width: 96,
         height: 64,
         method: Method::Relief,

@@ -59,6 +59,7 @@ fn settings(method: Method, scene: Scene, lod: Option<f32>) -> RenderSettings {
             ..MethodParams::for_method(method)
         },
         scene,
+        shadows: Default::default(),
     }
 }
 

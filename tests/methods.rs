@@ -18,6 +18,7 @@ const ELEVATIONS: [f32; 3] = [30.0, 5.0, 1.0];
 
 fn settings(method: Method, elevation: f32, geometry: Geometry) -> RenderSettings {
     RenderSettings {
+        shadows: Default::default(),
         width: 256,
         height: 144,
         method,

@@ -12,6 +12,7 @@ use dispmap::scene::{Camera, Geometry, Scene};
 
 fn settings(method: Method, steps: u32, elevation: f32) -> RenderSettings {
     RenderSettings {
+        shadows: Default::default(),
         width: 256,
         height: 144,
         method,

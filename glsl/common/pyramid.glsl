@@ -133,33 +133,35 @@ void texel_ray(Ray ray, out vec2 origin, out vec2 dir) {
     dir = ray.P * dims;
 }
 
-// The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h):
-// returns t, or -1 when there is none (a clamp-addressed ray leaving the decal, or no
-// crossing before t_stop < 1). The traversal starts at level `start_level` (any level
-// is correct: every level bounds its cells; a short segment starts low). `iterations`
-// counts the traversal steps (one pyramid or one cell fetch each).
-float pyramid_first_hit_from(Ray ray, float t_start, float t_stop, int start_level, inout uint iterations) {
+// The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h) with
+// the part of the height field the ray crosses: for clamp addressing, a ray that starts
+// outside the decal enters it further on (the self-shadowing pass's light rays, which
+// reach the macro surface outside the decal); for a ray starting inside, the clip is a
+// no-op. Returns t, or -1 (see pyramid_first_hit_from).
+float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level, inout uint iterations) {
     ivec2 n_cells = ivec2(pc.map_size);
     vec2 dims = vec2(pc.map_size);
     vec2 origin, dir;
     texel_ray(ray, origin, dir);
     float t_end = t_stop;
+    float t_begin = t_start;
     if (pc.addressing == ADDRESSING_CLAMP) {
-        if (any(lessThan(ray.uv0, vec2(0.0))) || any(greaterThan(ray.uv0, vec2(1.0)))) {
-            return -1.0;
-        }
         for (int a = 0; a < 2; ++a) {
             if (dir[a] > 0.0) {
+                t_begin = max(t_begin, (-0.5 - origin[a]) / dir[a]);
                 t_end = min(t_end, (dims[a] - 0.5 - origin[a]) / dir[a]);
             } else if (dir[a] < 0.0) {
+                t_begin = max(t_begin, (dims[a] - 0.5 - origin[a]) / dir[a]);
                 t_end = min(t_end, (-0.5 - origin[a]) / dir[a]);
+            } else if (origin[a] < -0.5 || origin[a] > dims[a] - 0.5) {
+                return -1.0;
             }
         }
         t_end = max(t_end, 0.0);
     }
     int top = int(pc.pyramid_levels) - 1;
     float global_max = texelFetch(u_pyramid, ivec2(0), top).r;
-    float t = max(t_start, 1.0 - global_max);
+    float t = max(t_begin, 1.0 - global_max);
     if (t > t_end) {
         return -1.0;
     }
@@ -222,6 +224,18 @@ float pyramid_first_hit_from(Ray ray, float t_start, float t_stop, int start_lev
         level = min(level + 1, top);
     }
     return -1.0;
+}
+
+// The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h):
+// returns t, or -1 when there is none (a clamp-addressed ray leaving the decal, or no
+// crossing before t_stop < 1). The traversal starts at level `start_level` (any level
+// is correct: every level bounds its cells; a short segment starts low). `iterations`
+// counts the traversal steps (one pyramid or one cell fetch each).
+float pyramid_first_hit_from(Ray ray, float t_start, float t_stop, int start_level, inout uint iterations) {
+    if (pc.addressing == ADDRESSING_CLAMP && (any(lessThan(ray.uv0, vec2(0.0))) || any(greaterThan(ray.uv0, vec2(1.0))))) {
+        return -1.0;
+    }
+    return pyramid_segment_hit(ray, t_start, t_stop, start_level, iterations);
 }
 
 // pyramid_first_hit_from starting at the root.

@@ -204,6 +204,9 @@ pub struct BenchConfig {
     pub size_steps: u32,
     /// The scene of frame 0 (the azimuth is set per frame).
     pub scene: Scene,
+    /// Self-shadowing of every run (`--shadows`, default off): when on, the `shadow`
+    /// pass is timed (`shadow_ms`) and counted in `total_ms`, not in `method_ms`.
+    pub shadows: crate::passes::shadow::ShadowMode,
 }
 
 impl Default for BenchConfig {
@@ -218,6 +221,7 @@ impl Default for BenchConfig {
             size_methods: SIZE_METHODS.to_vec(),
             size_steps: DEFAULT_SIZE_STEPS,
             scene: protocol_scene(),
+            shadows: crate::passes::shadow::ShadowMode::Off,
         }
     }
 }
@@ -517,6 +521,8 @@ pub struct RunRow {
     pub trace_ms: f64,
     /// Median shade pass.
     pub shade_ms: f64,
+    /// Median self-shadowing pass (`--shadows` on only).
+    pub shadow_ms: Option<f64>,
     /// Median per-frame `dig_corners + trace`: the method's time.
     pub method_ms: f64,
     /// Median per-frame total (without the pyramid build).
@@ -884,6 +890,10 @@ impl<'a> MapSweep<'a> {
             method,
             params: protocol_params(None),
             scene: config.frame_scene(0),
+            shadows: crate::passes::shadow::ShadowSettings {
+                mode: config.shadows,
+                ..Default::default()
+            },
         }
     }
 
@@ -1025,6 +1035,7 @@ impl<'a> MapSweep<'a> {
             dig_corners_ms: acc.median_of("dig_corners"),
             trace_ms: acc.median_of("trace").unwrap_or(0.0),
             shade_ms: acc.median_of("shade").unwrap_or(0.0),
+            shadow_ms: acc.median_of("shadow"),
             method_ms: crate::timing::median(&acc.method_ms),
             total_ms: crate::timing::median(&acc.total_ms),
             iterations_mean: acc.mean(|e| e.mean_iterations),

@@ -50,7 +50,7 @@ pub fn csv_bytes(rows: &[RunRow]) -> Result<Vec<u8>> {
 }
 
 /// The columns of `results.csv`, in order.
-pub const CSV_HEADER: [&str; 29] = [
+pub const CSV_HEADER: [&str; 30] = [
     "sweep",
     "map",
     "map_width",
@@ -67,6 +67,7 @@ pub const CSV_HEADER: [&str; 29] = [
     "dig_corners_ms",
     "trace_ms",
     "shade_ms",
+    "shadow_ms",
     "method_ms",
     "total_ms",
     "iterations_mean",
@@ -416,6 +417,7 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     for map in &results.maps {
         map_section(&mut s, results, &map.name, map);
     }
+    shadow_section(&mut s, results);
     size_section(&mut s, results);
     let _ = writeln!(
         s,
@@ -603,6 +605,42 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
     }
 }
 
+/// With `--shadows` on: the `shadow` pass's median time per run, and over `trace`.
+fn shadow_section(s: &mut String, results: &BenchResults) {
+    let mode = results.config.shadows;
+    let rows: Vec<&RunRow> = results
+        .rows
+        .iter()
+        .filter(|r| r.shadow_ms.is_some())
+        .collect();
+    if rows.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## Self-shadowing (`--shadows {mode}`)\n\nThe `shadow` pass (after `trace`, before \
+         `shade`) per run: median milliseconds and its time over the trace pass's. It is part \
+         of **frame**, not of **method**.\n\n| map | method | steps | trace | shadow | shadow / trace |\n|---|---|---|---:|---:|---:|"
+    );
+    for r in rows {
+        let shadow = r.shadow_ms.unwrap_or(0.0);
+        let _ = writeln!(
+            s,
+            "| {} | `{}` | {} | {:.2} | {:.2} | {} |",
+            r.map,
+            r.method,
+            steps_cell(r),
+            r.trace_ms,
+            shadow,
+            if r.trace_ms > 0.0 {
+                format!("{:.2}", shadow / r.trace_ms)
+            } else {
+                "-".into()
+            }
+        );
+    }
+}
+
 fn size_section(s: &mut String, results: &BenchResults) {
     let c = &results.config;
     let rows: Vec<&RunRow> = results
@@ -741,6 +779,7 @@ mod tests {
             dig_corners_ms: (method == "dig").then_some(0.25),
             trace_ms: method_ms,
             shade_ms: 0.75,
+            shadow_ms: None,
             method_ms,
             total_ms: method_ms + 1.25,
             iterations_mean: 12.5,
@@ -771,7 +810,7 @@ mod tests {
         assert_eq!(
             lines.next().unwrap(),
             "methods,rocks,1024,1024,pom,75,64,36,2,1,azimuth (f+0.5)*180deg for f<2; error frames 0,\
-             0.5,,,4.0,0.75,4.0,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0"
+             0.5,,,4.0,0.75,,4.0,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0"
         );
         let bump = lines.next().unwrap();
         assert!(

@@ -1,7 +1,8 @@
 //! The passes of a frame, one file each: `gbuffer` (graphics), `pyramid` (the min-reduce
-//! chain), `dig` (the DIG corner pass), `trace` (the method) and `shade`; on request
-//! `hit_depth` (the corrected depth of the displaced surface) and `depth_resolve`
-//! (graphics: that depth into a depth attachment). Every pass only
+//! chain), `dig` (the DIG corner pass), `trace` (the method), `shadow` (optional
+//! self-shadowing) and `shade`; on request `hit_depth` (the corrected depth of the
+//! displaced surface) and `depth_resolve` (graphics: that depth into a depth
+//! attachment). Every pass only
 //! records into a command buffer it is given; the caller places the barriers between
 //! passes (see [`crate::renderer`] for the order and
 //! the layouts each pass expects).
@@ -12,6 +13,7 @@ pub mod gbuffer;
 pub mod hit_depth;
 pub mod pyramid;
 pub mod shade;
+pub mod shadow;
 pub mod trace;
 
 use crate::context::Context;

@@ -9,6 +9,11 @@
 //! | 2 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 4 | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
+//! | 5 | light visibility (`R16_SFLOAT` storage, read; [`ShadePass::shadowed`] only) | `GENERAL` |
+//!
+//! Without self-shadowing the pipeline has no binding 5 (the `shadow` pass and its image
+//! are not built); with it ([`ShadePass::shadowed`], the shader's `SHADOWS` variant) the
+//! visibility written by [`crate::passes::shadow`] scales the direct light.
 
 use crate::abi::ShadeParams;
 use crate::context::Context;
@@ -22,13 +27,17 @@ use ash::vk;
 /// Format of the colour output.
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 
-const BINDINGS: [vk::DescriptorType; 5] = [
+const BINDINGS: [vk::DescriptorType; 6] = [
     vk::DescriptorType::STORAGE_IMAGE,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::STORAGE_IMAGE,
     vk::DescriptorType::STORAGE_IMAGE,
 ];
+
+/// The visibility binding of the shadowed variant.
+const VISIBILITY_BINDING: usize = 5;
 
 /// The images the shade pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
@@ -41,53 +50,104 @@ pub struct ShadeInputs<'a> {
     pub height: &'a HeightTexture,
     /// The colour output (written; the frame's size).
     pub color: ViewRef,
+    /// The light visibility of the `shadow` pass (read); required by a
+    /// [`ShadePass::shadowed`] pass, ignored otherwise.
+    pub visibility: Option<vk::ImageView>,
 }
 
 /// The shade pass.
 pub struct ShadePass {
     pipeline: FetchPipeline,
+    shadowed: bool,
 }
 
 impl ShadePass {
-    /// Builds the pipeline.
+    /// Builds the pipeline (no self-shadowing).
     pub fn new(ctx: &Context) -> Result<Self> {
+        Self::build(ctx, false)
+    }
+
+    /// Builds the pipeline that reads the `shadow` pass's visibility (binding 5).
+    pub fn shadowed(ctx: &Context) -> Result<Self> {
+        Self::build(ctx, true)
+    }
+
+    fn build(ctx: &Context, shadowed: bool) -> Result<Self> {
+        let (name, shader, bindings) = if shadowed {
+            (
+                "shade[shadows]",
+                &shaders::SHADE_COMP_SHADOWS,
+                &BINDINGS[..],
+            )
+        } else {
+            (
+                "shade",
+                &shaders::SHADE_COMP,
+                &BINDINGS[..VISIBILITY_BINDING],
+            )
+        };
         Ok(ShadePass {
             pipeline: FetchPipeline::new(
                 ctx,
-                "shade",
-                &shaders::SHADE_COMP,
-                &crate::gpu::pipeline::numbered(&BINDINGS),
+                name,
+                shader,
+                &crate::gpu::pipeline::numbered(bindings),
                 std::mem::size_of::<ShadeParams>() as u32,
             )?,
+            shadowed,
         })
     }
 
-    /// Records the dispatch over the whole frame.
+    /// Whether this pass reads the light visibility ([`ShadePass::shadowed`]).
+    pub fn is_shadowed(&self) -> bool {
+        self.shadowed
+    }
+
+    /// Records the dispatch over the whole frame. Fails (recording nothing) when a
+    /// shadowed pass gets no visibility image.
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: ShadeInputs,
         params: &ShadeParams,
-    ) {
+    ) -> Result<()> {
         let ShadeInputs {
             hit,
             gbuffer,
             height,
             color,
+            visibility,
         } = inputs;
+        let visibility = match (self.shadowed, visibility) {
+            (true, Some(v)) => Some(storage_view(v)),
+            (true, None) => {
+                return Err(crate::error::Error::invalid(
+                    "shade inputs",
+                    "the shadowed shade pass needs the visibility image",
+                ));
+            }
+            (false, _) => None,
+        };
         let hits = storage_view(hit);
         let normal = self.pipeline.fetch_view(gbuffer.normal);
         let tangent = self.pipeline.fetch_view(gbuffer.tangent);
         let heights = [height.descriptor()];
         let colors = storage_view(color.view);
-        let writes = [
+        let mut writes = vec![
             image_write(0, BINDINGS[0], &hits),
             image_write(1, BINDINGS[1], &normal),
             image_write(2, BINDINGS[2], &tangent),
             image_write(3, BINDINGS[3], &heights),
             image_write(4, BINDINGS[4], &colors),
         ];
+        if let Some(v) = &visibility {
+            writes.push(image_write(
+                VISIBILITY_BINDING as u32,
+                BINDINGS[VISIBILITY_BINDING],
+                v,
+            ));
+        }
         self.pipeline.pipeline.dispatch(
             ctx,
             cmd,
@@ -96,6 +156,7 @@ impl ShadePass {
             color.extent.width,
             color.extent.height,
         );
+        Ok(())
     }
 
     /// Destroys the pipeline and sampler.

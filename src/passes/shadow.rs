@@ -1,0 +1,631 @@
+//! The `shadow` pass: self-shadowing of the displaced surface after Tatarchuk 2006,
+//! section 3.2. It runs after `trace`, casts a ray from each pixel's hit towards the
+//! directional light and writes the light's visibility (`R16_SFLOAT`, 1 = lit, 0 =
+//! shadowed); the shadowed `shade` pass ([`ShadePass::shadowed`](crate::passes::shade::ShadePass::shadowed))
+//! multiplies it into the direct (diffuse and specular) light, not the ambient term.
+//!
+//! `glsl/shadow.comp` documents the light ray in the height field's units: from the hit
+//! `(uv, h)` it is `uv(h') = uv + (h' - h) C` for `h'` in `[h, 1]`, with the climb
+//! `C = depth_scale * L_ts.xy / max(L_ts.z, min_cos)` (uv per unit height; one uv unit is
+//! one tile, the depth of height `h` is `(1 - h) depth_scale` tiles) and
+//! `L_ts = (L.T, L.B, L.N)` from the G-buffer's normal and tangent. Where the macro
+//! surface faces away from the light (`L_ts.z <= 0`) the pixel is in shadow (0).
+//!
+//! # Modes ([`ShadowMode`])
+//!
+//! * `off` (the default): the pass, its image and the shadowed shade variant are not
+//!   built at all.
+//! * `hard`: 0 or 1. What answers "does the surface cross the light ray" follows the
+//!   method's family ([`ShadowTrace::for_method`]):
+//!   - `exact`, `dig-guarded`, `pyramid`: the **exact** traversal of the cell-max pyramid
+//!     (`glsl/common/pyramid.glsl`, `pyramid_segment_hit`) on the light ray reversed into
+//!     a view ray; the pixel is occluded when the bilinear surface reaches the light ray
+//!     anywhere from `H(uv_hit) + SHADOW_BIAS` up to the macro surface (clamp addressing:
+//!     inside the decal). The receiver is the surface point under the hit (`H` the exact
+//!     bilinear surface), so an approximate hit a little under the surface (`pyramid`'s)
+//!     does not shadow itself. This is [`Reference::occluded`](crate::reference::Reference::occluded)
+//!     in `f32`. `exact` and `dig-guarded` share their method's cell pyramid; the
+//!     `pyramid` method's own pyramid bounds texel footprints, so the stage builds a cell
+//!     pyramid of its own (once, timed with the method's as `pyramid`).
+//!   - every other method (`linear`, `relief`, `pom`, `secant`, `dig`, `bump`): a linear
+//!     march up the light ray with the method's step (`--steps`, `1/steps` of the full
+//!     depth per sample), starting from Tatarchuk's reference height `H(uv_hit)` (a
+//!     march's hit can lie up to a step under the surface). It samples the exact bilinear
+//!     surface (4 `texelFetch` per sample) rather than the hardware filter, whose 8-bit
+//!     weights cause shadow acne near the receiver; so it only ever misses shadows (thin
+//!     occluders between samples), fewer with more steps.
+//! * `soft`: Tatarchuk's penumbra estimate for every method: `samples` heights along the
+//!   light ray (default [`DEFAULT_SHADOW_SAMPLES`] = the paper's 8), each sample's blocker
+//!   height above the ray divided by the ray's climb to it (the blocker-to-receiver
+//!   ratio), visibility `1 - clamp(max, 0, 1)`. An approximation (see the shader).
+//!
+//! # Bindings
+//!
+//! Set 0, push descriptors, mirrored by `glsl/shadow.comp` (push constants:
+//! [`ShadowParams`]):
+//!
+//! | binding | resource | layout on entry |
+//! |---|---|---|
+//! | 0 | hit buffer (storage, read) | `GENERAL` |
+//! | 1 | G-buffer `normal` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 2 | G-buffer `tangent` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 4 | cell-max pyramid (hard shadows of the pyramid methods only) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 5 | visibility (`R16_SFLOAT` storage, written) | `GENERAL` |
+//!
+//! # Cost
+//!
+//! One more full-screen dispatch: soft is `samples` filtered fetches per pixel; hard with
+//! a march is up to `(1 - h) * steps` samples of 4 texel fetches (early exit at the first
+//! occluder); the
+//! exact traversal costs about what the `exact` view ray costs for a ray of the light's
+//! slope (grazing lights cross more cells).
+
+use crate::abi::{SHADOW_MODE_HARD, SHADOW_MODE_SOFT, ShadeParams, ShadowParams};
+use crate::context::Context;
+use crate::error::{Error, Result};
+use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::{HeightTexture, Image, ViewRef};
+use crate::heightfield::Addressing;
+use crate::method::{Method, PyramidKind};
+use crate::passes::gbuffer::GBufferViews;
+use crate::passes::pyramid::{Pyramid, PyramidPass};
+use crate::reference::{Hit, Reference, SHADOW_BIAS, SHADOW_MIN_COS};
+use crate::scene::addressing_code;
+use crate::shaders;
+use ash::vk;
+
+/// Format of the visibility image.
+pub const VISIBILITY_FORMAT: vk::Format = vk::Format::R16_SFLOAT;
+
+/// Default light samples of soft shadows: the paper's `n = 8` (its Fig. 7).
+pub const DEFAULT_SHADOW_SAMPLES: u32 = 8;
+
+/// Largest accepted `--shadow-samples`.
+pub const MAX_SHADOW_SAMPLES: u32 = 1024;
+
+/// Self-shadowing mode (CLI `--shadows`).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum ShadowMode {
+    /// No self-shadowing: no pass, no image.
+    #[default]
+    Off,
+    /// First occluder along the light ray: visibility 0 or 1.
+    Hard,
+    /// Tatarchuk's penumbra estimate: visibility in `[0, 1]`.
+    Soft,
+}
+
+impl ShadowMode {
+    /// Every mode.
+    pub const ALL: &'static [ShadowMode] = &[ShadowMode::Off, ShadowMode::Hard, ShadowMode::Soft];
+
+    /// CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadowMode::Off => "off",
+            ShadowMode::Hard => "hard",
+            ShadowMode::Soft => "soft",
+        }
+    }
+}
+
+impl std::fmt::Display for ShadowMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for ShadowMode {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        ShadowMode::ALL
+            .iter()
+            .copied()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                Error::invalid("shadows", format!("'{s}' is not one of: off, hard, soft"))
+            })
+    }
+}
+
+/// Self-shadowing settings (part of [`RenderSettings`](crate::renderer::RenderSettings)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ShadowSettings {
+    /// The mode (`--shadows`).
+    pub mode: ShadowMode,
+    /// Light samples of soft shadows (`--shadow-samples`).
+    pub samples: u32,
+}
+
+impl Default for ShadowSettings {
+    fn default() -> Self {
+        ShadowSettings {
+            mode: ShadowMode::Off,
+            samples: DEFAULT_SHADOW_SAMPLES,
+        }
+    }
+}
+
+impl ShadowSettings {
+    /// Whether the `shadow` pass runs.
+    pub fn is_on(&self) -> bool {
+        self.mode != ShadowMode::Off
+    }
+
+    /// Checks the values; the error names the option.
+    pub fn validate(&self) -> Result<()> {
+        if self.samples == 0 || self.samples > MAX_SHADOW_SAMPLES {
+            return Err(Error::invalid(
+                "shadow-samples",
+                format!("{} is outside 1..={MAX_SHADOW_SAMPLES}", self.samples),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// How the pass answers its query (the shader variant).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ShadowTrace {
+    /// Exact "any hit" traversal of the cell-max pyramid (`glsl/shadow.comp`'s
+    /// `PYRAMID` variant): hard shadows of `exact`, `dig-guarded` and `pyramid`.
+    Pyramid,
+    /// Samples of the hardware-filtered height field: the linear march of the marching
+    /// methods' hard shadows and the soft estimate of every method.
+    Sampled,
+}
+
+impl ShadowTrace {
+    /// The query `mode` uses with `method`.
+    pub fn for_method(mode: ShadowMode, method: Method) -> Self {
+        match (mode, method.needs().pyramid) {
+            (ShadowMode::Hard, Some(_)) => ShadowTrace::Pyramid,
+            _ => ShadowTrace::Sampled,
+        }
+    }
+}
+
+/// The images the shadow pass reads and writes (layouts in the module docs).
+#[derive(Clone, Copy)]
+pub struct ShadowInputs<'a> {
+    /// The hit buffer (read).
+    pub hit: vk::ImageView,
+    /// The G-buffer (normal and tangent are read).
+    pub gbuffer: GBufferViews,
+    /// The height field.
+    pub height: &'a HeightTexture,
+    /// A built cell-max pyramid ([`ShadowTrace::Pyramid`] only).
+    pub pyramid: Option<&'a Pyramid>,
+    /// The visibility output (written; the frame's size).
+    pub visibility: ViewRef,
+}
+
+const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
+const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
+const PYRAMID_BINDING: u32 = 4;
+const VISIBILITY_BINDING: u32 = 5;
+
+/// The shadow pass of one [`ShadowTrace`].
+pub struct ShadowPass {
+    trace: ShadowTrace,
+    pipeline: FetchPipeline,
+}
+
+impl ShadowPass {
+    /// Builds the pipeline of `trace`.
+    pub fn new(ctx: &Context, trace: ShadowTrace) -> Result<Self> {
+        let mut bindings = vec![(0, STORAGE), (1, SAMPLED), (2, SAMPLED), (3, SAMPLED)];
+        let (name, shader) = match trace {
+            ShadowTrace::Pyramid => {
+                bindings.push((PYRAMID_BINDING, SAMPLED));
+                ("shadow[pyramid]", &shaders::SHADOW_COMP_PYRAMID)
+            }
+            ShadowTrace::Sampled => ("shadow", &shaders::SHADOW_COMP),
+        };
+        bindings.push((VISIBILITY_BINDING, STORAGE));
+        let pipeline = FetchPipeline::new(
+            ctx,
+            name,
+            shader,
+            &bindings,
+            std::mem::size_of::<ShadowParams>() as u32,
+        )?;
+        Ok(ShadowPass { trace, pipeline })
+    }
+
+    /// The query this pass runs.
+    pub fn trace(&self) -> ShadowTrace {
+        self.trace
+    }
+
+    /// The push constants of a frame: the light and frame from the frame's `shade`
+    /// constants, the march's `steps` (the method's), the map's `addressing`.
+    pub fn params(
+        settings: &ShadowSettings,
+        steps: u32,
+        shade: &ShadeParams,
+        addressing: Addressing,
+    ) -> ShadowParams {
+        ShadowParams {
+            light_dir: shade.light_dir.truncate().extend(0.0),
+            frame_size: shade.frame_size,
+            map_size: shade.map_size,
+            depth_scale: shade.depth_scale,
+            bias: SHADOW_BIAS as f32,
+            min_cos: SHADOW_MIN_COS as f32,
+            addressing: addressing_code(addressing),
+            mode: match settings.mode {
+                ShadowMode::Soft => SHADOW_MODE_SOFT,
+                _ => SHADOW_MODE_HARD,
+            },
+            steps: steps.max(1),
+            samples: settings.samples.max(1),
+            pyramid_levels: 0,
+        }
+    }
+
+    /// Records the dispatch over the whole frame. Fails (recording nothing) when the
+    /// pyramid query gets no cell pyramid.
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: ShadowInputs,
+        params: &ShadowParams,
+    ) -> Result<()> {
+        let ShadowInputs {
+            hit,
+            gbuffer,
+            height,
+            pyramid,
+            visibility,
+        } = inputs;
+        let pyramid = match (self.trace, pyramid) {
+            (ShadowTrace::Pyramid, Some(p)) if p.kind == PyramidKind::Cell => Some(p),
+            (ShadowTrace::Pyramid, _) => {
+                return Err(Error::invalid(
+                    "shadow inputs",
+                    "hard shadows of the pyramid methods need a built cell pyramid",
+                ));
+            }
+            (ShadowTrace::Sampled, _) => None,
+        };
+        let hits = storage_view(hit);
+        let normal = self.pipeline.fetch_view(gbuffer.normal);
+        let tangent = self.pipeline.fetch_view(gbuffer.tangent);
+        let heights = [height.descriptor()];
+        let pyramids = pyramid.map(|p| [p.descriptor()]);
+        let out = storage_view(visibility.view);
+        let mut writes = vec![
+            image_write(0, STORAGE, &hits),
+            image_write(1, SAMPLED, &normal),
+            image_write(2, SAMPLED, &tangent),
+            image_write(3, SAMPLED, &heights),
+        ];
+        if let Some(p) = &pyramids {
+            writes.push(image_write(PYRAMID_BINDING, SAMPLED, p));
+        }
+        writes.push(image_write(VISIBILITY_BINDING, STORAGE, &out));
+        let push = ShadowParams {
+            pyramid_levels: pyramid.map_or(0, Pyramid::levels),
+            ..*params
+        };
+        self.pipeline.pipeline.dispatch(
+            ctx,
+            cmd,
+            &writes,
+            bytemuck::bytes_of(&push),
+            visibility.extent.width,
+            visibility.extent.height,
+        );
+        Ok(())
+    }
+
+    /// Destroys the pipeline and sampler.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+    }
+}
+
+/// What a renderer builds for self-shadowing: the pass, the frame's visibility image
+/// and, when the method's pyramid is not a cell pyramid (`pyramid`), a cell pyramid of
+/// its own with the pass that builds it.
+pub struct ShadowStage {
+    /// The pass.
+    pub pass: ShadowPass,
+    /// The visibility image (`R16_SFLOAT`, the frame's size).
+    pub visibility: Image,
+    own_pyramid: Option<(PyramidPass, Pyramid)>,
+    own_built: bool,
+}
+
+impl ShadowStage {
+    /// The stage `settings` with `method` need: its query and whether it owns a cell
+    /// pyramid (`None`: no stage).
+    fn wanted(settings: &ShadowSettings, method: Method) -> Option<(ShadowTrace, bool)> {
+        settings.is_on().then(|| {
+            let trace = ShadowTrace::for_method(settings.mode, method);
+            let own =
+                trace == ShadowTrace::Pyramid && method.needs().pyramid != Some(PyramidKind::Cell);
+            (trace, own)
+        })
+    }
+
+    /// Builds, keeps or drops `stage` so it fits `settings` and `method` (a frame of
+    /// `extent`, a `map_size` map with `addressing`).
+    pub fn sync(
+        ctx: &Context,
+        stage: &mut Option<ShadowStage>,
+        settings: &ShadowSettings,
+        method: Method,
+        extent: vk::Extent2D,
+        map_size: [u32; 2],
+        addressing: Addressing,
+    ) -> Result<()> {
+        let wanted = Self::wanted(settings, method);
+        let current = stage
+            .as_ref()
+            .map(|s| (s.pass.trace(), s.own_pyramid.is_some()));
+        if wanted == current {
+            return Ok(());
+        }
+        if let Some(mut old) = stage.take() {
+            old.destroy(ctx);
+        }
+        let Some((trace, own)) = wanted else {
+            return Ok(());
+        };
+        let mut pass = ShadowPass::new(ctx, trace)?;
+        let visibility = match Image::new(
+            ctx,
+            "visibility",
+            VISIBILITY_FORMAT,
+            extent,
+            1,
+            vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::TRANSFER_SRC
+                | vk::ImageUsageFlags::TRANSFER_DST,
+        ) {
+            Ok(i) => i,
+            Err(e) => {
+                pass.destroy(ctx);
+                return Err(e);
+            }
+        };
+        let mut built = ShadowStage {
+            pass,
+            visibility,
+            own_pyramid: None,
+            own_built: false,
+        };
+        if own {
+            let made = PyramidPass::new(ctx).and_then(|mut p| {
+                match Pyramid::new(ctx, map_size, PyramidKind::Cell, addressing) {
+                    Ok(pyramid) => Ok((p, pyramid)),
+                    Err(e) => {
+                        p.destroy(ctx);
+                        Err(e)
+                    }
+                }
+            });
+            match made {
+                Ok(p) => built.own_pyramid = Some(p),
+                Err(e) => {
+                    built.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
+        *stage = Some(built);
+        Ok(())
+    }
+
+    /// The stage's own cell pyramid and its pass while it is not built yet (record it
+    /// before the shadow pass, then call [`ShadowStage::mark_built`]).
+    pub fn unbuilt_pyramid(&self) -> Option<(&PyramidPass, &Pyramid)> {
+        match (&self.own_pyramid, self.own_built) {
+            (Some((pass, pyramid)), false) => Some((pass, pyramid)),
+            _ => None,
+        }
+    }
+
+    /// Marks the own pyramid built (after the frame that recorded its build finished).
+    pub fn mark_built(&mut self) {
+        if self.own_pyramid.is_some() {
+            self.own_built = true;
+        }
+    }
+
+    /// The cell pyramid the pass reads: its own or the method's. The caller records the
+    /// build of an [unbuilt](ShadowStage::unbuilt_pyramid) one earlier in the same
+    /// frame, as [`Renderer::render`](crate::renderer::Renderer::render) does.
+    pub fn pyramid<'a>(&'a self, method_pyramid: Option<&'a Pyramid>) -> Option<&'a Pyramid> {
+        match &self.own_pyramid {
+            Some((_, p)) => Some(p),
+            None => method_pyramid,
+        }
+    }
+
+    /// Destroys everything. The GPU must be done with it.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        self.visibility.destroy(ctx);
+        if let Some((pass, pyramid)) = &mut self.own_pyramid {
+            pass.destroy(ctx);
+            pyramid.destroy(ctx);
+        }
+        self.own_pyramid = None;
+        self.own_built = false;
+    }
+}
+
+/// The exact hard-shadow visibility (1 = lit, 0 = shadowed) of reference hits:
+/// [`Reference::occluded`] per pixel, with `L_ts` from the G-buffer's `normal` and
+/// `tangent` texels (as the pass forms it: `B = w cross(N, T)`) and the frame's world
+/// light direction. Pixels without a hit get 1. This is what the renderer shades the
+/// reference colour with when hard shadows are on, whatever the method.
+pub fn reference_visibility(
+    reference: &Reference,
+    hits: &[Option<Hit>],
+    normal: &[[f32; 4]],
+    tangent: &[[f32; 4]],
+    light_dir: [f32; 3],
+    depth_scale: f32,
+) -> Vec<f32> {
+    use rayon::prelude::*;
+    let l = light_dir.map(f64::from);
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |v: [f32; 4]| {
+        let v = [f64::from(v[0]), f64::from(v[1]), f64::from(v[2])];
+        let n = dot(v, v).sqrt();
+        v.map(|c| c / n)
+    };
+    hits.par_iter()
+        .zip(normal.par_iter().zip(tangent.par_iter()))
+        .map(|(hit, (n4, t4))| {
+            let Some(hit) = hit else { return 1.0 };
+            let (n, t) = (unit(*n4), unit(*t4));
+            let w = f64::from(t4[3]);
+            let b = [
+                w * (n[1] * t[2] - n[2] * t[1]),
+                w * (n[2] * t[0] - n[0] * t[2]),
+                w * (n[0] * t[1] - n[1] * t[0]),
+            ];
+            let l_ts = [dot(l, t), dot(l, b), dot(l, n)];
+            // The receiver as the pass takes it: the surface under the hit's uv.
+            let h = reference.height(hit.uv);
+            if reference.occluded(hit.uv, h, l_ts, f64::from(depth_scale)) {
+                0.0
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+/// RGBA texels of an `R16G16B16A16_SFLOAT` image's bytes (the G-buffer's normal and
+/// tangent).
+pub fn decode_rgba16f(bytes: &[u8]) -> Vec<[f32; 4]> {
+    bytes
+        .chunks_exact(8)
+        .map(|c| {
+            let h = |i: usize| f16_to_f32(u16::from_le_bytes([c[2 * i], c[2 * i + 1]]));
+            [h(0), h(1), h(2), h(3)]
+        })
+        .collect()
+}
+
+/// The visibility image's bytes of `values` (IEEE halves, rounded to nearest; values
+/// outside the half range saturate, NaN stays NaN).
+pub fn encode_visibility(values: &[f32]) -> Vec<u8> {
+    values
+        .iter()
+        .flat_map(|&v| f32_to_f16(v).to_le_bytes())
+        .collect()
+}
+
+/// The IEEE half nearest to `v` (ties away from zero; tiny values flush to zero).
+fn f32_to_f16(v: f32) -> u16 {
+    let sign = if v.is_sign_negative() { 0x8000 } else { 0 };
+    let a = v.abs();
+    if a.is_nan() {
+        return 0x7e00;
+    }
+    if a >= 65520.0 {
+        return sign | 0x7c00;
+    }
+    if a < 2f32.powi(-24) * 0.5 {
+        return sign;
+    }
+    if a < 2f32.powi(-14) {
+        // Subnormal: a multiple of 2^-24.
+        return sign | (a / 2f32.powi(-24)).round() as u16;
+    }
+    let e = a.log2().floor() as i32;
+    let e = if 2f32.powi(e) > a { e - 1 } else { e };
+    let m = ((a / 2f32.powi(e) - 1.0) * 1024.0).round() as u32;
+    let (e, m) = if m == 1024 { (e + 1, 0) } else { (e, m) };
+    if e > 15 {
+        return sign | 0x7c00;
+    }
+    sign | (((e + 15) as u16) << 10) | m as u16
+}
+
+/// `f32` of an IEEE half (the visibility image's texels).
+pub fn f16_to_f32(bits: u16) -> f32 {
+    let sign = if bits & 0x8000 != 0 { -1.0f32 } else { 1.0 };
+    let exponent = i32::from((bits >> 10) & 0x1f);
+    let mantissa = f32::from(bits & 0x3ff);
+    match exponent {
+        0 => sign * mantissa * 2f32.powi(-24),
+        31 if mantissa == 0.0 => sign * f32::INFINITY,
+        31 => f32::NAN,
+        e => sign * (1.0 + mantissa / 1024.0) * 2f32.powi(e - 15),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modes_parse_and_bad_values_name_the_option() {
+        for &m in ShadowMode::ALL {
+            assert_eq!(m.name().parse::<ShadowMode>().unwrap(), m);
+        }
+        let err = "on".parse::<ShadowMode>().unwrap_err().to_string();
+        assert!(err.contains("shadows") && err.contains("'on'"), "{err}");
+        let bad = ShadowSettings {
+            mode: ShadowMode::Soft,
+            samples: 0,
+        };
+        let err = bad.validate().unwrap_err().to_string();
+        assert!(err.contains("shadow-samples"), "{err}");
+        assert!(ShadowSettings::default().validate().is_ok());
+        assert!(!ShadowSettings::default().is_on());
+    }
+
+    #[test]
+    fn the_query_follows_the_method_family() {
+        use ShadowTrace::*;
+        for &m in Method::ALL {
+            let pyramid = matches!(m, Method::Exact | Method::DigGuarded | Method::Pyramid);
+            let hard = ShadowTrace::for_method(ShadowMode::Hard, m);
+            assert_eq!(hard, if pyramid { Pyramid } else { Sampled }, "{m}");
+            assert_eq!(ShadowTrace::for_method(ShadowMode::Soft, m), Sampled, "{m}");
+        }
+    }
+
+    #[test]
+    fn halves_round_trip() {
+        for v in [
+            0.0f32, 1.0, 0.5, 0.25, 0.1, 0.999, 1e-5, 3e-8, -2.0, 65504.0,
+        ] {
+            let back = f16_to_f32(f32_to_f16(v));
+            assert!((back - v).abs() <= v.abs() / 2048.0 + 3e-8, "{v} -> {back}");
+        }
+        assert_eq!(f32_to_f16(1.0), 0x3c00);
+        assert_eq!(f32_to_f16(0.0), 0);
+        assert_eq!(f32_to_f16(1e6), 0x7c00);
+        assert!(f16_to_f32(f32_to_f16(f32::NAN)).is_nan());
+        assert_eq!(encode_visibility(&[1.0, 0.0]), vec![0x00, 0x3c, 0, 0]);
+        let rgba = decode_rgba16f(&[0x00, 0x3c, 0x00, 0xc0, 0, 0, 0x00, 0x38]);
+        assert_eq!(rgba, vec![[1.0, -2.0, 0.0, 0.5]]);
+    }
+
+    #[test]
+    fn halves_decode() {
+        assert_eq!(f16_to_f32(0x3c00), 1.0);
+        assert_eq!(f16_to_f32(0x0000), 0.0);
+        assert_eq!(f16_to_f32(0x3800), 0.5);
+        assert_eq!(f16_to_f32(0xc000), -2.0);
+        assert_eq!(f16_to_f32(0x3bff), 1.0 - 1.0 / 2048.0);
+        assert_eq!(f16_to_f32(0x0001), 2f32.powi(-24));
+        assert!(f16_to_f32(0x7e00).is_nan());
+        assert_eq!(f16_to_f32(0x7c00), f32::INFINITY);
+    }
+}
