@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{assert_validation_clean, asset_map, validated_context};
+use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Addressing, Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::metrics::ErrorMetrics;
@@ -172,7 +172,7 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
             }
         }
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
     runs
 }
 
@@ -361,7 +361,7 @@ fn pyramid_matches_the_cpu_build() {
             }
         }
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// POM's sample count follows the view angle: fewer iterations at a steep view than at a
@@ -386,7 +386,7 @@ fn pom_spends_fewer_iterations_at_steep_views() {
     assert!(mean[0] < mean[1], "{mean:?}");
     // n_min = 8 bounds the head-on count from below; early exit cuts it further.
     assert!(mean[0] <= 9.0, "{mean:?}");
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// Secant's multi-segment variant: more segments sample the ray more densely, so the
@@ -415,7 +415,7 @@ fn secant_segments_refine_the_search() {
     eprintln!("secant K=1: {:?}\nsecant K=4: {:?}", out[0], out[1]);
     assert!(out[1].artifact_fraction < out[0].artifact_fraction);
     assert!(out[1].mean_iterations > out[0].mean_iterations);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// Clamp-addressed decal: every method keeps the silhouette (misses where the reference
@@ -441,5 +441,5 @@ fn decal_silhouettes_for_every_method() {
             }
         }
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }

@@ -25,20 +25,6 @@ pub fn validated_context() -> Context {
     })
 }
 
-/// Asserts that validation reported nothing so far.
-pub fn assert_validation_clean(ctx: &Context) {
-    let m = ctx.messages();
-    assert!(
-        ctx.has_messenger(),
-        "no debug messenger: validation messages would go unseen"
-    );
-    assert_eq!(
-        (m.errors(), m.warnings()),
-        (0, 0),
-        "validation reported errors/warnings (see the log)"
-    );
-}
-
 /// The end of every GPU test: checks that no `gpu-allocator` allocation is left (its
 /// report), destroys the device (the validation layer's object tracker reports every
 /// Vulkan object still alive there as an error) and asserts that validation reported
