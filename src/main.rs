@@ -397,8 +397,11 @@ impl DemoArgs {
     }
 }
 
-fn finish(ctx: &Context) -> Result<()> {
-    let m = ctx.messages();
+/// Destroys the context, then fails if validation reported anything up to and including
+/// the device's destruction (where the object tracker reports leaked objects).
+fn finish(ctx: Context) -> Result<()> {
+    let m = ctx.messages().clone();
+    drop(ctx);
     if m.total() > 0 {
         bail!(
             "Vulkan validation reported {} error(s) and {} warning(s) (see the log above)",
@@ -428,7 +431,7 @@ fn info(options: &ContextOptions) -> Result<()> {
             "off"
         }
     );
-    finish(&ctx)
+    finish(ctx)
 }
 
 fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
@@ -539,7 +542,7 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
             );
         }
     }
-    finish(&ctx)
+    finish(ctx)
 }
 
 fn print_timings(timings: &[(String, f64)]) {
@@ -626,7 +629,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             args.out_dir.display()
         );
     }
-    finish(&ctx)
+    finish(ctx)
 }
 
 fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
@@ -708,7 +711,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         args.out.display(),
         results.wall.as_secs_f64()
     );
-    finish(&ctx)
+    finish(ctx)
 }
 
 /// The command line as typed (arguments with spaces or quotes are single-quoted).
