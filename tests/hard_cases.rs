@@ -249,6 +249,7 @@ fn cases() -> Vec<Case> {
         row("1x7",                             |_| bumps(1, 7), oblique(),             DEPTH, E::None),
         row("3x5",                             |_| bumps(3, 5), oblique(),             DEPTH, E::None),
         row("1025x1025 (mountains, 16-bit)",   mountains, oblique(),                   DEPTH, E::None),
+        row("4096x4096 (8-bit, the memory budget)", |_| bumps8(4096, 4096), oblique(), DEPTH, E::None),
         row("maxImageDimension2D x 1",         |max| bumps(max, 1), oblique(),         DEPTH, E::None),
         row("1 x maxImageDimension2D",         |max| bumps(1, max), oblique(),         DEPTH, E::None),
         // Coordinates: the surface 1e4 tiles from the origin, two ways. uv0: measured
@@ -265,6 +266,20 @@ fn cases() -> Vec<Case> {
         row("depth scale 0",                   rocks,     ortho([0.0, 0.0]),           0.0,   E::EqualsBump),
         row("depth scale 1000",                rocks,     ortho(view(30.0, 30.0, 1000.0)), 1000.0, E::None),
     ]
+}
+
+/// [`bumps`] as an 8-bit map.
+fn bumps8(width: u32, height: u32) -> HeightField {
+    let f = bumps(width, height);
+    let img = image::GrayImage::from_fn(width, height, |i, j| {
+        image::Luma([(f.texel(i, j) * 255.0).round() as u8])
+    });
+    HeightField::from_image(
+        DynamicImage::ImageLuma8(img),
+        Convention::Height,
+        "bumps8".into(),
+    )
+    .unwrap()
 }
 
 fn mountains(_: u32) -> HeightField {
