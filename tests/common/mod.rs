@@ -1,5 +1,7 @@
-//! Shared set-up of the GPU tests: a validated context that fails the test on any
-//! validation warning or error.
+//! Shared set-up of the GPU tests: a validated context (core and synchronization
+//! validation), [`finish`] (the teardown check every GPU test ends with), the reference
+//! agreement check [`unexplained`], and [`host`], a test host that feeds chosen or
+//! rasterised rays to the embeddable pass.
 
 #![allow(dead_code)]
 
