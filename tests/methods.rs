@@ -42,7 +42,7 @@ struct Run {
     /// Sum of the hit buffer's iteration counts plus the DIG corner pass's.
     total_iterations: f64,
     /// Artifact pixels that are not a skim within the method's tolerance (see
-    /// `unexplained`); `None` for the methods without one.
+    /// `common::unexplained`); `None` for the methods without one.
     unexplained: Option<usize>,
 }
 
@@ -65,47 +65,6 @@ fn skim_tolerance(method: Method) -> Option<f64> {
         Method::Pyramid => Some(PYRAMID_SKIM),
         _ => None,
     }
-}
-
-/// The artifact pixels of `hits` that a skim of depth `tolerance` does not explain. An
-/// exact method and the f64 reference may disagree on a ray that skims the surface within
-/// f32 rounding (a grazing touch of a patch's ridge: one of them reports the touch, the
-/// other the next crossing); the pyramid method's refinement samples the surface half a
-/// texel apart and steps over shallow skims. Such a pixel is explained when the earlier
-/// of the two hits is a touch (the surface within `tolerance` of the ray) and the ray
-/// between the two never goes deeper than `tolerance` under the surface.
-fn unexplained(
-    reference: &Reference,
-    frame: &dispmap::renderer::FrameReference,
-    hits: &[[f32; 4]],
-    geometry: dispmap::metrics::MapGeometry,
-    tolerance: f64,
-) -> usize {
-    let mut count = 0;
-    for ((hit, exact), ray) in hits.iter().zip(&frame.hits).zip(&frame.rays) {
-        let Some(ray) = ray else { continue };
-        let explained = match (hit[2] >= 0.0, exact) {
-            (false, None) => true,
-            (true, Some(exact)) => {
-                if dispmap::metrics::hit_distance_texels(hit, exact, geometry) <= 1.0 {
-                    true
-                } else {
-                    let (t_gpu, t_ref) = (1.0 - f64::from(hit[2]), 1.0 - exact.height);
-                    let (a, b) = (t_gpu.min(t_ref), t_gpu.max(t_ref));
-                    let touch = reference.penetration(ray, a) >= -tolerance;
-                    let shallow = (0..=1000)
-                        .map(|k| reference.penetration(ray, a + (b - a) * f64::from(k) / 1000.0))
-                        .all(|p| p <= tolerance);
-                    touch && shallow
-                }
-            }
-            _ => false,
-        };
-        if !explained {
-            count += 1;
-        }
-    }
-    count
 }
 
 /// Runs `methods` at every elevation on `field` and returns the table.
@@ -140,9 +99,10 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
                 });
                 let e = m.error;
                 let unexplained = skim_tolerance(method).map(|tolerance| {
-                    unexplained(
+                    common::unexplained(
                         &reference,
-                        &frame_ref,
+                        &frame_ref.rays,
+                        &frame_ref.hits,
                         &m.hits,
                         renderer.map_geometry(),
                         tolerance,
