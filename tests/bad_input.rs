@@ -161,9 +161,9 @@ fn rows(f: &Fixtures) -> Vec<Row> {
         row("zero secant segments",    &[("--segments", "0")],                      &["segments", "0 is outside"]),
         row("unknown method",          &[("--method", "magic")],                    &["magic", "known: bump"]),
         // Outputs.
-        row("output folder missing",   &[("--out", "/no/such/dir/out.png")],        &["--out", "/no/such/dir"]),
+        row("output folder missing",   &[("--out", &f.path("missing-folder/out.png"))], &["--out", "missing-folder", "does not exist"]),
         row("output is a folder",      &[("--out", f.dir.to_str().unwrap())],       &["--out", "is a folder"]),
-        row("metrics folder missing",  &[("--metrics", "/no/such/dir/m.json")],     &["--metrics", "/no/such/dir"]),
+        row("metrics folder missing",  &[("--metrics", &f.path("missing-folder/m.json"))], &["--metrics", "missing-folder", "does not exist"]),
         // Devices.
         Row { env: no_driver, ..row("no Vulkan driver", &[], &["vkCreateInstance", "Vulkan driver"]) },
         row("no such device (name)",   &[("--device", "no-such-gpu")],              &["no-such-gpu", "no suitable Vulkan device"]),
