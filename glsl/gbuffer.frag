@@ -5,7 +5,7 @@
 #include "gbuffer.glsl"
 #include "include/dispmap_gbuffer.glsl"
 
-layout(location = 0) in vec3 v_world;
+layout(location = 0) in vec3 v_eye_rel;
 layout(location = 1) in vec2 v_uv;
 
 layout(location = 0) out vec4 out_ray;
@@ -17,7 +17,7 @@ const float SURFACE_ID = 1.0;
 
 void main() {
     // The quad lies on y = 0 with u along +x and v along +z.
-    DispmapSurface s = DispmapSurface(v_world, pc.camera_pos.xyz, v_uv, vec3(0.0, 1.0, 0.0),
+    DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, vec3(0.0, 1.0, 0.0),
         vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), SURFACE_ID, pc.depth_scale, pc.min_cos,
         pc.addressing);
     if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {

@@ -76,6 +76,12 @@ impl HeightField {
             path: path.to_owned(),
             source,
         })?;
+        if image::guess_format(&bytes).ok() == Some(image::ImageFormat::Jpeg) {
+            jpeg_complete(&bytes).map_err(|message| Error::Image {
+                path: path.to_owned(),
+                message,
+            })?;
+        }
         let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| Error::Image {
@@ -107,6 +113,12 @@ impl HeightField {
 
     /// Decodes an in-memory PNG, JPEG or OpenEXR file (e.g. a bundled map).
     pub fn decode(bytes: &[u8], convention: Convention, label: &str) -> Result<Self> {
+        if image::guess_format(bytes).ok() == Some(image::ImageFormat::Jpeg) {
+            jpeg_complete(bytes).map_err(|message| Error::Image {
+                path: label.into(),
+                message,
+            })?;
+        }
         let image = image::load_from_memory(bytes).map_err(|e| Error::Image {
             path: label.into(),
             message: format!("cannot decode: {e}"),
@@ -297,6 +309,20 @@ impl HeightField {
     }
 }
 
+/// Checks that a JPEG file is complete: the image decoder fills the missing part of a
+/// truncated JPEG with grey instead of failing, so a file cut anywhere after its header
+/// would load as a valid map. Complete files end their last scan with the end-of-image
+/// marker `FF D9`; neither it nor a scan marker can occur inside entropy-coded data
+/// (`FF` is stuffed there), so "an `FF D9` after the last `FF DA`" is the test.
+fn jpeg_complete(bytes: &[u8]) -> std::result::Result<(), String> {
+    let last = |marker: u8| bytes.windows(2).rposition(|w| w == [0xFF, marker]);
+    match (last(0xDA), last(0xD9)) {
+        (Some(scan), Some(end)) if end > scan => Ok(()),
+        (None, _) => Err("truncated JPEG: no image data (no start-of-scan marker)".into()),
+        _ => Err("truncated JPEG: the data ends before the end-of-image marker".into()),
+    }
+}
+
 fn luminance8([r, g, b]: [u8; 3]) -> u8 {
     if r == g && g == b {
         r
@@ -374,6 +400,41 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("junk.png"), "{err}");
+    }
+
+    #[test]
+    fn truncated_files_are_rejected_by_name() {
+        let dir = std::env::temp_dir().join(format!("dispmap-truncated-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for name in [
+            "rocks_depth.jpg",
+            "bricks_depth.jpg",
+            "mountains_height16.png",
+        ] {
+            let bytes = std::fs::read(asset(name)).unwrap();
+            // A JPEG cut by 2 bytes loses its end-of-image marker.
+            let last = if name.ends_with(".jpg") {
+                2
+            } else {
+                bytes.len() / 3
+            };
+            for cut in [bytes.len() / 2, 400, bytes.len() - last] {
+                let path = dir.join(format!("cut{cut}_{name}"));
+                std::fs::write(&path, &bytes[..cut]).unwrap();
+                let Err(err) = HeightField::load(&path, Convention::Height) else {
+                    panic!("{name} cut to {cut} bytes loads");
+                };
+                let err = err.to_string();
+                assert!(err.contains(&format!("cut{cut}_{name}")), "{err}");
+                let Err(err) = HeightField::decode(&bytes[..cut], Convention::Height, name) else {
+                    panic!("{name} cut to {cut} bytes decodes");
+                };
+                assert!(err.to_string().contains(name), "{err}");
+            }
+            // The complete file still loads.
+            HeightField::decode(&bytes, Convention::Height, name).unwrap();
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

@@ -383,9 +383,22 @@ fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let cli = Cli::parse();
     if let Err(e) = run(cli) {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", error_chain(&e));
         std::process::exit(1);
     }
+}
+
+/// The error and its causes, `outer: inner`, skipping a cause whose text the message
+/// already ends with (dispmap's errors print their source in their own message).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = e.to_string();
+    for cause in e.chain().skip(1) {
+        let cause = cause.to_string();
+        if !out.ends_with(&cause) {
+            out = format!("{out}: {cause}");
+        }
+    }
+    out
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -416,8 +429,11 @@ impl DemoArgs {
     }
 }
 
-fn finish(ctx: &Context) -> Result<()> {
-    let m = ctx.messages();
+/// Destroys the context, then fails if validation reported anything up to and including
+/// the device's destruction (where the object tracker reports leaked objects).
+fn finish(ctx: Context) -> Result<()> {
+    let m = ctx.messages().clone();
+    drop(ctx);
     if m.total() > 0 {
         bail!(
             "Vulkan validation reported {} error(s) and {} warning(s) (see the log above)",
@@ -447,7 +463,7 @@ fn info(options: &ContextOptions) -> Result<()> {
             "off"
         }
     );
-    finish(&ctx)
+    finish(ctx)
 }
 
 fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
@@ -579,7 +595,7 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
             );
         }
     }
-    finish(&ctx)
+    finish(ctx)
 }
 
 fn print_timings(timings: &[(String, f64)]) {
@@ -666,7 +682,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             args.out_dir.display()
         );
     }
-    finish(&ctx)
+    finish(ctx)
 }
 
 fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
@@ -749,7 +765,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         args.out.display(),
         results.wall.as_secs_f64()
     );
-    finish(&ctx)
+    finish(ctx)
 }
 
 /// The command line as typed (arguments with spaces or quotes are single-quoted).

@@ -1,17 +1,45 @@
 //! A context built from handles a host engine created itself (raw ash + gpu-allocator)
-//! renders the same hits as the standalone context.
+//! renders the same hits as the standalone context. The engine's instance has the
+//! validation layer with synchronization validation and its own debug messenger: no
+//! warning or error from instance creation to instance destruction.
 
 mod common;
 
 use ash::vk;
-use common::{assert_validation_clean, asset_map, validated_context};
+use common::{asset_map, finish, validated_context};
 use dispmap::context::{Context, HostHandles, requirements};
 use dispmap::heightfield::Convention;
 use dispmap::method::{Method, MethodParams};
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::Scene;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use std::ffi::c_void;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
+
+/// Warning and error messages the engine's messenger saw.
+static ENGINE_MESSAGES: AtomicU64 = AtomicU64::new(0);
+
+unsafe extern "system" fn engine_messenger(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _kind: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    _user: *mut c_void,
+) -> vk::Bool32 {
+    if severity.intersects(
+        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+            | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+    ) {
+        ENGINE_MESSAGES.fetch_add(1, Ordering::SeqCst);
+        // SAFETY: the layer passes valid callback data for the duration of the call.
+        if let Some(message) =
+            unsafe { data.as_ref() }.and_then(|d| unsafe { d.message_as_c_str() })
+        {
+            eprintln!("[engine validation] {}", message.to_string_lossy());
+        }
+    }
+    vk::FALSE
+}
 
 fn settings() -> RenderSettings {
     RenderSettings {
@@ -34,20 +62,44 @@ fn host_handles_give_the_same_hits_as_standalone() {
         r.render().unwrap();
         r.read_hits().unwrap()
     };
-    assert_validation_clean(&standalone);
     let chosen = standalone.info().name.clone();
-    drop(standalone);
+    finish(standalone);
 
     // The "engine": its own instance, device, queue and allocator.
     // SAFETY: test code; every handle below is created and destroyed in order.
     unsafe {
         let entry = ash::Entry::load().unwrap();
         let app = vk::ApplicationInfo::default().api_version(requirements::API_VERSION);
+        let layers = [dispmap::context::VALIDATION_LAYER.as_ptr()];
+        let extensions = [ash::ext::debug_utils::NAME.as_ptr()];
+        let sync = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&sync);
+        let messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+            .message_severity(
+                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+            )
+            .message_type(
+                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+            )
+            .pfn_user_callback(Some(engine_messenger));
+        let mut creation_messenger = messenger_info;
         let instance = entry
             .create_instance(
-                &vk::InstanceCreateInfo::default().application_info(&app),
+                &vk::InstanceCreateInfo::default()
+                    .application_info(&app)
+                    .enabled_layer_names(&layers)
+                    .enabled_extension_names(&extensions)
+                    .push_next(&mut features)
+                    .push_next(&mut creation_messenger),
                 None,
             )
+            .unwrap();
+        let debug_utils = ash::ext::debug_utils::Instance::new(&entry, &instance);
+        let messenger = debug_utils
+            .create_debug_utils_messenger(&messenger_info, None)
             .unwrap();
         let physical_device = instance
             .enumerate_physical_devices()
@@ -110,7 +162,7 @@ fn host_handles_give_the_same_hits_as_standalone() {
                 queue,
                 allocator: allocator.clone(),
             },
-            false,
+            true,
         )
         .unwrap();
         let hits = {
@@ -127,8 +179,16 @@ fn host_handles_give_the_same_hits_as_standalone() {
             Arc::try_unwrap(allocator).is_ok(),
             "dispmap kept a reference to the host's allocator"
         );
+        // The host's allocator, and dispmap's objects on the host's device, are all gone
+        // when the device is destroyed (the object tracker would report them).
         device.destroy_device(None);
+        debug_utils.destroy_debug_utils_messenger(messenger, None);
         instance.destroy_instance(None);
         drop(entry);
+        assert_eq!(
+            ENGINE_MESSAGES.load(Ordering::SeqCst),
+            0,
+            "the engine's validation reported warnings or errors"
+        );
     }
 }

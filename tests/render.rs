@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{assert_validation_clean, asset_map, validated_context};
+use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::metrics::ErrorMetrics;
@@ -56,7 +56,7 @@ fn measure(
             })
             .collect()
     };
-    assert_validation_clean(&ctx);
+    finish(ctx);
     out
 }
 
@@ -124,7 +124,7 @@ fn rendering_is_deterministic() {
         assert_eq!(bits(&first), bits(&second));
         assert!(first.iter().any(|h| h[2] >= 0.0), "no hits at all");
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// `bump` hits the surface point under the entry point with one fetch.
@@ -151,7 +151,7 @@ fn bump_is_the_flat_floor() {
         }
         assert!(covered > 0);
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// The clamp-addressed quad: rays that leave the decal are misses (silhouettes), and

@@ -12,7 +12,7 @@ layout(push_constant) uniform EngineParams {
     uint pad;
 } pc;
 
-layout(location = 0) in vec3 v_world;
+layout(location = 0) in vec3 v_eye_rel;
 layout(location = 1) in vec2 v_uv;
 layout(location = 2) flat in vec4 v_normal;     // w: surface id
 layout(location = 3) flat in vec3 v_tangent;
@@ -23,7 +23,7 @@ layout(location = 1) out vec4 out_normal;
 layout(location = 2) out vec4 out_tangent;
 
 void main() {
-    DispmapSurface s = DispmapSurface(v_world, pc.camera_pos.xyz, v_uv, v_normal.xyz,
+    DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, v_normal.xyz,
         v_tangent, v_bitangent, v_normal.w, pc.depth_scale, pc.min_cos, pc.addressing);
     if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {
         discard;

@@ -17,14 +17,15 @@ layout(push_constant) uniform EngineParams {
     uint pad;
 } pc;
 
-layout(location = 0) out vec3 v_world;
+// Eye-relative position (precise near the eye wherever the eye is; see the include).
+layout(location = 0) out vec3 v_eye_rel;
 layout(location = 1) out vec2 v_uv;
 layout(location = 2) flat out vec4 v_normal;
 layout(location = 3) flat out vec3 v_tangent;
 layout(location = 4) flat out vec3 v_bitangent;
 
 void main() {
-    v_world = in_pos;
+    v_eye_rel = in_pos - pc.camera_pos.xyz;
     v_uv = in_uv;
     v_normal = in_normal;
     v_tangent = in_tangent;

@@ -20,6 +20,11 @@
 // surface, whatever its world size. V is the unit view direction (eye to fragment) and
 // V_ts = (V.T, V.B, V.N). Back faces (V_ts.z >= 0: the eye below the surface) have nothing
 // to displace: dispmap_gbuffer_encode returns false and the caller discards them.
+// Precision far from the origin: interpolate the position relative to the eye (vertex
+// position minus eye, then world_pos = that, camera_pos = vec3(0)), so V keeps its bits
+// near the eye wherever the eye is; and give uv tile-local enough that the f32
+// interpolant keeps sub-texel precision (the reduction to [0, 1) below cannot restore
+// bits lost before it: at 1e4 tiles one ulp is 2^-10 tiles).
 #ifndef DISPMAP_INCLUDE_GBUFFER_GLSL
 #define DISPMAP_INCLUDE_GBUFFER_GLSL
 
@@ -28,8 +33,8 @@
 
 // Everything the G-buffer needs about one fragment of the macro surface.
 struct DispmapSurface {
-    vec3 world_pos;     // fragment position (world space)
-    vec3 camera_pos;    // eye position (world space)
+    vec3 world_pos;     // fragment position (world space; or eye-relative, see below)
+    vec3 camera_pos;    // eye position (world space; vec3(0) with an eye-relative world_pos)
     vec2 uv;            // texture coordinates, one unit = one tile of the height map
     vec3 normal;        // unit surface normal N (world space)
     vec3 tangent;       // unit tangent T = direction of +u (world space)

@@ -31,7 +31,8 @@
 // the surface replaces P_f): a grazing ray can dip under a ridge and leave it again
 // within half a texel, which the two samples cannot see. Measured on issue 3's scenes
 // the quarter checks cut the artifacts from 0.08-0.29% to 0.04-0.13% for about 5% more
-// fetches; every remaining miss dips less than 1e-3 of the depth under the surface.
+// fetches; every remaining miss dips less than 1.8e-3 of the depth under the surface
+// (tests/methods.rs: PYRAMID_SKIM).
 //
 // Section 3.4, minification: the traversal stops at a coarsest level (`--max-level`, or
 // with TRACE_FLAG_AUTO_LEVEL the floor of footprint_level in trace.glsl: the log2 of the
@@ -146,18 +147,23 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         float h_b = 1.0 - t_b;
         float h_f = 1.0 - t_f;
         iterations += 2u;
-        float a_above = max(h_b - height_exact(ray_uv(ray, h_b)), 0.0);
-        float b_below = height_exact(ray_uv(ray, h_f)) - h_f;
+        // Positions from t, not from h = 1 - t: near the top of the surface an ulp of h
+        // is a long way along a grazing ray (6e-8 |P|: 3.5 texels of a 1024 map at
+        // depth scale 1000 and 1 degree, more than the half-texel steps themselves).
+        float a_above = max(h_b - height_exact(ray.uv0 + t_b * ray.P), 0.0);
+        float b_below = height_exact(ray.uv0 + t_f * ray.P) - h_f;
+        float t_below = t_f;
         if (b_below < 0.0) {
             // A ridge can rise above the ray and fall back within the step (a grazing
             // ray skimming a peak): also test [P, P_f] at its quarters and, at the first
             // one below the surface, take the crossing between P_b and that point.
             for (int q = 1; q <= 3; ++q) {
-                float h_m = mix(1.0 - t, h_f, 0.25 * float(q));
+                float t_m = mix(t, t_f, 0.25 * float(q));
+                float h_m = 1.0 - t_m;
                 iterations += 1u;
-                float b_mid = height_exact(ray_uv(ray, h_m)) - h_m;
+                float b_mid = height_exact(ray.uv0 + t_m * ray.P) - h_m;
                 if (b_mid >= 0.0) {
-                    h_f = h_m;
+                    t_below = t_m;
                     b_below = b_mid;
                     break;
                 }
@@ -165,7 +171,8 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         }
         if (b_below >= 0.0) {
             float w = a_above + b_below > 0.0 ? a_above / (a_above + b_below) : 0.0;
-            return hit_at(ray, mix(h_b, h_f, w), iterations);
+            float t_hit = mix(t_b, t_below, w);
+            return Hit(ray.uv0 + t_hit * ray.P, 1.0 - t_hit, iterations);
         }
         // The bilinear surface was not hit: move on to P_f and keep traversing.
         if (t_f >= t_end) {
