@@ -7,7 +7,7 @@
 mod common;
 
 use ash::vk;
-use common::{assert_validation_clean, asset_map, validated_context};
+use common::{finish, asset_map, validated_context};
 use dispmap::context::Context;
 use dispmap::gpu::commands::read_image;
 use dispmap::gpu::sync::{self, Access};
@@ -217,7 +217,7 @@ fn corrected_depth_matches_the_reference_hits() {
         assert!(!times.iter().any(|(n, _)| *n == "hit_depth"), "{times:?}");
         drop(renderer);
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// Sampled by fragment shaders.
@@ -597,7 +597,7 @@ fn a_box_clips_at_the_displaced_height() {
         &mut boxes,
     );
     drop(renderer);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 fn destroy_all(
@@ -665,7 +665,7 @@ fn cli_depth_out_writes_the_corrected_depth() {
     renderer.render().unwrap();
     let want = renderer.read_depth().unwrap().unwrap();
     drop(renderer);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 
     let got = image::open(&exr).unwrap().to_rgb32f();
     assert_eq!((got.width(), got.height()), (64, 36));

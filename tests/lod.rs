@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{assert_validation_clean, asset_map, validated_context};
+use common::{finish, asset_map, validated_context};
 use dispmap::heightfield::Convention;
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::metrics::{self, ErrorMetrics, HitTexel};
@@ -301,7 +301,7 @@ fn lod_on_a_far_plane_trades_error_for_iterations() {
         );
     }
     drop(renderer);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 #[test]
@@ -360,7 +360,7 @@ fn lod_on_a_decal_keeps_its_silhouette_in_the_band() {
         assert!(band_misses > 0, "{method}: no silhouette in the band");
     }
     drop(renderer);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 #[test]
@@ -410,7 +410,7 @@ fn lod_leaves_a_magnified_close_up_bit_identical() {
         assert!(off.1 == on.1, "{method}: the shaded frames differ");
     }
     drop(renderer);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 #[test]
@@ -440,7 +440,7 @@ fn pyramid_auto_level_uses_the_footprint_level() {
     assert_eq!(auto.error.nonfinite_pixels, 0);
     assert!(auto.error.mean_iterations < full.error.mean_iterations);
     drop(renderer);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 #[test]
@@ -502,5 +502,5 @@ fn the_height_mip_chain_is_the_box_average_and_level_0_is_the_map() {
     }
     texture.destroy(&ctx);
     shot.destroy(&ctx);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }

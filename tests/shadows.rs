@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{assert_validation_clean, asset_map, validated_context};
+use common::{finish, asset_map, validated_context};
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
@@ -117,7 +117,7 @@ fn a_flat_map_casts_no_shadow() {
             }
         }
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// A 64 x 64 decal at height 0.2 with a ridge of height 1 over the texel columns
@@ -213,7 +213,8 @@ fn a_ridge_shadows_the_side_away_from_the_light() {
             "{method}: {soft_means:?}"
         );
     }
-    assert_validation_clean(&ctx);
+    drop(renderer);
+    finish(ctx);
 }
 
 /// How far (heights) the receiver may move up or down before the reference's answer
@@ -290,7 +291,7 @@ fn exact_hard_shadows_match_the_reference() {
             "{tangent_disagree} tangency disagreements of {total}"
         );
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// The marching methods' hard shadows (a linear march with the method's step, from the
@@ -367,7 +368,8 @@ fn marching_hard_shadows_against_the_reference() {
         relief_missed.windows(2).all(|w| w[1] < w[0]),
         "more steps must miss fewer shadows: {relief_missed:?}"
     );
-    assert_validation_clean(&ctx);
+    drop(renderer);
+    finish(ctx);
 }
 
 #[test]
@@ -418,7 +420,7 @@ fn soft_shadows_are_in_range_and_darken_with_a_lower_light() {
         let color = renderer.read_color().unwrap();
         assert!(color.chunks(4).all(|c| c[3] == 255));
     }
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 #[test]
@@ -471,7 +473,7 @@ fn the_shadow_pass_is_timed_only_when_on() {
         .to_string();
     assert!(err.contains("shadow-samples"), "{err}");
     drop(renderer);
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
 
 /// `dispmap render --shadows MODE`: the metrics JSON lists the `shadow` pass only when
@@ -562,5 +564,5 @@ fn the_hard_shadow_reference_is_the_same_for_every_method() {
         colors.push(frame.color);
     }
     assert!(colors.windows(2).all(|w| w[0] == w[1]));
-    assert_validation_clean(&ctx);
+    finish(ctx);
 }
