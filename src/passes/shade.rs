@@ -9,6 +9,8 @@
 //! | 2 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 4 | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
+//! | 5 | albedo map, or the height field when there is none (`crate::material`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 6 | normal map, or the height field when there is none | `SHADER_READ_ONLY_OPTIMAL` |
 
 use crate::abi::ShadeParams;
 use crate::context::Context;
@@ -22,12 +24,14 @@ use ash::vk;
 /// Format of the colour output.
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 
-const BINDINGS: [vk::DescriptorType; 5] = [
+const BINDINGS: [vk::DescriptorType; 7] = [
     vk::DescriptorType::STORAGE_IMAGE,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::STORAGE_IMAGE,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
 ];
 
 /// The images the shade pass reads and writes (layouts in the module docs).
@@ -62,12 +66,24 @@ impl ShadePass {
         })
     }
 
-    /// Records the dispatch over the whole frame.
+    /// Records the dispatch over the whole frame (no albedo or normal map).
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: ShadeInputs,
+        params: &ShadeParams,
+    ) {
+        self.record_with_material(ctx, cmd, inputs, None, params);
+    }
+
+    /// Records the dispatch with the maps of `material` (bindings 5 and 6).
+    pub fn record_with_material(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: ShadeInputs,
+        material: Option<&crate::material::MaterialTextures>,
         params: &ShadeParams,
     ) {
         let ShadeInputs {
@@ -81,12 +97,15 @@ impl ShadePass {
         let tangent = self.pipeline.fetch_view(gbuffer.tangent);
         let heights = [height.descriptor()];
         let colors = storage_view(color.view);
+        let [albedo, normal_map] = crate::material::MaterialTextures::descriptors(material, height);
         let writes = [
             image_write(0, BINDINGS[0], &hits),
             image_write(1, BINDINGS[1], &normal),
             image_write(2, BINDINGS[2], &tangent),
             image_write(3, BINDINGS[3], &heights),
             image_write(4, BINDINGS[4], &colors),
+            image_write(5, BINDINGS[5], &albedo),
+            image_write(6, BINDINGS[6], &normal_map),
         ];
         self.pipeline.pipeline.dispatch(
             ctx,
