@@ -231,6 +231,8 @@ impl SceneFile {
 
     /// The render settings with every default filled in (no file is read). `path` is
     /// only used in error messages.
+    // `..Scene::default()`: scene fields a scene file has no key for keep their defaults.
+    #[allow(clippy::needless_update)]
     pub fn settings(&self, path: &Path) -> Result<RenderSettings> {
         let geometry = self.geometry().map_err(|e| in_file(path, e))?;
         let c = Camera::default();
