@@ -135,6 +135,22 @@ fn scene_file_errors_defaults_and_overrides() {
     );
     assert!(!png.exists(), "no partial output");
 
+    // A mesh without texture coordinates, or missing, is refused by name.
+    let no_uv = dir.join("no_uv.obj");
+    std::fs::write(&no_uv, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let err = dispmap::mesh::Mesh::load_obj(&no_uv)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("no_uv.obj") && err.contains("texture coordinates"),
+        "{err}"
+    );
+    let scene = dir.join("missing_mesh.toml");
+    std::fs::write(&scene, "geometry = \"mesh\"\nmesh = \"nowhere.obj\"\n").unwrap();
+    let err = scene_file::load(&scene).err().unwrap().to_string();
+    assert!(err.contains("nowhere.obj"), "{err}");
+
     // Only the geometry given: everything else is the default.
     let minimal = dir.join("minimal.toml");
     std::fs::write(&minimal, "geometry = \"torus\"\n").unwrap();
