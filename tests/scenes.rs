@@ -573,3 +573,78 @@ fn demo_writes_a_contact_sheet_with_one_tile_per_method() {
         assert!(text > 10, "{name}: no label");
     }
 }
+
+/// The depth convention on a stretched parametrisation (src/mesh.rs): a flat square
+/// whose `u` runs twice as fast (`s_u / s_v = 1/2`) under a map that varies along `v`
+/// only is the same surface in world space as the unstretched square, once `depth_scale`
+/// is scaled by `1 / sqrt(s_u s_v)`; every pixel's hit must then have the same `v` and
+/// height (this checks the parallax correction along both axes).
+#[test]
+fn stretched_uvs_keep_the_world_space_relief() {
+    use glam::Vec3;
+    let ctx = validated_context();
+    let field = HeightField::from_fn(64, 64, "ridges", |_, v| {
+        0.5 + 0.45 * (std::f32::consts::TAU * 3.0 * v).sin()
+    })
+    .unwrap();
+    let square = |u_rate: f32| {
+        let mut positions = Vec::new();
+        let mut uvs = Vec::new();
+        let n = 4;
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, z) = (i as f32 / n as f32, j as f32 / n as f32);
+                positions.push(Vec3::new(x, 0.0, z));
+                uvs.push([u_rate * x, z]);
+            }
+        }
+        let mut indices = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                indices.extend_from_slice(&[a, a + n + 2, a + 1, a, a + n + 1, a + n + 2]); // facing +y
+            }
+        }
+        let count = positions.len();
+        dispmap::mesh::Mesh::from_triangles("square", positions, vec![None; count], uvs, indices)
+            .unwrap()
+    };
+    let mut results = Vec::new();
+    // After normalisation into the unit sphere the square's side is sqrt(2): one uv unit
+    // is sqrt(2) long (plain), or sqrt(2)/2 along u and sqrt(2) along v (stretched), so
+    // the local scale sqrt(s_u s_v) is sqrt(2), resp. 1.
+    let depth = 0.08f32;
+    for (u_rate, depth_scale) in [(1.0, depth), (2.0, depth * 2f32.sqrt())] {
+        let mut s = object_settings(Geometry::Mesh, Method::Exact);
+        s.scene.depth_scale = depth_scale;
+        s.scene.camera.elevation_deg = 35.0;
+        s.scene.camera.azimuth_deg = 20.0;
+        let assets = SceneAssets {
+            mesh: Some(square(u_rate)),
+            ..SceneAssets::default()
+        };
+        let mut renderer = Renderer::with_assets(&ctx, &field, s, &assets).unwrap();
+        renderer.render().unwrap();
+        results.push(renderer.read_hits().unwrap());
+    }
+    let (mut compared, mut worst_v, mut worst_h) = (0, 0.0f32, 0.0f32);
+    for (a, b) in results[0].iter().zip(&results[1]) {
+        assert_eq!(a[2] >= 0.0, b[2] >= 0.0, "same coverage");
+        if a[2] < 0.0 {
+            continue;
+        }
+        compared += 1;
+        let dv = (a[1] - b[1]) - (a[1] - b[1]).round();
+        worst_v = worst_v.max(dv.abs() * 64.0);
+        worst_h = worst_h.max((a[2] - b[2]).abs());
+    }
+    eprintln!(
+        "stretched vs plain: {compared} pixels, worst |dv| {worst_v:.5} texels, |dh| {worst_h:.6}"
+    );
+    assert!(compared > 2000, "{compared}");
+    assert!(
+        worst_v < 0.01 && worst_h < 1e-4,
+        "{worst_v} texels, {worst_h}"
+    );
+    assert_validation_clean(&ctx);
+}
