@@ -8,7 +8,7 @@
 //!
 //! ```toml
 //! geometry = "plane"      # plane | quad | cube | sphere | torus | mesh
-//! mesh = "model.obj"      # the OBJ file of geometry = "mesh" (required there only)
+//! mesh = "model.obj"      # the OBJ or glTF (.gltf, .glb) file of geometry = "mesh"
 //! size = [640, 360]       # frame width and height in pixels
 //!
 //! [heightmap]
@@ -284,7 +284,7 @@ impl SceneFile {
         if geometry == Geometry::Mesh && self.mesh.is_none() {
             return Err(Error::invalid(
                 format!("mesh in {}", path.display()),
-                "geometry = \"mesh\" needs the `mesh` key (an OBJ file)",
+                "geometry = \"mesh\" needs the `mesh` key (an OBJ or glTF file)",
             ));
         }
         if geometry != Geometry::Mesh && self.mesh.is_some() {
@@ -329,7 +329,7 @@ impl SceneFile {
             }
         };
         let mesh = match &self.mesh {
-            Some(m) => Some(Mesh::load_obj(&dir.join(m))?),
+            Some(m) => Some(Mesh::load(&dir.join(m))?),
             None => None,
         };
         let green_up = self.material.normal_map_green.unwrap_or(GreenAxis::Up) == GreenAxis::Up;

@@ -648,3 +648,111 @@ fn stretched_uvs_keep_the_world_space_relief() {
     );
     assert_validation_clean(&ctx);
 }
+
+/// A glTF file (a 4x4-quad square with normals and tangents under a node rotated 90
+/// degrees about x): the node transform reaches the normals and tangents, and `exact`
+/// matches the reference on it.
+#[test]
+fn gltf_meshes_load_with_their_node_transforms() {
+    let dir = scratch("gltf");
+    let n = 4u32;
+    let (mut pos, mut nrm, mut tan, mut uv, mut idx) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5);
+            pos.extend_from_slice(&[x, 0.0, z]);
+            nrm.extend_from_slice(&[0.0f32, 1.0, 0.0]);
+            tan.extend_from_slice(&[1.0f32, 0.0, 0.0, 1.0]);
+            uv.extend_from_slice(&[2.0 * (x + 0.5), 2.0 * (z + 0.5)]);
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            idx.extend_from_slice(&[a, a + n + 2, a + 1, a, a + n + 1, a + n + 2]);
+        }
+    }
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views = Vec::new();
+    for part in [
+        bytemuck_f32(&pos),
+        bytemuck_f32(&nrm),
+        bytemuck_f32(&tan),
+        bytemuck_f32(&uv),
+        idx.iter().flat_map(|i| i.to_le_bytes()).collect(),
+    ] {
+        views.push(format!(
+            "{{\"buffer\": 0, \"byteOffset\": {}, \"byteLength\": {}}}",
+            bin.len(),
+            part.len()
+        ));
+        bin.extend(part);
+    }
+    let count = (n + 1) * (n + 1);
+    let json = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0, "rotation": [0.70710678, 0, 0, 0.70710678]}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1, "TANGENT": 2, "TEXCOORD_0": 3}}, "indices": 4}}]}}],
+  "buffers": [{{"uri": "square.bin", "byteLength": {len}}}],
+  "bufferViews": [{views}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": {count}, "type": "VEC3", "min": [-0.5, 0, -0.5], "max": [0.5, 0, 0.5]}},
+    {{"bufferView": 1, "componentType": 5126, "count": {count}, "type": "VEC3"}},
+    {{"bufferView": 2, "componentType": 5126, "count": {count}, "type": "VEC4"}},
+    {{"bufferView": 3, "componentType": 5126, "count": {count}, "type": "VEC2"}},
+    {{"bufferView": 4, "componentType": 5125, "count": {icount}, "type": "SCALAR"}}
+  ]
+}}"#,
+        len = bin.len(),
+        views = views.join(", "),
+        icount = idx.len()
+    );
+    std::fs::write(dir.join("square.bin"), &bin).unwrap();
+    let path = dir.join("square.gltf");
+    std::fs::write(&path, json).unwrap();
+    let mesh = dispmap::mesh::Mesh::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(mesh.vertices.len(), count as usize);
+    for v in &mesh.vertices {
+        // +y rotated about x by 90 degrees is +z; the tangent +x stays.
+        assert!((v.normal[2] - 1.0).abs() < 1e-5, "{v:?}");
+        assert!(
+            (v.tangent[0] - 1.0).abs() < 1e-5 && v.tangent[3] == 1.0,
+            "{v:?}"
+        );
+        // The square now stands in the z = 0 plane.
+        assert!(v.position[2].abs() < 1e-5, "{v:?}");
+    }
+    assert_eq!(mesh.surface_ids(), vec![1]);
+
+    let ctx = validated_context();
+    {
+        let field = bundled::rocks().unwrap();
+        let mut s = object_settings(Geometry::Mesh, Method::Exact);
+        s.scene.camera.azimuth_deg = 10.0;
+        let assets = SceneAssets {
+            mesh: Some(mesh),
+            ..SceneAssets::default()
+        };
+        let mut renderer = Renderer::with_assets(&ctx, &field, s, &assets).unwrap();
+        let reference = Reference::new(&field, s.scene.addressing());
+        let frame_ref = renderer.reference(&reference).unwrap();
+        let m = renderer.measure(&frame_ref, 1).unwrap();
+        let covered = frame_ref.rays.iter().filter(|r| r.is_some()).count();
+        eprintln!(
+            "glTF square: covered {covered}, artifacts {}",
+            m.error.artifact_fraction
+        );
+        assert!(covered > 2000, "{covered}");
+        assert_eq!(m.error.artifact_fraction, 0.0);
+        assert_eq!(m.error.nonfinite_pixels, 0);
+    }
+    assert_validation_clean(&ctx);
+}
+
+fn bytemuck_f32(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
