@@ -46,7 +46,7 @@
 
 use crate::context::Context;
 use crate::error::{Error, Result};
-use crate::gpu::Buffer;
+use crate::gpu::{Buffer, OneShot};
 use ash::vk;
 use glam::Vec3;
 use gpu_allocator::MemoryLocation;
@@ -543,7 +543,8 @@ impl Mesh {
     }
 }
 
-/// A mesh's vertex and index buffers (host-visible memory, written once).
+/// A mesh's vertex and index buffers in device-local memory (filled once through a
+/// staging buffer).
 pub struct MeshBuffers {
     /// Vertices ([`Vertex`]).
     pub vertices: Buffer,
@@ -554,36 +555,26 @@ pub struct MeshBuffers {
 }
 
 impl MeshBuffers {
-    /// Creates and fills the buffers, named after the mesh.
-    pub fn upload(ctx: &Context, mesh: &Mesh) -> Result<Self> {
-        let fill = |name: String, bytes: &[u8], usage| -> Result<Buffer> {
-            let mut buffer = Buffer::new(
-                ctx,
-                &name,
-                bytes.len() as u64,
-                usage,
-                MemoryLocation::CpuToGpu,
-            )?;
-            match buffer.mapped_mut() {
-                Some(dst) => {
-                    dst.copy_from_slice(bytes);
-                    Ok(buffer)
-                }
-                None => {
-                    buffer.destroy(ctx);
-                    Err(Error::invalid(name, "buffer is not host visible"))
-                }
-            }
-        };
-        let mut vertices = fill(
-            format!("mesh[{}].vertices", mesh.label),
-            bytemuck::cast_slice(&mesh.vertices),
-            vk::BufferUsageFlags::VERTEX_BUFFER,
+    /// Creates the buffers (named after the mesh), copies the mesh into them on `shot`
+    /// and waits; the copy is made visible to vertex input (a barrier from the transfer
+    /// to `VERTEX_ATTRIBUTE_INPUT` / `INDEX_INPUT` reads in the same submission).
+    pub fn upload(ctx: &Context, shot: &OneShot, mesh: &Mesh) -> Result<Self> {
+        let vertex_bytes: &[u8] = bytemuck::cast_slice(&mesh.vertices);
+        let index_bytes: &[u8] = bytemuck::cast_slice(&mesh.indices);
+        let dst = vk::BufferUsageFlags::TRANSFER_DST;
+        let mut vertices = Buffer::new(
+            ctx,
+            &format!("mesh[{}].vertices", mesh.label),
+            vertex_bytes.len() as u64,
+            vk::BufferUsageFlags::VERTEX_BUFFER | dst,
+            MemoryLocation::GpuOnly,
         )?;
-        let indices = match fill(
-            format!("mesh[{}].indices", mesh.label),
-            bytemuck::cast_slice(&mesh.indices),
-            vk::BufferUsageFlags::INDEX_BUFFER,
+        let mut indices = match Buffer::new(
+            ctx,
+            &format!("mesh[{}].indices", mesh.label),
+            index_bytes.len() as u64,
+            vk::BufferUsageFlags::INDEX_BUFFER | dst,
+            MemoryLocation::GpuOnly,
         ) {
             Ok(b) => b,
             Err(e) => {
@@ -591,6 +582,79 @@ impl MeshBuffers {
                 return Err(e);
             }
         };
+        let mut staging = match Buffer::new(
+            ctx,
+            &format!("mesh[{}].staging", mesh.label),
+            (vertex_bytes.len() + index_bytes.len()) as u64,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::CpuToGpu,
+        ) {
+            Ok(b) => b,
+            Err(e) => {
+                vertices.destroy(ctx);
+                indices.destroy(ctx);
+                return Err(e);
+            }
+        };
+        let copied = (|| {
+            let bytes = staging.mapped_mut().ok_or_else(|| {
+                Error::invalid(mesh.label.clone(), "staging buffer is not mapped")
+            })?;
+            bytes[..vertex_bytes.len()].copy_from_slice(vertex_bytes);
+            bytes[vertex_bytes.len()..].copy_from_slice(index_bytes);
+            let cmd = shot.begin(ctx)?;
+            let barriers = [
+                vk::BufferMemoryBarrier2::default()
+                    .src_stage_mask(vk::PipelineStageFlags2::COPY)
+                    .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+                    .dst_stage_mask(vk::PipelineStageFlags2::VERTEX_ATTRIBUTE_INPUT)
+                    .dst_access_mask(vk::AccessFlags2::VERTEX_ATTRIBUTE_READ)
+                    .buffer(vertices.raw)
+                    .size(vk::WHOLE_SIZE),
+                vk::BufferMemoryBarrier2::default()
+                    .src_stage_mask(vk::PipelineStageFlags2::COPY)
+                    .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+                    .dst_stage_mask(vk::PipelineStageFlags2::INDEX_INPUT)
+                    .dst_access_mask(vk::AccessFlags2::INDEX_READ)
+                    .buffer(indices.raw)
+                    .size(vk::WHOLE_SIZE),
+            ];
+            // SAFETY: `cmd` is recording; the three buffers are alive and large enough
+            // for the regions (sizes computed from the same slices).
+            unsafe {
+                ctx.device().cmd_copy_buffer(
+                    cmd,
+                    staging.raw,
+                    vertices.raw,
+                    &[vk::BufferCopy {
+                        src_offset: 0,
+                        dst_offset: 0,
+                        size: vertex_bytes.len() as u64,
+                    }],
+                );
+                ctx.device().cmd_copy_buffer(
+                    cmd,
+                    staging.raw,
+                    indices.raw,
+                    &[vk::BufferCopy {
+                        src_offset: vertex_bytes.len() as u64,
+                        dst_offset: 0,
+                        size: index_bytes.len() as u64,
+                    }],
+                );
+                ctx.device().cmd_pipeline_barrier2(
+                    cmd,
+                    &vk::DependencyInfo::default().buffer_memory_barriers(&barriers),
+                );
+            }
+            shot.submit_and_wait(ctx)
+        })();
+        staging.destroy(ctx);
+        if let Err(e) = copied {
+            vertices.destroy(ctx);
+            indices.destroy(ctx);
+            return Err(e);
+        }
         Ok(MeshBuffers {
             vertices,
             indices,

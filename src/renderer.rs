@@ -260,7 +260,8 @@ impl<'a> Renderer<'a> {
             GBufferPass::new(ctx)?
         });
         if let Some(mesh) = &mesh {
-            parts.mesh = Some(MeshBuffers::upload(ctx, mesh)?);
+            let shot = parts.shot.as_ref().expect("built first");
+            parts.mesh = Some(MeshBuffers::upload(ctx, shot, mesh)?);
         }
         parts.material = MaterialTextures::upload(
             ctx,
