@@ -8,7 +8,7 @@
 //!
 //! ```toml
 //! geometry = "plane"      # plane | quad | cube | sphere | torus | mesh
-//! mesh = "model.obj"      # the OBJ or glTF (.gltf, .glb) file of geometry = "mesh"
+//! mesh = "model.obj"      # OBJ or glTF (.gltf, .glb) of geometry = "mesh" (only there)
 //! size = [640, 360]       # frame width and height in pixels
 //!
 //! [heightmap]
