@@ -449,7 +449,8 @@ fn corners_mixed(
 
 /// The material maps reach the shading: a red albedo reddens the lit pixels; a normal
 /// map replaces the height field's normals (one tilted towards the light along +u is
-/// brighter than one tilted away), and neither changes the hits.
+/// brighter than one tilted away; a green-up file is read with green along -v, a
+/// green-down one along +v), and neither changes the hits.
 #[test]
 fn albedo_and_normal_maps_shade_the_hits() {
     let ctx = validated_context();
@@ -462,6 +463,18 @@ fn albedo_and_normal_maps_shade_the_hits() {
     let map = |rgb: [u8; 3]| {
         image::RgbaImage::from_pixel(8, 8, image::Rgba([rgb[0], rgb[1], rgb[2], 255]))
     };
+    let dir = scratch("normal-map");
+    let file = dir.join("green.png");
+    image::RgbaImage::from_pixel(8, 8, image::Rgba([128, 255, 128, 255]))
+        .save(&file)
+        .unwrap();
+    let green_map = |up: bool| dispmap::material::load_normal_map(&file, up).unwrap();
+    assert_eq!(
+        green_map(true).get_pixel(0, 0).0[1],
+        0,
+        "green up is flipped to +v"
+    );
+    assert_eq!(green_map(false).get_pixel(0, 0).0[1], 255);
     let mut frames = Vec::new();
     for material in [
         MaterialImages::default(),
@@ -477,6 +490,16 @@ fn albedo_and_normal_maps_shade_the_hits() {
         MaterialImages {
             albedo: None,
             normal_map: Some(map([0, 128, 128])),
+        },
+        // Green up the image (OpenGL), as a file: -v, away from the light (which comes
+        // from +z = +v); the same file read as green-down (DirectX): +v, towards it.
+        MaterialImages {
+            albedo: None,
+            normal_map: Some(green_map(true)),
+        },
+        MaterialImages {
+            albedo: None,
+            normal_map: Some(green_map(false)),
         },
     ] {
         let assets = SceneAssets {
@@ -509,6 +532,9 @@ fn albedo_and_normal_maps_shade_the_hits() {
     let (r0, g0) = (mean(&frames[0].1, 0), mean(&frames[0].1, 1));
     let (r1, g1) = (mean(&frames[1].1, 0), mean(&frames[1].1, 1));
     let (towards, away) = (mean(&frames[2].1, 1), mean(&frames[3].1, 1));
+    let (green_up, green_down) = (mean(&frames[4].1, 1), mean(&frames[5].1, 1));
+    eprintln!("normal map with green 255: read as up {green_up:.1}, as down {green_down:.1}");
+    assert!(green_down > 1.5 * green_up, "{green_down} vs {green_up}");
     eprintln!(
         "stone r/g {r0:.1}/{g0:.1}, red albedo r/g {r1:.1}/{g1:.1}; normal map towards the light {towards:.1}, away {away:.1}"
     );
