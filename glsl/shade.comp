@@ -3,7 +3,7 @@
 // differences), the light is directional (Lambert + Blinn-Phong), the albedo is a stone
 // colour darkened with depth (a cheap cavity term that makes the relief readable).
 // Output: rgba8 (sRGB-encoded values in a UNORM storage image).
-// SHADOWS variant (self-shadowing on): binding 5 holds the `shadow` pass's light
+// SHADOWS variant (self-shadowing on): binding 7 holds the `shadow` pass's light
 // visibility (1 = lit), which scales the direct light (diffuse and specular).
 // dispmap-variant: SHADOWS
 #include "frame.glsl"
@@ -15,8 +15,12 @@ layout(set = 0, binding = 1) uniform sampler2D u_normal;
 layout(set = 0, binding = 2) uniform sampler2D u_tangent;
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 layout(set = 0, binding = 4, rgba8) uniform writeonly image2D u_color;
+// Optional maps (src/material.rs): alpha 0 = the map is present; without one the height
+// field is bound here and samples with alpha 1.
+layout(set = 0, binding = 5) uniform sampler2D u_albedo;
+layout(set = 0, binding = 6) uniform sampler2D u_normal_map;
 #ifdef SHADOWS
-layout(set = 0, binding = 5, r16f) uniform readonly image2D u_visibility;
+layout(set = 0, binding = 7, r16f) uniform readonly image2D u_visibility;
 #endif
 
 layout(push_constant) uniform ShadeParams {
@@ -60,13 +64,19 @@ void main() {
     vec3 T = t4.xyz;
     vec3 B = t4.w * cross(N, T);
     vec3 n_ts = height_normal(hit.xy, vec2(pc.map_size), pc.depth_scale);
+    vec4 normal_map = textureLod(u_normal_map, hit.xy, 0.0);
+    if (normal_map.a < 0.5) {
+        n_ts = normalize(normal_map.xyz * 2.0 - 1.0);
+    }
     vec3 n = normalize(n_ts.x * T + n_ts.y * B + n_ts.z * N);
 
     vec3 L = pc.light_dir.xyz;
     vec3 H = normalize(L - V);
     float diffuse = max(dot(n, L), 0.0);
     float spec = diffuse > 0.0 ? pc.specular * pow(max(dot(n, H), 0.0), pc.shininess) : 0.0;
-    vec3 albedo = vec3(0.62, 0.55, 0.47) * mix(0.35, 1.0, hit.z);
+    vec4 albedo_map = textureLod(u_albedo, hit.xy, 0.0);
+    vec3 base = albedo_map.a < 0.5 ? albedo_map.rgb : vec3(0.62, 0.55, 0.47);
+    vec3 albedo = base * mix(0.35, 1.0, hit.z);
     float light = pc.light_dir.w;
 #ifdef SHADOWS
     light *= imageLoad(u_visibility, pixel).r;

@@ -15,12 +15,15 @@
 pub mod abi;
 pub mod bench;
 pub mod bundled;
+pub mod contact_sheet;
 pub mod context;
 pub mod embed;
 pub mod error;
 pub mod gpu;
 pub mod heatmap;
 pub mod heightfield;
+pub mod material;
+pub mod mesh;
 pub mod method;
 pub mod metrics;
 pub mod output;
@@ -28,6 +31,7 @@ pub mod passes;
 pub mod reference;
 pub mod renderer;
 pub mod scene;
+pub mod scene_file;
 pub mod shaders;
 pub mod timing;
 

@@ -1,7 +1,8 @@
 //! The `dispmap` command line: `info`, `render`, and (with no arguments) the default job.
 
 use anyhow::{Context as _, Result, bail};
-use clap::{Args, Parser, Subcommand};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use dispmap::context::{Context, ContextOptions};
 use dispmap::heatmap::{self, CornerStats, IterationStats};
 use dispmap::heightfield::{Convention, HeightField};
@@ -9,7 +10,7 @@ use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::metrics::ErrorMetrics;
 use dispmap::passes::shadow::{DEFAULT_SHADOW_SAMPLES, ShadowMode, ShadowSettings};
 use dispmap::reference::Reference;
-use dispmap::renderer::{RenderSettings, Renderer};
+use dispmap::renderer::{RenderSettings, Renderer, SceneAssets};
 use dispmap::scene::{Camera, Geometry, Light, Scene};
 use dispmap::{bench, bundled, output};
 use serde::Serialize;
@@ -106,12 +107,16 @@ struct BenchArgs {
 
 #[derive(Args, Debug)]
 struct RenderArgs {
-    /// Height map (PNG 8/16-bit, JPEG, OpenEXR).
-    #[arg(long)]
-    heightmap: PathBuf,
+    /// A scene file (TOML: height map, material, geometry, camera, light, method, frame
+    /// size; see README "Scenes"). Flags given on the command line override its values.
+    #[arg(long, value_name = "FILE")]
+    scene: Option<PathBuf>,
+    /// Height map (PNG 8/16-bit, JPEG, OpenEXR); needed unless --scene.
+    #[arg(long, required_unless_present = "scene", requires = "convention")]
+    heightmap: Option<PathBuf>,
     /// How the file encodes heights: `height` (white = high) or `depth` (white = low).
-    #[arg(long)]
-    convention: Convention,
+    #[arg(long, requires = "heightmap")]
+    convention: Option<Convention>,
     /// Intersection method: bump, linear, relief, pom, secant, dig, dig-guarded, pyramid,
     /// exact.
     #[arg(long, default_value = "relief")]
@@ -203,7 +208,8 @@ struct CommonArgs {
     /// Vertical field of view, degrees.
     #[arg(long, default_value_t = 45.0)]
     fov: f32,
-    /// Macro geometry: `plane` (tiled, repeat addressing) or `quad` (one decal, clamp).
+    /// Macro geometry: `plane` (tiled, repeat addressing), `quad` (one decal, clamp),
+    /// `cube` (six decals), `sphere` or `torus` (tiled); a loaded `mesh` needs --scene.
     #[arg(long, default_value = "plane")]
     geometry: Geometry,
     /// Frames to render; timings are medians over them.
@@ -270,11 +276,83 @@ impl CommonArgs {
                     height: self.camera_height,
                 },
                 light: Light::default(),
+                addressing: None,
             },
             shadows: ShadowSettings {
                 mode: self.shadows,
                 samples: self.shadow_samples,
             },
+        }
+    }
+
+    /// Overrides the values of a scene file's `settings` with the flags given on the
+    /// command line (`matches`: the subcommand's); `method` is --method when given.
+    fn override_scene(
+        &self,
+        settings: &mut RenderSettings,
+        file: &dispmap::scene_file::SceneFile,
+        method: Option<Method>,
+        matches: &ArgMatches,
+    ) {
+        let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
+        if let Some(method) = method {
+            settings.method = method;
+            if file.method.steps.is_none() {
+                settings.params.steps = method.default_steps();
+            }
+        }
+        let p = &mut settings.params;
+        if let Some(steps) = self.steps {
+            p.steps = steps;
+        }
+        if given("min_steps") {
+            p.min_steps = self.min_steps;
+        }
+        if given("refine_steps") {
+            p.refine_steps = self.refine_steps;
+        }
+        if given("segments") {
+            p.segments = self.segments;
+        }
+        if given("block") {
+            p.block = [self.block.0, self.block.1];
+        }
+        if self.eps.is_some() {
+            p.eps = self.eps;
+        }
+        if given("max_level") {
+            p.max_level = self.max_level;
+        }
+        if self.lod_threshold.is_some() {
+            p.lod_threshold = self.lod_threshold;
+        }
+        if given("shadows") {
+            settings.shadows.mode = self.shadows;
+        }
+        if given("shadow_samples") {
+            settings.shadows.samples = self.shadow_samples;
+        }
+        let scene = &mut settings.scene;
+        if given("depth_scale") {
+            scene.depth_scale = self.depth_scale;
+        }
+        if given("size") {
+            (settings.width, settings.height) = self.size;
+        }
+        if given("camera_elevation") {
+            scene.camera.elevation_deg = self.camera_elevation;
+        }
+        if given("camera_azimuth") {
+            scene.camera.azimuth_deg = self.camera_azimuth;
+        }
+        if given("camera_height") {
+            scene.camera.height = self.camera_height;
+        }
+        if given("fov") {
+            scene.camera.fov_y_deg = self.fov;
+        }
+        if given("geometry") {
+            scene.geometry = self.geometry;
         }
     }
 
@@ -381,8 +459,12 @@ impl From<&ErrorMetrics> for ErrorSummary {
 
 fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
-    let cli = Cli::parse();
-    if let Err(e) = run(cli) {
+    let matches = Cli::command().get_matches();
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
+    if let Err(e) = run(cli, &matches) {
         eprintln!("error: {}", error_chain(&e));
         std::process::exit(1);
     }
@@ -401,14 +483,19 @@ fn error_chain(e: &anyhow::Error) -> String {
     out
 }
 
-fn run(cli: Cli) -> Result<()> {
+fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
     let options = ContextOptions {
         validation: None,
         device: cli.device.clone(),
     };
     match cli.command {
         Some(Command::Info) => info(&options),
-        Some(Command::Render(args)) => render(&options, &args),
+        Some(Command::Render(args)) => {
+            let sub = matches
+                .subcommand_matches("render")
+                .context("clap parsed `render` without its matches")?;
+            render(&options, &args, sub)
+        }
         Some(Command::Demo(args)) => demo(&options, &args),
         Some(Command::Bench(args)) => bench_command(&options, &args),
         None => {
@@ -466,10 +553,49 @@ fn info(options: &ContextOptions) -> Result<()> {
     finish(ctx)
 }
 
-fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
+/// The height map, settings and scene assets of `render`: from --scene (its values,
+/// overridden by the flags given) or from the flags alone.
+fn render_inputs(
+    args: &RenderArgs,
+    matches: &ArgMatches,
+) -> Result<(HeightField, String, RenderSettings, SceneAssets)> {
+    let method_given = matches.value_source("method") == Some(ValueSource::CommandLine);
+    let Some(scene_path) = &args.scene else {
+        let (Some(path), Some(convention)) = (&args.heightmap, args.convention) else {
+            bail!("--heightmap and --convention are needed without --scene");
+        };
+        let settings = args.common.settings(args.method);
+        settings.validate()?;
+        let field = HeightField::load(path, convention)?;
+        return Ok((
+            field,
+            path.display().to_string(),
+            settings,
+            SceneAssets::default(),
+        ));
+    };
+    let file = dispmap::scene_file::SceneFile::read(scene_path)?;
+    let mut loaded = file.resolve(scene_path)?;
+    args.common.override_scene(
+        &mut loaded.settings,
+        &file,
+        method_given.then_some(args.method),
+        matches,
+    );
+    loaded.settings.validate()?;
+    let (field, label) = match (&args.heightmap, args.convention) {
+        (Some(path), Some(convention)) => (
+            HeightField::load(path, convention)?,
+            path.display().to_string(),
+        ),
+        _ => (loaded.field, loaded.heightmap),
+    };
+    Ok((field, label, loaded.settings, loaded.assets))
+}
+
+fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> Result<()> {
     args.common.check()?;
-    let settings = args.common.settings(args.method);
-    settings.validate()?;
+    let (field, heightmap_label, settings, assets) = render_inputs(args, matches)?;
     let dig = settings.method.needs().dig_corners;
     if args.interval_map.is_some() && !dig {
         bail!(
@@ -506,10 +632,9 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
             output::check_writable(path).with_context(|| format!("invalid {option}"))?;
         }
     }
-    let field = HeightField::load(&args.heightmap, args.convention)?;
     let ctx = Context::headless(options)?;
     {
-        let mut renderer = Renderer::new(&ctx, &field, settings)?;
+        let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
         let (timings, color, error, hits, rays) = if args.metrics.is_some() {
             let reference = Reference::new(&field, settings.scene.addressing());
@@ -565,7 +690,7 @@ fn render(options: &ContextOptions, args: &RenderArgs) -> Result<()> {
                 width: settings.width,
                 height: settings.height,
                 frames: args.common.frames,
-                heightmap: args.heightmap.display().to_string(),
+                heightmap: heightmap_label.clone(),
                 depth_scale: settings.scene.depth_scale,
                 camera_elevation: settings.scene.camera.elevation_deg,
                 shadows: settings.shadows.mode.name(),
@@ -633,6 +758,10 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         let frame_ref = renderer.reference(&reference)?;
         let path = args.out_dir.join("reference.png");
         output::write_png(&path, first.width, first.height, &frame_ref.color)?;
+        let mut tiles = vec![dispmap::contact_sheet::Tile {
+            label: "reference (CPU, exact)".into(),
+            rgba: frame_ref.color.clone(),
+        }];
         println!(
             "\n{:<11} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>10} {:>10} {:>9}",
             "method",
@@ -676,9 +805,25 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             }
             let path: &Path = &args.out_dir.join(format!("{}.png", method.name()));
             output::write_png(path, settings.width, settings.height, &m.color)?;
+            tiles.push(dispmap::contact_sheet::Tile {
+                label: format!(
+                    "{}  {:.2}% artifacts",
+                    method.name(),
+                    100.0 * e.artifact_fraction
+                ),
+                rgba: m.color,
+            });
         }
+        let sheet = dispmap::contact_sheet::compose(&tiles, first.width, first.height, 5)?;
+        output::write_png(
+            &args.out_dir.join("contact_sheet.png"),
+            sheet.width,
+            sheet.height,
+            &sheet.rgba,
+        )?;
         println!(
-            "\nimages: {} (reference.png is the exact reference, shaded)",
+            "\nimages: {} (reference.png is the exact reference, shaded; contact_sheet.png \
+             shows every method beside it)",
             args.out_dir.display()
         );
     }

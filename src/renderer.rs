@@ -47,6 +47,9 @@ use crate::passes::trace::{HIT_FORMAT, TraceInputs, TracePass};
 use crate::reference::{Hit, Ray, Reference};
 use crate::scene::Scene;
 use crate::timing::GpuTimer;
+// Scenes (issue 6): meshes and material maps.
+use crate::material::{MaterialImages, MaterialTextures};
+use crate::mesh::{Mesh, MeshBuffers};
 use ash::vk;
 
 /// Largest frame side the CLI accepts (a sanity bound; the device's limit applies too).
@@ -133,6 +136,21 @@ pub struct Renderer<'a> {
     shadow: Option<ShadowStage>,
     /// The corrected-depth pass and image ([`Renderer::set_depth_output`]).
     depth: Option<DepthOutput>,
+    /// The macro geometry's vertex and index buffers (meshes only).
+    mesh: Option<MeshBuffers>,
+    /// Albedo and normal maps (only when the scene has one).
+    material: Option<MaterialTextures>,
+}
+
+/// What a scene brings besides the height field and the settings: a loaded mesh (for
+/// [`crate::scene::Geometry::Mesh`]) and the material maps. The generated cube, sphere
+/// and torus need no mesh here.
+#[derive(Clone, Debug, Default)]
+pub struct SceneAssets {
+    /// The loaded mesh.
+    pub mesh: Option<Mesh>,
+    /// Albedo and normal map.
+    pub material: MaterialImages,
 }
 
 /// The corrected depth of the displaced surface: its pass and `R32_SFLOAT` image.
@@ -181,9 +199,35 @@ impl Extras {
 }
 
 impl<'a> Renderer<'a> {
-    /// Uploads `field` and builds what `settings` needs.
+    /// Uploads `field` and builds what `settings` needs (no loaded mesh, no material
+    /// maps: see [`Renderer::with_assets`]).
     pub fn new(ctx: &'a Context, field: &HeightField, settings: RenderSettings) -> Result<Self> {
+        Self::with_assets(ctx, field, settings, &SceneAssets::default())
+    }
+
+    /// [`Renderer::new`] with a scene's mesh and material maps. Builds only what the
+    /// scene uses: vertex buffers only for mesh geometry, textures only for given maps.
+    pub fn with_assets(
+        ctx: &'a Context,
+        field: &HeightField,
+        settings: RenderSettings,
+        assets: &SceneAssets,
+    ) -> Result<Self> {
         settings.validate()?;
+        let geometry = settings.scene.geometry;
+        let mesh = match (geometry.generated_mesh(), &assets.mesh) {
+            (Some(generated), _) => Some(std::borrow::Cow::Owned(generated)),
+            (None, Some(loaded)) if geometry == crate::scene::Geometry::Mesh => {
+                Some(std::borrow::Cow::Borrowed(loaded))
+            }
+            (None, None) if geometry == crate::scene::Geometry::Mesh => {
+                return Err(Error::invalid(
+                    "geometry",
+                    "'mesh' needs a loaded mesh (a scene file's `mesh` key)",
+                ));
+            }
+            _ => None,
+        };
         let max = ctx.info().max_image_dimension_2d;
         if field.width() > max || field.height() > max {
             return Err(Error::invalid(
@@ -211,6 +255,8 @@ impl<'a> Renderer<'a> {
             gbuffer_pass: None,
             trace: None,
             shade: None,
+            mesh: None,
+            material: None,
         };
         let shot = parts.shot.insert(OneShot::new(ctx, "renderer")?);
         parts.height = Some(HeightTexture::upload(
@@ -239,7 +285,21 @@ impl<'a> Renderer<'a> {
             1,
             vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
         )?);
-        parts.gbuffer_pass = Some(GBufferPass::new(ctx)?);
+        parts.gbuffer_pass = Some(if mesh.is_some() {
+            GBufferPass::new_mesh(ctx)?
+        } else {
+            GBufferPass::new(ctx)?
+        });
+        if let Some(mesh) = &mesh {
+            let shot = parts.shot.as_ref().expect("built first");
+            parts.mesh = Some(MeshBuffers::upload(ctx, shot, mesh)?);
+        }
+        parts.material = MaterialTextures::upload(
+            ctx,
+            parts.shot.as_ref().expect("built first"),
+            &assets.material,
+            settings.scene.addressing(),
+        )?;
         parts.trace = Some(TracePass::new(ctx, settings.method)?);
         parts.shade = Some(ShadePass::new(ctx)?);
         let built = "every part was built above";
@@ -258,6 +318,8 @@ impl<'a> Renderer<'a> {
             extras: Extras::default(),
             depth: None,
             shadow: None,
+            mesh: parts.mesh.take(),
+            material: parts.material.take(),
         };
         // On failure the renderer's Drop destroys everything built so far.
         renderer.prepare()?;
@@ -397,6 +459,12 @@ impl<'a> Renderer<'a> {
     /// Changes camera, light or depth scale (the geometry and addressing must stay).
     pub fn set_scene(&mut self, scene: Scene) -> Result<()> {
         scene.validate()?;
+        if scene.geometry != self.settings.scene.geometry {
+            return Err(Error::invalid(
+                "geometry",
+                "changing the geometry needs a new renderer",
+            ));
+        }
         if scene.addressing() != self.height.addressing {
             return Err(Error::invalid(
                 "geometry",
@@ -435,8 +503,15 @@ impl<'a> Renderer<'a> {
         sync::record(ctx, cmd, &to_attachments);
         ctx.begin_label(cmd, "gbuffer");
         self.timer.begin(ctx, cmd, "gbuffer")?;
-        self.gbuffer_pass
-            .record(ctx, cmd, &self.gbuffer, &gbuffer_params);
+        match &self.mesh {
+            Some(mesh) => {
+                self.gbuffer_pass
+                    .record_mesh(ctx, cmd, &self.gbuffer, &gbuffer_params, mesh)
+            }
+            None => self
+                .gbuffer_pass
+                .record(ctx, cmd, &self.gbuffer, &gbuffer_params),
+        }
         self.timer.end(ctx, cmd);
         ctx.end_label(cmd);
 
@@ -768,7 +843,7 @@ impl<'a> Renderer<'a> {
         sync::record(ctx, cmd, &to_shade);
         ctx.begin_label(cmd, "shade");
         self.timer.begin(ctx, cmd, "shade")?;
-        self.shade.record(
+        self.shade.record_with_material(
             ctx,
             cmd,
             ShadeInputs {
@@ -778,6 +853,7 @@ impl<'a> Renderer<'a> {
                 color: self.color.view_ref(),
                 visibility: self.shadow.as_ref().map(|s| s.visibility.view),
             },
+            self.material.as_ref(),
             params,
         )?;
         self.timer.end(ctx, cmd);
@@ -1040,6 +1116,12 @@ impl Drop for Renderer<'_> {
         if let Some(d) = &mut self.depth {
             d.destroy(ctx);
         }
+        if let Some(m) = &mut self.mesh {
+            m.destroy(ctx);
+        }
+        if let Some(m) = &mut self.material {
+            m.destroy(ctx);
+        }
         self.shade.destroy(ctx);
         self.trace.destroy(ctx);
         self.gbuffer_pass.destroy(ctx);
@@ -1065,11 +1147,19 @@ struct Parts<'a> {
     gbuffer_pass: Option<GBufferPass>,
     trace: Option<TracePass>,
     shade: Option<ShadePass>,
+    mesh: Option<MeshBuffers>,
+    material: Option<MaterialTextures>,
 }
 
 impl Drop for Parts<'_> {
     fn drop(&mut self) {
         let ctx = self.ctx;
+        if let Some(m) = &mut self.mesh {
+            m.destroy(ctx);
+        }
+        if let Some(m) = &mut self.material {
+            m.destroy(ctx);
+        }
         if let Some(p) = &mut self.shade {
             p.destroy(ctx);
         }

@@ -3,6 +3,11 @@
 //! World space is y-up; the macro surface lies on the `y = 0` plane with `u` along `+x`
 //! and `v` along `+z`; one tile (one repeat of the height map) is one world unit, and the
 //! displacement depth `depth_scale` is in the same units.
+//!
+//! The other geometries (cube, sphere, torus, a loaded mesh: see [`crate::mesh`]) are
+//! meshes centred on the origin inside the unit sphere; the orbit camera looks at the
+//! origin from far enough to frame that sphere, and `depth_scale` is in units of the
+//! local uv scale (the `crate::mesh` docs say why).
 
 use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, GBufferParams, ShadeParams};
 use crate::error::{Error, Result};
@@ -27,14 +32,43 @@ pub enum Geometry {
     /// One unit quad carrying the map once (clamp addressing: rays that leave it are
     /// discarded, giving silhouettes).
     Quad,
+    /// A unit cube, each face carrying the map once, one surface id per face (clamp
+    /// addressing by default: each face is a decal with displaced silhouettes at its
+    /// edges, as in Yerex & Jagersand's figure).
+    Cube,
+    /// A sphere, the map tiled 4 x 2 times (repeat addressing).
+    Sphere,
+    /// A torus, the map tiled 7 x 3 times (repeat addressing).
+    Torus,
+    /// A mesh loaded from a file (OBJ), given to the renderer as a
+    /// [`crate::mesh::Mesh`] (repeat addressing by default).
+    Mesh,
 }
 
 impl Geometry {
-    /// The addressing this geometry implies.
+    /// The addressing this geometry implies unless the scene says otherwise.
     pub fn addressing(self) -> Addressing {
         match self {
-            Geometry::TiledPlane => Addressing::Repeat,
-            Geometry::Quad => Addressing::Clamp,
+            Geometry::TiledPlane | Geometry::Sphere | Geometry::Torus | Geometry::Mesh => {
+                Addressing::Repeat
+            }
+            Geometry::Quad | Geometry::Cube => Addressing::Clamp,
+        }
+    }
+
+    /// Whether it is drawn from a vertex buffer (everything but the plane and the quad).
+    pub fn is_mesh(self) -> bool {
+        !matches!(self, Geometry::TiledPlane | Geometry::Quad)
+    }
+
+    /// The generated mesh of the cube, sphere or torus (`None` for the plane, the quad
+    /// and a loaded mesh).
+    pub fn generated_mesh(self) -> Option<crate::mesh::Mesh> {
+        match self {
+            Geometry::Cube => Some(crate::mesh::Mesh::cube()),
+            Geometry::Sphere => Some(crate::mesh::Mesh::sphere()),
+            Geometry::Torus => Some(crate::mesh::Mesh::torus()),
+            _ => None,
         }
     }
 }
@@ -45,9 +79,13 @@ impl std::str::FromStr for Geometry {
         match s {
             "plane" | "tiled-plane" => Ok(Geometry::TiledPlane),
             "quad" => Ok(Geometry::Quad),
+            "cube" => Ok(Geometry::Cube),
+            "sphere" => Ok(Geometry::Sphere),
+            "torus" => Ok(Geometry::Torus),
+            "mesh" => Ok(Geometry::Mesh),
             other => Err(Error::invalid(
                 "geometry",
-                format!("'{other}' is not one of: plane, quad"),
+                format!("'{other}' is not one of: plane, quad, cube, sphere, torus, mesh"),
             )),
         }
     }
@@ -110,6 +148,8 @@ pub struct Scene {
     pub camera: Camera,
     /// Light.
     pub light: Light,
+    /// The height field's addressing; `None`: the geometry's ([`Geometry::addressing`]).
+    pub addressing: Option<Addressing>,
 }
 
 impl Default for Scene {
@@ -119,6 +159,7 @@ impl Default for Scene {
             depth_scale: 0.1,
             camera: Camera::default(),
             light: Light::default(),
+            addressing: None,
         }
     }
 }
@@ -168,9 +209,10 @@ impl Scene {
         Ok(())
     }
 
-    /// Addressing of the height field for this geometry.
+    /// Addressing of the height field: the scene's, else the geometry's.
     pub fn addressing(&self) -> Addressing {
-        self.geometry.addressing()
+        self.addressing
+            .unwrap_or_else(|| self.geometry.addressing())
     }
 
     /// Eye and view-projection for a `width x height` frame.
@@ -182,6 +224,11 @@ impl Scene {
                 c.height / c.elevation_deg.to_radians().sin().max(1e-6),
             ),
             Geometry::Quad => (Vec3::new(0.5, 0.0, 0.5), 1.4),
+            // Meshes fit the unit sphere: frame it vertically with a small margin.
+            _ => (
+                Vec3::ZERO,
+                1.08 / (c.fov_y_deg.to_radians() / 2.0).sin().max(1e-3),
+            ),
         };
         let to_eye = direction(c.elevation_deg, c.azimuth_deg);
         let eye = target + distance * to_eye;
@@ -226,7 +273,8 @@ impl Scene {
                     Vec4::new(-r, -r, r, r),
                 )
             }
-            Geometry::Quad => (Vec4::new(0.0, 0.0, 1.0, 1.0), Vec4::new(0.0, 0.0, 1.0, 1.0)),
+            // The quad; meshes do not read the rectangles.
+            _ => (Vec4::new(0.0, 0.0, 1.0, 1.0), Vec4::new(0.0, 0.0, 1.0, 1.0)),
         };
         GBufferParams {
             view_proj: camera.view_proj,

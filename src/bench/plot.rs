@@ -25,7 +25,7 @@ use std::sync::OnceLock;
 pub const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
 
 /// The font family name the plots use.
-const FAMILY: &str = "sans-serif";
+pub(crate) const FAMILY: &str = "sans-serif";
 
 /// Pareto plot size in pixels.
 pub const PARETO_SIZE: (u32, u32) = (1280, 1040);
@@ -33,7 +33,7 @@ pub const PARETO_SIZE: (u32, u32) = (1280, 1040);
 /// Map-size plot size in pixels.
 pub const SIZES_SIZE: (u32, u32) = (1500, 460);
 
-fn register_font() -> Result<()> {
+pub(crate) fn register_font() -> Result<()> {
     static REGISTERED: OnceLock<std::result::Result<(), String>> = OnceLock::new();
     REGISTERED
         .get_or_init(|| {

@@ -10,8 +10,9 @@
 //!
 //! The surface id names a piece of geometry whose UVs are continuous (a chart). DIG
 //! trusts a block's corner interval only when the block's corners and the pixel share
-//! one id. The macro geometry here is one surface (id 1): the tiled plane's wrap of `uv0`
-//! into `[0, 1)` is not a discontinuity, since the addressing repeats the map.
+//! one id. The plane and the quad are one surface (id 1): the tiled plane's wrap of `uv0`
+//! into `[0, 1)` is not a discontinuity, since the addressing repeats the map. Meshes
+//! (`src/mesh.rs`) carry their ids per vertex: the cube's six faces are ids 1 to 6.
 //!
 //! `record` expects every attachment in `COLOR_ATTACHMENT_OPTIMAL` /
 //! `DEPTH_ATTACHMENT_OPTIMAL` (contents may be discarded: it clears them) and leaves them
@@ -111,11 +112,28 @@ impl GBuffer {
 pub struct GBufferPass {
     pipeline: vk::Pipeline,
     layout: vk::PipelineLayout,
+    mesh: bool,
 }
 
 impl GBufferPass {
-    /// Builds the pipeline (dynamic rendering: no render pass object).
+    /// Builds the pipeline of the plane and the quad (dynamic rendering: no render pass
+    /// object; no vertex buffer).
     pub fn new(ctx: &Context) -> Result<Self> {
+        Self::build(ctx, false)
+    }
+
+    /// Builds the pipeline of meshes (`glsl/gbuffer_mesh.*`): one vertex buffer of
+    /// [`crate::mesh::Vertex`] and `u32` indices, drawn by [`GBufferPass::record_mesh`].
+    pub fn new_mesh(ctx: &Context) -> Result<Self> {
+        Self::build(ctx, true)
+    }
+
+    /// Whether this is the mesh pipeline.
+    pub fn is_mesh(&self) -> bool {
+        self.mesh
+    }
+
+    fn build(ctx: &Context, mesh: bool) -> Result<Self> {
         let dev = ctx.device();
         let ranges = [vk::PushConstantRange::default()
             .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
@@ -124,8 +142,30 @@ impl GBufferPass {
         // SAFETY: valid device and create info.
         let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
             .vk("vkCreatePipelineLayout")?;
-        let vert = shaders::GBUFFER_VERT.module(ctx)?;
-        let frag = shaders::GBUFFER_FRAG.module(ctx)?;
+        let (vert, frag) = if mesh {
+            (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG)
+        } else {
+            (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG)
+        };
+        let vert = match vert.module(ctx) {
+            Ok(m) => m,
+            Err(e) => {
+                // SAFETY: the layout is unused.
+                unsafe { dev.destroy_pipeline_layout(layout, None) };
+                return Err(e);
+            }
+        };
+        let frag = match frag.module(ctx) {
+            Ok(m) => m,
+            Err(e) => {
+                // SAFETY: neither is used yet.
+                unsafe {
+                    dev.destroy_shader_module(vert, None);
+                    dev.destroy_pipeline_layout(layout, None);
+                }
+                return Err(e);
+            }
+        };
         let stages = [
             vk::PipelineShaderStageCreateInfo::default()
                 .stage(vk::ShaderStageFlags::VERTEX)
@@ -136,7 +176,19 @@ impl GBufferPass {
                 .module(frag)
                 .name(c"main"),
         ];
-        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let bindings = [vk::VertexInputBindingDescription {
+            binding: 0,
+            stride: std::mem::size_of::<crate::mesh::Vertex>() as u32,
+            input_rate: vk::VertexInputRate::VERTEX,
+        }];
+        let attributes = crate::mesh::vertex_attributes();
+        let vertex_input = if mesh {
+            vk::PipelineVertexInputStateCreateInfo::default()
+                .vertex_binding_descriptions(&bindings)
+                .vertex_attribute_descriptions(&attributes)
+        } else {
+            vk::PipelineVertexInputStateCreateInfo::default()
+        };
         let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
             .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
         let viewport = vk::PipelineViewportStateCreateInfo::default()
@@ -184,19 +236,58 @@ impl GBufferPass {
             dev.destroy_shader_module(vert, None);
             dev.destroy_shader_module(frag, None);
         }
-        let pipeline = result.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0];
-        ctx.set_name(pipeline, "gbuffer.pipeline");
-        ctx.set_name(layout, "gbuffer.layout");
-        Ok(GBufferPass { pipeline, layout })
+        let pipeline = match result {
+            Ok(p) => p[0],
+            Err((_, e)) => {
+                // SAFETY: the layout is unused.
+                unsafe { dev.destroy_pipeline_layout(layout, None) };
+                return Err(e).vk("vkCreateGraphicsPipelines");
+            }
+        };
+        let name = if mesh { "gbuffer_mesh" } else { "gbuffer" };
+        ctx.set_name(pipeline, &format!("{name}.pipeline"));
+        ctx.set_name(layout, &format!("{name}.layout"));
+        Ok(GBufferPass {
+            pipeline,
+            layout,
+            mesh,
+        })
     }
 
-    /// Records the pass: clears the G-buffer and draws the geometry (two triangles).
+    /// Records the pass: clears the G-buffer and draws the plane or quad (two
+    /// triangles). Needs the pipeline of [`GBufferPass::new`].
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         target: &GBuffer,
         params: &GBufferParams,
+    ) {
+        debug_assert!(!self.mesh, "the mesh pipeline draws with record_mesh");
+        self.record_draw(ctx, cmd, target, params, None);
+    }
+
+    /// Records the pass: clears the G-buffer and draws `mesh` (its buffers must stay
+    /// alive until the command buffer has executed). Needs [`GBufferPass::new_mesh`].
+    pub fn record_mesh(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        target: &GBuffer,
+        params: &GBufferParams,
+        mesh: &crate::mesh::MeshBuffers,
+    ) {
+        debug_assert!(self.mesh, "the plane pipeline draws with record");
+        self.record_draw(ctx, cmd, target, params, Some(mesh));
+    }
+
+    fn record_draw(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        target: &GBuffer,
+        params: &GBufferParams,
+        mesh: Option<&crate::mesh::MeshBuffers>,
     ) {
         let extent = target.ray.extent;
         let color_attachments: Vec<_> = target
@@ -243,7 +334,8 @@ impl GBufferPass {
         };
         let dev = ctx.device();
         // SAFETY: `cmd` is recording outside a render pass; the attachments are in the
-        // layouts documented above (the caller's barrier) and alive.
+        // layouts documented above (the caller's barrier) and alive; a mesh's buffers are
+        // alive (the caller's contract) and match the mesh pipeline's vertex input.
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
@@ -256,7 +348,14 @@ impl GBufferPass {
                 0,
                 bytemuck::bytes_of(params),
             );
-            dev.cmd_draw(cmd, 6, 1, 0, 0);
+            match mesh {
+                Some(m) => {
+                    dev.cmd_bind_vertex_buffers(cmd, 0, &[m.vertices.raw], &[0]);
+                    dev.cmd_bind_index_buffer(cmd, m.indices.raw, 0, vk::IndexType::UINT32);
+                    dev.cmd_draw_indexed(cmd, m.index_count, 1, 0, 0, 0);
+                }
+                None => dev.cmd_draw(cmd, 6, 1, 0, 0),
+            }
             dev.cmd_end_rendering(cmd);
         }
     }

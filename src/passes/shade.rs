@@ -9,9 +9,11 @@
 //! | 2 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 4 | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
-//! | 5 | light visibility (`R16_SFLOAT` storage, read; [`ShadePass::shadowed`] only) | `GENERAL` |
+//! | 5 | albedo map, or the height field when there is none (`crate::material`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 6 | normal map, or the height field when there is none | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 7 | light visibility (`R16_SFLOAT` storage, read; [`ShadePass::shadowed`] only) | `GENERAL` |
 //!
-//! Without self-shadowing the pipeline has no binding 5 (the `shadow` pass and its image
+//! Without self-shadowing the pipeline has no binding 7 (the `shadow` pass and its image
 //! are not built); with it ([`ShadePass::shadowed`], the shader's `SHADOWS` variant) the
 //! visibility written by [`crate::passes::shadow`] scales the direct light.
 
@@ -27,17 +29,19 @@ use ash::vk;
 /// Format of the colour output.
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 
-const BINDINGS: [vk::DescriptorType; 6] = [
+const BINDINGS: [vk::DescriptorType; 8] = [
     vk::DescriptorType::STORAGE_IMAGE,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::STORAGE_IMAGE,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::STORAGE_IMAGE,
 ];
 
 /// The visibility binding of the shadowed variant.
-const VISIBILITY_BINDING: usize = 5;
+const VISIBILITY_BINDING: usize = 7;
 
 /// The images the shade pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
@@ -67,7 +71,7 @@ impl ShadePass {
         Self::build(ctx, false)
     }
 
-    /// Builds the pipeline that reads the `shadow` pass's visibility (binding 5).
+    /// Builds the pipeline that reads the `shadow` pass's visibility (binding 7).
     pub fn shadowed(ctx: &Context) -> Result<Self> {
         Self::build(ctx, true)
     }
@@ -103,13 +107,26 @@ impl ShadePass {
         self.shadowed
     }
 
-    /// Records the dispatch over the whole frame. Fails (recording nothing) when a
-    /// shadowed pass gets no visibility image.
+    /// Records the dispatch over the whole frame (no albedo or normal map). Fails
+    /// (recording nothing) when a shadowed pass gets no visibility image.
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: ShadeInputs,
+        params: &ShadeParams,
+    ) -> Result<()> {
+        self.record_with_material(ctx, cmd, inputs, None, params)
+    }
+
+    /// Records the dispatch with the maps of `material` (bindings 5 and 6). Fails
+    /// (recording nothing) when a shadowed pass gets no visibility image.
+    pub fn record_with_material(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: ShadeInputs,
+        material: Option<&crate::material::MaterialTextures>,
         params: &ShadeParams,
     ) -> Result<()> {
         let ShadeInputs {
@@ -134,12 +151,15 @@ impl ShadePass {
         let tangent = self.pipeline.fetch_view(gbuffer.tangent);
         let heights = [height.descriptor()];
         let colors = storage_view(color.view);
+        let [albedo, normal_map] = crate::material::MaterialTextures::descriptors(material, height);
         let mut writes = vec![
             image_write(0, BINDINGS[0], &hits),
             image_write(1, BINDINGS[1], &normal),
             image_write(2, BINDINGS[2], &tangent),
             image_write(3, BINDINGS[3], &heights),
             image_write(4, BINDINGS[4], &colors),
+            image_write(5, BINDINGS[5], &albedo),
+            image_write(6, BINDINGS[6], &normal_map),
         ];
         if let Some(v) = &visibility {
             writes.push(image_write(

@@ -1,0 +1,35 @@
+#version 460
+// G-buffer pass for meshes, fragment stage: re-orthonormalises the interpolated tangent
+// frame (Gram-Schmidt), encodes the ray with the shared include, then corrects P for the
+// uv stretch so depth_scale is in units of the local uv scale sqrt(s_u s_v) (src/mesh.rs
+// documents the choice): P.x *= sqrt(s_v / s_u), P.y *= sqrt(s_u / s_v).
+#include "gbuffer.glsl"
+#include "include/dispmap_gbuffer.glsl"
+
+layout(location = 0) in vec3 v_eye_rel;
+layout(location = 1) in vec2 v_uv;
+layout(location = 2) in vec3 v_normal;
+layout(location = 3) in vec4 v_tangent;
+layout(location = 4) in float v_stretch;
+layout(location = 5) flat in float v_surface;
+
+layout(location = 0) out vec4 out_ray;
+layout(location = 1) out vec4 out_normal;
+layout(location = 2) out vec4 out_tangent;
+
+void main() {
+    vec3 N = normalize(v_normal);
+    vec3 T = v_tangent.xyz - N * dot(N, v_tangent.xyz);
+    float tl = length(T);
+    // A degenerate interpolated tangent (opposite tangents across a vertex): any T.
+    T = tl > 1e-6 ? T / tl : normalize(abs(N.x) < 0.9 ? cross(N, vec3(1, 0, 0)) : cross(N, vec3(0, 1, 0)));
+    float w = v_tangent.w < 0.0 ? -1.0 : 1.0;
+    vec3 B = w * cross(N, T);
+    DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, N, T, B, v_surface,
+        pc.depth_scale, pc.min_cos, pc.addressing);
+    if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {
+        discard;
+    }
+    float stretch = clamp(v_stretch, 1.0 / 64.0, 64.0);
+    out_ray.zw *= vec2(inversesqrt(stretch), sqrt(stretch));
+}

@@ -1,0 +1,200 @@
+//! Optional surface maps the shade pass reads at the hit uv: an albedo (colour) map and a
+//! tangent-space normal map, both addressed like the height field.
+//!
+//! * **Albedo**: an sRGB colour image (`R8G8B8A8_SRGB`, so the sampler returns linear
+//!   colour); it replaces the default stone colour, and the shade pass multiplies the lit
+//!   colour by it (the depth-darkening cavity term stays).
+//! * **Normal map**: `R8G8B8A8_UNORM`, `n = 2 rgb - 1` in the tangent frame
+//!   `(T along +u, B along +v, N)`; it replaces the normal derived from the height field.
+//!   Since `v` grows *down* the image (the height map's row 0 is `v = 0`), green must point
+//!   down the image; most tools write green up (the OpenGL convention), so
+//!   [`load_normal_map`] flips green unless told the map is green-down (DirectX).
+//! * **Presence without a flag.** Maps are uploaded with alpha 0. The shade pass binds the
+//!   height texture instead of a missing map (`R8`/`R16`/`R32F` sample with alpha 1), so
+//!   `alpha < 0.5` tells the shader a map is present: no push-constant change, and the
+//!   existing frames (no maps) are shaded exactly as before.
+
+use crate::context::Context;
+use crate::error::{Error, Result};
+use crate::gpu::commands::upload_image;
+use crate::gpu::sync::Access;
+use crate::gpu::{HeightTexture, Image, OneShot};
+use crate::heightfield::Addressing;
+use ash::vk;
+use image::RgbaImage;
+use std::path::Path;
+
+/// The maps of a material, decoded (RGBA8, alpha ignored).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MaterialImages {
+    /// The albedo in sRGB.
+    pub albedo: Option<RgbaImage>,
+    /// The tangent-space normal map with green along `+v` (down the image).
+    pub normal_map: Option<RgbaImage>,
+}
+
+fn load_rgba(path: &Path) -> Result<RgbaImage> {
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let image = image::load_from_memory(&bytes).map_err(|e| Error::Image {
+        path: path.to_owned(),
+        message: format!("cannot decode: {e}"),
+    })?;
+    if image.width() == 0 || image.height() == 0 {
+        return Err(Error::Image {
+            path: path.to_owned(),
+            message: "empty image".into(),
+        });
+    }
+    Ok(image.to_rgba8())
+}
+
+/// Loads an albedo map (PNG or JPEG, sRGB).
+pub fn load_albedo(path: &Path) -> Result<RgbaImage> {
+    load_rgba(path)
+}
+
+/// Loads a tangent-space normal map; `green_up`: the file's green points up the image
+/// (OpenGL convention, flipped here), else down (DirectX convention, kept).
+pub fn load_normal_map(path: &Path, green_up: bool) -> Result<RgbaImage> {
+    let mut image = load_rgba(path)?;
+    if green_up {
+        for p in image.pixels_mut() {
+            p.0[1] = 255 - p.0[1];
+        }
+    }
+    Ok(image)
+}
+
+/// The uploaded maps and their sampler.
+pub struct MaterialTextures {
+    albedo: Option<Image>,
+    normal_map: Option<Image>,
+    sampler: vk::Sampler,
+}
+
+impl MaterialTextures {
+    /// Uploads the present maps (none: nothing is created) and leaves them readable by
+    /// compute shaders.
+    pub fn upload(
+        ctx: &Context,
+        shot: &OneShot,
+        images: &MaterialImages,
+        addressing: Addressing,
+    ) -> Result<Option<Self>> {
+        if images.albedo.is_none() && images.normal_map.is_none() {
+            return Ok(None);
+        }
+        let mode = match addressing {
+            Addressing::Repeat => vk::SamplerAddressMode::REPEAT,
+            Addressing::Clamp => vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        };
+        let sampler = crate::passes::sampler(ctx, "material.sampler", vk::Filter::LINEAR, mode)?;
+        let mut textures = MaterialTextures {
+            albedo: None,
+            normal_map: None,
+            sampler,
+        };
+        let maps = [
+            (&images.albedo, vk::Format::R8G8B8A8_SRGB, "material.albedo"),
+            (
+                &images.normal_map,
+                vk::Format::R8G8B8A8_UNORM,
+                "material.normal_map",
+            ),
+        ];
+        for (k, (map, format, name)) in maps.into_iter().enumerate() {
+            let Some(map) = map else { continue };
+            let uploaded = upload_map(ctx, shot, map, format, name);
+            match uploaded {
+                Ok(image) if k == 0 => textures.albedo = Some(image),
+                Ok(image) => textures.normal_map = Some(image),
+                Err(e) => {
+                    textures.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
+        Ok(Some(textures))
+    }
+
+    /// Descriptors of bindings 5 (albedo) and 6 (normal map) of the shade pass; a missing
+    /// map is replaced by `fallback` (module docs).
+    pub fn descriptors(
+        this: Option<&Self>,
+        fallback: &HeightTexture,
+    ) -> [[vk::DescriptorImageInfo; 1]; 2] {
+        let of = |image: Option<&Image>, sampler| match image {
+            Some(image) => vk::DescriptorImageInfo {
+                sampler,
+                image_view: image.view,
+                image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+            },
+            None => fallback.descriptor(),
+        };
+        match this {
+            Some(m) => [
+                [of(m.albedo.as_ref(), m.sampler)],
+                [of(m.normal_map.as_ref(), m.sampler)],
+            ],
+            None => [[fallback.descriptor()], [fallback.descriptor()]],
+        }
+    }
+
+    /// Destroys images and sampler. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        for image in [&mut self.albedo, &mut self.normal_map]
+            .into_iter()
+            .flatten()
+        {
+            image.destroy(ctx);
+        }
+        self.albedo = None;
+        self.normal_map = None;
+        // SAFETY: caller guarantees no pending use.
+        unsafe { ctx.device().destroy_sampler(self.sampler, None) };
+        self.sampler = vk::Sampler::null();
+    }
+}
+
+fn upload_map(
+    ctx: &Context,
+    shot: &OneShot,
+    map: &RgbaImage,
+    format: vk::Format,
+    name: &str,
+) -> Result<Image> {
+    let max = ctx.info().max_image_dimension_2d;
+    if map.width() > max || map.height() > max {
+        return Err(Error::invalid(
+            name,
+            format!(
+                "{}x{} exceeds the device's maxImageDimension2D ({max})",
+                map.width(),
+                map.height()
+            ),
+        ));
+    }
+    let mut bytes = map.as_raw().clone();
+    for texel in bytes.chunks_exact_mut(4) {
+        texel[3] = 0; // alpha 0 marks a present map
+    }
+    let mut image = Image::new(
+        ctx,
+        name,
+        format,
+        vk::Extent2D {
+            width: map.width(),
+            height: map.height(),
+        },
+        1,
+        vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
+    )?;
+    if let Err(e) = upload_image(ctx, shot, &image, &bytes, Access::COMPUTE_SAMPLED) {
+        image.destroy(ctx);
+        return Err(e);
+    }
+    Ok(image)
+}
