@@ -2,8 +2,7 @@
 //! a process under validation. Every row must exit non-zero within [`HANG`] (no device
 //! hang), print an error naming the input and what is wrong (every `expect` string must
 //! be in stderr), never panic, and leave nothing behind: neither the output file nor a
-//! temporary file next to it. To add a row (e.g. an unknown scene key once scene files
-//! exist), add one line to [`rows`].
+//! temporary file next to it. To add a row, add one line to [`rows`].
 
 mod common;
 
@@ -79,6 +78,12 @@ fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
     zero[29..33].copy_from_slice(&crc.to_be_bytes());
     write("zero.png", &zero);
     write("too-wide.png", &png(max_dimension + 1, 1));
+    // Scene files.
+    write("unknown-key.toml", b"[camera]\nelevation = 20\nzoom = 2\n");
+    write("not-toml.toml", b"this is = = not toml\n");
+    write("bad-value.toml", b"[camera]\nelevation = -5\n");
+    write("missing-mesh.toml", b"geometry = \"mesh\"\nmesh = \"nope.obj\"\n");
+    write("bad-geometry.toml", b"geometry = \"teapot\"\n");
     // BMP: a real image in a format dispmap does not read.
     write("map.bmp", &bmp());
     // OpenEXR with a height outside [0, 1].
@@ -160,9 +165,20 @@ fn rows(f: &Fixtures) -> Vec<Row> {
         row("absurd max level",        &[("--max-level", "99")],                    &["max-level", "99"]),
         row("zero secant segments",    &[("--segments", "0")],                      &["segments", "0 is outside"]),
         row("unknown method",          &[("--method", "magic")],                    &["magic", "known: bump"]),
+        row("unknown shadow mode",     &[("--shadows", "magic")],                   &["magic"]),
+        row("zero shadow samples",     &[("--shadows", "soft"), ("--shadow-samples", "0")], &["shadow-samples", "0"]),
+        row("NaN LOD threshold",       &[("--lod-threshold", "NaN")],               &["lod-threshold", "NaN"]),
+        // Scene files.
+        row("missing scene file",      &[("--scene", "/no/such/scene.toml")],       &["/no/such/scene.toml", "No such file"]),
+        row("unknown scene key",       &[("--scene", &f.path("unknown-key.toml"))], &["unknown-key.toml", "zoom"]),
+        row("scene not TOML",          &[("--scene", &f.path("not-toml.toml"))],    &["not-toml.toml"]),
+        row("scene value out of range", &[("--scene", &f.path("bad-value.toml"))],  &["bad-value.toml", "camera-elevation", "-5"]),
+        row("scene mesh missing",      &[("--scene", &f.path("missing-mesh.toml"))], &["nope.obj"]),
+        row("unknown scene geometry",  &[("--scene", &f.path("bad-geometry.toml"))], &["bad-geometry.toml", "teapot"]),
         // Outputs.
         row("output folder missing",   &[("--out", &f.path("missing-folder/out.png"))], &["--out", "missing-folder", "does not exist"]),
         row("output is a folder",      &[("--out", f.dir.to_str().unwrap())],       &["--out", "is a folder"]),
+        row("depth output not EXR/PNG", &[("--depth-out", &f.path("depth.bmp"))],  &["--depth-out", "depth.bmp", ".exr"]),
         row("metrics folder missing",  &[("--metrics", &f.path("missing-folder/m.json"))], &["--metrics", "missing-folder", "does not exist"]),
         // Devices.
         Row { env: no_driver, ..row("no Vulkan driver", &[], &["vkCreateInstance", "Vulkan driver"]) },

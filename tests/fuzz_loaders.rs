@@ -1,11 +1,12 @@
 //! Property tests of the input loaders over random and mutated bytes (issue 7), a bounded
 //! number of cases each so they run in CI (`PROPTEST_CASES` raises the count for a longer
 //! local run). Every loader in [`LOADERS`] must, for any bytes, return either a valid
-//! value or an error whose text names the input, and never panic. To fuzz another loader
-//! (e.g. scene files once they exist), add a row to [`LOADERS`] and its seed files to
-//! [`seeds`].
+//! value or an error whose text names the input, and never panic. To fuzz another loader,
+//! add a row to [`LOADERS`] and its seed files to [`seeds`].
 
 use dispmap::heightfield::{Convention, HeightField, Texels};
+use dispmap::scene_file::SceneFile;
+use std::path::Path;
 use image::{DynamicImage, ImageFormat};
 use proptest::prelude::*;
 use std::io::Cursor;
@@ -20,7 +21,22 @@ type Loader = (&'static str, fn(&[u8]) -> Result<(), String>);
 const LOADERS: &[Loader] = &[
     ("height map (height)", |b| height_map(b, Convention::Height)),
     ("height map (depth)", |b| height_map(b, Convention::Depth)),
+    ("scene file", scene),
 ];
+
+/// Parses a scene file (bytes as UTF-8, invalid sequences replaced) and resolves its
+/// settings without reading any file: a scene that parses gives settings that pass
+/// validation, or an error naming the file.
+fn scene(bytes: &[u8]) -> Result<(), String> {
+    let text = String::from_utf8_lossy(bytes);
+    let path = Path::new(LABEL);
+    let file = SceneFile::parse(&text, path).map_err(|e| e.to_string())?;
+    let settings = file.settings(path).map_err(|e| e.to_string())?;
+    if let Err(e) = settings.validate() {
+        panic!("settings() accepted a scene whose settings do not validate: {e}");
+    }
+    Ok(())
+}
 
 /// Decodes a height map and checks what every loaded map guarantees: a non-empty size,
 /// one texel per pixel, every height finite and in [0, 1].
@@ -73,6 +89,22 @@ fn seeds() -> Vec<Vec<u8>> {
         encode(DynamicImage::ImageLuma8(gray8), ImageFormat::Jpeg),
         encode(DynamicImage::ImageRgb32F(float), ImageFormat::OpenExr),
     ]
+    .into_iter()
+    .chain(scene_seeds())
+    .collect()
+}
+
+/// The example scenes in `scenes/`.
+fn scene_seeds() -> Vec<Vec<u8>> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    assert!(!files.is_empty(), "no example scenes to seed the scene fuzzer");
+    files.into_iter().map(|p| std::fs::read(p).unwrap()).collect()
 }
 
 /// Runs every loader on `bytes`: a valid value (checked) or an error naming the input.
@@ -124,6 +156,38 @@ proptest! {
     #[test]
     fn mutated_files(bytes in mutated()) {
         check_all(&bytes)?;
+    }
+
+    /// Scene files with random numbers (NaN, infinities, negatives, huge values among
+    /// them) in every numeric key: accepted exactly when the settings validate, and the
+    /// error names the file otherwise.
+    #[test]
+    fn scene_numbers_are_checked(
+        values in prop::collection::vec(
+            prop_oneof![
+                2 => (-100.0f64..200.0).prop_map(|v| format!("{v}")),
+                1 => prop::sample::select(vec!["nan", "inf", "-inf", "0", "-1", "1e30", "4294967296", "0.0"]).prop_map(str::to_owned),
+            ],
+            11,
+        ),
+    ) {
+        let keys = [
+            ("camera", "elevation"), ("camera", "azimuth"), ("camera", "fov"), ("camera", "height"),
+            ("light", "elevation"), ("light", "azimuth"), ("light", "intensity"),
+            ("heightmap", "depth_scale"), ("method", "steps"), ("method", "eps"), ("method", "lod_threshold"),
+        ];
+        let mut text = String::new();
+        for table in ["camera", "light", "heightmap", "method"] {
+            text.push_str(&format!("[{table}]\n"));
+            for ((t, key), value) in keys.iter().zip(&values) {
+                if *t == table {
+                    text.push_str(&format!("{key} = {value}\n"));
+                }
+            }
+        }
+        if let Err(message) = scene(text.as_bytes()) {
+            prop_assert!(message.contains(LABEL), "error does not name the file: {message}");
+        }
     }
 
     /// Random valid 8- and 16-bit grey PNGs load exactly (height convention: the values;
