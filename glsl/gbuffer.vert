@@ -38,10 +38,9 @@ void main() {
     vec2 corner = CORNERS[gl_VertexIndex % 6];
     if (n == 0) {
         vec2 xz = mix(pc.world_rect.xy, pc.world_rect.zw, corner);
-        vec3 world = vec3(xz.x, 0.0, xz.y);
-        v_eye_rel = world - pc.camera_pos.xyz;
+        v_eye_rel = vec3(xz.x, 0.0, xz.y) - pc.camera_pos.xyz;
         v_uv = mix(pc.uv_rect.xy, pc.uv_rect.zw, corner);
-        gl_Position = pc.view_proj * vec4(world, 1.0);
+        gl_Position = pc.view_proj * vec4(v_eye_rel, 1.0);
         return;
     }
     int cell = gl_VertexIndex / 6;
@@ -53,16 +52,17 @@ void main() {
     float scale = max(abs(pc.camera_pos.y), 1e-3);
     vec2 o = vec2(grid_line(k.x, n, centre.x - lo.x, hi.x - centre.x, scale),
                   grid_line(k.y, n, centre.y - lo.y, hi.y - centre.y, scale));
-    // The vertex in world space (rounded to f32 there: far from the origin the grid's
-    // vertices move by up to half an ulp, all its attributes with them, so the plane stays
-    // exact and watertight); the eye-relative position and the uv from that vertex.
-    vec2 xz = centre + o;
-    vec3 world = vec3(xz.x, 0.0, xz.y);
-    v_eye_rel = world - pc.camera_pos.xyz;
-    // The uv from the rectangle's middle (exact for the integer-aligned rectangles Scene
-    // lays out about the eye's tile).
+    // Everything from offsets, never from world coordinates: far from the origin a world
+    // position has too few bits (1e-3 tiles at 1e4 tiles). The vertex relative to the eye
+    // is the grid offset (plus the clamp's, 0 when the eye is over the rectangle), and the
+    // transform is eye-relative (pc.view_proj), so both keep full precision near the eye.
+    // `centre - mid` is exact: Scene lays the rectangle out about the eye's tile, so both
+    // are close to each other (Sterbenz). Every attribute is a function of k alone, so
+    // neighbouring cells share their vertices bit for bit (watertight).
+    vec2 rel = (centre - pc.camera_pos.xz) + o;
+    v_eye_rel = vec3(rel.x, -pc.camera_pos.y, rel.y);
     vec2 mid = 0.5 * (lo + hi);
     vec2 uv_per_world = (pc.uv_rect.zw - pc.uv_rect.xy) / (hi - lo);
-    v_uv = 0.5 * (pc.uv_rect.xy + pc.uv_rect.zw) + (xz - mid) * uv_per_world;
-    gl_Position = pc.view_proj * vec4(world, 1.0);
+    v_uv = 0.5 * (pc.uv_rect.xy + pc.uv_rect.zw) + ((centre - mid) + o) * uv_per_world;
+    gl_Position = pc.view_proj * vec4(v_eye_rel, 1.0);
 }

@@ -99,7 +99,10 @@ pub struct CornerParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GBufferParams {
-    /// World to clip (reverse-Z, Vulkan y down).
+    /// Eye-relative world to clip (reverse-Z, Vulkan y down): `view_proj *
+    /// translation(eye)`, built without the translation ([`crate::scene::FrameCamera`]).
+    /// The vertex stages transform positions relative to the eye, so a camera far from
+    /// the origin keeps full precision near the eye.
     pub view_proj: Mat4,
     /// Eye position (xyz).
     pub camera_pos: Vec4,

@@ -184,6 +184,10 @@ pub struct FrameCamera {
     pub eye: Vec3,
     /// World to clip.
     pub view_proj: Mat4,
+    /// Eye-relative world (`world - eye`) to clip: `view_proj * translation(eye)`, built
+    /// from the rotation alone so that no precision is lost far from the origin (the
+    /// G-buffer pass transforms eye-relative positions).
+    pub view_proj_eye: Mat4,
 }
 
 impl Scene {
@@ -255,6 +259,7 @@ impl Scene {
         };
         let up = right.cross(forward);
         let view = glam::camera::rh::view::look_to_mat4(eye, forward, up);
+        let view_eye = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward, up);
         let aspect = width as f32 / height as f32;
         // Vulkan clip space (y down, depth in [0, 1]), reverse-Z with the far plane at
         // infinity: depth 1 at the near plane, 0 at the horizon and in the cleared sky.
@@ -266,6 +271,7 @@ impl Scene {
         FrameCamera {
             eye,
             view_proj: proj * view,
+            view_proj_eye: proj * view_eye,
         }
     }
 
@@ -290,7 +296,7 @@ impl Scene {
             ),
         };
         GBufferParams {
-            view_proj: camera.view_proj,
+            view_proj: camera.view_proj_eye,
             camera_pos: camera.eye.extend(1.0),
             world_rect,
             uv_rect,
