@@ -24,5 +24,5 @@ void main() {
     v_tangent = a_tangent;
     v_stretch = a_stretch;
     v_surface = a_surface;
-    gl_Position = pc.view_proj * vec4(a_position, 1.0);
+    gl_Position = pc.view_proj * vec4(v_eye_rel, 1.0);
 }

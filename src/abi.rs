@@ -99,13 +99,16 @@ pub struct CornerParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GBufferParams {
-    /// World to clip (reverse-Z, Vulkan y down).
+    /// Eye-relative world to clip (reverse-Z, Vulkan y down): `view_proj *
+    /// translation(eye)`, built without the translation ([`crate::scene::FrameCamera`]).
+    /// The vertex stages transform positions relative to the eye, so a camera far from
+    /// the origin keeps full precision near the eye.
     pub view_proj: Mat4,
     /// Eye position (xyz).
     pub camera_pos: Vec4,
-    /// x0, z0, x1, z1 of the quad on the y = 0 plane.
+    /// x0, z0, x1, z1 of the quad (or of the plane's grid) on the y = 0 plane.
     pub world_rect: Vec4,
-    /// u0, v0, u1, v1 at the quad's corners.
+    /// u0, v0, u1, v1 at the rectangle's corners.
     pub uv_rect: Vec4,
     /// Displacement depth in tile units.
     pub depth_scale: f32,
@@ -113,8 +116,19 @@ pub struct GBufferParams {
     pub min_cos: f32,
     /// `ADDRESSING_*`.
     pub addressing: u32,
-    /// Padding.
-    pub pad: u32,
+    /// 0: `world_rect` is drawn as one quad (two triangles). `n > 0`: it is drawn as a
+    /// grid of `2n x 2n` cells centred on the eye (clamped into the rectangle), growing
+    /// geometrically from about the eye's height across to the rectangle's edge (see
+    /// `glsl/gbuffer.vert`); [`GBufferParams::vertex_count`] gives the draw's size.
+    pub plane_cells: u32,
+}
+
+impl GBufferParams {
+    /// Vertices of the non-mesh draw: 6 per quad or grid cell.
+    pub fn vertex_count(&self) -> u32 {
+        let side = 2 * self.plane_cells;
+        6 * side.max(1) * side.max(1)
+    }
 }
 
 /// `ShadeParams` in `glsl/shade.comp`.
@@ -365,7 +379,7 @@ mod tests {
                 ("depth_scale", offset_of!(GBufferParams, depth_scale)),
                 ("min_cos", offset_of!(GBufferParams, min_cos)),
                 ("addressing", offset_of!(GBufferParams, addressing)),
-                ("pad", offset_of!(GBufferParams, pad)),
+                ("plane_cells", offset_of!(GBufferParams, plane_cells)),
             ],
             size_of::<GBufferParams>(),
         );

@@ -17,6 +17,14 @@ use glam::{Mat4, Vec3, Vec4};
 /// Half the side of the tiled plane, in tiles: "effectively infinite" (the plane's edge
 /// is below 0.004 degrees above the horizon from the default camera height).
 pub const PLANE_HALF_EXTENT: f32 = 4096.0;
+/// Cells of the tiled plane's grid on each side of the eye along each axis (the plane is
+/// drawn as `2n x 2n` cells growing geometrically from about the eye's height across under
+/// the eye to [`PLANE_HALF_EXTENT`]: a factor of about 2 per cell from the default
+/// height). Each cell spans depths within a small ratio, which keeps the rasterised depth
+/// and uv at f32 precision up to the horizon and leaves no pixel uncovered (two triangles
+/// 8192 tiles wide gave depths off by up to 4.3e-3 at the horizon and gaps at the frame's
+/// edge on close-ups).
+pub const PLANE_GRID_CELLS: u32 = 16;
 /// Near plane distance (world units); the far plane is at infinity (reverse-Z).
 pub const NEAR: f32 = 0.005;
 /// Lower bound of `-V.z` in the G-buffer: beyond it the parallax vector is clamped so it
@@ -176,6 +184,10 @@ pub struct FrameCamera {
     pub eye: Vec3,
     /// World to clip.
     pub view_proj: Mat4,
+    /// Eye-relative world (`world - eye`) to clip: `view_proj * translation(eye)`, built
+    /// from the rotation alone so that no precision is lost far from the origin (the
+    /// G-buffer pass transforms eye-relative positions).
+    pub view_proj_eye: Mat4,
 }
 
 impl Scene {
@@ -247,6 +259,7 @@ impl Scene {
         };
         let up = right.cross(forward);
         let view = glam::camera::rh::view::look_to_mat4(eye, forward, up);
+        let view_eye = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward, up);
         let aspect = width as f32 / height as f32;
         // Vulkan clip space (y down, depth in [0, 1]), reverse-Z with the far plane at
         // infinity: depth 1 at the near plane, 0 at the horizon and in the cleared sky.
@@ -258,12 +271,13 @@ impl Scene {
         FrameCamera {
             eye,
             view_proj: proj * view,
+            view_proj_eye: proj * view_eye,
         }
     }
 
     /// Push constants of the G-buffer pass.
     pub fn gbuffer_params(&self, camera: &FrameCamera) -> GBufferParams {
-        let (world_rect, uv_rect) = match self.geometry {
+        let (world_rect, uv_rect, plane_cells) = match self.geometry {
             Geometry::TiledPlane => {
                 // Centred on the eye's tile so UVs stay small (and precise) near the eye.
                 let (cx, cz) = (camera.eye.x.floor(), camera.eye.z.floor());
@@ -271,20 +285,25 @@ impl Scene {
                 (
                     Vec4::new(cx - r, cz - r, cx + r, cz + r),
                     Vec4::new(-r, -r, r, r),
+                    PLANE_GRID_CELLS,
                 )
             }
-            // The quad; meshes do not read the rectangles.
-            _ => (Vec4::new(0.0, 0.0, 1.0, 1.0), Vec4::new(0.0, 0.0, 1.0, 1.0)),
+            // The quad (two triangles); meshes do not read the rectangles.
+            _ => (
+                Vec4::new(0.0, 0.0, 1.0, 1.0),
+                Vec4::new(0.0, 0.0, 1.0, 1.0),
+                0,
+            ),
         };
         GBufferParams {
-            view_proj: camera.view_proj,
+            view_proj: camera.view_proj_eye,
             camera_pos: camera.eye.extend(1.0),
             world_rect,
             uv_rect,
             depth_scale: self.depth_scale,
             min_cos: MIN_COS,
             addressing: addressing_code(self.addressing()),
-            pad: 0,
+            plane_cells,
         }
     }
 

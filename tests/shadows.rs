@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{finish, asset_map, validated_context};
+use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::shadow::{ShadowMode, ShadowSettings};

@@ -254,8 +254,10 @@ impl GBufferPass {
         })
     }
 
-    /// Records the pass: clears the G-buffer and draws the plane or quad (two
-    /// triangles). Needs the pipeline of [`GBufferPass::new`].
+    /// Records the pass: clears the G-buffer and draws the plane (a grid about the eye,
+    /// [`GBufferParams::plane_cells`]) or the quad (two triangles), generated in the
+    /// vertex shader ([`GBufferParams::vertex_count`] vertices). Needs the pipeline of
+    /// [`GBufferPass::new`].
     pub fn record(
         &self,
         ctx: &Context,
@@ -354,7 +356,7 @@ impl GBufferPass {
                     dev.cmd_bind_index_buffer(cmd, m.indices.raw, 0, vk::IndexType::UINT32);
                     dev.cmd_draw_indexed(cmd, m.index_count, 1, 0, 0, 0);
                 }
-                None => dev.cmd_draw(cmd, 6, 1, 0, 0),
+                None => dev.cmd_draw(cmd, params.vertex_count(), 1, 0, 0),
             }
             dev.cmd_end_rendering(cmd);
         }
