@@ -151,8 +151,10 @@ pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;
 /// The push-constant bytes the largest pass uses (`shade`: [`ShadeParams`]).
 pub const PUSH_CONSTANT_BYTES: u32 = std::mem::size_of::<ShadeParams>() as u32;
 
-/// Descriptors the largest pass pushes (`trace` of the DIG methods).
-pub const PUSH_DESCRIPTORS: u32 = 7;
+/// Descriptors the largest pass pushes: the shaded `shade` variant of self-shadowing (8:
+/// bindings 0 to 7; `trace` of the DIG methods pushes 7). Every Vulkan device with
+/// `VK_KHR_push_descriptor` has at least 32.
+pub const PUSH_DESCRIPTORS: u32 = 8;
 
 /// What the pass needs from the host's device (see [`requirements`]).
 #[derive(Clone, Debug)]
@@ -1206,7 +1208,10 @@ impl DisplacementPass {
     /// every `record` after it uses the new one.
     ///
     /// On error (invalid `params`, an allocation or pipeline failure) the pass is
-    /// unchanged and keeps its old method.
+    /// unchanged and keeps its old method. One exception: with self-shadowing on, the
+    /// shadow stage of the new method is built after the switch; if that fails the
+    /// method is switched, the error returned, and records are refused until a
+    /// successful [`DisplacementPass::set_shadows`].
     pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {
         self.check_alive()?;
         params.validate()?;
@@ -1770,5 +1775,17 @@ mod tests {
                 .contains(&ash::khr::push_descriptor::NAME)
         );
         assert!(r.formats.iter().any(|(f, _)| *f == HIT_FORMAT));
+        // The shaded shade variant (self-shadowing) pushes bindings 0..=7.
+        assert_eq!(r.max_push_descriptors, 8);
+        let largest = [
+            std::mem::size_of::<crate::abi::ShadowParams>(),
+            std::mem::size_of::<crate::abi::HitDepthParams>(),
+            std::mem::size_of::<crate::abi::TraceParams>(),
+        ];
+        assert!(
+            largest
+                .iter()
+                .all(|&b| b as u32 <= r.max_push_constants_size)
+        );
     }
 }

@@ -4,7 +4,9 @@
 //! toggled between frames, the colour, the light visibility, the corrected depth and the
 //! hits of the embedded pass are bit-identical to the standalone `Renderer`'s for the
 //! same scene, map, method and settings; the timings list `shadow` and `hit_depth` when
-//! they run; no allocation or Vulkan object is left after `destroy` (`common::finish`).
+//! they run; the host's own `D32_SFLOAT` attachment, written from the corrected depth
+//! with `DepthResolvePass` as `dispmap::embed` documents, holds the same values; no
+//! allocation or Vulkan object is left after `destroy` (`common::finish`).
 //!
 //! The "host" is the frames-in-flight loop of `tests/embed.rs` with a colour image per
 //! slot (dispmap's `GBuffer` and `GBufferPass` as the host's G-buffer, so the rays equal
@@ -24,6 +26,7 @@ use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
+use dispmap::passes::depth_resolve::{DEPTH_FORMAT, DepthResolvePass};
 use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
 use dispmap::passes::shadow::f16_to_f32;
 use dispmap::renderer::{RenderSettings, Renderer};
@@ -48,10 +51,22 @@ const DISCARD: Access = Access {
     layout: vk::ImageLayout::UNDEFINED,
 };
 
+/// Sampled by fragment shaders (the depth resolve's source).
+const FRAGMENT_SAMPLED: Access = Access {
+    stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
+    access: vk::AccessFlags2::SHADER_SAMPLED_READ,
+    layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+};
+
 struct Slot {
     gbuffer: GBuffer,
     hit: Image,
     color: Image,
+    /// The host's own `D32_SFLOAT` depth attachment the corrected depth is resolved into.
+    resolved: Image,
+    /// Whether the slot's last frame resolved the corrected depth (which then left the
+    /// pass's image in `SHADER_READ_ONLY_OPTIMAL`).
+    resolved_written: bool,
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
     submitted: bool,
@@ -62,6 +77,7 @@ struct Host {
     scene: Scene,
     pool: vk::CommandPool,
     gbuffer_pass: GBufferPass,
+    resolve: DepthResolvePass,
     slots: Vec<Slot>,
     frame: usize,
 }
@@ -113,6 +129,17 @@ impl Host {
                         usage,
                     )
                     .unwrap(),
+                    resolved: Image::new(
+                        &ctx,
+                        &format!("host.resolved_depth{s}"),
+                        DEPTH_FORMAT,
+                        EXTENT,
+                        1,
+                        vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+                            | vk::ImageUsageFlags::TRANSFER_SRC,
+                    )
+                    .unwrap(),
+                    resolved_written: false,
                     cmd,
                     fence,
                     submitted: false,
@@ -120,11 +147,13 @@ impl Host {
             })
             .collect();
         let gbuffer_pass = GBufferPass::new(&ctx).unwrap();
+        let resolve = DepthResolvePass::new(&ctx).unwrap();
         Host {
             ctx,
             scene,
             pool,
             gbuffer_pass,
+            resolve,
             slots,
             frame: 0,
         }
@@ -249,6 +278,33 @@ impl Host {
             }
         }
         .unwrap();
+        // The host writes the corrected depth into its own D32 attachment as the module
+        // docs of `dispmap::embed` describe ("Corrected depth"), and leaves the pass's
+        // image in SHADER_READ_ONLY_OPTIMAL (the next record of the slot discards it).
+        slot.resolved_written = false;
+        if let Some(source) = pass.hit_depth(s as u32) {
+            sync::record(
+                &ctx,
+                cmd,
+                &[
+                    sync::image_barrier(
+                        source.raw,
+                        source.range(),
+                        Access::COMPUTE_STORAGE_WRITE,
+                        FRAGMENT_SAMPLED,
+                    ),
+                    sync::image_barrier(
+                        slot.resolved.raw,
+                        slot.resolved.range(),
+                        DISCARD,
+                        Access::DEPTH_ATTACHMENT_WRITE,
+                    ),
+                ],
+            );
+            self.resolve
+                .record(&ctx, cmd, source.view, slot.resolved.view, EXTENT);
+            slot.resolved_written = true;
+        }
         let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
         let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
         // SAFETY: the buffer was begun above; the fence is unsignalled (reset in `wait`).
@@ -267,10 +323,12 @@ impl Host {
             slot.gbuffer.destroy(&ctx);
             slot.hit.destroy(&ctx);
             slot.color.destroy(&ctx);
+            slot.resolved.destroy(&ctx);
             // SAFETY: the slot's frame completed (`wait_all`).
             unsafe { ctx.device().destroy_fence(slot.fence, None) };
         }
         self.gbuffer_pass.destroy(&ctx);
+        self.resolve.destroy(&ctx);
         // SAFETY: nothing recorded from the pool is pending (`wait_all`).
         unsafe { ctx.device().destroy_command_pool(self.pool, None) };
     }
@@ -283,6 +341,8 @@ struct Frame {
     color: Option<Vec<u8>>,
     visibility: Option<Vec<u32>>,
     depth: Option<Vec<u32>>,
+    /// The corrected depth as resolved into the host's D32 attachment.
+    resolved: Option<Vec<u32>>,
 }
 
 fn bits(v: &[f32]) -> Vec<u32> {
@@ -314,8 +374,17 @@ fn read_slot(
             .map(|b| f16_to_f32(u16::from_le_bytes([b[0], b[1]])).to_bits())
             .collect()
     });
+    let last = if slot.resolved_written {
+        FRAGMENT_SAMPLED
+    } else {
+        Access::COMPUTE_STORAGE_WRITE
+    };
     let depth = pass.hit_depth(s as u32).map(|image| {
-        let bytes = read_image(ctx, shot, image, Access::COMPUTE_STORAGE_WRITE).unwrap();
+        let bytes = read_image(ctx, shot, image, last).unwrap();
+        bits(bytemuck::cast_slice::<u8, f32>(&bytes))
+    });
+    let resolved = slot.resolved_written.then(|| {
+        let bytes = read_image(ctx, shot, &slot.resolved, Access::DEPTH_ATTACHMENT_WRITE).unwrap();
         bits(bytemuck::cast_slice::<u8, f32>(&bytes))
     });
     Frame {
@@ -323,6 +392,7 @@ fn read_slot(
         color,
         visibility,
         depth,
+        resolved,
     }
 }
 
@@ -366,6 +436,7 @@ fn standalone(
             .filter(|_| color)
             .map(|v| bits(&v)),
         depth: r.read_depth().unwrap().map(|d| bits(&d)),
+        resolved: None,
     }
 }
 
@@ -433,6 +504,13 @@ fn assert_same(got: &Frame, want: &Frame, what: &str) {
             })
             .count();
         assert!(nonzero > w.len() / 2, "{what}: only {nonzero} depths");
+        // The host's D32 attachment got the same values through the depth resolve.
+        let resolved = got
+            .resolved
+            .as_ref()
+            .expect("the host resolves every depth frame");
+        let differ = resolved.iter().zip(w).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{what}: {differ} resolved depth texels differ");
     }
 }
 
