@@ -710,6 +710,79 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
 }
 
 #[test]
+fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
+    // `pyramid` with hard shadows: the stage owns a cell pyramid of the map, which a new
+    // map (swapped while frames are in flight) must replace, not rebuild in place.
+    let ctx = Arc::new(validated_context());
+    let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
+    // The same map read the other way up: new contents, the same size (so the stage is
+    // rebuilt for the contents, not because its key's map size changed).
+    let inverted = asset_map("rocks_depth.jpg", Convention::Height);
+    assert_eq!(
+        (inverted.width(), inverted.height()),
+        (rocks.width(), rocks.height())
+    );
+    let method = Method::Pyramid;
+    let hard = shadows(ShadowMode::Hard, 8);
+    let shot = OneShot::new(&ctx, "test.readback").unwrap();
+    let mut host = Host::new(ctx.clone(), Scene::default());
+    let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(method)).unwrap();
+    pass.set_shadows(hard).unwrap();
+    pass.set_depth_output(true).unwrap();
+    let (_, first) = host.frame(&mut pass, Output::Shaded);
+    assert_eq!(
+        first,
+        [
+            "height_upload",
+            "pyramid",
+            "trace",
+            "shadow",
+            "shade",
+            "hit_depth"
+        ]
+    );
+    host.frame(&mut pass, Output::Shaded);
+    assert!(host.slots.iter().all(|s| s.submitted));
+    pass.set_height_map(&inverted).unwrap();
+    let (_, passes) = host.frame(&mut pass, Output::Shaded);
+    assert_eq!(
+        passes,
+        [
+            "height_upload",
+            "pyramid",
+            "trace",
+            "shadow",
+            "shade",
+            "hit_depth"
+        ]
+    );
+    for _ in 0..3 {
+        let (_, passes) = host.frame(&mut pass, Output::Shaded);
+        assert_eq!(passes, ["trace", "shadow", "shade", "hit_depth"]);
+    }
+    host.wait_all();
+    let params = MethodParams::for_method(method);
+    let want = standalone(&ctx, &inverted, method, params, hard, true, true);
+    let old = standalone(&ctx, &rocks, method, params, hard, true, true);
+    assert_ne!(want.visibility, old.visibility, "the maps shadow alike");
+    for s in 0..SLOTS {
+        let got = read_slot(&host, &pass, s, &shot, true);
+        assert_same(
+            &got,
+            &want,
+            &format!("inverted map after the swap, slot {s}"),
+        );
+    }
+    host.destroy();
+    let mut shot = shot;
+    shot.destroy(&ctx);
+    // SAFETY: every frame completed (`Host::destroy` waited).
+    unsafe { pass.destroy() };
+    drop(pass);
+    common::finish_shared(ctx);
+}
+
+#[test]
 fn depth_output_without_a_camera_is_a_clear_error() {
     let ctx = Arc::new(validated_context());
     let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
