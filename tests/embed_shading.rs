@@ -74,6 +74,9 @@ struct Slot {
 
 struct Host {
     ctx: Arc<Context>,
+    /// The size of the frames recorded from now on (`Host::frame` replaces a slot's
+    /// images of another size once that slot's previous frame has completed).
+    extent: vk::Extent2D,
     scene: Scene,
     pool: vk::CommandPool,
     gbuffer_pass: GBufferPass,
@@ -91,6 +94,24 @@ enum Output {
     HitsWithCamera,
 }
 
+/// A slot's host images of `extent`: G-buffer, hit buffer, colour, D32 depth.
+fn slot_images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, Image, Image, Image) {
+    let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC;
+    let image = |name: &str, format, usage| {
+        Image::new(ctx, &format!("host.{name}{s}"), format, extent, 1, usage).unwrap()
+    };
+    (
+        GBuffer::new(ctx, extent).unwrap(),
+        image("hit", HIT_FORMAT, usage),
+        image("color", COLOR_FORMAT, usage),
+        image(
+            "resolved_depth",
+            DEPTH_FORMAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
+        ),
+    )
+}
+
 impl Host {
     fn new(ctx: Arc<Context>, scene: Scene) -> Host {
         let dev = ctx.device();
@@ -106,7 +127,6 @@ impl Host {
             .command_buffer_count(SLOTS as u32);
         // SAFETY: `pool` is valid.
         let cmds = unsafe { dev.allocate_command_buffers(&alloc) }.unwrap();
-        let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC;
         let slots = cmds
             .into_iter()
             .enumerate()
@@ -116,29 +136,12 @@ impl Host {
                     unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.unwrap();
                 ctx.set_name(cmd, &format!("host.cmd{s}"));
                 ctx.set_name(fence, &format!("host.fence{s}"));
+                let (gbuffer, hit, color, resolved) = slot_images(&ctx, EXTENT, s);
                 Slot {
-                    gbuffer: GBuffer::new(&ctx, EXTENT).unwrap(),
-                    hit: Image::new(&ctx, &format!("host.hit{s}"), HIT_FORMAT, EXTENT, 1, usage)
-                        .unwrap(),
-                    color: Image::new(
-                        &ctx,
-                        &format!("host.color{s}"),
-                        COLOR_FORMAT,
-                        EXTENT,
-                        1,
-                        usage,
-                    )
-                    .unwrap(),
-                    resolved: Image::new(
-                        &ctx,
-                        &format!("host.resolved_depth{s}"),
-                        DEPTH_FORMAT,
-                        EXTENT,
-                        1,
-                        vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
-                            | vk::ImageUsageFlags::TRANSFER_SRC,
-                    )
-                    .unwrap(),
+                    gbuffer,
+                    hit,
+                    color,
+                    resolved,
                     resolved_written: false,
                     cmd,
                     fence,
@@ -150,6 +153,7 @@ impl Host {
         let resolve = DepthResolvePass::new(&ctx).unwrap();
         Host {
             ctx,
+            extent: EXTENT,
             scene,
             pool,
             gbuffer_pass,
@@ -185,13 +189,22 @@ impl Host {
         self.frame += 1;
         self.wait(s);
         let ctx = self.ctx.clone();
+        let extent = self.extent;
         let slot = &mut self.slots[s];
+        if slot.hit.extent != extent {
+            // The slot's last frame has completed (waited above): its images are unused.
+            let (gbuffer, hit, color, resolved) = slot_images(&ctx, extent, s);
+            std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
+            std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
+            std::mem::replace(&mut slot.color, color).destroy(&ctx);
+            std::mem::replace(&mut slot.resolved, resolved).destroy(&ctx);
+        }
         let dev = ctx.device();
-        let camera = self.scene.frame_camera(EXTENT.width, EXTENT.height);
+        let camera = self.scene.frame_camera(extent.width, extent.height);
         let params = self.scene.gbuffer_params(&camera);
         let light = self
             .scene
-            .shade_params(&camera, [EXTENT.width, EXTENT.height], [1, 1])
+            .shade_params(&camera, [extent.width, extent.height], [1, 1])
             .light_dir;
         // SAFETY: the slot's previous frame completed (waited above).
         unsafe {
@@ -302,7 +315,7 @@ impl Host {
                 ],
             );
             self.resolve
-                .record(&ctx, cmd, source.view, slot.resolved.view, EXTENT);
+                .record(&ctx, cmd, source.view, slot.resolved.view, extent);
             slot.resolved_written = true;
         }
         let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
@@ -406,13 +419,26 @@ fn standalone(
     depth: bool,
     color: bool,
 ) -> Frame {
+    standalone_at(ctx, field, method, params, (shadows, depth, color), EXTENT)
+}
+
+/// [`standalone`] at `extent`; `features`: shadows, depth output, colour read.
+fn standalone_at(
+    ctx: &Context,
+    field: &HeightField,
+    method: Method,
+    params: MethodParams,
+    features: (ShadowSettings, bool, bool),
+    extent: vk::Extent2D,
+) -> Frame {
+    let (shadows, depth, color) = features;
     let mut r = Renderer::new(
         ctx,
         field,
         RenderSettings {
             shadows,
-            width: EXTENT.width,
-            height: EXTENT.height,
+            width: extent.width,
+            height: extent.height,
             method,
             params,
             scene: Scene::default(),
@@ -772,6 +798,52 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
             &want,
             &format!("inverted map after the swap, slot {s}"),
         );
+    }
+    host.destroy();
+    let mut shot = shot;
+    shot.destroy(&ctx);
+    // SAFETY: every frame completed (`Host::destroy` waited).
+    unsafe { pass.destroy() };
+    drop(pass);
+    common::finish_shared(ctx);
+}
+
+#[test]
+fn resize_with_shadows_and_depth_in_flight_matches_standalone_at_the_new_size() {
+    // The visibility and corrected-depth images are per slot and of the frame's size:
+    // resize retires them (frames in flight still write theirs) and builds new ones.
+    let ctx = Arc::new(validated_context());
+    let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
+    let method = Method::DigGuarded;
+    let params = MethodParams::for_method(method);
+    let soft = shadows(ShadowMode::Soft, 8);
+    let large = vk::Extent2D {
+        width: 128,
+        height: 72,
+    };
+    let shot = OneShot::new(&ctx, "test.readback").unwrap();
+    let mut host = Host::new(ctx.clone(), Scene::default());
+    let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(method)).unwrap();
+    pass.set_shadows(soft).unwrap();
+    pass.set_depth_output(true).unwrap();
+    let later = ["dig_corners", "trace", "shadow", "shade", "hit_depth"];
+    for _ in 0..3 {
+        host.frame(&mut pass, Output::Shaded);
+    }
+    assert!(host.slots.iter().all(|s| s.submitted));
+    pass.resize(large).unwrap();
+    host.extent = large;
+    assert_eq!(pass.hit_depth(0).unwrap().extent, large);
+    assert_eq!(pass.visibility(1).unwrap().extent, large);
+    for _ in 0..4 {
+        let (_, passes) = host.frame(&mut pass, Output::Shaded);
+        assert_eq!(passes, later);
+    }
+    host.wait_all();
+    let want = standalone_at(&ctx, &rocks, method, params, (soft, true, true), large);
+    for s in 0..SLOTS {
+        let got = read_slot(&host, &pass, s, &shot, true);
+        assert_same(&got, &want, &format!("after resize, slot {s}"));
     }
     host.destroy();
     let mut shot = shot;
