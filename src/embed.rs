@@ -3,8 +3,8 @@
 //! The host owns the instance, device, queue, allocator, command buffers and the G-buffer.
 //! It wraps its handles in a [`Context`] with [`Context::from_handles`], builds one
 //! [`DisplacementPass`], and each frame calls [`DisplacementPass::record`], which only
-//! *records* `[height_upload] -> [pyramid] -> [dig_corners] -> trace -> [shade]` into the
-//! host's command buffer. On this path dispmap never creates a device, a command pool or a
+//! *records* `[height_upload] -> [pyramid] -> [dig_corners] -> trace -> [shadow] ->
+//! [shade] -> [hit_depth]` into the host's command buffer. On this path dispmap never creates a device, a command pool or a
 //! fence, and never submits: the host submits with its own fence.
 //!
 //! # Call sequence
@@ -21,10 +21,15 @@
 //!    what follows, submits and later waits on its fence; then it may read the timestamps
 //!    ([`DisplacementPass::timings`] or [`read_timestamps`]).
 //! 5. [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] /
-//!    [`DisplacementPass::set_method`] any time between records, with frames in flight
-//!    (what they replace is retired, see below; for `resize` the host's images of the
-//!    new size are used from the next record on).
-//! 6. After the device is idle (or every fence of a frame recorded with the pass has
+//!    [`DisplacementPass::set_method`] / [`DisplacementPass::set_shadows`] /
+//!    [`DisplacementPass::set_depth_output`] any time between records, with frames in
+//!    flight (what they replace is retired, see below; for `resize` the host's images of
+//!    the new size are used from the next record on). Self-shadowing and the corrected
+//!    depth are off after `new` and nothing of them is built until they are turned on.
+//! 6. With the corrected depth on: after `record`, the host reads
+//!    [`DisplacementPass::hit_depth`] of the frame's slot, e.g. to write it into its own
+//!    `D32_SFLOAT` attachment (see "Corrected depth" below).
+//! 7. After the device is idle (or every fence of a frame recorded with the pass has
 //!    signalled): [`DisplacementPass::destroy`], then drop the context, then the host
 //!    destroys its own objects.
 //!
@@ -37,6 +42,8 @@
 //! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded, earlier accesses finished before `COMPUTE_SHADER` (a WAR dependency) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace), read by `SHADER_STORAGE_READ` (shade) |
 //! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL`, contents discarded, earlier accesses finished before `COMPUTE_SHADER` | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values) |
 //! | height map, pyramid, DIG corner grid | pass | (internal) | (internal; read-only for the host) |
+//! | visibility (`R16_SFLOAT`, one per slot; only with [`DisplacementPass::set_shadows`] on and a [`ShadeTarget`]) | pass | (internal: discarded by the pass) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (shadow), last read by `SHADER_STORAGE_READ` (shade); read-only for the host ([`DisplacementPass::visibility`]) |
+//! | corrected depth (`R32_SFLOAT`, one per slot; only with [`DisplacementPass::set_depth_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (hit_depth); the host may read it (after its own barrier from that state) and leave it in any layout |
 //!
 //! The pass places every barrier between its own passes, including the hit buffer's
 //! write -> read before `shade` (a global memory barrier, so it needs no `vk::Image`).
@@ -57,24 +64,70 @@
 //! grids and `set_method` what the old method used (its `trace` pipeline, pyramid and
 //! grids it no longer needs) the same way.
 //!
+//! With self-shadowing on, each slot also has its visibility image; with the corrected
+//! depth on, its depth image: both are per slot for the same reason (a frame writes
+//! them), and switching either feature retires them like a replaced method.
+//!
 //! **The slot contract**: `FrameInputs::frame_slot` is in `0..frames_in_flight`, and when
 //! `record` is called with slot `s`, the GPU work of the previous frame recorded with
 //! slot `s` has completed (the host waited on that frame's fence), as in any
 //! frames-in-flight loop. Command buffers recorded by `record` are submitted to the
 //! context's queue in the order they were recorded (the pyramid built in one frame is
 //! read by the next), and every recorded command buffer is submitted.
+//!
+//! # Self-shadowing
+//!
+//! [`DisplacementPass::set_shadows`] with [`ShadowSettings`] (`off`, `hard`, `soft`;
+//! [`crate::passes::shadow`] documents the light ray and the query each method gets)
+//! makes every record with a [`ShadeTarget`] run `shadow` between `trace` and `shade`,
+//! with the target's `light_dir`, and shade with the visibility (binding 7 of the
+//! shaded `shade` variant): the colour then equals the standalone renderer's with the
+//! same [`ShadowSettings`] bit for bit. Without a `ShadeTarget` nothing is shadowed.
+//!
+//! # Corrected depth
+//!
+//! [`DisplacementPass::set_depth_output`] makes every record run `hit_depth` last: it
+//! writes the reverse-Z clip depth of each pixel's displaced hit (0 without a hit) into
+//! the slot's [`HIT_DEPTH_FORMAT`] image, which the pass owns (one per slot, so a frame
+//! in flight never shares it; chosen over a host-provided view so the pass can discard
+//! and re-create it on `resize` like its other per-slot images). The camera is the
+//! frame's [`ShadeTarget`] (`view_proj`, `camera_pos`) or, without one,
+//! [`DisplacementPass::record_with_camera`]'s [`DepthCamera`]: it must be the camera of
+//! the host's G-buffer.
+//!
+//! To make the rest of the host's frame (later geometry, fog, SSAO) meet the displaced
+//! surface, the host writes it into its own `D32_SFLOAT` depth attachment with
+//! [`crate::passes::depth_resolve::DepthResolvePass`] (a graphics pipeline; the host's
+//! device needs `dynamicRendering`, which [`requirements`] does not list), in the same
+//! command buffer after `record`:
+//!
+//! 1. barrier on [`DisplacementPass::hit_depth`]'s image: `GENERAL`, `COMPUTE_SHADER`
+//!    `SHADER_STORAGE_WRITE` -> `SHADER_READ_ONLY_OPTIMAL`, `FRAGMENT_SHADER`
+//!    `SHADER_SAMPLED_READ`; barrier on the host's depth image: (its last access) ->
+//!    `DEPTH_ATTACHMENT_OPTIMAL`, `EARLY/LATE_FRAGMENT_TESTS` depth write (contents
+//!    discarded);
+//! 2. `DepthResolvePass::record(ctx, cmd, image.view, host_depth_view, extent)` (it
+//!    begins and ends its own dynamic rendering);
+//! 3. the host's barrier for what reads its depth next. The pass's image may be left in
+//!    `SHADER_READ_ONLY_OPTIMAL`: the next record of the slot discards it.
+//!
+//! The host builds `DepthResolvePass::new(&ctx)` once and destroys it itself.
 
 use crate::abi::ShadeParams;
 use crate::context::{Context, requirements as context_requirements};
 use crate::error::{Error, Result, VkContext};
+use crate::gpu::Image;
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{Buffer, HeightTexture, ViewRef};
 use crate::heightfield::{Addressing, HeightField};
+use crate::method::PyramidKind;
 use crate::method::{Method, MethodParams, Needs};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::GBufferViews;
+use crate::passes::hit_depth::{HitDepthInputs, HitDepthPass};
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::{ShadeInputs, ShadePass};
+use crate::passes::shadow::{ShadowInputs, ShadowPass, ShadowTrace};
 use crate::passes::trace::{TraceInputs, TracePass};
 use ash::vk;
 use glam::{Mat4, Vec3};
@@ -82,12 +135,15 @@ use std::ffi::CStr;
 use std::sync::Arc;
 
 pub use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, RAY_FORMAT};
+pub use crate::passes::hit_depth::HIT_DEPTH_FORMAT;
 pub use crate::passes::shade::COLOR_FORMAT;
+pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
 pub use crate::passes::trace::HIT_FORMAT;
 
 /// Timestamp queries one [`DisplacementPass::record`] writes at most: a begin/end pair
-/// for each of `height_upload`, `pyramid`, `dig_corners`, `trace` and `shade`.
-pub const MAX_QUERIES: u32 = 10;
+/// for each of `height_upload`, `pyramid`, `dig_corners`, `trace`, `shadow`, `shade` and
+/// `hit_depth`.
+pub const MAX_QUERIES: u32 = 14;
 
 /// Largest `frames_in_flight` a pass accepts.
 pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;
@@ -95,8 +151,10 @@ pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;
 /// The push-constant bytes the largest pass uses (`shade`: [`ShadeParams`]).
 pub const PUSH_CONSTANT_BYTES: u32 = std::mem::size_of::<ShadeParams>() as u32;
 
-/// Descriptors the largest pass pushes (`trace` of the DIG methods).
-pub const PUSH_DESCRIPTORS: u32 = 7;
+/// Descriptors the largest pass pushes: the shaded `shade` variant of self-shadowing (8:
+/// bindings 0 to 7; `trace` of the DIG methods pushes 7). Every Vulkan device with
+/// `VK_KHR_push_descriptor` has at least 32.
+pub const PUSH_DESCRIPTORS: u32 = 8;
 
 /// What the pass needs from the host's device (see [`requirements`]).
 #[derive(Clone, Debug)]
@@ -260,6 +318,20 @@ pub unsafe fn check_device_create_info(info: &vk::DeviceCreateInfo) -> Result<()
     }
 }
 
+/// Before a pass-owned per-slot image whose contents are discarded and that only the
+/// pass's compute shaders accessed.
+const DISCARD_COMPUTE: Access = Access {
+    stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
+    ..Access::UNDEFINED
+};
+
+/// Before a pass-owned per-slot image whose contents are discarded and that the host
+/// may have accessed in any stage and left in any layout (the corrected depth).
+const DISCARD_ANY: Access = Access {
+    stage: vk::PipelineStageFlags2::ALL_COMMANDS,
+    ..Access::UNDEFINED
+};
+
 /// How the pass is configured.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PassSettings {
@@ -329,7 +401,8 @@ pub enum Timestamps {
 /// One timed pass of a recorded frame: its name and its begin/end queries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TimestampScope {
-    /// `height_upload`, `pyramid`, `dig_corners`, `trace` or `shade`.
+    /// `height_upload`, `pyramid`, `dig_corners`, `trace`, `shadow`, `shade` or
+    /// `hit_depth`.
     pub name: &'static str,
     /// The pool holding the queries.
     pub pool: vk::QueryPool,
@@ -409,6 +482,9 @@ enum Resource {
     Trace(TracePass),
     PyramidPass(PyramidPass),
     CornerPass(DigCornerPass),
+    Shade(ShadePass),
+    Shadow(ShadowParts),
+    Depth(DepthParts),
 }
 
 impl Resource {
@@ -421,6 +497,9 @@ impl Resource {
             Resource::Trace(t) => t.destroy(ctx),
             Resource::PyramidPass(p) => p.destroy(ctx),
             Resource::CornerPass(p) => p.destroy(ctx),
+            Resource::Shade(p) => p.destroy(ctx),
+            Resource::Shadow(s) => s.destroy(ctx),
+            Resource::Depth(d) => d.destroy(ctx),
         }
     }
 }
@@ -450,7 +529,140 @@ pub struct DisplacementPass {
     /// The owned-pool scopes each slot recorded last.
     slot_scopes: Vec<Vec<TimestampScope>>,
     retired: Vec<Retired>,
+    /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
+    shadows: ShadowSettings,
+    /// What self-shadowing needs (`None` when off).
+    shadow: Option<ShadowParts>,
+    /// The corrected-depth output (`None` when off).
+    depth: Option<DepthParts>,
     destroyed: bool,
+}
+
+/// What self-shadowing adds to the pass: the `shadow` pipeline of the method's query,
+/// one visibility image per frame slot and, for hard shadows of the `pyramid` method
+/// (whose own pyramid is not a cell pyramid), a cell pyramid with its pass.
+struct ShadowParts {
+    pass: ShadowPass,
+    visibility: Vec<Image>,
+    own_pyramid: Option<(PyramidPass, Pyramid)>,
+    own_built: bool,
+    /// What it was built for: the query, the frame size and the height map's size.
+    key: ShadowKey,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct ShadowKey {
+    trace: ShadowTrace,
+    own_pyramid: bool,
+    extent: vk::Extent2D,
+    map: [u32; 2],
+}
+
+impl ShadowParts {
+    fn new(ctx: &Context, key: ShadowKey, frames: u32, addressing: Addressing) -> Result<Self> {
+        let pass = ShadowPass::new(ctx, key.trace)?;
+        let mut parts = ShadowParts {
+            pass,
+            visibility: Vec::new(),
+            own_pyramid: None,
+            own_built: false,
+            key,
+        };
+        let result = (|| {
+            for s in 0..frames {
+                parts.visibility.push(Image::new(
+                    ctx,
+                    &format!("embed.visibility{s}"),
+                    VISIBILITY_FORMAT,
+                    key.extent,
+                    1,
+                    vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+                )?);
+            }
+            if key.own_pyramid {
+                let mut pass = PyramidPass::new(ctx)?;
+                match Pyramid::new(ctx, key.map, PyramidKind::Cell, addressing) {
+                    Ok(p) => parts.own_pyramid = Some((pass, p)),
+                    Err(e) => {
+                        pass.destroy(ctx);
+                        return Err(e);
+                    }
+                }
+            }
+            Ok(())
+        })();
+        match result {
+            Ok(()) => Ok(parts),
+            Err(e) => {
+                parts.destroy(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        for mut v in self.visibility.drain(..) {
+            v.destroy(ctx);
+        }
+        if let Some((mut pass, mut pyramid)) = self.own_pyramid.take() {
+            pass.destroy(ctx);
+            pyramid.destroy(ctx);
+        }
+    }
+}
+
+/// The corrected-depth output: the `hit_depth` pipeline and one `R32_SFLOAT` image per
+/// frame slot.
+struct DepthParts {
+    pass: HitDepthPass,
+    images: Vec<Image>,
+}
+
+impl DepthParts {
+    fn new(ctx: &Context, extent: vk::Extent2D, frames: u32) -> Result<Self> {
+        let mut parts = DepthParts {
+            pass: HitDepthPass::new(ctx)?,
+            images: Vec::new(),
+        };
+        for s in 0..frames {
+            let image = Image::new(
+                ctx,
+                &format!("embed.hit_depth{s}"),
+                HIT_DEPTH_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::STORAGE
+                    | vk::ImageUsageFlags::SAMPLED
+                    | vk::ImageUsageFlags::TRANSFER_SRC,
+            );
+            match image {
+                Ok(i) => parts.images.push(i),
+                Err(e) => {
+                    parts.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
+        Ok(parts)
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        for mut i in self.images.drain(..) {
+            i.destroy(ctx);
+        }
+    }
+}
+
+/// The camera of a frame for the corrected depth when the frame has no
+/// [`ShadeTarget`] (see [`DisplacementPass::record_with_camera`]).
+#[derive(Clone, Copy, Debug)]
+pub struct DepthCamera {
+    /// World to clip of the frame (the G-buffer's; reverse-Z).
+    pub view_proj: Mat4,
+    /// Eye position, world space.
+    pub eye: Vec3,
 }
 
 impl DisplacementPass {
@@ -505,6 +717,9 @@ impl DisplacementPass {
             query_pool: None,
             slot_scopes: vec![Vec::new(); settings.frames_in_flight as usize],
             retired: Vec::new(),
+            shadows: ShadowSettings::default(),
+            shadow: None,
+            depth: None,
             destroyed: false,
             ctx,
         })
@@ -553,6 +768,37 @@ impl DisplacementPass {
         inputs: &FrameInputs,
         timestamps: Timestamps,
     ) -> Result<RecordedFrame> {
+        // SAFETY: this function's contract.
+        unsafe { self.record_frame(cmd, inputs, None, timestamps) }
+    }
+
+    /// [`DisplacementPass::record`] with the frame's camera for the corrected depth
+    /// ([`DisplacementPass::set_depth_output`]), for a host that has no [`ShadeTarget`]
+    /// (shades from the hit buffer itself). With a `ShadeTarget` its `view_proj` and
+    /// `camera_pos` are the camera and `camera` is ignored.
+    ///
+    /// # Safety
+    /// As [`DisplacementPass::record`].
+    pub unsafe fn record_with_camera(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        inputs: &FrameInputs,
+        camera: &DepthCamera,
+        timestamps: Timestamps,
+    ) -> Result<RecordedFrame> {
+        // SAFETY: this function's contract.
+        unsafe { self.record_frame(cmd, inputs, Some(*camera), timestamps) }
+    }
+
+    /// # Safety
+    /// As [`DisplacementPass::record`].
+    unsafe fn record_frame(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        inputs: &FrameInputs,
+        camera: Option<DepthCamera>,
+        timestamps: Timestamps,
+    ) -> Result<RecordedFrame> {
         self.check_alive()?;
         let slot = inputs.frame_slot;
         if slot >= self.settings.frames_in_flight {
@@ -575,6 +821,27 @@ impl DisplacementPass {
                     extent.width,
                     extent.height
                 ),
+            ));
+        }
+        let camera = match &inputs.shade {
+            Some(t) => Some(DepthCamera {
+                view_proj: t.view_proj,
+                eye: t.camera_pos,
+            }),
+            None => camera,
+        };
+        if self.depth.is_some() && camera.is_none() {
+            return Err(Error::invalid(
+                "depth output",
+                "the corrected depth needs the frame's camera: pass a ShadeTarget or use \
+                 record_with_camera",
+            ));
+        }
+        if self.shadows.is_on() && self.shadow.is_none() {
+            return Err(Error::invalid(
+                "shadows",
+                "self-shadowing is on but its resources are missing (a failed set_shadows, \
+                 set_method, resize or set_height_map: call set_shadows again)",
             ));
         }
         let (pool, first) = match timestamps {
@@ -603,13 +870,32 @@ impl DisplacementPass {
                 resource: Resource::Buffer(staging),
             });
         }
-        if let (Some(pass), Some(pyramid), false) =
-            (&self.pyramid_pass, &self.pyramid, self.pyramid_built)
-        {
+        let method_pyramid = match (&self.pyramid_pass, &self.pyramid, self.pyramid_built) {
+            (Some(pass), Some(pyramid), false) => Some((pass, pyramid)),
+            _ => None,
+        };
+        // The shadow stage's own cell pyramid (hard shadows of `pyramid`) is built in the
+        // same scope, as the standalone renderer does.
+        let shadow_pyramid = match &self.shadow {
+            Some(ShadowParts {
+                own_pyramid: Some((pass, pyramid)),
+                own_built: false,
+                ..
+            }) => Some((pass, pyramid)),
+            _ => None,
+        };
+        if method_pyramid.is_some() || shadow_pyramid.is_some() {
             timer.scope(ctx, cmd, "pyramid", |cmd| {
-                pass.record(ctx, cmd, &self.height, pyramid)
+                for (pass, pyramid) in method_pyramid.into_iter().chain(shadow_pyramid) {
+                    pass.record(ctx, cmd, &self.height, pyramid);
+                }
             });
-            self.pyramid_built = true;
+            if self.pyramid.is_some() {
+                self.pyramid_built = true;
+            }
+            if let Some(s) = &mut self.shadow {
+                s.own_built = s.own_pyramid.is_some();
+            }
         }
         let grid = self.corners.get(slot as usize);
         if let (Some(pass), Some(grid)) = (&self.corner_pass, grid) {
@@ -669,9 +955,9 @@ impl DisplacementPass {
             )
         });
         traced?;
-        if let Some(target) = &inputs.shade {
+        if inputs.shade.is_some() || self.depth.is_some() {
             // The hit buffer stays in GENERAL: a memory barrier orders trace's writes
-            // before shade's reads.
+            // before the reads of shadow, shade and hit_depth.
             let hit_barrier = [vk::MemoryBarrier2::default()
                 .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
                 .src_access_mask(vk::AccessFlags2::SHADER_STORAGE_WRITE)
@@ -680,6 +966,8 @@ impl DisplacementPass {
             let dep = vk::DependencyInfo::default().memory_barriers(&hit_barrier);
             // SAFETY: `cmd` is recording outside a render pass (this function's contract).
             unsafe { ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
+        }
+        if let Some(target) = &inputs.shade {
             let params = ShadeParams {
                 inv_view_proj: target.view_proj.inverse(),
                 camera_pos: target.camera_pos.extend(1.0),
@@ -691,6 +979,60 @@ impl DisplacementPass {
                 specular: 0.25,
                 shininess: 48.0,
             };
+            let visibility = self
+                .shadow
+                .as_ref()
+                .map(|stage| &stage.visibility[slot as usize]);
+            if let (Some(stage), Some(image)) = (&self.shadow, visibility) {
+                // Slot `slot`'s previous frame has completed (the slot contract): the
+                // visibility image's contents are discarded.
+                sync::record(
+                    ctx,
+                    cmd,
+                    &[sync::image_barrier(
+                        image.raw,
+                        image.range(),
+                        DISCARD_COMPUTE,
+                        Access::COMPUTE_STORAGE_WRITE,
+                    )],
+                );
+                let shadow_params = ShadowPass::params(
+                    &self.shadows,
+                    self.settings.params.steps,
+                    &params,
+                    self.settings.addressing,
+                );
+                let pyramid = match &stage.own_pyramid {
+                    Some((_, p)) => Some(p),
+                    None => self.pyramid.as_ref(),
+                };
+                let mut shadowed = Ok(());
+                timer.scope(ctx, cmd, "shadow", |cmd| {
+                    shadowed = stage.pass.record(
+                        ctx,
+                        cmd,
+                        ShadowInputs {
+                            hit: inputs.hit,
+                            gbuffer: inputs.gbuffer,
+                            height: &self.height,
+                            pyramid,
+                            visibility: image.view_ref(),
+                        },
+                        &shadow_params,
+                    )
+                });
+                shadowed?;
+                sync::record(
+                    ctx,
+                    cmd,
+                    &[sync::image_barrier(
+                        image.raw,
+                        image.range(),
+                        Access::COMPUTE_STORAGE_WRITE,
+                        Access::COMPUTE_STORAGE_READ,
+                    )],
+                );
+            }
             let mut shaded = Ok(());
             timer.scope(ctx, cmd, "shade", |cmd| {
                 shaded = self.shade.record(
@@ -704,12 +1046,45 @@ impl DisplacementPass {
                             view: target.color,
                             extent,
                         },
-                        visibility: None,
+                        visibility: visibility.map(|v| v.view),
                     },
                     &params,
                 )
             });
             shaded?;
+        }
+        if let (Some(depth), Some(camera)) = (&self.depth, camera) {
+            let image = &depth.images[slot as usize];
+            // Discarded: the host's reads of the slot's previous frame (any stage) have
+            // completed by the slot contract; the barrier also orders them (WAR).
+            sync::record(
+                ctx,
+                cmd,
+                &[sync::image_barrier(
+                    image.raw,
+                    image.range(),
+                    DISCARD_ANY,
+                    Access::COMPUTE_STORAGE_WRITE,
+                )],
+            );
+            let params = crate::abi::HitDepthParams::new(
+                camera.view_proj,
+                camera.eye,
+                [extent.width, extent.height],
+                self.settings.depth_scale,
+            );
+            timer.scope(ctx, cmd, "hit_depth", |cmd| {
+                depth.pass.record(
+                    ctx,
+                    cmd,
+                    HitDepthInputs {
+                        hit: inputs.hit,
+                        gbuffer: inputs.gbuffer,
+                        hit_depth: image.view_ref(),
+                    },
+                    &params,
+                )
+            });
         }
         let frame = timer.frame;
         if matches!(timestamps, Timestamps::Owned) {
@@ -776,7 +1151,13 @@ impl DisplacementPass {
             });
         }
         self.pyramid_built = false;
-        Ok(())
+        // A cell pyramid of the shadow stage's own is of the old map: rebuilt (the old
+        // one is retired with its stage).
+        let own = self
+            .shadow
+            .as_ref()
+            .is_some_and(|s| s.own_pyramid.is_some());
+        self.sync_shadows(own)
     }
 
     /// Changes the frame size (the host's G-buffer, hit buffer and colour image must
@@ -802,6 +1183,12 @@ impl DisplacementPass {
             });
         }
         self.settings = settings;
+        // The visibility and corrected-depth images of the old size are retired too.
+        self.sync_shadows(false)?;
+        if self.depth.is_some() {
+            self.set_depth_output(false)?;
+            self.set_depth_output(true)?;
+        }
         Ok(())
     }
 
@@ -821,7 +1208,10 @@ impl DisplacementPass {
     /// every `record` after it uses the new one.
     ///
     /// On error (invalid `params`, an allocation or pipeline failure) the pass is
-    /// unchanged and keeps its old method.
+    /// unchanged and keeps its old method. One exception: with self-shadowing on, the
+    /// shadow stage of the new method is built after the switch; if that fails the
+    /// method is switched, the error returned, and records are refused until a
+    /// successful [`DisplacementPass::set_shadows`].
     pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {
         self.check_alive()?;
         params.validate()?;
@@ -899,6 +1289,178 @@ impl DisplacementPass {
             }));
         self.settings = settings;
         self.needs = needs;
+        // The shadow query follows the method's family (ShadowTrace::for_method).
+        self.sync_shadows(false)
+    }
+
+    /// Switches self-shadowing (see [`crate::passes::shadow`] for the modes). On, the
+    /// pass builds what it lacks: the `shadow` pipeline of the method's query, one
+    /// `R16_SFLOAT` visibility image per frame slot, the shaded variant of `shade`
+    /// (binding 7) and, for hard shadows of the `pyramid` method, a cell pyramid of its
+    /// own (built by the next record, in its `pyramid` scope). Off, all of it is retired
+    /// and the plain `shade` pipeline is used again: nothing is built while it is off.
+    /// The stage follows later [`DisplacementPass::set_method`],
+    /// [`DisplacementPass::resize`] and [`DisplacementPass::set_height_map`] calls.
+    ///
+    /// The `shadow` pass runs only in frames recorded with a [`ShadeTarget`] (it
+    /// darkens dispmap's colour; a host shading from the hit buffer itself gets no
+    /// visibility). Its light is the frame's `ShadeTarget::light_dir`.
+    ///
+    /// GPU-use contract: as [`DisplacementPass::set_method`] (needs no GPU idle; what is
+    /// replaced is retired until every slot has been recorded again). On an invalid
+    /// `shadows` (samples) the pass is unchanged; on an allocation or pipeline failure
+    /// self-shadowing stays off until a later successful call.
+    pub fn set_shadows(&mut self, shadows: ShadowSettings) -> Result<()> {
+        self.check_alive()?;
+        shadows.validate()?;
+        let old = self.shadows;
+        self.shadows = shadows;
+        let result = self.sync_shadows(false);
+        if result.is_err() {
+            self.shadows = ShadowSettings {
+                mode: ShadowMode::Off,
+                ..old
+            };
+            // Back to the plain shade pipeline where the shaded one was built.
+            let _ = self.sync_shadows(false);
+        }
+        result
+    }
+
+    /// The self-shadowing settings in use.
+    pub fn shadows(&self) -> ShadowSettings {
+        self.shadows
+    }
+
+    /// Turns the corrected-depth output on (builds the `hit_depth` pipeline and one
+    /// [`HIT_DEPTH_FORMAT`] image per frame slot, owned by the pass; every later record
+    /// runs `hit_depth` last) or off (retires them). See the module docs for the image's
+    /// layouts and [`DisplacementPass::hit_depth`] for reading it. Needs no GPU idle
+    /// (what is dropped is retired like a replaced method's resources).
+    pub fn set_depth_output(&mut self, on: bool) -> Result<()> {
+        self.check_alive()?;
+        match (on, self.depth.is_some()) {
+            (true, false) => {
+                self.depth = Some(DepthParts::new(
+                    &self.ctx,
+                    self.settings.extent,
+                    self.settings.frames_in_flight,
+                )?);
+            }
+            (false, true) => {
+                let all = self.all_slots();
+                if let Some(old) = self.depth.take() {
+                    self.retired.push(Retired {
+                        pending: all,
+                        resource: Resource::Depth(old),
+                    });
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Whether the corrected-depth output is on.
+    pub fn depth_output(&self) -> bool {
+        self.depth.is_some()
+    }
+
+    /// The corrected depth of `frame_slot` (`R32_SFLOAT`, reverse-Z clip depth of each
+    /// pixel's hit, 0 without one; [`crate::passes::hit_depth`]); `None` when the output
+    /// is off. After a record of that slot it is in `GENERAL`, last written by
+    /// `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`; usage `STORAGE | SAMPLED | TRANSFER_SRC`.
+    /// The host may read it in the same frame (after its own barrier from that state)
+    /// and leave it in any layout: the next record of the slot discards it. To write it
+    /// into the host's `D32_SFLOAT` attachment, record
+    /// [`crate::passes::depth_resolve::DepthResolvePass`] (module docs: "Corrected
+    /// depth").
+    pub fn hit_depth(&self, frame_slot: u32) -> Option<&Image> {
+        self.depth
+            .as_ref()
+            .and_then(|d| d.images.get(frame_slot as usize))
+    }
+
+    /// The light visibility of `frame_slot` (`R16_SFLOAT`, 1 = lit; written by the
+    /// `shadow` pass of frames with a [`ShadeTarget`]); `None` when self-shadowing is
+    /// off. After such a record it is in `GENERAL`, last read by `COMPUTE_SHADER`
+    /// `SHADER_STORAGE_READ` (shade); usage `STORAGE | TRANSFER_SRC`. Read-only for the
+    /// host, and only until the slot is recorded again.
+    pub fn visibility(&self, frame_slot: u32) -> Option<&Image> {
+        self.shadow
+            .as_ref()
+            .and_then(|s| s.visibility.get(frame_slot as usize))
+    }
+
+    /// What the shadow stage must be for the current settings (`None`: off).
+    fn shadow_key(&self) -> Option<ShadowKey> {
+        self.shadows.is_on().then(|| {
+            let trace = ShadowTrace::for_method(self.shadows.mode, self.settings.method);
+            ShadowKey {
+                trace,
+                own_pyramid: trace == ShadowTrace::Pyramid
+                    && self.needs.pyramid != Some(PyramidKind::Cell),
+                extent: self.settings.extent,
+                map: self.height.size(),
+            }
+        })
+    }
+
+    /// Builds, keeps or retires the shadow stage and the shade variant so they fit the
+    /// settings (`force`: rebuild the stage even when it fits). On failure the stage is
+    /// retired (self-shadowing without resources: `record` refuses until a later
+    /// successful call) and the error returned.
+    fn sync_shadows(&mut self, force: bool) -> Result<()> {
+        let on = self.shadows.is_on();
+        let want = self.shadow_key();
+        let have = self.shadow.as_ref().map(|s| s.key);
+        let all = self.all_slots();
+        let ctx = &*self.ctx;
+        if self.shade.is_shadowed() != on {
+            let new = if on {
+                ShadePass::shadowed(ctx)
+            } else {
+                ShadePass::new(ctx)
+            };
+            match new {
+                Ok(new) => {
+                    let old = std::mem::replace(&mut self.shade, new);
+                    self.retired.push(Retired {
+                        pending: all,
+                        resource: Resource::Shade(old),
+                    });
+                }
+                Err(e) => {
+                    if let Some(old) = self.shadow.take() {
+                        self.retired.push(Retired {
+                            pending: all,
+                            resource: Resource::Shadow(old),
+                        });
+                    }
+                    return Err(e);
+                }
+            }
+        }
+        if want == have && !(force && have.is_some()) {
+            return Ok(());
+        }
+        let built = match want {
+            Some(key) => ShadowParts::new(
+                ctx,
+                key,
+                self.settings.frames_in_flight,
+                self.settings.addressing,
+            )
+            .map(Some),
+            None => Ok(None),
+        };
+        if let Some(old) = self.shadow.take() {
+            self.retired.push(Retired {
+                pending: all,
+                resource: Resource::Shadow(old),
+            });
+        }
+        self.shadow = built?;
         Ok(())
     }
 
@@ -916,6 +1478,12 @@ impl DisplacementPass {
         let ctx = &*self.ctx;
         for mut r in self.retired.drain(..) {
             r.resource.destroy(ctx);
+        }
+        if let Some(mut s) = self.shadow.take() {
+            s.destroy(ctx);
+        }
+        if let Some(mut d) = self.depth.take() {
+            d.destroy(ctx);
         }
         if let Some(mut b) = self.pending_upload.take() {
             b.destroy(ctx);
@@ -1207,5 +1775,17 @@ mod tests {
                 .contains(&ash::khr::push_descriptor::NAME)
         );
         assert!(r.formats.iter().any(|(f, _)| *f == HIT_FORMAT));
+        // The shaded shade variant (self-shadowing) pushes bindings 0..=7.
+        assert_eq!(r.max_push_descriptors, 8);
+        let largest = [
+            std::mem::size_of::<crate::abi::ShadowParams>(),
+            std::mem::size_of::<crate::abi::HitDepthParams>(),
+            std::mem::size_of::<crate::abi::TraceParams>(),
+        ];
+        assert!(
+            largest
+                .iter()
+                .all(|&b| b as u32 <= r.max_push_constants_size)
+        );
     }
 }
