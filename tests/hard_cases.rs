@@ -599,8 +599,8 @@ fn check_extra(
                     "uv0 {:?} is not tile-local",
                     a.uv0
                 );
-                for k in 0..2 {
-                    let d = a.uv0[k] - b.uv0[k] - eye_shift[k];
+                for (k, shift) in eye_shift.iter().enumerate() {
+                    let d = a.uv0[k] - b.uv0[k] - shift;
                     uv_worst = uv_worst.max((d - d.round()).abs());
                     let dp = (a.parallax[k] - b.parallax[k]).abs()
                         / b.parallax[0].hypot(b.parallax[1]).max(1e-9);
