@@ -6,6 +6,13 @@
 //! unless level of detail is on, when the marchers sample at the pixel's footprint level
 //! (`glsl/common/heightfield.glsl`). Without blit support the image has one level and the
 //! level-of-detail sampling reads level 0.
+//!
+//! Two views: [`HeightTexture::descriptor`] binds level 0 alone, what every pass reads
+//! unless level of detail is on, and [`HeightTexture::descriptor_lod`] the whole chain.
+//! The single-level view is not only tidier: lavapipe compiles its samplers for the
+//! view's level count, and through a view with a mip chain every filtered fetch took the
+//! general path (measured at 640x360: `bump`'s trace 14.4 -> 5.8 ms, its shade 15.6 ->
+//! 6.8 ms with level 0 alone).
 
 use super::commands::OneShot;
 use super::sync::{self, Access};
@@ -25,6 +32,8 @@ pub struct HeightTexture {
     pub sampler: vk::Sampler,
     /// The addressing mode.
     pub addressing: Addressing,
+    /// A view of level 0 alone (`None` when the image has one level: then `image.view`).
+    base_view: Option<vk::ImageView>,
 }
 
 impl HeightTexture {
@@ -94,6 +103,17 @@ impl HeightTexture {
                 levels,
                 usage,
             )?;
+            let base_view = if levels > 1 {
+                match image.level_view(ctx, 0, &format!("heightfield[{}].level0", field.label())) {
+                    Ok(v) => Some(v),
+                    Err(e) => {
+                        image.destroy(ctx);
+                        return Err(e);
+                    }
+                }
+            } else {
+                None
+            };
             match crate::passes::sampler(
                 ctx,
                 "heightfield.sampler",
@@ -104,8 +124,13 @@ impl HeightTexture {
                     image,
                     sampler,
                     addressing,
+                    base_view,
                 }),
                 Err(e) => {
+                    if let Some(v) = base_view {
+                        // SAFETY: created above, never used.
+                        unsafe { ctx.device().destroy_image_view(v, None) };
+                    }
                     image.destroy(ctx);
                     Err(e)
                 }
@@ -230,17 +255,31 @@ impl HeightTexture {
         [self.image.extent.width, self.image.extent.height]
     }
 
-    /// Descriptor info for a combined image sampler.
+    /// Descriptor info for a combined image sampler of level 0 alone (every pass, unless
+    /// level of detail is on).
     pub fn descriptor(&self) -> vk::DescriptorImageInfo {
         vk::DescriptorImageInfo {
             sampler: self.sampler,
-            image_view: self.image.view,
+            image_view: self.base_view.unwrap_or(self.image.view),
             image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        }
+    }
+
+    /// Descriptor info for a combined image sampler of the whole mip chain (the trace pass
+    /// with level of detail on).
+    pub fn descriptor_lod(&self) -> vk::DescriptorImageInfo {
+        vk::DescriptorImageInfo {
+            image_view: self.image.view,
+            ..self.descriptor()
         }
     }
 
     /// Destroys image and sampler.
     pub fn destroy(&mut self, ctx: &Context) {
+        if let Some(v) = self.base_view.take() {
+            // SAFETY: caller guarantees no pending use.
+            unsafe { ctx.device().destroy_image_view(v, None) };
+        }
         self.image.destroy(ctx);
         // SAFETY: caller guarantees no pending use.
         unsafe { ctx.device().destroy_sampler(self.sampler, None) };

@@ -144,6 +144,32 @@ impl Image {
         })
     }
 
+    /// Creates a view of the one mip level `level`, named `name` (the caller destroys it
+    /// before the image).
+    pub fn level_view(&self, ctx: &Context, level: u32, name: &str) -> Result<vk::ImageView> {
+        let range = vk::ImageSubresourceRange {
+            base_mip_level: level,
+            level_count: 1,
+            ..full_range(self.format, 1)
+        };
+        let info = vk::ImageViewCreateInfo::default()
+            .image(self.raw)
+            .view_type(vk::ImageViewType::TYPE_2D)
+            .format(self.format)
+            .subresource_range(range);
+        if level >= self.mip_levels {
+            return Err(Error::invalid(
+                name,
+                format!("{} has no mip level {level}", self.name),
+            ));
+        }
+        // SAFETY: the image is alive and has this level; the view matches its format.
+        let view =
+            unsafe { ctx.device().create_image_view(&info, None) }.vk("vkCreateImageView")?;
+        ctx.set_name(view, name);
+        Ok(view)
+    }
+
     /// The view of every level and the size of level 0.
     pub fn view_ref(&self) -> ViewRef {
         ViewRef {

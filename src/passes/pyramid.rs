@@ -27,7 +27,7 @@
 
 use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, PyramidParams};
 use crate::context::Context;
-use crate::error::{Result, VkContext};
+use crate::error::Result;
 use crate::gpu::commands::read_image_level;
 use crate::gpu::pipeline::image_write;
 use crate::gpu::sync::{self, Access};
@@ -130,15 +130,9 @@ impl Pyramid {
 
     fn create_views(&mut self, ctx: &Context, name: &str) -> Result<()> {
         for level in 0..self.image.mip_levels {
-            let info = vk::ImageViewCreateInfo::default()
-                .image(self.image.raw)
-                .view_type(vk::ImageViewType::TYPE_2D)
-                .format(PYRAMID_FORMAT)
-                .subresource_range(self.level_range(level));
-            // SAFETY: the image is alive and has this level.
-            let view =
-                unsafe { ctx.device().create_image_view(&info, None) }.vk("vkCreateImageView")?;
-            ctx.set_name(view, &format!("{name}.level{level}"));
+            let view = self
+                .image
+                .level_view(ctx, level, &format!("{name}.level{level}"))?;
             self.level_views.push(view);
         }
         self.sampler = crate::passes::sampler(

@@ -134,7 +134,11 @@ impl TracePass {
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray);
         let depth = fetch(gbuffer.depth);
-        let heights = [height.descriptor()];
+        let heights = [if params.lod_threshold.is_some() {
+            height.descriptor_lod()
+        } else {
+            height.descriptor()
+        }];
         let hits = storage_view(hit.view);
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
