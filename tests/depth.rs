@@ -10,6 +10,7 @@ use ash::vk;
 use common::{asset_map, finish, validated_context};
 use dispmap::context::Context;
 use dispmap::gpu::commands::read_image;
+use dispmap::gpu::pipeline::{RasterDesc, raster_pipeline};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::Convention;
@@ -256,66 +257,21 @@ impl BoxPipeline {
         let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
             .expect("vkCreatePipelineLayout");
         ctx.set_name(layout, "test.box.layout");
-        let vert = shaders::TESTS_DEPTH_BOX_VERT.module(ctx).unwrap();
-        let frag = shaders::TESTS_DEPTH_BOX_FRAG.module(ctx).unwrap();
-        let stages = [
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::VERTEX)
-                .module(vert)
-                .name(c"main"),
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::FRAGMENT)
-                .module(frag)
-                .name(c"main"),
-        ];
-        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
-        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
-            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-        let viewport = vk::PipelineViewportStateCreateInfo::default()
-            .viewport_count(1)
-            .scissor_count(1);
-        let raster = vk::PipelineRasterizationStateCreateInfo::default()
-            .polygon_mode(vk::PolygonMode::FILL)
-            .cull_mode(vk::CullModeFlags::NONE)
-            .line_width(1.0);
-        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
-            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-            .depth_test_enable(true)
-            .depth_write_enable(true)
-            .depth_compare_op(vk::CompareOp::GREATER);
-        let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
-            .color_write_mask(vk::ColorComponentFlags::RGBA)];
-        let blend =
-            vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
-        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-        let color_formats = [COLOR_FORMAT];
-        let mut rendering = vk::PipelineRenderingCreateInfo::default()
-            .color_attachment_formats(&color_formats)
-            .depth_attachment_format(DEPTH_FORMAT);
-        let info = [vk::GraphicsPipelineCreateInfo::default()
-            .stages(&stages)
-            .vertex_input_state(&vertex_input)
-            .input_assembly_state(&input_assembly)
-            .viewport_state(&viewport)
-            .rasterization_state(&raster)
-            .multisample_state(&multisample)
-            .depth_stencil_state(&depth)
-            .color_blend_state(&blend)
-            .dynamic_state(&dynamic)
-            .layout(layout)
-            .push_next(&mut rendering)];
-        // SAFETY: every referenced state lives until the call returns.
-        let result =
-            unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
-        // SAFETY: the modules are not needed after pipeline creation.
-        unsafe {
-            dev.destroy_shader_module(vert, None);
-            dev.destroy_shader_module(frag, None);
-        }
-        let pipeline = result.map_err(|(_, e)| e).unwrap()[0];
-        ctx.set_name(pipeline, "test.box.pipeline");
+        let pipeline = raster_pipeline(
+            ctx,
+            &RasterDesc {
+                vert: &shaders::TESTS_DEPTH_BOX_VERT,
+                frag: &shaders::TESTS_DEPTH_BOX_FRAG,
+                layout,
+                vertex_bindings: &[],
+                vertex_attributes: &[],
+                depth_compare: vk::CompareOp::GREATER,
+                color_formats: &[COLOR_FORMAT],
+                depth_format: DEPTH_FORMAT,
+                name: "test.box.pipeline",
+            },
+        )
+        .unwrap();
         BoxPipeline { pipeline, layout }
     }
 

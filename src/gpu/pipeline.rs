@@ -224,3 +224,107 @@ pub fn storage_view(view: vk::ImageView) -> [vk::DescriptorImageInfo; 1] {
         image_layout: vk::ImageLayout::GENERAL,
     }]
 }
+
+/// What differs between dispmap's raster pipelines (dynamic rendering, triangle lists,
+/// no culling, one viewport and scissor set at record time, no blending).
+pub struct RasterDesc<'a> {
+    /// Vertex stage.
+    pub vert: &'a Shader,
+    /// Fragment stage.
+    pub frag: &'a Shader,
+    /// The pipeline layout (owned by the caller).
+    pub layout: vk::PipelineLayout,
+    /// Vertex buffer bindings and attributes (empty: vertices generated in the shader).
+    pub vertex_bindings: &'a [vk::VertexInputBindingDescription],
+    /// Vertex attributes.
+    pub vertex_attributes: &'a [vk::VertexInputAttributeDescription],
+    /// Depth test (depth writes are on).
+    pub depth_compare: vk::CompareOp,
+    /// Colour attachment formats (all written, no blending).
+    pub color_formats: &'a [vk::Format],
+    /// Depth attachment format.
+    pub depth_format: vk::Format,
+    /// Debug name of the pipeline.
+    pub name: &'a str,
+}
+
+/// Builds a graphics pipeline for dynamic rendering from `desc` (the shader modules live
+/// only during the call).
+pub fn raster_pipeline(ctx: &Context, desc: &RasterDesc) -> Result<vk::Pipeline> {
+    let dev = ctx.device();
+    let vert = desc.vert.module(ctx)?;
+    let frag = match desc.frag.module(ctx) {
+        Ok(m) => m,
+        Err(e) => {
+            // SAFETY: the module is unused.
+            unsafe { dev.destroy_shader_module(vert, None) };
+            return Err(e);
+        }
+    };
+    let stages = [
+        vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::VERTEX)
+            .module(vert)
+            .name(c"main"),
+        vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::FRAGMENT)
+            .module(frag)
+            .name(c"main"),
+    ];
+    let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+        .vertex_binding_descriptions(desc.vertex_bindings)
+        .vertex_attribute_descriptions(desc.vertex_attributes);
+    let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+        .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+    let viewport = vk::PipelineViewportStateCreateInfo::default()
+        .viewport_count(1)
+        .scissor_count(1);
+    let raster = vk::PipelineRasterizationStateCreateInfo::default()
+        .polygon_mode(vk::PolygonMode::FILL)
+        .cull_mode(vk::CullModeFlags::NONE)
+        .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+        .line_width(1.0);
+    let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+        .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+    let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+        .depth_test_enable(true)
+        .depth_write_enable(true)
+        .depth_compare_op(desc.depth_compare);
+    let blend_attachments: Vec<_> = desc
+        .color_formats
+        .iter()
+        .map(|_| {
+            vk::PipelineColorBlendAttachmentState::default()
+                .color_write_mask(vk::ColorComponentFlags::RGBA)
+        })
+        .collect();
+    let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
+    let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+    let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+    let mut rendering = vk::PipelineRenderingCreateInfo::default()
+        .color_attachment_formats(desc.color_formats)
+        .depth_attachment_format(desc.depth_format);
+    let info = [vk::GraphicsPipelineCreateInfo::default()
+        .stages(&stages)
+        .vertex_input_state(&vertex_input)
+        .input_assembly_state(&input_assembly)
+        .viewport_state(&viewport)
+        .rasterization_state(&raster)
+        .multisample_state(&multisample)
+        .depth_stencil_state(&depth)
+        .color_blend_state(&blend)
+        .dynamic_state(&dynamic)
+        .layout(desc.layout)
+        .push_next(&mut rendering)];
+    // SAFETY: every referenced state lives until the call returns; dynamic rendering is
+    // enabled on the device (requirements).
+    let result = unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+    // SAFETY: the modules are not needed after pipeline creation.
+    unsafe {
+        dev.destroy_shader_module(vert, None);
+        dev.destroy_shader_module(frag, None);
+    }
+    let pipeline = result.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0];
+    ctx.set_name(pipeline, desc.name);
+    Ok(pipeline)
+}

@@ -14,6 +14,7 @@
 
 use crate::context::Context;
 use crate::error::{Result, VkContext};
+use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
 use crate::shaders;
 use ash::vk;
 
@@ -73,70 +74,20 @@ impl DepthResolvePass {
         self.layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
             .vk("vkCreatePipelineLayout")?;
         ctx.set_name(self.layout, "depth_resolve.layout");
-        let vert = shaders::DEPTH_RESOLVE_VERT.module(ctx)?;
-        let frag = match shaders::DEPTH_RESOLVE_FRAG.module(ctx) {
-            Ok(f) => f,
-            Err(e) => {
-                // SAFETY: the module is unused.
-                unsafe { dev.destroy_shader_module(vert, None) };
-                return Err(e);
-            }
-        };
-        let stages = [
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::VERTEX)
-                .module(vert)
-                .name(c"main"),
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::FRAGMENT)
-                .module(frag)
-                .name(c"main"),
-        ];
-        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
-        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
-            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-        let viewport = vk::PipelineViewportStateCreateInfo::default()
-            .viewport_count(1)
-            .scissor_count(1);
-        let raster = vk::PipelineRasterizationStateCreateInfo::default()
-            .polygon_mode(vk::PolygonMode::FILL)
-            .cull_mode(vk::CullModeFlags::NONE)
-            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
-            .line_width(1.0);
-        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
-            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-            .depth_test_enable(true)
-            .depth_write_enable(true)
-            .depth_compare_op(vk::CompareOp::ALWAYS);
-        let blend = vk::PipelineColorBlendStateCreateInfo::default();
-        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-        let mut rendering =
-            vk::PipelineRenderingCreateInfo::default().depth_attachment_format(DEPTH_FORMAT);
-        let info = [vk::GraphicsPipelineCreateInfo::default()
-            .stages(&stages)
-            .vertex_input_state(&vertex_input)
-            .input_assembly_state(&input_assembly)
-            .viewport_state(&viewport)
-            .rasterization_state(&raster)
-            .multisample_state(&multisample)
-            .depth_stencil_state(&depth)
-            .color_blend_state(&blend)
-            .dynamic_state(&dynamic)
-            .layout(self.layout)
-            .push_next(&mut rendering)];
-        // SAFETY: every referenced state lives until the call returns; dynamic rendering
-        // is enabled on the device.
-        let result =
-            unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
-        // SAFETY: the modules are not needed after pipeline creation.
-        unsafe {
-            dev.destroy_shader_module(vert, None);
-            dev.destroy_shader_module(frag, None);
-        }
-        self.pipeline = result.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0];
-        ctx.set_name(self.pipeline, "depth_resolve.pipeline");
+        self.pipeline = raster_pipeline(
+            ctx,
+            &RasterDesc {
+                vert: &shaders::DEPTH_RESOLVE_VERT,
+                frag: &shaders::DEPTH_RESOLVE_FRAG,
+                layout: self.layout,
+                vertex_bindings: &[],
+                vertex_attributes: &[],
+                depth_compare: vk::CompareOp::ALWAYS,
+                color_formats: &[],
+                depth_format: DEPTH_FORMAT,
+                name: "depth_resolve.pipeline",
+            },
+        )?;
         Ok(())
     }
 

@@ -22,6 +22,7 @@ use crate::abi::GBufferParams;
 use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::Image;
+use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
 use crate::shaders;
 use ash::vk;
 
@@ -147,105 +148,39 @@ impl GBufferPass {
         } else {
             (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG)
         };
-        let vert = match vert.module(ctx) {
-            Ok(m) => m,
-            Err(e) => {
-                // SAFETY: the layout is unused.
-                unsafe { dev.destroy_pipeline_layout(layout, None) };
-                return Err(e);
-            }
-        };
-        let frag = match frag.module(ctx) {
-            Ok(m) => m,
-            Err(e) => {
-                // SAFETY: neither is used yet.
-                unsafe {
-                    dev.destroy_shader_module(vert, None);
-                    dev.destroy_pipeline_layout(layout, None);
-                }
-                return Err(e);
-            }
-        };
-        let stages = [
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::VERTEX)
-                .module(vert)
-                .name(c"main"),
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::FRAGMENT)
-                .module(frag)
-                .name(c"main"),
-        ];
+        let name = if mesh { "gbuffer_mesh" } else { "gbuffer" };
         let bindings = [vk::VertexInputBindingDescription {
             binding: 0,
             stride: std::mem::size_of::<crate::mesh::Vertex>() as u32,
             input_rate: vk::VertexInputRate::VERTEX,
         }];
         let attributes = crate::mesh::vertex_attributes();
-        let vertex_input = if mesh {
-            vk::PipelineVertexInputStateCreateInfo::default()
-                .vertex_binding_descriptions(&bindings)
-                .vertex_attribute_descriptions(&attributes)
+        let (vertex_bindings, vertex_attributes): (&[_], &[_]) = if mesh {
+            (&bindings, &attributes)
         } else {
-            vk::PipelineVertexInputStateCreateInfo::default()
+            (&[], &[])
         };
-        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
-            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-        let viewport = vk::PipelineViewportStateCreateInfo::default()
-            .viewport_count(1)
-            .scissor_count(1);
-        let raster = vk::PipelineRasterizationStateCreateInfo::default()
-            .polygon_mode(vk::PolygonMode::FILL)
-            .cull_mode(vk::CullModeFlags::NONE)
-            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
-            .line_width(1.0);
-        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
-            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-            .depth_test_enable(true)
-            .depth_write_enable(true)
-            .depth_compare_op(vk::CompareOp::GREATER);
-        let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
-            .color_write_mask(vk::ColorComponentFlags::RGBA); 3];
-        let blend =
-            vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
-        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-        let color_formats = [RAY_FORMAT, FRAME_FORMAT, FRAME_FORMAT];
-        let mut rendering = vk::PipelineRenderingCreateInfo::default()
-            .color_attachment_formats(&color_formats)
-            .depth_attachment_format(DEPTH_FORMAT);
-        let info = [vk::GraphicsPipelineCreateInfo::default()
-            .stages(&stages)
-            .vertex_input_state(&vertex_input)
-            .input_assembly_state(&input_assembly)
-            .viewport_state(&viewport)
-            .rasterization_state(&raster)
-            .multisample_state(&multisample)
-            .depth_stencil_state(&depth)
-            .color_blend_state(&blend)
-            .dynamic_state(&dynamic)
-            .layout(layout)
-            .push_next(&mut rendering)];
-        // SAFETY: every referenced state lives until the call returns; dynamic rendering
-        // is enabled on the device (requirements).
-        let result =
-            unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
-        // SAFETY: the modules are not needed after pipeline creation.
-        unsafe {
-            dev.destroy_shader_module(vert, None);
-            dev.destroy_shader_module(frag, None);
-        }
-        let pipeline = match result {
-            Ok(p) => p[0],
-            Err((_, e)) => {
+        let pipeline = match raster_pipeline(
+            ctx,
+            &RasterDesc {
+                vert: &vert,
+                frag: &frag,
+                layout,
+                vertex_bindings,
+                vertex_attributes,
+                depth_compare: vk::CompareOp::GREATER,
+                color_formats: &[RAY_FORMAT, FRAME_FORMAT, FRAME_FORMAT],
+                depth_format: DEPTH_FORMAT,
+                name: &format!("{name}.pipeline"),
+            },
+        ) {
+            Ok(p) => p,
+            Err(e) => {
                 // SAFETY: the layout is unused.
                 unsafe { dev.destroy_pipeline_layout(layout, None) };
-                return Err(e).vk("vkCreateGraphicsPipelines");
+                return Err(e);
             }
         };
-        let name = if mesh { "gbuffer_mesh" } else { "gbuffer" };
-        ctx.set_name(pipeline, &format!("{name}.pipeline"));
         ctx.set_name(layout, &format!("{name}.layout"));
         Ok(GBufferPass {
             pipeline,
