@@ -57,6 +57,10 @@ const FRAG_SPV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/examples__host
 const ROCKS: &[u8] = include_bytes!("../assets/heightmaps/rocks_depth.jpg");
 const BRICKS: &[u8] = include_bytes!("../assets/heightmaps/bricks_depth.jpg");
 
+const USAGE: &str = "usage: cargo run --example host_engine -- [--out host.png] \
+                     [--size 256x144] [--frames 6] [--method exact] [--no-cube] \
+                     [--no-validation]";
+
 const FRAMES_IN_FLIGHT: usize = 2;
 /// The floor's surface id (`FLOOR_ID` in `glsl/examples/host_engine_floor.vert`).
 const FLOOR_ID: f32 = 1.0;
@@ -161,7 +165,11 @@ fn main() -> Result<()> {
             }
             "--no-cube" => o.cube = false,
             "--no-validation" => o.validation = false,
-            other => bail!("unknown argument {other} (see the example's docs)"),
+            "--help" | "-h" => {
+                println!("{USAGE}");
+                return Ok(());
+            }
+            other => bail!("unknown argument {other}\n{USAGE}"),
         }
     }
     let out = run(&o)?;
