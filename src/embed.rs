@@ -19,7 +19,14 @@
 //!    [`crate::passes::gbuffer`] and `glsl/include/dispmap_gbuffer.glsl`), places the
 //!    entry barriers below, calls [`DisplacementPass::record`], places its own barriers for
 //!    what follows, submits and later waits on its fence; then it may read the timestamps
-//!    ([`DisplacementPass::timings`] or [`read_timestamps`]).
+//!    ([`DisplacementPass::timings`] or [`read_timestamps`]). A host that draws dispmap's
+//!    tiled plane (or quad) itself uses `dispmap_plane_vertex` from
+//!    `glsl/include/dispmap_plane.glsl`, the function dispmap's own `gbuffer.vert` calls:
+//!    with the values of [`crate::scene::Scene::gbuffer_params`] (rectangles, `plane_cells`,
+//!    eye), [`crate::abi::GBufferParams::vertex_count`] vertices from `gl_VertexIndex` and
+//!    the eye-relative view-projection ([`crate::scene::FrameCamera::view_proj_eye`]) its
+//!    vertices, rays and hits are bit-identical to the standalone renderer's
+//!    (`examples/host_engine.rs`, `tests/host_engine.rs`).
 //! 5. [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] /
 //!    [`DisplacementPass::set_method`] / [`DisplacementPass::set_shadows`] /
 //!    [`DisplacementPass::set_depth_output`] any time between records, with frames in

@@ -2,15 +2,7 @@
 // examples/host_engine.rs: the host engine's own G-buffer fragment shader, writing
 // dispmap's channels with the provided include.
 #include "../include/dispmap_gbuffer.glsl"
-
-layout(push_constant) uniform EngineParams {
-    mat4 view_proj;
-    vec4 camera_pos;
-    float depth_scale;
-    float min_cos;
-    uint addressing;
-    uint pad;
-} pc;
+#include "host_engine.glsl"
 
 layout(location = 0) in vec3 v_eye_rel;
 layout(location = 1) in vec2 v_uv;

@@ -191,7 +191,9 @@ impl GBufferPass {
 
     /// Records the pass: clears the G-buffer and draws the plane (a grid about the eye,
     /// [`GBufferParams::plane_cells`]) or the quad (two triangles), generated in the
-    /// vertex shader ([`GBufferParams::vertex_count`] vertices). Needs the pipeline of
+    /// vertex shader ([`GBufferParams::vertex_count`] vertices, by `dispmap_plane_vertex`
+    /// in `glsl/include/dispmap_plane.glsl`, which a host engine may use to draw the
+    /// same plane). Needs the pipeline of
     /// [`GBufferPass::new`].
     pub fn record(
         &self,
