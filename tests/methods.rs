@@ -51,12 +51,12 @@ struct Run {
 /// and still count as touching it: a few f32 ulps of the G-buffer's ray.
 const TANGENCY: f64 = 1e-6;
 
-/// The deepest skim the pyramid method's refinement (half-texel samples plus quarter
+/// The deepest skim the pyramid method's refinement (half-texel samples plus eighth
 /// checks) may step over: measured, every miss dips less than 1.8e-3 of the depth under
 /// the surface (one mountains pixel at 5 degrees, 1.73e-3, since the G-buffer computes the
 /// view direction from eye-relative positions: the rays' last bits changed, and the
-/// earlier rays' deepest skim was 1e-3; 3e-4 on rocks and bricks); without the quarter
-/// checks, up to 3.1e-3.
+/// earlier rays' deepest skim was 1e-3; 3e-4 on rocks and bricks; measured with quarter
+/// checks, kept with the eighth checks); without them, up to 3.1e-3.
 const PYRAMID_SKIM: f64 = 1.8e-3;
 
 /// The tolerance `unexplained` applies to `method`'s hits.
@@ -247,12 +247,8 @@ fn bricks() {
             // The 0: the one tangency pixel at 5 deg (a ray 1.1e-7 above a ridge)
             // went away with the eye-relative plane grid's rays.
             exact: 0.0,
-            // The 0.001 is not reached at 5 deg. 0.0011 (measured 0.104% at 1 deg)
-            // before the G-buffer drew the plane as an eye-relative grid: its more precise
-            // rays (tests/gbuffer_plane.rs) reshuffle which rays skim a ridge (every miss
-            // is still an explained skim); measured 0.121% at 5 deg (0.046% at 30, 0.057%
-            // at 1).
-            pyramid: 0.0013,
+            // The 0.001 (measured 0.022%, 0.081% and 0.016% at 30, 5 and 1 deg).
+            pyramid: 0.001,
             dig_minus_relief: 0.015,
         },
     );
@@ -266,10 +262,8 @@ fn mountains() {
         &runs,
         &Bounds {
             exact: 0.0,
-            // The 0.001 is not reached at 5 and 1 deg. 0.0014 (measured 0.125%)
-            // before the G-buffer drew the plane as an eye-relative grid (see bricks);
-            // measured 0.182% at 1 deg (0.081% at 30, 0.112% at 5).
-            pyramid: 0.0019,
+            // The 0.001 (measured 0.027%, 0.045% and 0.068% at 30, 5 and 1 deg).
+            pyramid: 0.001,
             dig_minus_relief: 0.015,
         },
     );

@@ -27,12 +27,13 @@
 // and the traversal resumes at the current level. The backward point is never placed
 // before the point where the traversal entered the leaf (the ray is above the surface
 // all the way there, as every bound passed was conservative). Beyond the paper: when
-// P_f is above the surface, the quarters of [P, P_f] are tested too (the first one below
+// P_f is above the surface, the eighths of [P, P_f] are tested too (the first one below
 // the surface replaces P_f): a grazing ray can dip under a ridge and leave it again
-// within half a texel, which the two samples cannot see. Measured on issue 3's scenes
-// the quarter checks cut the artifacts from 0.08-0.29% to 0.04-0.13% for about 5% more
-// fetches; every remaining miss dips less than 1.8e-3 of the depth under the surface
-// (tests/methods.rs: PYRAMID_SKIM).
+// within half a texel, which the two samples cannot see. Measured on issue 3's scenes:
+// the paper's two samples give 0.08-0.29% artifacts, quarter checks 0.05-0.18% for
+// about 5% more fetches, eighth checks 0.016-0.081% for about 10% more (the issue's
+// 0.1% on every scene); every remaining miss dips less than 1.8e-3 of the depth under
+// the surface (tests/methods.rs: PYRAMID_SKIM).
 //
 // Section 3.4, minification: the traversal stops at a coarsest level (`--max-level`, or
 // with TRACE_FLAG_AUTO_LEVEL the floor of footprint_level in trace.glsl: the log2 of the
@@ -40,7 +41,7 @@
 // the LOD blend uses); a hit at a level above 0 is where the ray meets that node's bound, without the bilinear refinement (the surface flattens with distance, as
 // in the paper's Fig. 18).
 //
-// Iterations: one per pyramid fetch, two per refinement, one per quarter check.
+// Iterations: one per pyramid fetch, two per refinement, one per eighth check.
 #include "trace.glsl"
 #include "pyramid.glsl"
 
@@ -155,10 +156,10 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         float t_below = t_f;
         if (b_below < 0.0) {
             // A ridge can rise above the ray and fall back within the step (a grazing
-            // ray skimming a peak): also test [P, P_f] at its quarters and, at the first
+            // ray skimming a peak): also test [P, P_f] at its eighths and, at the first
             // one below the surface, take the crossing between P_b and that point.
-            for (int q = 1; q <= 3; ++q) {
-                float t_m = mix(t, t_f, 0.25 * float(q));
+            for (int q = 1; q <= 7; ++q) {
+                float t_m = mix(t, t_f, 0.125 * float(q));
                 float h_m = 1.0 - t_m;
                 iterations += 1u;
                 float b_mid = height_exact(ray.uv0 + t_m * ray.P) - h_m;
