@@ -733,6 +733,10 @@ fn print_timings(timings: &[(String, f64)]) {
 
 fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
     args.common.check()?;
+    // Every method's settings are checked before anything is printed or created.
+    for &method in Method::ALL {
+        args.common.settings(method).validate()?;
+    }
     let field = bundled::rocks()?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create {}", args.out_dir.display()))?;

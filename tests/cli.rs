@@ -233,15 +233,13 @@ fn exact_reports_the_pyramid_build_and_no_corner_pass() {
 fn unwritable_heatmap_is_named_and_nothing_is_written() {
     let dir = scratch("bad-heatmap");
     let png = dir.join("out.png");
-    let out = render_small(
-        "relief",
-        &png,
-        &["--heatmap".as_ref(), "/no/such/dir/h.png".as_ref()],
-    );
+    // A folder that does not exist (inside the scratch folder, so no run can have made it).
+    let missing = dir.join("no-such-dir").join("h.png");
+    let out = render_small("relief", &png, &["--heatmap".as_ref(), missing.as_os_str()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("--heatmap"), "{stderr}");
-    assert!(stderr.contains("/no/such/dir"), "{stderr}");
+    assert!(stderr.contains("no-such-dir"), "{stderr}");
     assert!(!png.exists());
     let folder = dir.join("a-folder");
     std::fs::create_dir_all(&folder).unwrap();
@@ -295,4 +293,28 @@ fn render_works_for_every_method() {
             "{name}: {timings}"
         );
     }
+}
+
+#[test]
+fn demo_with_bad_options_prints_and_creates_nothing() {
+    let dir = scratch("demo-bad-steps").join("out");
+    let out = dispmap()
+        .arg("demo")
+        .arg("--steps=0")
+        .arg("--out-dir")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("steps") && stderr.contains("0 is outside"),
+        "{stderr}"
+    );
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(!dir.exists(), "{} was created", dir.display());
 }
