@@ -474,6 +474,15 @@ pub unsafe fn read_timestamps(
         .collect()
 }
 
+/// A height texture's contents not yet recorded.
+enum Fill {
+    /// A new map's staging buffer.
+    Upload(Buffer),
+    /// The texture it replaces (level of detail switched on or off: the mip chain added
+    /// or dropped), whose level 0 is copied; frames in flight may still sample it.
+    Copy(HeightTexture),
+}
+
 /// A resource replaced while frames may still read it; destroyed once every slot in
 /// `pending` has been recorded again.
 struct Retired {
@@ -526,8 +535,9 @@ pub struct DisplacementPass {
     pyramid_pass: Option<PyramidPass>,
     corner_pass: Option<DigCornerPass>,
     height: HeightTexture,
-    /// Staging buffer of a height map not yet copied (the next `record` copies it).
-    pending_upload: Option<Buffer>,
+    /// How `height` is still to be filled (the next `record` records it); `None` once
+    /// filled.
+    pending_fill: Option<Fill>,
     pyramid: Option<Pyramid>,
     pyramid_built: bool,
     /// One grid per frame slot (empty unless the method is a DIG).
@@ -685,8 +695,12 @@ impl DisplacementPass {
         let result = (|| {
             p.trace = Some(TracePass::new(c, settings.method)?);
             p.shade = Some(ShadePass::new(c)?);
-            let (height, staging) =
-                HeightTexture::create_for_upload(c, field, settings.addressing)?;
+            let (height, staging) = HeightTexture::create_for_upload(
+                c,
+                field,
+                settings.addressing,
+                settings.params.lod_threshold.is_some(),
+            )?;
             p.height = Some(height);
             p.staging = Some(staging);
             if let Some(kind) = needs.pyramid {
@@ -717,7 +731,7 @@ impl DisplacementPass {
             pyramid_pass: p.pyramid_pass.take(),
             corner_pass: p.corner_pass.take(),
             height: p.height.take().expect(built),
-            pending_upload: p.staging.take(),
+            pending_fill: p.staging.take().map(Fill::Upload),
             pyramid: p.pyramid.take(),
             pyramid_built: false,
             corners: std::mem::take(&mut p.corners),
@@ -742,10 +756,11 @@ impl DisplacementPass {
         &self.ctx
     }
 
-    /// Whether the next [`DisplacementPass::record`] uploads a height map and (for the
-    /// pyramid methods) rebuilds the pyramid.
+    /// Whether the next [`DisplacementPass::record`] fills the height texture (a new map,
+    /// or the mip chain added or dropped with level of detail) or (for the pyramid
+    /// methods) rebuilds the pyramid.
     pub fn rebuild_pending(&self) -> bool {
-        self.pending_upload.is_some() || (self.pyramid.is_some() && !self.pyramid_built)
+        self.pending_fill.is_some() || (self.pyramid.is_some() && !self.pyramid_built)
     }
 
     /// Records the pass into the host's command buffer `cmd`: the height-map upload and
@@ -867,15 +882,29 @@ impl DisplacementPass {
         };
         timer.reset(ctx, cmd);
 
-        if let Some(staging) = self.pending_upload.take() {
-            timer.scope(ctx, cmd, "height_upload", |cmd| {
-                self.height.record_upload(ctx, cmd, &staging)
-            });
-            // Read by this frame's copy: destroyed when this slot is next recorded.
-            self.retired.push(Retired {
-                pending: 1 << slot,
-                resource: Resource::Buffer(staging),
-            });
+        match self.pending_fill.take() {
+            Some(Fill::Upload(staging)) => {
+                timer.scope(ctx, cmd, "height_upload", |cmd| {
+                    self.height.record_upload(ctx, cmd, &staging)
+                });
+                // Read by this frame's copy: destroyed when this slot is next recorded.
+                self.retired.push(Retired {
+                    pending: 1 << slot,
+                    resource: Resource::Buffer(staging),
+                });
+            }
+            Some(Fill::Copy(source)) => {
+                timer.scope(ctx, cmd, "height_upload", |cmd| {
+                    self.height.record_copy_from(ctx, cmd, &source)
+                });
+                // Read by this frame's copy and by frames in flight in other slots: kept
+                // until every slot has been recorded again.
+                self.retired.push(Retired {
+                    pending: self.all_slots(),
+                    resource: Resource::Height(source),
+                });
+            }
+            None => {}
         }
         let method_pyramid = match (&self.pyramid_pass, &self.pyramid, self.pyramid_built) {
             (Some(pass), Some(pyramid), false) => Some((pass, pyramid)),
@@ -1125,8 +1154,12 @@ impl DisplacementPass {
         self.check_alive()?;
         let all = self.all_slots();
         let ctx = &*self.ctx;
-        let (height, staging) =
-            HeightTexture::create_for_upload(ctx, field, self.settings.addressing)?;
+        let (height, staging) = HeightTexture::create_for_upload(
+            ctx,
+            field,
+            self.settings.addressing,
+            self.settings.params.lod_threshold.is_some(),
+        )?;
         let pyramid = match self.needs.pyramid {
             Some(kind) => {
                 match Pyramid::new(ctx, field_size(field), kind, self.settings.addressing) {
@@ -1146,10 +1179,15 @@ impl DisplacementPass {
             pending: all,
             resource: Resource::Height(old_height),
         });
-        if let Some(old) = self.pending_upload.replace(staging) {
+        match self.pending_fill.replace(Fill::Upload(staging)) {
             // Never recorded: no frame reads it.
-            let mut old = old;
-            old.destroy(ctx);
+            Some(Fill::Upload(mut old)) => old.destroy(ctx),
+            // The texture frames in flight may still read.
+            Some(Fill::Copy(old)) => self.retired.push(Retired {
+                pending: all,
+                resource: Resource::Height(old),
+            }),
+            None => {}
         }
         if let Some(old) = std::mem::replace(&mut self.pyramid, pyramid) {
             self.retired.push(Retired {
@@ -1205,7 +1243,10 @@ impl DisplacementPass {
     /// [`DisplacementPass::record`], timed as its `pyramid` pass), the DIG corner pipeline
     /// and one corner grid per slot (new grids also when `params.block` changed). What is
     /// kept (the height map, a pyramid of the same kind, grids of the same block) is
-    /// reused; `depth_scale`, addressing, extent and `frames_in_flight` stay.
+    /// reused; `depth_scale`, addressing, extent and `frames_in_flight` stay. The height
+    /// texture has a mip chain only while level of detail is on (`params.lod_threshold`):
+    /// switching it on or off makes a new texture that the next record fills on the GPU
+    /// from the old one's level 0 (in its `height_upload` scope).
     ///
     /// GPU-use contract: needs no GPU idle. What the old method used and the new one does
     /// not (pipelines, pyramid, grids) may still be read by frames in flight, so it is
@@ -1231,9 +1272,13 @@ impl DisplacementPass {
         };
         // Build everything new first; on failure destroy it and leave the pass as it was.
         let mut p = Partial::default();
+        let chain = params.lod_threshold.is_some();
         let result = (|| {
             if method != self.trace.method() {
                 p.trace = Some(TracePass::new(ctx, method)?);
+            }
+            if self.height.differs_for(ctx, chain) {
+                p.height = Some(self.height.create_like(ctx, chain)?);
             }
             if let Some(kind) = needs.pyramid {
                 if self.pyramid_pass.is_none() {
@@ -1265,6 +1310,17 @@ impl DisplacementPass {
         let mut retire = Vec::new();
         if let Some(trace) = p.trace.take() {
             retire.push(Resource::Trace(std::mem::replace(&mut self.trace, trace)));
+        }
+        if let Some(height) = p.height.take() {
+            // The mip chain follows level of detail; level 0 (the map) is unchanged.
+            let old = std::mem::replace(&mut self.height, height);
+            if self.pending_fill.is_some() {
+                // `old` was never filled (its fill is still pending and now fills the
+                // new texture): no frame reads it.
+                retire.push(Resource::Height(old));
+            } else {
+                self.pending_fill = Some(Fill::Copy(old));
+            }
         }
         if let Some(pass) = p.pyramid_pass.take() {
             self.pyramid_pass = Some(pass);
@@ -1492,8 +1548,10 @@ impl DisplacementPass {
         if let Some(mut d) = self.depth.take() {
             d.destroy(ctx);
         }
-        if let Some(mut b) = self.pending_upload.take() {
-            b.destroy(ctx);
+        match self.pending_fill.take() {
+            Some(Fill::Upload(mut b)) => b.destroy(ctx),
+            Some(Fill::Copy(mut h)) => h.destroy(ctx),
+            None => {}
         }
         for mut c in self.corners.drain(..) {
             c.destroy(ctx);

@@ -264,6 +264,7 @@ impl<'a> Renderer<'a> {
             shot,
             field,
             settings.scene.addressing(),
+            settings.params.lod_threshold.is_some(),
         )?);
         parts.timer = Some(GpuTimer::new(ctx, "renderer.timestamps", 8)?);
         parts.gbuffer = Some(GBuffer::new(ctx, extent)?);
@@ -333,6 +334,22 @@ impl<'a> Renderer<'a> {
             pyramid,
             dig_corners,
         } = self.settings.method.needs();
+        // The height map's mip chain exists only while level of detail reads it.
+        let chain = self.settings.params.lod_threshold.is_some();
+        if self.height.differs_for(ctx, chain) {
+            let mut new = self.height.create_like(ctx, chain)?;
+            let filled = (|| {
+                let cmd = self.shot.begin(ctx)?;
+                new.record_copy_from(ctx, cmd, &self.height);
+                self.shot.submit_and_wait(ctx)
+            })();
+            if let Err(e) = filled {
+                new.destroy(ctx);
+                return Err(e);
+            }
+            // The queue is idle (`submit_and_wait`): no frame reads the old texture.
+            std::mem::replace(&mut self.height, new).destroy(ctx);
+        }
         let frame = self.frame_size();
         let block = self.settings.params.block;
         let map_size = self.height.size();

@@ -444,7 +444,9 @@ fn pyramid_auto_level_uses_the_footprint_level() {
 
 #[test]
 fn the_height_mip_chain_is_the_box_average_and_level_0_is_the_map() {
-    // The level-of-detail sampling reads this chain (src/gpu/height_texture.rs).
+    // The level-of-detail sampling reads this chain (src/gpu/height_texture.rs). It exists
+    // only while level of detail is on: uploaded with it, or derived on the GPU from a
+    // texture without it, and dropped again when level of detail goes off.
     let ctx = validated_context();
     let (w, h) = (16u32, 8u32);
     let values: Vec<f32> = (0..w * h)
@@ -452,21 +454,57 @@ fn the_height_mip_chain_is_the_box_average_and_level_0_is_the_map() {
         .collect();
     let field = dispmap::HeightField::from_heights(w, h, values.clone(), "mips").unwrap();
     let mut shot = dispmap::gpu::OneShot::new(&ctx, "test.mips").unwrap();
-    let mut texture = dispmap::gpu::HeightTexture::upload(
-        &ctx,
-        &shot,
-        &field,
-        dispmap::heightfield::Addressing::Repeat,
-    )
-    .unwrap();
-    let levels = texture.image.mip_levels;
-    assert_eq!(levels, 5, "16x8 has levels 16, 8, 4, 2, 1 wide");
-    let mut expect = values;
+    let upload = |chain: bool| {
+        dispmap::gpu::HeightTexture::upload(
+            &ctx,
+            &shot,
+            &field,
+            dispmap::heightfield::Addressing::Repeat,
+            chain,
+        )
+        .unwrap()
+    };
+    let derive = |from: &dispmap::gpu::HeightTexture, chain: bool| {
+        let texture = from.create_like(&ctx, chain).unwrap();
+        let cmd = shot.begin(&ctx).unwrap();
+        texture.record_copy_from(&ctx, cmd, from);
+        shot.submit_and_wait(&ctx).unwrap();
+        texture
+    };
+    let mut plain = upload(false);
+    assert!(!plain.has_chain(), "uploaded without level of detail");
+    check_levels(&ctx, &shot, &plain, &values, (w, h), 1);
+    let mut chained = upload(true);
+    check_levels(&ctx, &shot, &chained, &values, (w, h), 5);
+    let mut derived = derive(&plain, true);
+    check_levels(&ctx, &shot, &derived, &values, (w, h), 5);
+    let mut dropped = derive(&derived, false);
+    check_levels(&ctx, &shot, &dropped, &values, (w, h), 1);
+    for t in [&mut plain, &mut chained, &mut derived, &mut dropped] {
+        t.destroy(&ctx);
+    }
+    shot.destroy(&ctx);
+    finish(ctx);
+}
+
+/// `texture` has `levels` levels ("16x8 has levels 16, 8, 4, 2, 1 wide"), level 0 is
+/// `values` bit for bit and every further level the 2x2 box average of the one above.
+fn check_levels(
+    ctx: &dispmap::Context,
+    shot: &dispmap::gpu::OneShot,
+    texture: &dispmap::gpu::HeightTexture,
+    values: &[f32],
+    (w, h): (u32, u32),
+    levels: u32,
+) {
+    assert_eq!(texture.image.mip_levels, levels);
+    assert_eq!(texture.has_chain(), levels > 1);
+    let mut expect = values.to_vec();
     let (mut lw, mut lh) = (w as usize, h as usize);
     for level in 0..levels {
         let bytes = dispmap::gpu::commands::read_image_level(
-            &ctx,
-            &shot,
+            ctx,
+            shot,
             &texture.image,
             level,
             dispmap::gpu::sync::Access::COMPUTE_SAMPLED,
@@ -499,7 +537,40 @@ fn the_height_mip_chain_is_the_box_average_and_level_0_is_the_map() {
             .collect();
         (lw, lh) = (nw, nh);
     }
-    texture.destroy(&ctx);
-    shot.destroy(&ctx);
+}
+
+#[test]
+fn switching_lod_on_later_matches_a_renderer_built_with_it() {
+    // The renderer uploads the map without its mip chain while level of detail is off and
+    // derives the chain when `set_method` turns it on: the far plane (every pixel
+    // minified) then renders bit for bit as with the chain from the start, and not as
+    // without it.
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let scene = far_scene();
+    let on = settings(Method::Relief, scene, Some(THRESHOLD));
+    let hits = |r: &mut Renderer| {
+        r.render().unwrap();
+        r.read_hits()
+            .unwrap()
+            .iter()
+            .map(|h| h.map(f32::to_bits))
+            .collect::<Vec<_>>()
+    };
+    let mut built_on = Renderer::new(&ctx, &field, on).unwrap();
+    let want = hits(&mut built_on);
+    drop(built_on);
+    let mut switched = Renderer::new(&ctx, &field, settings(Method::Relief, scene, None)).unwrap();
+    let off = hits(&mut switched);
+    for round in 0..2 {
+        switched.set_method(Method::Relief, on.params).unwrap();
+        assert_eq!(hits(&mut switched), want, "round {round}: LOD switched on");
+        switched
+            .set_method(Method::Relief, settings(Method::Relief, scene, None).params)
+            .unwrap();
+        assert_eq!(hits(&mut switched), off, "round {round}: LOD switched off");
+    }
+    assert_ne!(want, off, "LOD changes no hit on the far plane");
+    drop(switched);
     finish(ctx);
 }

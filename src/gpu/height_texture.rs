@@ -1,11 +1,15 @@
 //! The height field on the GPU: a sampled image at the map's precision and a linear
 //! sampler with the map's addressing.
 //!
-//! The image has a mip chain (box-filtered by linear 2:1 blits) where the format supports
-//! linear blits; every method reads level 0 (`textureLod(.., 0)`, `texelFetch(.., 0)`)
-//! unless level of detail is on, when the marchers sample at the pixel's footprint level
-//! (`glsl/common/heightfield.glsl`). Without blit support the image has one level and the
-//! level-of-detail sampling reads level 0.
+//! Every method reads level 0 (`textureLod(.., 0)`, `texelFetch(.., 0)`) unless level of
+//! detail is on, when the marchers sample at the pixel's footprint level
+//! (`glsl/common/heightfield.glsl`). So the image has a mip chain (box-filtered by linear
+//! 2:1 blits) only when it is created for level of detail (`chain`) and the format
+//! supports linear blits: a third more memory is spent only where it is read. Without
+//! blit support the image has one level and the level-of-detail sampling reads level 0.
+//! Switching level of detail on or off later re-derives the texture on the GPU from the
+//! old one's level 0 ([`HeightTexture::create_like`], [`HeightTexture::record_copy_from`]):
+//! the height field's bytes are not kept on the host.
 //!
 //! Two views: [`HeightTexture::descriptor`] binds level 0 alone, what every pass reads
 //! unless level of detail is on, and [`HeightTexture::descriptor_lod`] the whole chain.
@@ -37,15 +41,16 @@ pub struct HeightTexture {
 }
 
 impl HeightTexture {
-    /// Uploads `field` (and builds its mip chain) and leaves it readable by compute
-    /// shaders.
+    /// Uploads `field` (and, with `chain`, builds its mip chain) and leaves it readable by
+    /// compute shaders.
     pub fn upload(
         ctx: &Context,
         shot: &OneShot,
         field: &HeightField,
         addressing: Addressing,
+        chain: bool,
     ) -> Result<Self> {
-        let (mut texture, mut staging) = Self::create_for_upload(ctx, field, addressing)?;
+        let (mut texture, mut staging) = Self::create_for_upload(ctx, field, addressing, chain)?;
         let result = (|| {
             let cmd = shot.begin(ctx)?;
             texture.record_upload(ctx, cmd, &staging);
@@ -59,14 +64,16 @@ impl HeightTexture {
         Ok(texture)
     }
 
-    /// Creates the image and sampler without touching a queue, plus a filled staging
-    /// buffer: the contents arrive when [`HeightTexture::record_upload`] is recorded and
-    /// executed (the host-engine path, which never submits). The caller destroys the
-    /// staging buffer once that copy has executed.
+    /// Creates the image (with a mip chain when `chain`) and sampler without touching a
+    /// queue, plus a filled staging buffer: the contents arrive when
+    /// [`HeightTexture::record_upload`] is recorded and executed (the host-engine path,
+    /// which never submits). The caller destroys the staging buffer once that copy has
+    /// executed.
     pub fn create_for_upload(
         ctx: &Context,
         field: &HeightField,
         addressing: Addressing,
+        chain: bool,
     ) -> Result<(Self, Buffer)> {
         let mut staging = Buffer::new(
             ctx,
@@ -85,57 +92,12 @@ impl HeightTexture {
                 ));
             }
         }
-        let texture = (|| {
-            let extent = vk::Extent2D {
-                width: field.width(),
-                height: field.height(),
-            };
-            let levels = mip_levels(ctx, field.format(), extent);
-            let mut usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
-            if levels > 1 {
-                usage |= vk::ImageUsageFlags::TRANSFER_SRC;
-            }
-            let mut image = Image::new(
-                ctx,
-                &format!("heightfield[{}]", field.label()),
-                field.format(),
-                extent,
-                levels,
-                usage,
-            )?;
-            let base_view = if levels > 1 {
-                match image.level_view(ctx, 0, &format!("heightfield[{}].level0", field.label())) {
-                    Ok(v) => Some(v),
-                    Err(e) => {
-                        image.destroy(ctx);
-                        return Err(e);
-                    }
-                }
-            } else {
-                None
-            };
-            match crate::passes::sampler(
-                ctx,
-                "heightfield.sampler",
-                vk::Filter::LINEAR,
-                address_mode(addressing),
-            ) {
-                Ok(sampler) => Ok(HeightTexture {
-                    image,
-                    sampler,
-                    addressing,
-                    base_view,
-                }),
-                Err(e) => {
-                    if let Some(v) = base_view {
-                        // SAFETY: created above, never used.
-                        unsafe { ctx.device().destroy_image_view(v, None) };
-                    }
-                    image.destroy(ctx);
-                    Err(e)
-                }
-            }
-        })();
+        let extent = vk::Extent2D {
+            width: field.width(),
+            height: field.height(),
+        };
+        let name = format!("heightfield[{}]", field.label());
+        let texture = Self::create(ctx, &name, field.format(), extent, addressing, chain);
         match texture {
             Ok(t) => Ok((t, staging)),
             Err(e) => {
@@ -145,6 +107,87 @@ impl HeightTexture {
         }
     }
 
+    /// Creates an empty texture (contents undefined until a fill is recorded).
+    fn create(
+        ctx: &Context,
+        name: &str,
+        format: vk::Format,
+        extent: vk::Extent2D,
+        addressing: Addressing,
+        chain: bool,
+    ) -> Result<Self> {
+        let levels = mip_levels(ctx, format, extent, chain);
+        // TRANSFER_SRC: blit source of the chain and copy source of `record_copy_from`.
+        let usage = vk::ImageUsageFlags::SAMPLED
+            | vk::ImageUsageFlags::TRANSFER_DST
+            | vk::ImageUsageFlags::TRANSFER_SRC;
+        let mut image = Image::new(ctx, name, format, extent, levels, usage)?;
+        let base_view = if levels > 1 {
+            match image.level_view(ctx, 0, &format!("{name}.level0")) {
+                Ok(v) => Some(v),
+                Err(e) => {
+                    image.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        } else {
+            None
+        };
+        match crate::passes::sampler(
+            ctx,
+            "heightfield.sampler",
+            vk::Filter::LINEAR,
+            address_mode(addressing),
+        ) {
+            Ok(sampler) => Ok(HeightTexture {
+                image,
+                sampler,
+                addressing,
+                base_view,
+            }),
+            Err(e) => {
+                if let Some(v) = base_view {
+                    // SAFETY: created above, never used.
+                    unsafe { ctx.device().destroy_image_view(v, None) };
+                }
+                image.destroy(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    /// Whether the texture has the mip chain level of detail reads.
+    pub fn has_chain(&self) -> bool {
+        self.image.mip_levels > 1
+    }
+
+    /// Whether a texture for `chain` would differ from this one in its levels (false
+    /// where the format has no linear blits: it keeps one level either way).
+    pub fn differs_for(&self, ctx: &Context, chain: bool) -> bool {
+        mip_levels(ctx, self.image.format, self.image.extent, chain) != self.image.mip_levels
+    }
+
+    /// An empty texture of the same map (size, format, addressing, name), with a mip chain
+    /// when `chain`; [`HeightTexture::record_copy_from`] fills it from `self`.
+    pub fn create_like(&self, ctx: &Context, chain: bool) -> Result<Self> {
+        Self::create(
+            ctx,
+            self.image.name(),
+            self.image.format,
+            self.image.extent,
+            self.addressing,
+            chain,
+        )
+    }
+
+    /// Records the fill of this texture from `source`, a texture of the same map in
+    /// `SHADER_READ_ONLY_OPTIMAL` (frames in flight may still sample it): its level 0 is
+    /// copied (bit for bit) and this texture's chain blitted from it as in
+    /// [`HeightTexture::record_upload`]; `source` ends readable by compute shaders again.
+    pub fn record_copy_from(&self, ctx: &Context, cmd: vk::CommandBuffer, source: &HeightTexture) {
+        self.record_fill(ctx, cmd, Level0::Image(&source.image));
+    }
+
     /// Records the copy of `staging` (from [`HeightTexture::create_for_upload`]) into
     /// level 0 and the mip chain: every level discarded -> `TRANSFER_DST_OPTIMAL`, copy,
     /// then per level a linear 2:1 blit from the level above (the box average of the
@@ -152,6 +195,11 @@ impl HeightTexture {
     /// and every level -> `SHADER_READ_ONLY_OPTIMAL` visible to
     /// compute-shader sampled reads. All transfer work is in the `ALL_TRANSFER` stage.
     pub fn record_upload(&self, ctx: &Context, cmd: vk::CommandBuffer, staging: &Buffer) {
+        self.record_fill(ctx, cmd, Level0::Buffer(staging));
+    }
+
+    /// Level 0 from `source`, then the chain (see [`HeightTexture::record_upload`]).
+    fn record_fill(&self, ctx: &Context, cmd: vk::CommandBuffer, source: Level0) {
         let image = &self.image;
         let level = |l: u32| vk::ImageSubresourceRange {
             base_mip_level: l,
@@ -175,24 +223,74 @@ impl HeightTexture {
             base_array_layer: 0,
             layer_count: 1,
         };
-        let region = vk::BufferImageCopy::default()
-            .image_subresource(layers(0))
-            .image_extent(vk::Extent3D {
-                width: image.extent.width,
-                height: image.extent.height,
-                depth: 1,
-            });
-        // SAFETY: `cmd` is recording outside a render pass (caller's contract); the buffer
-        // holds the image's tightly packed level 0 and both are alive.
-        unsafe {
-            ctx.device().cmd_copy_buffer_to_image(
-                cmd,
-                staging.raw,
-                image.raw,
-                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                &[region],
-            )
+        let extent = vk::Extent3D {
+            width: image.extent.width,
+            height: image.extent.height,
+            depth: 1,
         };
+        match source {
+            Level0::Buffer(staging) => {
+                let region = vk::BufferImageCopy::default()
+                    .image_subresource(layers(0))
+                    .image_extent(extent);
+                // SAFETY: `cmd` is recording outside a render pass (caller's contract); the
+                // buffer holds the image's tightly packed level 0 and both are alive.
+                unsafe {
+                    ctx.device().cmd_copy_buffer_to_image(
+                        cmd,
+                        staging.raw,
+                        image.raw,
+                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                        &[region],
+                    )
+                };
+            }
+            Level0::Image(src) => {
+                let src_level0 = vk::ImageSubresourceRange {
+                    base_mip_level: 0,
+                    level_count: 1,
+                    ..src.range()
+                };
+                // Earlier sampled reads of the source (frames in flight, in submission
+                // order on this queue) finish before the layout changes.
+                sync::record(
+                    ctx,
+                    cmd,
+                    &[sync::image_barrier(
+                        src.raw,
+                        src_level0,
+                        Access::COMPUTE_SAMPLED,
+                        TRANSFER_READ,
+                    )],
+                );
+                let region = vk::ImageCopy::default()
+                    .src_subresource(layers(0))
+                    .dst_subresource(layers(0))
+                    .extent(extent);
+                // SAFETY: as above; both images are alive, of the same format and size, in
+                // the layouts named (barriers above), and distinct.
+                unsafe {
+                    ctx.device().cmd_copy_image(
+                        cmd,
+                        src.raw,
+                        vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                        image.raw,
+                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                        &[region],
+                    )
+                };
+                sync::record(
+                    ctx,
+                    cmd,
+                    &[sync::image_barrier(
+                        src.raw,
+                        src_level0,
+                        TRANSFER_READ,
+                        Access::COMPUTE_SAMPLED,
+                    )],
+                );
+            }
+        }
         let corner = |l: u32| vk::Offset3D {
             x: (image.extent.width >> l).max(1) as i32,
             y: (image.extent.height >> l).max(1) as i32,
@@ -287,6 +385,14 @@ impl HeightTexture {
     }
 }
 
+/// Where level 0 comes from.
+enum Level0<'a> {
+    /// A staging buffer holding the map's texels, tightly packed.
+    Buffer(&'a Buffer),
+    /// Level 0 of another texture of the same map, sampled-readable.
+    Image(&'a Image),
+}
+
 /// Transfer writes (copy and blit destinations).
 const TRANSFER_WRITE: Access = Access {
     stage: vk::PipelineStageFlags2::ALL_TRANSFER,
@@ -301,9 +407,12 @@ const TRANSFER_READ: Access = Access {
     layout: vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
 };
 
-/// The full mip chain of `extent` when `format` supports linear blits (sources and
-/// destinations, optimal tiling), else 1.
-fn mip_levels(ctx: &Context, format: vk::Format, extent: vk::Extent2D) -> u32 {
+/// With `chain`, the full mip chain of `extent` when `format` supports linear blits
+/// (sources and destinations, optimal tiling); else 1.
+fn mip_levels(ctx: &Context, format: vk::Format, extent: vk::Extent2D, chain: bool) -> u32 {
+    if !chain {
+        return 1;
+    }
     // SAFETY: the physical device belongs to the context's instance.
     let props = unsafe {
         ctx.instance()
