@@ -4,16 +4,16 @@
 //! the frames recorded afterwards are bit-identical to the standalone `Renderer`'s for
 //! the same scene, method and size.
 //!
-//! The "host" here is a minimal frames-in-flight loop written in the test: dispmap's own
-//! headless context (validated), its `GBuffer` images and `GBufferPass` as the host's
-//! G-buffer (so the rays equal the standalone renderer's bit for bit), and per slot a
-//! hit image, a command buffer and a fence. It follows the slot contract of
-//! `dispmap::embed`: slot `s` is recorded again only after waiting on its previous fence,
-//! and command buffers are submitted in recording order.
+//! The "host" here is a minimal frames-in-flight loop: dispmap's own headless context
+//! (validated), its `GBuffer` images and `GBufferPass` as the host's G-buffer (so the
+//! rays equal the standalone renderer's bit for bit), and per slot a G-buffer and a hit
+//! image, with the command buffers and fences of `common::frames` (the slot contract of
+//! `dispmap::embed`).
 
 mod common;
 
 use ash::vk;
+use common::frames::{DISCARD, FrameSlots, record_gbuffer};
 use common::{asset_map, validated_context};
 use dispmap::Context;
 use dispmap::embed::{DisplacementPass, FrameInputs, HIT_FORMAT, PassSettings, Timestamps};
@@ -29,31 +29,20 @@ use std::sync::Arc;
 
 const SLOTS: usize = 2;
 
-/// Before an image whose contents are discarded: every earlier access (the slot's
-/// previous frame, a read-back copy) has finished before the new writes (WAR).
-const DISCARD: Access = Access {
-    stage: vk::PipelineStageFlags2::ALL_COMMANDS,
-    access: vk::AccessFlags2::NONE,
-    layout: vk::ImageLayout::UNDEFINED,
-};
-
-/// One frame-in-flight slot of the test host.
+/// One frame-in-flight slot's images.
 struct Slot {
     gbuffer: GBuffer,
     hit: Image,
-    cmd: vk::CommandBuffer,
-    fence: vk::Fence,
-    submitted: bool,
 }
 
-/// The test host: its command pool, G-buffer pipeline and slots.
+/// The test host: its G-buffer pipeline, slots' images and frame plumbing.
 struct Host {
     ctx: Arc<Context>,
     scene: Scene,
     extent: vk::Extent2D,
-    pool: vk::CommandPool,
     gbuffer_pass: GBufferPass,
     slots: Vec<Slot>,
+    frames: FrameSlots,
     frame: usize,
 }
 
@@ -73,68 +62,26 @@ fn images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, Image) {
 
 impl Host {
     fn new(ctx: Arc<Context>, scene: Scene, extent: vk::Extent2D) -> Host {
-        let dev = ctx.device();
-        let info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(ctx.queue_family_index())
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        // SAFETY: valid device and create info.
-        let pool = unsafe { dev.create_command_pool(&info, None) }.unwrap();
-        ctx.set_name(pool, "host.pool");
-        let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(SLOTS as u32);
-        // SAFETY: `pool` is valid.
-        let cmds = unsafe { dev.allocate_command_buffers(&alloc) }.unwrap();
-        let slots = cmds
-            .into_iter()
-            .enumerate()
-            .map(|(s, cmd)| {
-                // SAFETY: valid device.
-                let fence =
-                    unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.unwrap();
-                ctx.set_name(cmd, &format!("host.cmd{s}"));
-                ctx.set_name(fence, &format!("host.fence{s}"));
+        let slots = (0..SLOTS)
+            .map(|s| {
                 let (gbuffer, hit) = images(&ctx, extent, s);
-                Slot {
-                    gbuffer,
-                    hit,
-                    cmd,
-                    fence,
-                    submitted: false,
-                }
+                Slot { gbuffer, hit }
             })
             .collect();
         let gbuffer_pass = GBufferPass::new(&ctx).unwrap();
         Host {
+            frames: FrameSlots::new(ctx.clone(), SLOTS),
             ctx,
             scene,
             extent,
-            pool,
             gbuffer_pass,
             slots,
             frame: 0,
         }
     }
 
-    /// Waits for slot `s`'s previous frame (the slot contract).
-    fn wait(&mut self, s: usize) {
-        let slot = &mut self.slots[s];
-        if slot.submitted {
-            // SAFETY: the fence was submitted with the slot's last frame.
-            unsafe {
-                let dev = self.ctx.device();
-                dev.wait_for_fences(&[slot.fence], true, u64::MAX).unwrap();
-                dev.reset_fences(&[slot.fence]).unwrap();
-            }
-            slot.submitted = false;
-        }
-    }
-
     fn wait_all(&mut self) {
-        for s in 0..SLOTS {
-            self.wait(s);
-        }
+        self.frames.wait_all();
     }
 
     /// The host's own resize: it changes the size of the frames it records from now on;
@@ -149,74 +96,34 @@ impl Host {
     fn frame(&mut self, pass: &mut DisplacementPass) -> Vec<&'static str> {
         let s = self.frame % SLOTS;
         self.frame += 1;
-        self.wait(s);
+        let cmd = self.frames.begin(s);
         let ctx = self.ctx.clone();
         if self.slots[s].hit.extent != self.extent {
-            // Slot `s`'s last frame has completed: its old images are unused.
+            // Slot `s`'s last frame has completed (`begin` waited): its old images are
+            // unused.
             let (gbuffer, hit) = images(&ctx, self.extent, s);
             let slot = &mut self.slots[s];
             std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
             std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
         }
-        let slot = &mut self.slots[s];
-        let dev = ctx.device();
+        let slot = &self.slots[s];
         let camera = self
             .scene
             .frame_camera(self.extent.width, self.extent.height);
         let params = self.scene.gbuffer_params(&camera);
-        // SAFETY: the slot's previous frame completed (waited above), so its command
-        // buffer may be reset and its images rewritten.
-        unsafe {
-            dev.reset_command_buffer(slot.cmd, vk::CommandBufferResetFlags::empty())
-                .unwrap();
-            dev.begin_command_buffer(
-                slot.cmd,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )
-            .unwrap();
-        }
-        let cmd = slot.cmd;
         let g = &slot.gbuffer;
-        let mut to_attachments: Vec<_> = g
-            .colors()
-            .iter()
-            .map(|i| sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE))
-            .collect();
-        to_attachments.push(sync::image_barrier(
-            g.depth.raw,
-            g.depth.range(),
-            DISCARD,
-            Access::DEPTH_ATTACHMENT_WRITE,
-        ));
-        sync::record(&ctx, cmd, &to_attachments);
-        self.gbuffer_pass.record(&ctx, cmd, g, &params);
         // The pass's entry state (module docs of `dispmap::embed`).
-        let mut entry: Vec<_> = g
-            .colors()
-            .iter()
-            .map(|i| {
-                sync::image_barrier(
-                    i.raw,
-                    i.range(),
-                    Access::COLOR_ATTACHMENT_WRITE,
-                    Access::COMPUTE_SAMPLED,
-                )
-            })
-            .collect();
-        entry.push(sync::image_barrier(
-            g.depth.raw,
-            g.depth.range(),
-            Access::DEPTH_ATTACHMENT_WRITE,
-            Access::COMPUTE_SAMPLED,
-        ));
-        entry.push(sync::image_barrier(
-            slot.hit.raw,
-            slot.hit.range(),
-            DISCARD,
-            Access::COMPUTE_STORAGE_WRITE,
-        ));
-        sync::record(&ctx, cmd, &entry);
+        record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params);
+        sync::record(
+            &ctx,
+            cmd,
+            &[sync::image_barrier(
+                slot.hit.raw,
+                slot.hit.range(),
+                DISCARD,
+                Access::COMPUTE_STORAGE_WRITE,
+            )],
+        );
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: g.views(),
@@ -225,23 +132,16 @@ impl Host {
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue family;
         // the views are alive until the frame completes (replaced only after its fence),
-        // in the entry layouts above; the slot contract holds (`wait`); the buffer is
-        // submitted below, in recording order.
+        // in the entry layouts above; the slot contract holds (`begin` waited); the buffer
+        // is submitted below, in recording order.
         let recorded = unsafe { pass.record(cmd, &inputs, Timestamps::Off) }.unwrap();
-        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
-        let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
-        // SAFETY: the buffer was begun above; the fence is unsignalled (reset in `wait`).
-        unsafe {
-            dev.end_command_buffer(cmd).unwrap();
-            dev.queue_submit2(ctx.queue(), &submit, slot.fence).unwrap();
-        }
-        slot.submitted = true;
+        self.frames.submit(s);
         recorded.passes
     }
 
     /// The hit buffer of slot `s` (its last frame must have completed: `wait_all`).
     fn hits(&self, s: usize, shot: &OneShot) -> Vec<[f32; 4]> {
-        assert!(!self.slots[s].submitted);
+        assert!(!self.frames.in_flight(s));
         let bytes = read_image(
             &self.ctx,
             shot,
@@ -253,17 +153,13 @@ impl Host {
     }
 
     fn destroy(mut self) {
-        self.wait_all();
+        self.frames.destroy();
         let ctx = self.ctx.clone();
         for slot in &mut self.slots {
             slot.gbuffer.destroy(&ctx);
             slot.hit.destroy(&ctx);
-            // SAFETY: the slot's frame completed (`wait_all`).
-            unsafe { ctx.device().destroy_fence(slot.fence, None) };
         }
         self.gbuffer_pass.destroy(&ctx);
-        // SAFETY: nothing recorded from the pool is pending (`wait_all`).
-        unsafe { ctx.device().destroy_command_pool(self.pool, None) };
     }
 }
 
@@ -379,7 +275,7 @@ fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
     }
     // Resize while both slots' frames are in flight (no wait): the pass retires its
     // old grids, the host replaces each slot's images once that slot's fence signals.
-    assert!(host.slots.iter().all(|s| s.submitted));
+    assert!(host.frames.all_in_flight());
     pass.resize(large).unwrap();
     host.resize(large);
     assert_eq!(pass.settings().extent, large);
@@ -499,7 +395,7 @@ fn set_method_with_frames_in_flight_matches_standalone_for_each_method() {
         }
         // Switch while this method's frames are in flight (both slots submitted); a
         // refused switch changes nothing.
-        assert!(host.slots.iter().all(|s| s.submitted));
+        assert!(host.frames.all_in_flight());
         let bad = MethodParams {
             steps: 0,
             ..MethodParams::default()

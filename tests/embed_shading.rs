@@ -8,13 +8,14 @@
 //! with `DepthResolvePass` as `dispmap::embed` documents, holds the same values; no
 //! allocation or Vulkan object is left after `destroy` (`common::finish`).
 //!
-//! The "host" is the frames-in-flight loop of `tests/embed.rs` with a colour image per
-//! slot (dispmap's `GBuffer` and `GBufferPass` as the host's G-buffer, so the rays equal
-//! the standalone renderer's bit for bit).
+//! The "host" is the frames-in-flight loop of `tests/embed.rs` (`common::frames`) with a
+//! colour image per slot (dispmap's `GBuffer` and `GBufferPass` as the host's G-buffer,
+//! so the rays equal the standalone renderer's bit for bit).
 
 mod common;
 
 use ash::vk;
+use common::frames::{DISCARD, FrameSlots, record_gbuffer};
 use common::{asset_map, validated_context};
 use dispmap::Context;
 use dispmap::embed::{
@@ -44,13 +45,6 @@ const EXTENT: vk::Extent2D = vk::Extent2D {
     height: 64,
 };
 
-/// Before an image whose contents are discarded (WAR with every earlier access).
-const DISCARD: Access = Access {
-    stage: vk::PipelineStageFlags2::ALL_COMMANDS,
-    access: vk::AccessFlags2::NONE,
-    layout: vk::ImageLayout::UNDEFINED,
-};
-
 /// Sampled by fragment shaders (the depth resolve's source).
 const FRAGMENT_SAMPLED: Access = Access {
     stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
@@ -67,9 +61,6 @@ struct Slot {
     /// Whether the slot's last frame resolved the corrected depth (which then left the
     /// pass's image in `SHADER_READ_ONLY_OPTIMAL`).
     resolved_written: bool,
-    cmd: vk::CommandBuffer,
-    fence: vk::Fence,
-    submitted: bool,
 }
 
 struct Host {
@@ -78,10 +69,10 @@ struct Host {
     /// images of another size once that slot's previous frame has completed).
     extent: vk::Extent2D,
     scene: Scene,
-    pool: vk::CommandPool,
     gbuffer_pass: GBufferPass,
     resolve: DepthResolvePass,
     slots: Vec<Slot>,
+    frames: FrameSlots,
     frame: usize,
 }
 
@@ -114,28 +105,8 @@ fn slot_images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, Image
 
 impl Host {
     fn new(ctx: Arc<Context>, scene: Scene) -> Host {
-        let dev = ctx.device();
-        let info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(ctx.queue_family_index())
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        // SAFETY: valid device and create info.
-        let pool = unsafe { dev.create_command_pool(&info, None) }.unwrap();
-        ctx.set_name(pool, "host.pool");
-        let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(SLOTS as u32);
-        // SAFETY: `pool` is valid.
-        let cmds = unsafe { dev.allocate_command_buffers(&alloc) }.unwrap();
-        let slots = cmds
-            .into_iter()
-            .enumerate()
-            .map(|(s, cmd)| {
-                // SAFETY: valid device.
-                let fence =
-                    unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.unwrap();
-                ctx.set_name(cmd, &format!("host.cmd{s}"));
-                ctx.set_name(fence, &format!("host.fence{s}"));
+        let slots = (0..SLOTS)
+            .map(|s| {
                 let (gbuffer, hit, color, resolved) = slot_images(&ctx, EXTENT, s);
                 Slot {
                     gbuffer,
@@ -143,19 +114,16 @@ impl Host {
                     color,
                     resolved,
                     resolved_written: false,
-                    cmd,
-                    fence,
-                    submitted: false,
                 }
             })
             .collect();
         let gbuffer_pass = GBufferPass::new(&ctx).unwrap();
         let resolve = DepthResolvePass::new(&ctx).unwrap();
         Host {
+            frames: FrameSlots::new(ctx.clone(), SLOTS),
             ctx,
             extent: EXTENT,
             scene,
-            pool,
             gbuffer_pass,
             resolve,
             slots,
@@ -164,22 +132,11 @@ impl Host {
     }
 
     fn wait(&mut self, s: usize) {
-        let slot = &mut self.slots[s];
-        if slot.submitted {
-            // SAFETY: the fence was submitted with the slot's last frame.
-            unsafe {
-                let dev = self.ctx.device();
-                dev.wait_for_fences(&[slot.fence], true, u64::MAX).unwrap();
-                dev.reset_fences(&[slot.fence]).unwrap();
-            }
-            slot.submitted = false;
-        }
+        self.frames.wait(s);
     }
 
     fn wait_all(&mut self) {
-        for s in 0..SLOTS {
-            self.wait(s);
-        }
+        self.frames.wait_all();
     }
 
     /// Records and submits one frame without waiting for it; returns its slot and the
@@ -187,70 +144,28 @@ impl Host {
     fn frame(&mut self, pass: &mut DisplacementPass, output: Output) -> (usize, Vec<&'static str>) {
         let s = self.frame % SLOTS;
         self.frame += 1;
-        self.wait(s);
+        let cmd = self.frames.begin(s);
         let ctx = self.ctx.clone();
         let extent = self.extent;
         let slot = &mut self.slots[s];
         if slot.hit.extent != extent {
-            // The slot's last frame has completed (waited above): its images are unused.
+            // The slot's last frame has completed (`begin` waited): its images are unused.
             let (gbuffer, hit, color, resolved) = slot_images(&ctx, extent, s);
             std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
             std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
             std::mem::replace(&mut slot.color, color).destroy(&ctx);
             std::mem::replace(&mut slot.resolved, resolved).destroy(&ctx);
         }
-        let dev = ctx.device();
         let camera = self.scene.frame_camera(extent.width, extent.height);
         let params = self.scene.gbuffer_params(&camera);
         let light = self
             .scene
             .shade_params(&camera, [extent.width, extent.height], [1, 1])
             .light_dir;
-        // SAFETY: the slot's previous frame completed (waited above).
-        unsafe {
-            dev.reset_command_buffer(slot.cmd, vk::CommandBufferResetFlags::empty())
-                .unwrap();
-            dev.begin_command_buffer(
-                slot.cmd,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )
-            .unwrap();
-        }
-        let cmd = slot.cmd;
         let g = &slot.gbuffer;
-        let mut to_attachments: Vec<_> = g
-            .colors()
-            .iter()
-            .map(|i| sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE))
-            .collect();
-        to_attachments.push(sync::image_barrier(
-            g.depth.raw,
-            g.depth.range(),
-            DISCARD,
-            Access::DEPTH_ATTACHMENT_WRITE,
-        ));
-        sync::record(&ctx, cmd, &to_attachments);
-        self.gbuffer_pass.record(&ctx, cmd, g, &params);
         // The pass's entry state (module docs of `dispmap::embed`).
-        let mut entry: Vec<_> = g
-            .colors()
-            .iter()
-            .map(|i| {
-                sync::image_barrier(
-                    i.raw,
-                    i.range(),
-                    Access::COLOR_ATTACHMENT_WRITE,
-                    Access::COMPUTE_SAMPLED,
-                )
-            })
-            .collect();
-        entry.push(sync::image_barrier(
-            g.depth.raw,
-            g.depth.range(),
-            Access::DEPTH_ATTACHMENT_WRITE,
-            Access::COMPUTE_SAMPLED,
-        ));
+        record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params);
+        let mut entry = Vec::new();
         for image in [&slot.hit, &slot.color] {
             entry.push(sync::image_barrier(
                 image.raw,
@@ -275,7 +190,7 @@ impl Host {
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue family;
         // the views are alive until the frame completes, in the entry layouts above; the
-        // slot contract holds (`wait`); the buffer is submitted below, in order.
+        // slot contract holds (`begin` waited); the buffer is submitted below, in order.
         let recorded = unsafe {
             match output {
                 Output::Shaded => pass.record(cmd, &inputs, Timestamps::Owned),
@@ -318,32 +233,21 @@ impl Host {
                 .record(&ctx, cmd, source.view, slot.resolved.view, extent);
             slot.resolved_written = true;
         }
-        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
-        let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
-        // SAFETY: the buffer was begun above; the fence is unsignalled (reset in `wait`).
-        unsafe {
-            dev.end_command_buffer(cmd).unwrap();
-            dev.queue_submit2(ctx.queue(), &submit, slot.fence).unwrap();
-        }
-        slot.submitted = true;
+        self.frames.submit(s);
         (s, recorded.passes)
     }
 
     fn destroy(mut self) {
-        self.wait_all();
+        self.frames.destroy();
         let ctx = self.ctx.clone();
         for slot in &mut self.slots {
             slot.gbuffer.destroy(&ctx);
             slot.hit.destroy(&ctx);
             slot.color.destroy(&ctx);
             slot.resolved.destroy(&ctx);
-            // SAFETY: the slot's frame completed (`wait_all`).
-            unsafe { ctx.device().destroy_fence(slot.fence, None) };
         }
         self.gbuffer_pass.destroy(&ctx);
         self.resolve.destroy(&ctx);
-        // SAFETY: nothing recorded from the pool is pending (`wait_all`).
-        unsafe { ctx.device().destroy_command_pool(self.pool, None) };
     }
 }
 
@@ -372,7 +276,7 @@ fn read_slot(
 ) -> Frame {
     let ctx = &host.ctx;
     let slot = &host.slots[s];
-    assert!(!slot.submitted);
+    assert!(!host.frames.in_flight(s));
     let hits = read_image(ctx, shot, &slot.hit, Access::COMPUTE_STORAGE_READ).unwrap();
     let hits = bytemuck::cast_slice::<u8, [f32; 4]>(&hits)
         .iter()
@@ -681,7 +585,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
                 .collect();
             assert!(names.ends_with(step.later), "{what}: timings {names:?}");
         }
-        assert!(host.slots.iter().any(|s| s.submitted));
+        assert!(host.frames.any_in_flight());
         host.wait_all();
         let color = step.output == Output::Shaded;
         let want = standalone(
@@ -768,7 +672,7 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
         ]
     );
     host.frame(&mut pass, Output::Shaded);
-    assert!(host.slots.iter().all(|s| s.submitted));
+    assert!(host.frames.all_in_flight());
     pass.set_height_map(&inverted).unwrap();
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
     assert_eq!(
@@ -830,7 +734,7 @@ fn resize_with_shadows_and_depth_in_flight_matches_standalone_at_the_new_size() 
     for _ in 0..3 {
         host.frame(&mut pass, Output::Shaded);
     }
-    assert!(host.slots.iter().all(|s| s.submitted));
+    assert!(host.frames.all_in_flight());
     pass.resize(large).unwrap();
     host.extent = large;
     assert_eq!(pass.hit_depth(0).unwrap().extent, large);
@@ -861,13 +765,10 @@ fn depth_output_without_a_camera_is_a_clear_error() {
     let mut host = Host::new(ctx.clone(), Scene::default());
     let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(Method::Relief)).unwrap();
     pass.set_depth_output(true).unwrap();
+    // Slot 0's command buffer, begun; refused a record, ended and never submitted.
+    let cmd = host.frames.begin(0);
     let slot = &host.slots[0];
     let dev = ctx.device();
-    // SAFETY: the command buffer is fresh; it is begun, refused a record and ended.
-    unsafe {
-        dev.begin_command_buffer(slot.cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap();
-    }
     let inputs = FrameInputs {
         frame_slot: 0,
         gbuffer: slot.gbuffer.views(),
@@ -875,7 +776,7 @@ fn depth_output_without_a_camera_is_a_clear_error() {
         shade: None,
     };
     // SAFETY: as in `Host::frame`; the record is refused before recording anything.
-    let err = unsafe { pass.record(slot.cmd, &inputs, Timestamps::Off) }
+    let err = unsafe { pass.record(cmd, &inputs, Timestamps::Off) }
         .unwrap_err()
         .to_string();
     assert!(
@@ -883,7 +784,7 @@ fn depth_output_without_a_camera_is_a_clear_error() {
         "{err}"
     );
     // SAFETY: the buffer is recording; it is never submitted.
-    unsafe { dev.end_command_buffer(slot.cmd).unwrap() };
+    unsafe { dev.end_command_buffer(cmd).unwrap() };
     // With depth on and a ShadeTarget the frame records and reaches the standalone depth
     // (checked in the test above); here only that nothing leaks.
     let (_, passes) = host.frame(&mut pass, Output::Shaded);

@@ -20,26 +20,13 @@ use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
 use dispmap::reference::Ray;
 use std::sync::Arc;
 
-/// Before an image whose contents are discarded: every earlier access has finished.
-const DISCARD: Access = Access {
-    stage: vk::PipelineStageFlags2::ALL_COMMANDS,
-    access: vk::AccessFlags2::NONE,
-    layout: vk::ImageLayout::UNDEFINED,
-};
+use super::frames::{DISCARD, FrameSlots, record_gbuffer};
 
 /// `1.0` as an IEEE half float (the normal and tangent images are `R16G16B16A16_SFLOAT`).
 const HALF_ONE: u16 = 0x3C00;
 
 /// The surface id the uploaded G-buffer gives every covered pixel (DIG's same-surface test).
 pub const SURFACE_ID: f32 = 1.0;
-
-/// One frame-in-flight slot.
-struct Slot {
-    hit: Image,
-    cmd: vk::CommandBuffer,
-    fence: vk::Fence,
-    submitted: bool,
-}
 
 /// The test host: one G-buffer (read-only while frames are in flight), per-slot hit
 /// images, command buffers and fences, and a one-shot for uploads and read-backs.
@@ -50,8 +37,9 @@ pub struct RayHost {
     gbuffer: GBuffer,
     gbuffer_pass: Option<GBufferPass>,
     shot: OneShot,
-    pool: vk::CommandPool,
-    slots: Vec<Slot>,
+    slots: FrameSlots,
+    /// One hit image per slot.
+    hits: Vec<Image>,
 }
 
 impl RayHost {
@@ -79,29 +67,9 @@ impl RayHost {
             )
             .unwrap(),
         };
-        let dev = c.device();
-        let info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(c.queue_family_index())
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        // SAFETY: valid device and create info.
-        let pool = unsafe { dev.create_command_pool(&info, None) }.unwrap();
-        c.set_name(pool, "host.pool");
-        let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(slots as u32);
-        // SAFETY: `pool` is valid.
-        let cmds = unsafe { dev.allocate_command_buffers(&alloc) }.unwrap();
-        let slots = cmds
-            .into_iter()
-            .enumerate()
-            .map(|(s, cmd)| {
-                // SAFETY: valid device.
-                let fence =
-                    unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.unwrap();
-                c.set_name(cmd, &format!("host.cmd{s}"));
-                c.set_name(fence, &format!("host.fence{s}"));
-                let hit = Image::new(
+        let hits = (0..slots)
+            .map(|s| {
+                Image::new(
                     c,
                     &format!("host.hit{s}"),
                     HIT_FORMAT,
@@ -109,15 +77,10 @@ impl RayHost {
                     1,
                     vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
                 )
-                .unwrap();
-                Slot {
-                    hit,
-                    cmd,
-                    fence,
-                    submitted: false,
-                }
+                .unwrap()
             })
             .collect();
+        let slots = FrameSlots::new(ctx.clone(), slots);
         let shot = OneShot::new(c, "host.shot").unwrap();
         RayHost {
             ctx,
@@ -125,8 +88,8 @@ impl RayHost {
             gbuffer,
             gbuffer_pass: None,
             shot,
-            pool,
             slots,
+            hits,
         }
     }
 
@@ -200,43 +163,9 @@ impl RayHost {
         if self.gbuffer_pass.is_none() {
             self.gbuffer_pass = Some(GBufferPass::new(c).unwrap());
         }
-        let g = &self.gbuffer;
         let cmd = self.shot.begin(c).unwrap();
-        let mut before: Vec<_> = g
-            .colors()
-            .iter()
-            .map(|i| sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE))
-            .collect();
-        before.push(sync::image_barrier(
-            g.depth.raw,
-            g.depth.range(),
-            DISCARD,
-            Access::DEPTH_ATTACHMENT_WRITE,
-        ));
-        sync::record(c, cmd, &before);
-        self.gbuffer_pass
-            .as_ref()
-            .expect("created above")
-            .record(c, cmd, g, params);
-        let mut after: Vec<_> = g
-            .colors()
-            .iter()
-            .map(|i| {
-                sync::image_barrier(
-                    i.raw,
-                    i.range(),
-                    Access::COLOR_ATTACHMENT_WRITE,
-                    Access::COMPUTE_SAMPLED,
-                )
-            })
-            .collect();
-        after.push(sync::image_barrier(
-            g.depth.raw,
-            g.depth.range(),
-            Access::DEPTH_ATTACHMENT_WRITE,
-            Access::COMPUTE_SAMPLED,
-        ));
-        sync::record(c, cmd, &after);
+        let pass = self.gbuffer_pass.as_ref().expect("created above");
+        record_gbuffer(c, cmd, pass, &self.gbuffer, params);
         self.shot.submit_and_wait(c).unwrap();
     }
 
@@ -259,52 +188,23 @@ impl RayHost {
             .collect()
     }
 
-    /// Waits for slot `s`'s last frame (the slot contract).
-    pub fn wait(&mut self, s: usize) {
-        let slot = &mut self.slots[s];
-        if slot.submitted {
-            // SAFETY: the fence was submitted with the slot's last frame.
-            unsafe {
-                let dev = self.ctx.device();
-                dev.wait_for_fences(&[slot.fence], true, u64::MAX).unwrap();
-                dev.reset_fences(&[slot.fence]).unwrap();
-            }
-            slot.submitted = false;
-        }
-    }
-
     /// Waits for every slot.
     pub fn wait_all(&mut self) {
-        for s in 0..self.slots.len() {
-            self.wait(s);
-        }
+        self.slots.wait_all();
     }
 
     /// Records `pass` into slot `s` (after waiting for the slot's last frame) and submits
     /// it without waiting.
     pub fn submit(&mut self, pass: &mut DisplacementPass, s: usize) {
-        self.wait(s);
         let ctx = self.ctx.clone();
-        let dev = ctx.device();
-        let slot = &mut self.slots[s];
-        let cmd = slot.cmd;
-        // SAFETY: the slot's last frame completed (waited above).
-        unsafe {
-            dev.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
-                .unwrap();
-            dev.begin_command_buffer(
-                cmd,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )
-            .unwrap();
-        }
+        let cmd = self.slots.begin(s);
+        let hit = &self.hits[s];
         sync::record(
             &ctx,
             cmd,
             &[sync::image_barrier(
-                slot.hit.raw,
-                slot.hit.range(),
+                hit.raw,
+                hit.range(),
                 DISCARD,
                 Access::COMPUTE_STORAGE_WRITE,
             )],
@@ -312,32 +212,25 @@ impl RayHost {
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: self.gbuffer.views(),
-            hit: slot.hit.view,
+            hit: hit.view,
             shade: None,
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue
         // family; the G-buffer is in SHADER_READ_ONLY_OPTIMAL after its upload or
         // rasterisation (completed: `set_rays` / `rasterise` wait), the hit image in
         // GENERAL; the views live until the frame completes; the slot contract holds
-        // (`wait`) and the buffer is submitted below, in recording order.
+        // (`begin` waited) and the buffer is submitted below, in recording order.
         unsafe { pass.record(cmd, &inputs, Timestamps::Off) }.unwrap();
-        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
-        let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
-        // SAFETY: the buffer was begun above; the fence is unsignalled (reset in `wait`).
-        unsafe {
-            dev.end_command_buffer(cmd).unwrap();
-            dev.queue_submit2(ctx.queue(), &submit, slot.fence).unwrap();
-        }
-        slot.submitted = true;
+        self.slots.submit(s);
     }
 
     /// The hit buffer of slot `s` after its last frame (waits for it).
     pub fn hits(&mut self, s: usize) -> Vec<[f32; 4]> {
-        self.wait(s);
+        self.slots.wait(s);
         let bytes = read_image(
             &self.ctx,
             &self.shot,
-            &self.slots[s].hit,
+            &self.hits[s],
             Access::COMPUTE_STORAGE_WRITE,
         )
         .unwrap();
@@ -352,15 +245,11 @@ impl RayHost {
 
     /// Destroys everything the host created (waits for its frames first).
     pub fn destroy(mut self) {
-        self.wait_all();
+        self.slots.destroy();
         let ctx = self.ctx.clone();
-        for slot in &mut self.slots {
-            slot.hit.destroy(&ctx);
-            // SAFETY: the slot's frame completed (`wait_all`).
-            unsafe { ctx.device().destroy_fence(slot.fence, None) };
+        for hit in &mut self.hits {
+            hit.destroy(&ctx);
         }
-        // SAFETY: nothing recorded from the pool is pending (`wait_all`).
-        unsafe { ctx.device().destroy_command_pool(self.pool, None) };
         if let Some(p) = &mut self.gbuffer_pass {
             p.destroy(&ctx);
         }

@@ -1,10 +1,12 @@
 //! Shared set-up of the GPU tests: a validated context (core and synchronization
 //! validation), [`finish`] (the teardown check every GPU test ends with), the reference
-//! agreement check [`unexplained`], and [`host`], a test host that feeds chosen or
-//! rasterised rays to the embeddable pass.
+//! agreement check [`unexplained`], [`frames`], the frames-in-flight plumbing of the test
+//! hosts, and [`host`], a test host that feeds chosen or rasterised rays to the
+//! embeddable pass.
 
 #![allow(dead_code)]
 
+pub mod frames;
 pub mod host;
 
 use dispmap::context::{Context, ContextOptions};

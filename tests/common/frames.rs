@@ -1,0 +1,198 @@
+//! The frames-in-flight plumbing every test host shares: one command buffer and fence per
+//! slot, following the slot contract of `dispmap::embed` (slot `s` is recorded again only
+//! after waiting on its previous fence; buffers are submitted in recording order), and
+//! the host's G-buffer raster pass with the transitions into the pass's entry state.
+
+use ash::vk;
+use dispmap::Context;
+use dispmap::abi::GBufferParams;
+use dispmap::gpu::sync::{self, Access};
+use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
+use std::sync::Arc;
+
+/// Before an image whose contents are discarded: every earlier access (the slot's
+/// previous frame, a read-back copy) has finished before the new writes (WAR).
+pub const DISCARD: Access = Access {
+    stage: vk::PipelineStageFlags2::ALL_COMMANDS,
+    access: vk::AccessFlags2::NONE,
+    layout: vk::ImageLayout::UNDEFINED,
+};
+
+/// A command pool and, per slot, a command buffer, a fence and whether the slot's last
+/// frame was submitted and not yet waited for.
+pub struct FrameSlots {
+    ctx: Arc<Context>,
+    pool: vk::CommandPool,
+    cmds: Vec<vk::CommandBuffer>,
+    fences: Vec<vk::Fence>,
+    submitted: Vec<bool>,
+}
+
+impl FrameSlots {
+    /// `slots` command buffers and fences (named `host.cmd{s}`, `host.fence{s}`).
+    pub fn new(ctx: Arc<Context>, slots: usize) -> FrameSlots {
+        let dev = ctx.device();
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(ctx.queue_family_index())
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: valid device and create info.
+        let pool = unsafe { dev.create_command_pool(&info, None) }.unwrap();
+        ctx.set_name(pool, "host.pool");
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(slots as u32);
+        // SAFETY: `pool` is valid.
+        let cmds = unsafe { dev.allocate_command_buffers(&alloc) }.unwrap();
+        let fences = (0..slots)
+            .map(|s| {
+                // SAFETY: valid device.
+                let fence =
+                    unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.unwrap();
+                ctx.set_name(cmds[s], &format!("host.cmd{s}"));
+                ctx.set_name(fence, &format!("host.fence{s}"));
+                fence
+            })
+            .collect();
+        FrameSlots {
+            ctx,
+            pool,
+            cmds,
+            fences,
+            submitted: vec![false; slots],
+        }
+    }
+
+    /// Number of slots.
+    pub fn len(&self) -> usize {
+        self.cmds.len()
+    }
+
+    /// Whether slot `s`'s last frame was submitted and not waited for.
+    pub fn in_flight(&self, s: usize) -> bool {
+        self.submitted[s]
+    }
+
+    /// Whether every slot has a frame in flight.
+    pub fn all_in_flight(&self) -> bool {
+        self.submitted.iter().all(|&b| b)
+    }
+
+    /// Whether some slot has a frame in flight.
+    pub fn any_in_flight(&self) -> bool {
+        self.submitted.iter().any(|&b| b)
+    }
+
+    /// Waits for slot `s`'s last frame (the slot contract).
+    pub fn wait(&mut self, s: usize) {
+        if self.submitted[s] {
+            let dev = self.ctx.device();
+            // SAFETY: the fence was submitted with the slot's last frame.
+            unsafe {
+                dev.wait_for_fences(&[self.fences[s]], true, u64::MAX)
+                    .unwrap();
+                dev.reset_fences(&[self.fences[s]]).unwrap();
+            }
+            self.submitted[s] = false;
+        }
+    }
+
+    /// Waits for every slot.
+    pub fn wait_all(&mut self) {
+        for s in 0..self.len() {
+            self.wait(s);
+        }
+    }
+
+    /// Waits for slot `s`'s last frame, then resets and begins its command buffer.
+    pub fn begin(&mut self, s: usize) -> vk::CommandBuffer {
+        self.wait(s);
+        let cmd = self.cmds[s];
+        let dev = self.ctx.device();
+        // SAFETY: the slot's last frame completed (waited above), so its buffer may be
+        // reset.
+        unsafe {
+            dev.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
+                .unwrap();
+            dev.begin_command_buffer(
+                cmd,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .unwrap();
+        }
+        cmd
+    }
+
+    /// Ends slot `s`'s command buffer (begun by [`FrameSlots::begin`]) and submits it
+    /// with the slot's fence, without waiting.
+    pub fn submit(&mut self, s: usize) {
+        let cmd = self.cmds[s];
+        let dev = self.ctx.device();
+        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
+        let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
+        // SAFETY: the buffer was begun by `begin`; the fence is unsignalled (reset in
+        // `wait`, which `begin` called).
+        unsafe {
+            dev.end_command_buffer(cmd).unwrap();
+            dev.queue_submit2(self.ctx.queue(), &submit, self.fences[s])
+                .unwrap();
+        }
+        self.submitted[s] = true;
+    }
+
+    /// Waits for every slot, then destroys the fences and the pool.
+    pub fn destroy(mut self) {
+        self.wait_all();
+        let dev = self.ctx.device();
+        for &fence in &self.fences {
+            // SAFETY: the slot's frame completed (`wait_all`).
+            unsafe { dev.destroy_fence(fence, None) };
+        }
+        // SAFETY: nothing recorded from the pool is pending (`wait_all`).
+        unsafe { dev.destroy_command_pool(self.pool, None) };
+    }
+}
+
+/// Records the host's G-buffer: every image discarded into its attachment layout, the
+/// raster pass with `params`, then the entry state of `dispmap::embed`'s pass (every
+/// image sampled by compute shaders).
+pub fn record_gbuffer(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    pass: &GBufferPass,
+    g: &GBuffer,
+    params: &GBufferParams,
+) {
+    let barriers = |color: (Access, Access), depth: (Access, Access)| {
+        let mut b: Vec<_> = g
+            .colors()
+            .iter()
+            .map(|i| sync::image_barrier(i.raw, i.range(), color.0, color.1))
+            .collect();
+        b.push(sync::image_barrier(
+            g.depth.raw,
+            g.depth.range(),
+            depth.0,
+            depth.1,
+        ));
+        b
+    };
+    sync::record(
+        ctx,
+        cmd,
+        &barriers(
+            (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
+            (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
+        ),
+    );
+    pass.record(ctx, cmd, g, params);
+    sync::record(
+        ctx,
+        cmd,
+        &barriers(
+            (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
+            (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
+        ),
+    );
+}
