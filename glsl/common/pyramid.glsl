@@ -133,11 +133,19 @@ void texel_ray(Ray ray, out vec2 origin, out vec2 dir) {
     dir = ray.P * dims;
 }
 
-// Moves `cell` into the next node along the ray, which leaves the node [lo, hi) at
-// t_exit (per-axis exit times `exit`): across the exit face(s); the other axis is
-// recomputed inside the node's range. False when the ray left a clamp-addressed decal
-// (only through rounding at its border).
-bool step_across(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_exit, inout ivec2 cell) {
+// Leaves the node [lo, hi) that the ray exits at t_exit (per-axis exit times `exit`):
+// true with `result` when the traversal ends there (the ray's end: at t = 1 the ray is at
+// h = 0 <= H and always hits, rounding may have hidden the root in the last cell; or -1
+// when a clamp-addressed ray left the decal, only through rounding at its border); else
+// false with `cell` in the next node (across the exit face(s), the other axis recomputed
+// inside the node's range), `t` = t_exit and one level up.
+bool leave_node(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_exit, float t_end, int top,
+                inout ivec2 cell, inout float t, inout int level, out float result) {
+    result = -1.0;
+    if (t_exit >= t_end) {
+        result = t_end >= 1.0 ? 1.0 : -1.0;
+        return true;
+    }
     ivec2 n_cells = ivec2(pc.map_size);
     for (int a = 0; a < 2; ++a) {
         if (exit[a] <= exit[1 - a]) {
@@ -146,7 +154,12 @@ bool step_across(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_e
             cell[a] = clamp(cell_at(origin[a] + t_exit * dir[a], dir[a]), lo[a], hi[a] - 1);
         }
     }
-    return !(pc.addressing == ADDRESSING_CLAMP && (any(lessThan(cell, ivec2(-1))) || any(greaterThanEqual(cell, n_cells))));
+    if (pc.addressing == ADDRESSING_CLAMP && (any(lessThan(cell, ivec2(-1))) || any(greaterThanEqual(cell, n_cells)))) {
+        return true;
+    }
+    t = t_exit;
+    level = min(level + 1, top);
+    return false;
 }
 
 // The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h) with
@@ -220,16 +233,10 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
             t_exit = max(min(min(exit.x, exit.y), t_end), t);
             if (1.0 - t_exit > node_max + SKIP_MARGIN) {
                 // The ray stays above everything in the node: skip it.
-                if (t_exit >= t_end) {
-                    // At t = 1 the ray is at h = 0 <= H: it always hits there (rounding
-                    // may have hidden the root in the last cell).
-                    return t_end >= 1.0 ? 1.0 : -1.0;
+                float result;
+                if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, cell, t, level, result)) {
+                    return result;
                 }
-                if (!step_across(exit, lo, hi, origin, dir, t_exit, cell)) {
-                    return -1.0;
-                }
-                t = t_exit;
-                level = min(level + 1, top);
             } else if (level > 0) {
                 level -= 1;
             } else {
@@ -244,14 +251,10 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
         if (th >= 0.0) {
             return th;
         }
-        if (t_exit >= t_end) {
-            return t_end >= 1.0 ? 1.0 : -1.0;
+        float result;
+        if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, cell, t, level, result)) {
+            return result;
         }
-        if (!step_across(exit, lo, hi, origin, dir, t_exit, cell)) {
-            return -1.0;
-        }
-        t = t_exit;
-        level = min(level + 1, top);
         step += 1.0;
     }
     return -1.0;
