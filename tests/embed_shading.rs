@@ -251,6 +251,19 @@ impl Host {
     }
 }
 
+/// The end of every test here: host, read-back one-shot and pass destroyed (the host
+/// waits for every frame first), then the shared teardown checks.
+fn teardown(ctx: Arc<Context>, mut pass: DisplacementPass, host: Host, shot: Option<OneShot>) {
+    host.destroy();
+    if let Some(mut shot) = shot {
+        shot.destroy(&ctx);
+    }
+    // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
+    unsafe { pass.destroy() };
+    drop(pass);
+    common::finish_shared(ctx);
+}
+
 /// What a frame produced (or the standalone renderer's equivalent).
 #[derive(Debug, PartialEq)]
 struct Frame {
@@ -630,13 +643,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
     pass.set_depth_output(false).unwrap();
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
     assert_eq!(passes, ["dig_corners", "trace", "shade"]);
-    host.destroy();
-    let mut shot = shot;
-    shot.destroy(&ctx);
-    // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
-    unsafe { pass.destroy() };
-    drop(pass);
-    common::finish_shared(ctx);
+    teardown(ctx, pass, host, Some(shot));
 }
 
 #[test]
@@ -703,13 +710,7 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
             &format!("inverted map after the swap, slot {s}"),
         );
     }
-    host.destroy();
-    let mut shot = shot;
-    shot.destroy(&ctx);
-    // SAFETY: every frame completed (`Host::destroy` waited).
-    unsafe { pass.destroy() };
-    drop(pass);
-    common::finish_shared(ctx);
+    teardown(ctx, pass, host, Some(shot));
 }
 
 #[test]
@@ -749,13 +750,7 @@ fn resize_with_shadows_and_depth_in_flight_matches_standalone_at_the_new_size() 
         let got = read_slot(&host, &pass, s, &shot, true);
         assert_same(&got, &want, &format!("after resize, slot {s}"));
     }
-    host.destroy();
-    let mut shot = shot;
-    shot.destroy(&ctx);
-    // SAFETY: every frame completed (`Host::destroy` waited).
-    unsafe { pass.destroy() };
-    drop(pass);
-    common::finish_shared(ctx);
+    teardown(ctx, pass, host, Some(shot));
 }
 
 #[test]
@@ -789,9 +784,5 @@ fn depth_output_without_a_camera_is_a_clear_error() {
     // (checked in the test above); here only that nothing leaks.
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
     assert_eq!(passes, ["height_upload", "trace", "shade", "hit_depth"]);
-    host.destroy();
-    // SAFETY: every frame completed (`Host::destroy` waited).
-    unsafe { pass.destroy() };
-    drop(pass);
-    common::finish_shared(ctx);
+    teardown(ctx, pass, host, None);
 }
