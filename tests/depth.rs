@@ -298,31 +298,19 @@ impl BoxPipeline {
             .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
             .load_op(vk::AttachmentLoadOp::LOAD)
             .store_op(vk::AttachmentStoreOp::STORE);
-        let area = vk::Rect2D {
-            offset: vk::Offset2D::default(),
-            extent,
-        };
+        let area = dispmap::gpu::pipeline::frame_area(extent);
         let rendering = vk::RenderingInfo::default()
             .render_area(area)
             .layer_count(1)
             .color_attachments(&color_attachments)
             .depth_attachment(&depth_attachment);
-        let viewport = vk::Viewport {
-            x: 0.0,
-            y: 0.0,
-            width: extent.width as f32,
-            height: extent.height as f32,
-            min_depth: 0.0,
-            max_depth: 1.0,
-        };
         let dev = ctx.device();
+        dispmap::gpu::pipeline::set_frame_viewport(ctx, cmd, extent);
         // SAFETY: `cmd` is recording outside a render pass; the attachments are alive and
         // in the layouts named above (the test's barriers).
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
-            dev.cmd_set_viewport(cmd, 0, &[viewport]);
-            dev.cmd_set_scissor(cmd, 0, &[area]);
             dev.cmd_push_constants(
                 cmd,
                 self.layout,

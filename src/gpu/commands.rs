@@ -160,24 +160,7 @@ pub fn upload_image(
                 Access::TRANSFER_WRITE,
             )],
         );
-        let region = vk::BufferImageCopy::default()
-            .image_subresource(vk::ImageSubresourceLayers {
-                aspect_mask: range.aspect_mask,
-                mip_level: 0,
-                base_array_layer: 0,
-                layer_count: 1,
-            })
-            .image_extent(extent);
-        // SAFETY: `cmd` is recording; buffer and image are alive and sized for the copy.
-        unsafe {
-            ctx.device().cmd_copy_buffer_to_image(
-                cmd,
-                staging.raw,
-                image.raw,
-                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                &[region],
-            )
-        };
+        record_copy_to_level0(ctx, cmd, &staging, image);
         sync::record(
             ctx,
             cmd,
@@ -192,6 +175,35 @@ pub fn upload_image(
     })();
     staging.destroy(ctx);
     result
+}
+
+/// Records the copy of `staging` (tightly packed texels) into mip level 0 of `image`,
+/// which must be in `TRANSFER_DST_OPTIMAL` ([`Access::TRANSFER_WRITE`]).
+pub fn record_copy_to_level0(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    staging: &Buffer,
+    image: &Image,
+) {
+    let region = vk::BufferImageCopy::default()
+        .image_subresource(vk::ImageSubresourceLayers {
+            aspect_mask: image.range().aspect_mask,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        })
+        .image_extent(level_extent(image, 0));
+    // SAFETY: `cmd` is recording outside a render pass (caller's contract); the buffer
+    // holds the image's tightly packed level 0 and both are alive.
+    unsafe {
+        ctx.device().cmd_copy_buffer_to_image(
+            cmd,
+            staging.raw,
+            image.raw,
+            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+            &[region],
+        )
+    };
 }
 
 /// Reads mip level 0 of `image`, currently in `current`, back to tightly packed bytes;

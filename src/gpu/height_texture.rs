@@ -18,7 +18,7 @@
 //! general path (measured at 640x360: `bump`'s trace 14.4 -> 5.8 ms, its shade 15.6 ->
 //! 6.8 ms with level 0 alone).
 
-use super::commands::OneShot;
+use super::commands::{OneShot, record_copy_to_level0};
 use super::sync::{self, Access};
 use super::{Buffer, Image};
 use crate::context::Context;
@@ -213,7 +213,7 @@ impl HeightTexture {
                 image.raw,
                 image.range(),
                 Access::UNDEFINED,
-                TRANSFER_WRITE,
+                Access::TRANSFER_WRITE,
             )],
         );
         let aspect = image.range().aspect_mask;
@@ -229,22 +229,7 @@ impl HeightTexture {
             depth: 1,
         };
         match source {
-            Level0::Buffer(staging) => {
-                let region = vk::BufferImageCopy::default()
-                    .image_subresource(layers(0))
-                    .image_extent(extent);
-                // SAFETY: `cmd` is recording outside a render pass (caller's contract); the
-                // buffer holds the image's tightly packed level 0 and both are alive.
-                unsafe {
-                    ctx.device().cmd_copy_buffer_to_image(
-                        cmd,
-                        staging.raw,
-                        image.raw,
-                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                        &[region],
-                    )
-                };
-            }
+            Level0::Buffer(staging) => record_copy_to_level0(ctx, cmd, staging, image),
             Level0::Image(src) => {
                 let src_level0 = vk::ImageSubresourceRange {
                     base_mip_level: 0,
@@ -260,14 +245,15 @@ impl HeightTexture {
                         src.raw,
                         src_level0,
                         Access::COMPUTE_SAMPLED,
-                        TRANSFER_READ,
+                        Access::TRANSFER_READ,
                     )],
                 );
                 let region = vk::ImageCopy::default()
                     .src_subresource(layers(0))
                     .dst_subresource(layers(0))
                     .extent(extent);
-                // SAFETY: as above; both images are alive, of the same format and size, in
+                // SAFETY: `cmd` is recording outside a render pass (caller's contract); both
+                // images are alive, of the same format and size, in
                 // the layouts named (barriers above), and distinct.
                 unsafe {
                     ctx.device().cmd_copy_image(
@@ -285,7 +271,7 @@ impl HeightTexture {
                     &[sync::image_barrier(
                         src.raw,
                         src_level0,
-                        TRANSFER_READ,
+                        Access::TRANSFER_READ,
                         Access::COMPUTE_SAMPLED,
                     )],
                 );
@@ -303,8 +289,8 @@ impl HeightTexture {
                 &[sync::image_barrier(
                     image.raw,
                     level(l - 1),
-                    TRANSFER_WRITE,
-                    TRANSFER_READ,
+                    Access::TRANSFER_WRITE,
+                    Access::TRANSFER_READ,
                 )],
             );
             let blit = vk::ImageBlit::default()
@@ -330,7 +316,7 @@ impl HeightTexture {
         let mut done = vec![sync::image_barrier(
             image.raw,
             level(last),
-            TRANSFER_WRITE,
+            Access::TRANSFER_WRITE,
             Access::COMPUTE_SAMPLED,
         )];
         if last > 0 {
@@ -341,7 +327,7 @@ impl HeightTexture {
                     level_count: last,
                     ..image.range()
                 },
-                TRANSFER_READ,
+                Access::TRANSFER_READ,
                 Access::COMPUTE_SAMPLED,
             ));
         }
@@ -392,20 +378,6 @@ enum Level0<'a> {
     /// Level 0 of another texture of the same map, sampled-readable.
     Image(&'a Image),
 }
-
-/// Transfer writes (copy and blit destinations).
-const TRANSFER_WRITE: Access = Access {
-    stage: vk::PipelineStageFlags2::ALL_TRANSFER,
-    access: vk::AccessFlags2::TRANSFER_WRITE,
-    layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-};
-
-/// Transfer reads (blit sources).
-const TRANSFER_READ: Access = Access {
-    stage: vk::PipelineStageFlags2::ALL_TRANSFER,
-    access: vk::AccessFlags2::TRANSFER_READ,
-    layout: vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-};
 
 /// With `chain`, the full mip chain of `extent` when `format` supports linear blits
 /// (sources and destinations, optimal tiling); else 1.

@@ -328,3 +328,29 @@ pub fn raster_pipeline(ctx: &Context, desc: &RasterDesc) -> Result<vk::Pipeline>
     ctx.set_name(pipeline, desc.name);
     Ok(pipeline)
 }
+
+/// The render area covering all of `extent`.
+pub fn frame_area(extent: vk::Extent2D) -> vk::Rect2D {
+    vk::Rect2D {
+        offset: vk::Offset2D::default(),
+        extent,
+    }
+}
+
+/// Records the dynamic viewport (depth 0..1) and scissor covering all of `extent`: the
+/// state every raster pipeline of [`raster_pipeline`] leaves dynamic.
+pub fn set_frame_viewport(ctx: &Context, cmd: vk::CommandBuffer, extent: vk::Extent2D) {
+    let viewport = vk::Viewport {
+        x: 0.0,
+        y: 0.0,
+        width: extent.width as f32,
+        height: extent.height as f32,
+        min_depth: 0.0,
+        max_depth: 1.0,
+    };
+    // SAFETY: `cmd` is recording (caller's contract); viewport and scissor are plain values.
+    unsafe {
+        ctx.device().cmd_set_viewport(cmd, 0, &[viewport]);
+        ctx.device().cmd_set_scissor(cmd, 0, &[frame_area(extent)]);
+    }
+}

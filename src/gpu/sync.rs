@@ -57,15 +57,15 @@ impl Access {
         access: vk::AccessFlags2::SHADER_STORAGE_READ,
         layout: vk::ImageLayout::GENERAL,
     };
-    /// Source of a copy.
+    /// Source of a copy or blit.
     pub const TRANSFER_READ: Access = Access {
-        stage: vk::PipelineStageFlags2::COPY,
+        stage: vk::PipelineStageFlags2::ALL_TRANSFER,
         access: vk::AccessFlags2::TRANSFER_READ,
         layout: vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
     };
-    /// Destination of a copy.
+    /// Destination of a copy or blit.
     pub const TRANSFER_WRITE: Access = Access {
-        stage: vk::PipelineStageFlags2::COPY,
+        stage: vk::PipelineStageFlags2::ALL_TRANSFER,
         access: vk::AccessFlags2::TRANSFER_WRITE,
         layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
     };

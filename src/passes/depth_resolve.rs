@@ -106,22 +106,11 @@ impl DepthResolvePass {
             .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
             .load_op(vk::AttachmentLoadOp::DONT_CARE)
             .store_op(vk::AttachmentStoreOp::STORE);
-        let area = vk::Rect2D {
-            offset: vk::Offset2D::default(),
-            extent,
-        };
+        let area = crate::gpu::pipeline::frame_area(extent);
         let rendering = vk::RenderingInfo::default()
             .render_area(area)
             .layer_count(1)
             .depth_attachment(&depth_attachment);
-        let viewport = vk::Viewport {
-            x: 0.0,
-            y: 0.0,
-            width: extent.width as f32,
-            height: extent.height as f32,
-            min_depth: 0.0,
-            max_depth: 1.0,
-        };
         let image_info = [vk::DescriptorImageInfo {
             sampler: self.sampler,
             image_view: source,
@@ -132,6 +121,7 @@ impl DepthResolvePass {
             .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
             .image_info(&image_info)];
         let dev = ctx.device();
+        crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent);
         // SAFETY: `cmd` is recording outside a render pass (caller's contract); source and
         // target are alive and in the layouts documented above.
         unsafe {
@@ -144,8 +134,6 @@ impl DepthResolvePass {
                 0,
                 &writes,
             );
-            dev.cmd_set_viewport(cmd, 0, &[viewport]);
-            dev.cmd_set_scissor(cmd, 0, &[area]);
             dev.cmd_draw(cmd, 3, 1, 0, 0);
             dev.cmd_end_rendering(cmd);
         }

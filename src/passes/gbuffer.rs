@@ -254,32 +254,20 @@ impl GBufferPass {
                     stencil: 0,
                 },
             });
-        let area = vk::Rect2D {
-            offset: vk::Offset2D::default(),
-            extent,
-        };
+        let area = crate::gpu::pipeline::frame_area(extent);
         let rendering = vk::RenderingInfo::default()
             .render_area(area)
             .layer_count(1)
             .color_attachments(&color_attachments)
             .depth_attachment(&depth_attachment);
-        let viewport = vk::Viewport {
-            x: 0.0,
-            y: 0.0,
-            width: extent.width as f32,
-            height: extent.height as f32,
-            min_depth: 0.0,
-            max_depth: 1.0,
-        };
         let dev = ctx.device();
+        crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent);
         // SAFETY: `cmd` is recording outside a render pass; the attachments are in the
         // layouts documented above (the caller's barrier) and alive; a mesh's buffers are
         // alive (the caller's contract) and match the mesh pipeline's vertex input.
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
-            dev.cmd_set_viewport(cmd, 0, &[viewport]);
-            dev.cmd_set_scissor(cmd, 0, &[area]);
             dev.cmd_push_constants(
                 cmd,
                 self.layout,
