@@ -1,4 +1,4 @@
-// Shared conventions of every dispmap shader (see DESIGN.md and src/abi.rs).
+// Shared conventions of every dispmap shader (see docs/design.md and src/abi.rs).
 #ifndef DISPMAP_FRAME_GLSL
 #define DISPMAP_FRAME_GLSL
 
