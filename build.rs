@@ -14,9 +14,12 @@
 //!   instead of binding a placeholder.
 //!
 //! Debian 12's split shaderc packages need extra link directives for this build script;
-//! they live in `.cargo/config.toml` (see the comment there).
+//! the build-dependency `build-support/shaderc-link` emits them (see its `src/lib.rs`),
+//! so no `.cargo/config.toml` is needed, here or in a crate that depends on dispmap.
 
 use anyhow::{Context, Result, bail};
+// Link-only: its build script adds the glslang and SPIRV-Tools libraries (see the docs above).
+use dispmap_shaderc_link as _;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

@@ -4,7 +4,7 @@
 #   libvulkan1              the Vulkan loader
 #   vulkan-validationlayers VK_LAYER_KHRONOS_validation (tests run with it on)
 #   libshaderc-dev          shaderc for build.rs (pulls glslang-dev and spirv-tools,
-#                           whose static libraries .cargo/config.toml links)
+#                           whose static libraries build-support/shaderc-link links)
 # As root it runs apt-get; otherwise it prints the exact command and fails.
 set -euo pipefail
 

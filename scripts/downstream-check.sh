@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# Issue 12: a crate outside this repository that depends on dispmap by path must build
+# (dispmap's build script links shaderc through its build-dependencies, with no
+# .cargo/config.toml) and render. This copies the template scripts/downstream/ to a fresh
+# folder outside the checkout, points it at this checkout, checks that no cargo config
+# in that folder or above it could help the build, builds it and runs it: one 64x64
+# frame with validation on, failing on any validation message or non-finite output.
+#
+# The build reuses target/downstream (CARGO_TARGET_DIR) so that later runs are quick, and
+# starts from the checkout's Cargo.lock so that it builds the versions the checkout tests.
+# Runs from any folder. Needs what ./scripts/setup-debian.sh installs.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd -P)
+
+scratch=$(mktemp -d "${TMPDIR:-/tmp}/dispmap-downstream.XXXXXX")
+scratch=$(cd "$scratch" && pwd -P)
+trap 'rm -rf -- "$scratch"' EXIT
+case "$scratch/" in
+"$root"/*)
+    echo "downstream-check: $scratch is inside the checkout; set TMPDIR elsewhere" >&2
+    exit 1
+    ;;
+esac
+
+# The scratch crate, with the checkout's path as a TOML string.
+cp -R scripts/downstream/. "$scratch/"
+path=${root//\\/\\\\}
+path=${path//\"/\\\"}
+manifest=$(<"$scratch/Cargo.toml")
+printf '%s\n' "${manifest//@DISPMAP@/"$path"}" >"$scratch/Cargo.toml"
+if grep -q '@DISPMAP@' "$scratch/Cargo.toml"; then
+    echo "downstream-check: placeholder left in $scratch/Cargo.toml" >&2
+    exit 1
+fi
+if [ -f Cargo.lock ]; then
+    cp Cargo.lock "$scratch/Cargo.lock"
+fi
+
+# Cargo reads .cargo/config.toml (or .cargo/config) in the folder it runs in and every
+# parent, then in $CARGO_HOME. None may exist above the scratch folder; the user's
+# $CARGO_HOME one is accepted with a warning unless it mentions shaderc (e.g. a
+# [target.<triple>.shaderc] table that overrides shaderc-sys's build script).
+cargo_home=$(cd "${CARGO_HOME:-$HOME/.cargo}" 2>/dev/null && pwd -P || echo "${CARGO_HOME:-$HOME/.cargo}")
+check_home_config() {
+    local file=$1
+    echo "downstream-check: warning: cargo also reads $file" >&2
+    if grep -qi 'shaderc' "$file"; then
+        echo "downstream-check: $file mentions shaderc; it would hide the problem this checks" >&2
+        exit 1
+    fi
+}
+for file in "$cargo_home/config.toml" "$cargo_home/config"; do
+    if [ -f "$file" ]; then check_home_config "$file"; fi
+done
+dir=$scratch
+while :; do
+    for file in "$dir/.cargo/config.toml" "$dir/.cargo/config"; do
+        if [ -e "$file" ]; then
+            case "$(cd "$dir/.cargo" && pwd -P)" in
+            "$cargo_home") ;; # checked above
+            *)
+                echo "downstream-check: $file would apply to the scratch build; it must not exist" >&2
+                exit 1
+                ;;
+            esac
+        fi
+    done
+    [ "$dir" = / ] && break
+    dir=$(dirname "$dir")
+done
+
+# Build and run from the scratch folder: cargo finds its config from the working folder.
+export CARGO_TARGET_DIR="$root/target/downstream"
+cd "$scratch"
+echo "downstream-check: building $scratch (dispmap = $root, target dir $CARGO_TARGET_DIR)" >&2
+cargo build
+compiled=$(cargo tree --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
+normal=$(cargo tree -e normal --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
+echo "downstream-check: the downstream build compiled $compiled packages ($normal in its normal dependency graph, the scratch crate included)"
+cargo run --quiet
+echo "downstream-check: ok"
