@@ -33,7 +33,7 @@ fn main() -> anyhow::Result<()> {
         sizes: vec![256, 2048],
         ..BenchConfig::default()
     };
-    let ctx = Context::headless(&ContextOptions::default())?;
+    let ctx = std::sync::Arc::new(Context::headless(&ContextOptions::default())?);
     let maps = bench::bundled_maps()?;
     let rocks = MapSpec::bundled("rocks")?;
     eprintln!(

@@ -111,7 +111,7 @@ pub struct Output {
     /// The last frame's colour (RGBA8).
     pub color: Vec<u8>,
     /// Per-pass milliseconds of each completed frame, in frame order.
-    pub timings: Vec<Vec<(&'static str, f64)>>,
+    pub timings: Vec<Vec<(embed::PassName, f64)>>,
     /// Validation warnings + errors over the whole run (instance creation to destruction).
     pub validation_messages: u64,
     /// Whether the validation layer was on.
@@ -845,7 +845,7 @@ impl Engine {
         Vec<[f32; 4]>,
         Vec<f32>,
         Vec<u8>,
-        Vec<Vec<(&'static str, f64)>>,
+        Vec<Vec<(embed::PassName, f64)>>,
     )> {
         let scene = scene();
         let camera = scene.frame_camera(o.width, o.height);

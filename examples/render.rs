@@ -3,6 +3,7 @@
 //!
 //! `cargo run --example render -- path/to/map.png depth out.png`
 
+use dispmap::measure::Measure as _;
 use dispmap::{
     Context, ContextOptions, HeightField, Method, MethodParams, RenderSettings, Renderer, Scene,
 };
@@ -14,7 +15,7 @@ fn main() -> anyhow::Result<()> {
         _ => anyhow::bail!("usage: render MAP height|depth OUT.png"),
     };
     let field = HeightField::load(map.as_ref(), convention.parse()?)?;
-    let ctx = Context::headless(&ContextOptions::default())?;
+    let ctx = std::sync::Arc::new(Context::headless(&ContextOptions::default())?);
     let settings = RenderSettings {
         shadows: Default::default(),
         width: 320,

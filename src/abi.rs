@@ -155,6 +155,34 @@ pub struct ShadeParams {
     pub shininess: f32,
 }
 
+impl ShadeParams {
+    /// The shading of a frame seen through `view_proj` from `eye`, lit by a directional
+    /// light towards `light_dir` (unit, world space) of `light_intensity`; the material
+    /// constants (ambient 0.18, specular 0.25, shininess 48) are dispmap's one stone
+    /// material. The one place these values are formed.
+    pub fn new(
+        view_proj: Mat4,
+        eye: glam::Vec3,
+        light_dir: glam::Vec3,
+        light_intensity: f32,
+        frame_size: [u32; 2],
+        map_size: [u32; 2],
+        depth_scale: f32,
+    ) -> Self {
+        ShadeParams {
+            inv_view_proj: view_proj.inverse(),
+            camera_pos: eye.extend(1.0),
+            light_dir: light_dir.extend(light_intensity),
+            frame_size,
+            map_size,
+            depth_scale,
+            ambient: 0.18,
+            specular: 0.25,
+            shininess: 48.0,
+        }
+    }
+}
+
 /// `HitDepthParams` in `glsl/hit_depth.comp` (built by `HitDepthParams::new` in
 /// `src/passes/hit_depth.rs`).
 #[repr(C)]

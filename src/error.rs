@@ -54,6 +54,13 @@ pub enum Error {
         /// What went wrong.
         message: String,
     },
+    /// Misuse: an object was used after its `destroy`.
+    #[error("{0} used after destroy()")]
+    Destroyed(&'static str),
+    /// An internal invariant broke (e.g. a thread panicked while holding the allocator's
+    /// lock); not caused by the input.
+    #[error("internal error: {0}")]
+    Internal(String),
     /// A parameter is out of range or inconsistent.
     #[error("invalid {name}: {message}")]
     InvalidInput {

@@ -23,6 +23,7 @@ pub mod gpu;
 pub mod heatmap;
 pub mod heightfield;
 pub mod material;
+pub mod measure;
 pub mod mesh;
 pub mod method;
 pub mod metrics;

@@ -6,6 +6,7 @@ use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand}
 use dispmap::context::{Context, ContextOptions};
 use dispmap::heatmap::{self, CornerStats, IterationStats};
 use dispmap::heightfield::{Convention, HeightField};
+use dispmap::measure::Measure as _;
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::metrics::ErrorMetrics;
 use dispmap::passes::shadow::{DEFAULT_SHADOW_SAMPLES, ShadowMode, ShadowSettings};
@@ -16,6 +17,7 @@ use dispmap::{bench, bundled, output};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -518,8 +520,9 @@ impl DemoArgs {
 
 /// Destroys the context, then fails if validation reported anything up to and including
 /// the device's destruction (where the object tracker reports leaked objects).
-fn finish(ctx: Context) -> Result<()> {
+fn finish(ctx: Arc<Context>) -> Result<()> {
     let m = ctx.messages().clone();
+    // The last holder: dropping it destroys the device (every renderer is gone).
     drop(ctx);
     if m.total() > 0 {
         bail!(
@@ -532,7 +535,7 @@ fn finish(ctx: Context) -> Result<()> {
 }
 
 fn info(options: &ContextOptions) -> Result<()> {
-    let ctx = Context::headless(options)?;
+    let ctx = Arc::new(Context::headless(options)?);
     let i = ctx.info();
     println!("device:               {}", i.name);
     println!("type:                 {}", i.device_type);
@@ -632,7 +635,7 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
             output::check_writable(path).with_context(|| format!("invalid {option}"))?;
         }
     }
-    let ctx = Context::headless(options)?;
+    let ctx = Arc::new(Context::headless(options)?);
     {
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
@@ -740,7 +743,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
     let field = bundled::rocks()?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create {}", args.out_dir.display()))?;
-    let ctx = Context::headless(options)?;
+    let ctx = Arc::new(Context::headless(options)?);
     println!(
         "dispmap: {} on {} ({}), {}x{}, camera elevation {} deg, steps {}, median of {} frames",
         field.label(),
@@ -870,7 +873,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         .with_context(|| format!("invalid --out: cannot create {}", args.out.display()))?;
     output::check_writable(&args.out.join("report.md")).context("invalid --out")?;
 
-    let ctx = Context::headless(options)?;
+    let ctx = Arc::new(Context::headless(options)?);
     let bar = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {

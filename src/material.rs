@@ -16,9 +16,10 @@
 
 use crate::context::Context;
 use crate::error::{Error, Result};
-use crate::gpu::commands::upload_image;
+use crate::gpu::commands::{record_upload_level0, staging_for};
+use crate::gpu::owned::{Destroy, Guard};
 use crate::gpu::sync::Access;
-use crate::gpu::{HeightTexture, Image, OneShot};
+use crate::gpu::{Buffer, HeightTexture, Image};
 use crate::heightfield::Addressing;
 use ash::vk;
 use image::RgbaImage;
@@ -76,14 +77,14 @@ pub struct MaterialTextures {
 }
 
 impl MaterialTextures {
-    /// Uploads the present maps (none: nothing is created) and leaves them readable by
-    /// compute shaders.
-    pub fn upload(
+    /// Creates the present maps' images and sampler (none: nothing is created) and
+    /// their filled staging buffers, without touching a queue: the contents arrive when
+    /// [`MaterialTextures::record_upload`] is recorded and executed.
+    pub fn create_for_upload(
         ctx: &Context,
-        shot: &OneShot,
         images: &MaterialImages,
         addressing: Addressing,
-    ) -> Result<Option<Self>> {
+    ) -> Result<Option<(Self, MaterialStaging)>> {
         if images.albedo.is_none() && images.normal_map.is_none() {
             return Ok(None);
         }
@@ -92,11 +93,15 @@ impl MaterialTextures {
             Addressing::Clamp => vk::SamplerAddressMode::CLAMP_TO_EDGE,
         };
         let sampler = crate::passes::sampler(ctx, "material.sampler", vk::Filter::LINEAR, mode)?;
-        let mut textures = MaterialTextures {
-            albedo: None,
-            normal_map: None,
-            sampler,
-        };
+        let mut textures = Guard::new(
+            ctx,
+            MaterialTextures {
+                albedo: None,
+                normal_map: None,
+                sampler,
+            },
+        );
+        let mut staging = Guard::new(ctx, MaterialStaging([None, None]));
         let maps = [
             (&images.albedo, vk::Format::R8G8B8A8_SRGB, "material.albedo"),
             (
@@ -107,17 +112,36 @@ impl MaterialTextures {
         ];
         for (k, (map, format, name)) in maps.into_iter().enumerate() {
             let Some(map) = map else { continue };
-            let uploaded = upload_map(ctx, shot, map, format, name);
-            match uploaded {
-                Ok(image) if k == 0 => textures.albedo = Some(image),
-                Ok(image) => textures.normal_map = Some(image),
-                Err(e) => {
-                    textures.destroy(ctx);
-                    return Err(e);
-                }
+            let (image, buffer) = create_map(ctx, map, format, name)?;
+            if k == 0 {
+                textures.albedo = Some(image);
+            } else {
+                textures.normal_map = Some(image);
+            }
+            staging.0[k] = Some(buffer);
+        }
+        Ok(Some((textures.keep(), staging.keep())))
+    }
+
+    /// Records the copies of `staging` (from [`MaterialTextures::create_for_upload`])
+    /// into the maps, which end readable by compute shaders
+    /// ([`Access::COMPUTE_SAMPLED`]).
+    ///
+    /// # Safety
+    /// `cmd` is recording outside a render pass; `staging` came with these textures; both
+    /// stay alive until the command buffer has executed.
+    pub unsafe fn record_upload(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        staging: &MaterialStaging,
+    ) {
+        for (image, buffer) in [&self.albedo, &self.normal_map].into_iter().zip(&staging.0) {
+            if let (Some(image), Some(buffer)) = (image, buffer) {
+                // SAFETY: this function's contract.
+                unsafe { record_upload_level0(ctx, cmd, buffer, image, Access::COMPUTE_SAMPLED) };
             }
         }
-        Ok(Some(textures))
     }
 
     /// Descriptors of bindings 5 (albedo) and 6 (normal map) of the shade pass; a missing
@@ -159,13 +183,22 @@ impl MaterialTextures {
     }
 }
 
-fn upload_map(
+/// The staging buffers of [`MaterialTextures::create_for_upload`] (albedo, normal map).
+pub struct MaterialStaging([Option<Buffer>; 2]);
+
+impl MaterialStaging {
+    /// Destroys the buffers. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.0.iter_mut().for_each(|b| b.destroy(ctx));
+    }
+}
+
+fn create_map(
     ctx: &Context,
-    shot: &OneShot,
     map: &RgbaImage,
     format: vk::Format,
     name: &str,
-) -> Result<Image> {
+) -> Result<(Image, Buffer)> {
     let max = ctx.info().max_image_dimension_2d;
     if map.width() > max || map.height() > max {
         return Err(Error::invalid(
@@ -181,20 +214,20 @@ fn upload_map(
     for texel in bytes.chunks_exact_mut(4) {
         texel[3] = 0; // alpha 0 marks a present map
     }
-    let mut image = Image::new(
+    let image = Guard::new(
         ctx,
-        name,
-        format,
-        vk::Extent2D {
-            width: map.width(),
-            height: map.height(),
-        },
-        1,
-        vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
-    )?;
-    if let Err(e) = upload_image(ctx, shot, &image, &bytes, Access::COMPUTE_SAMPLED) {
-        image.destroy(ctx);
-        return Err(e);
-    }
-    Ok(image)
+        Image::new(
+            ctx,
+            name,
+            format,
+            vk::Extent2D {
+                width: map.width(),
+                height: map.height(),
+            },
+            1,
+            vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
+        )?,
+    );
+    let staging = staging_for(ctx, &image, &bytes)?;
+    Ok((image.keep(), staging))
 }

@@ -307,25 +307,27 @@ impl Scene {
         }
     }
 
-    /// Push constants of the shade pass.
+    /// The unit vector towards the light, world space.
+    pub fn light_direction(&self) -> Vec3 {
+        direction(self.light.elevation_deg, self.light.azimuth_deg)
+    }
+
+    /// The shading constants of `camera`'s frame ([`ShadeParams::new`]).
     pub fn shade_params(
         &self,
         camera: &FrameCamera,
         frame_size: [u32; 2],
         map_size: [u32; 2],
     ) -> ShadeParams {
-        ShadeParams {
-            inv_view_proj: camera.view_proj.inverse(),
-            camera_pos: camera.eye.extend(1.0),
-            light_dir: direction(self.light.elevation_deg, self.light.azimuth_deg)
-                .extend(self.light.intensity),
+        ShadeParams::new(
+            camera.view_proj,
+            camera.eye,
+            self.light_direction(),
+            self.light.intensity,
             frame_size,
             map_size,
-            depth_scale: self.depth_scale,
-            ambient: 0.18,
-            specular: 0.25,
-            shininess: 48.0,
-        }
+            self.depth_scale,
+        )
     }
 }
 

@@ -1,140 +1,198 @@
-//! GPU timestamps: one pair of queries per pass, read back after the frame's fence.
+//! GPU timestamps: one begin/end pair of queries per pass, read back after the frame's
+//! fence. The one timestamp writer of the crate: [`crate::embed::DisplacementPass`]
+//! writes its passes with it, and the standalone renderer its G-buffer pass.
 //!
 //! Timestamps are written with `ALL_COMMANDS` on both sides, so a pass's interval
 //! covers exactly its own work (the passes are serialised by barriers anyway). Raw
 //! values are masked to `timestampValidBits` and scaled by `timestampPeriod`.
 
 use crate::context::Context;
-use crate::error::{Error, Result, VkContext};
+use crate::error::{Result, VkContext};
+use crate::passes::PassName;
 use ash::vk;
 
-/// A query pool holding up to `capacity` named begin/end pairs per frame.
-pub struct GpuTimer {
-    pool: vk::QueryPool,
-    capacity: u32,
-    names: Vec<&'static str>,
-    open: Option<u32>,
-    period_ns: f64,
-    mask: u64,
+/// One timed pass of a recorded frame: its name and its begin/end queries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TimestampScope {
+    /// The pass.
+    pub name: PassName,
+    /// The pool holding the queries.
+    pub pool: vk::QueryPool,
+    /// Query written before the pass.
+    pub begin_query: u32,
+    /// Query written after the pass.
+    pub end_query: u32,
 }
 
-impl GpuTimer {
-    /// Creates a timer for up to `capacity` scopes per frame.
-    pub fn new(ctx: &Context, name: &str, capacity: u32) -> Result<Self> {
-        let info = vk::QueryPoolCreateInfo::default()
-            .query_type(vk::QueryType::TIMESTAMP)
-            .query_count(capacity * 2);
-        // SAFETY: valid device and create info.
-        let pool =
-            unsafe { ctx.device().create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
-        ctx.set_name(pool, name);
-        let bits = ctx.info().timestamp_valid_bits;
-        Ok(GpuTimer {
+/// Records passes between debug labels and, with a pool, timestamps: the queries
+/// `first .. first + capacity` of `pool`, reset by [`ScopeWriter::reset`], two per
+/// scope in recording order.
+pub(crate) struct ScopeWriter {
+    pool: Option<vk::QueryPool>,
+    first: u32,
+    capacity: u32,
+    /// The scopes written so far.
+    pub(crate) scopes: Vec<TimestampScope>,
+    /// Every pass recorded, timed or not.
+    pub(crate) passes: Vec<PassName>,
+}
+
+impl ScopeWriter {
+    /// A writer of the queries `first .. first + capacity` of `pool` (`None`: labels
+    /// only).
+    pub(crate) fn new(pool: Option<vk::QueryPool>, first: u32, capacity: u32) -> Self {
+        ScopeWriter {
             pool,
+            first,
             capacity,
-            names: Vec::new(),
-            open: None,
-            period_ns: ctx.info().timestamp_period_ns as f64,
-            mask: if bits >= 64 {
-                u64::MAX
-            } else {
-                (1u64 << bits) - 1
-            },
-        })
-    }
-
-    /// Resets the pool in `cmd`; call before the frame's first scope.
-    pub fn reset(&mut self, ctx: &Context, cmd: vk::CommandBuffer) {
-        // SAFETY: `cmd` is recording, outside a render pass; the pool is alive.
-        unsafe {
-            ctx.device()
-                .cmd_reset_query_pool(cmd, self.pool, 0, self.capacity * 2)
-        };
-        self.names.clear();
-        self.open = None;
-    }
-
-    /// Writes the begin timestamp of scope `name`.
-    pub fn begin(
-        &mut self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        name: &'static str,
-    ) -> Result<()> {
-        let index = self.names.len() as u32;
-        if index >= self.capacity || self.open.is_some() {
-            return Err(Error::invalid(
-                "timer",
-                format!(
-                    "cannot open scope {name}: capacity {} or a scope still open",
-                    self.capacity
-                ),
-            ));
+            scopes: Vec::new(),
+            passes: Vec::new(),
         }
-        self.names.push(name);
-        self.open = Some(index);
-        // SAFETY: `cmd` is recording; query `2 * index` was reset in this frame.
-        unsafe {
-            ctx.device().cmd_write_timestamp2(
-                cmd,
-                vk::PipelineStageFlags2::ALL_COMMANDS,
-                self.pool,
-                2 * index,
-            )
-        };
-        Ok(())
     }
 
-    /// Writes the end timestamp of the open scope.
-    pub fn end(&mut self, ctx: &Context, cmd: vk::CommandBuffer) {
-        if let Some(index) = self.open.take() {
-            // SAFETY: `cmd` is recording; query `2 * index + 1` was reset in this frame.
+    /// Resets the writer's queries in `cmd`; recorded before the first scope.
+    ///
+    /// # Safety
+    /// `cmd` is recording outside a render pass; the pool (if any) is alive, belongs to
+    /// `ctx`'s device and holds the writer's range.
+    pub(crate) unsafe fn reset(&self, ctx: &Context, cmd: vk::CommandBuffer) {
+        if let Some(pool) = self.pool {
+            // SAFETY: the caller's contract; the frame writes these queries after it.
             unsafe {
-                ctx.device().cmd_write_timestamp2(
-                    cmd,
-                    vk::PipelineStageFlags2::ALL_COMMANDS,
-                    self.pool,
-                    2 * index + 1,
-                )
+                ctx.device()
+                    .cmd_reset_query_pool(cmd, pool, self.first, self.capacity)
             };
         }
     }
 
-    /// Per-scope milliseconds of the last frame, in recording order. Call after the
-    /// frame's fence has signalled.
-    pub fn read(&self, ctx: &Context) -> Result<Vec<(&'static str, f64)>> {
-        let count = self.names.len();
-        if count == 0 {
-            return Ok(Vec::new());
+    /// Records `body` between a debug label and, with a pool, two timestamps. A scope
+    /// beyond the range is labelled but not timed.
+    ///
+    /// # Safety
+    /// As [`ScopeWriter::reset`], which was recorded earlier into the same frame.
+    pub(crate) unsafe fn scope<R>(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        name: PassName,
+        body: impl FnOnce(vk::CommandBuffer) -> R,
+    ) -> R {
+        ctx.begin_label(cmd, name.as_str());
+        let used = 2 * self.scopes.len() as u32;
+        let queries = self
+            .pool
+            .filter(|_| used + 2 <= self.capacity)
+            .map(|pool| (pool, self.first + used));
+        if let Some((pool, begin)) = queries {
+            // SAFETY: `cmd` is recording (the caller's contract); the query was reset in
+            // this frame.
+            unsafe {
+                ctx.device().cmd_write_timestamp2(
+                    cmd,
+                    vk::PipelineStageFlags2::ALL_COMMANDS,
+                    pool,
+                    begin,
+                )
+            };
         }
-        let mut raw = vec![0u64; count * 2];
-        // SAFETY: the queries were written by a submission the caller waited for.
-        unsafe {
-            ctx.device().get_query_pool_results(
-                self.pool,
-                0,
-                &mut raw,
-                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-            )
+        let result = body(cmd);
+        if let Some((pool, begin)) = queries {
+            // SAFETY: as above.
+            unsafe {
+                ctx.device().cmd_write_timestamp2(
+                    cmd,
+                    vk::PipelineStageFlags2::ALL_COMMANDS,
+                    pool,
+                    begin + 1,
+                )
+            };
+            self.scopes.push(TimestampScope {
+                name,
+                pool,
+                begin_query: begin,
+                end_query: begin + 1,
+            });
         }
-        .vk("vkGetQueryPoolResults")?;
-        Ok(self
-            .names
-            .iter()
-            .enumerate()
-            .map(|(i, &name)| {
-                let ticks =
-                    (raw[2 * i + 1] & self.mask).wrapping_sub(raw[2 * i] & self.mask) & self.mask;
-                (name, ticks as f64 * self.period_ns / 1e6)
-            })
-            .collect())
+        ctx.end_label(cmd);
+        self.passes.push(name);
+        result
     }
+}
 
+/// Per-pass milliseconds of a frame's timestamps, in recording order.
+///
+/// # Safety
+/// The pools in `scopes` must be alive and belong to `ctx`'s device, and the frame that
+/// wrote them must have completed (its fence signalled) and not been re-recorded since.
+pub unsafe fn read_timestamps(
+    ctx: &Context,
+    scopes: &[TimestampScope],
+) -> Result<Vec<(PassName, f64)>> {
+    let bits = ctx.info().timestamp_valid_bits;
+    let mask = if bits >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << bits) - 1
+    };
+    let period = ctx.info().timestamp_period_ns as f64;
+    scopes
+        .iter()
+        .map(|s| {
+            let mut begin = [0u64; 1];
+            let mut end = [0u64; 1];
+            // SAFETY: the caller guarantees the pool and that the frame completed; without
+            // WAIT an unavailable query is reported (NOT_READY), never waited for.
+            unsafe {
+                let dev = ctx.device();
+                dev.get_query_pool_results(
+                    s.pool,
+                    s.begin_query,
+                    &mut begin,
+                    vk::QueryResultFlags::TYPE_64,
+                )
+                .vk("vkGetQueryPoolResults")?;
+                dev.get_query_pool_results(
+                    s.pool,
+                    s.end_query,
+                    &mut end,
+                    vk::QueryResultFlags::TYPE_64,
+                )
+                .vk("vkGetQueryPoolResults")?;
+            }
+            let ticks = (end[0] & mask).wrapping_sub(begin[0] & mask) & mask;
+            Ok((s.name, ticks as f64 * period / 1e6))
+        })
+        .collect()
+}
+
+/// A `TIMESTAMP` query pool of `count` queries named `name`.
+pub(crate) fn timestamp_pool(ctx: &Context, name: &str, count: u32) -> Result<vk::QueryPool> {
+    if ctx.info().timestamp_valid_bits == 0 {
+        return Err(crate::error::Error::Unsupported {
+            device: ctx.info().name.clone(),
+            what: "timestamps on the queue family in use (timestampValidBits = 0)".into(),
+        });
+    }
+    let info = vk::QueryPoolCreateInfo::default()
+        .query_type(vk::QueryType::TIMESTAMP)
+        .query_count(count);
+    // SAFETY: valid device and create info.
+    let pool = unsafe { ctx.device().create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
+    ctx.set_name(pool, name);
+    Ok(pool)
+}
+
+/// A `TIMESTAMP` query pool owned by the standalone renderer.
+pub(crate) struct QueryPool(pub(crate) vk::QueryPool);
+
+impl QueryPool {
     /// Destroys the pool. Nothing may be pending.
-    pub fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_query_pool(self.pool, None) };
-        self.pool = vk::QueryPool::null();
+    pub(crate) fn destroy(&mut self, ctx: &Context) {
+        if self.0 != vk::QueryPool::null() {
+            // SAFETY: the caller guarantees no pending use.
+            unsafe { ctx.device().destroy_query_pool(self.0, None) };
+            self.0 = vk::QueryPool::null();
+        }
     }
 }
 

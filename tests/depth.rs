@@ -14,8 +14,10 @@ use dispmap::gpu::pipeline::{RasterDesc, raster_pipeline};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::Convention;
+use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
 use dispmap::metrics::{self, HitTexel};
+use dispmap::passes::PassName;
 use dispmap::passes::depth_resolve::{DEPTH_FORMAT, DepthResolvePass};
 use dispmap::reference::{Hit, Reference};
 use dispmap::renderer::{RenderSettings, Renderer};
@@ -212,11 +214,17 @@ fn corrected_depth_matches_the_reference_hits() {
             "{geometry:?}: {skipped} skipped"
         );
         let times = renderer.render().unwrap();
-        assert!(times.iter().any(|(n, _)| *n == "hit_depth"), "{times:?}");
+        assert!(
+            times.iter().any(|(n, _)| *n == PassName::HitDepth),
+            "{times:?}"
+        );
         renderer.set_depth_output(false).unwrap();
         assert!(renderer.read_depth().unwrap().is_none());
         let times = renderer.render().unwrap();
-        assert!(!times.iter().any(|(n, _)| *n == "hit_depth"), "{times:?}");
+        assert!(
+            !times.iter().any(|(n, _)| *n == PassName::HitDepth),
+            "{times:?}"
+        );
         drop(renderer);
     }
     finish(ctx);

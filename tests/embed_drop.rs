@@ -19,7 +19,7 @@ use dispmap::embed::{DisplacementPass, PassSettings};
 use dispmap::heightfield::Convention;
 use dispmap::method::{Method, MethodParams};
 use dispmap::scene::Scene;
-use std::sync::{Arc, Mutex};
+use std::sync::Mutex;
 
 /// Every record logged in this process: level and message.
 static RECORDS: Mutex<Vec<(log::Level, String)>> = Mutex::new(Vec::new());
@@ -59,7 +59,7 @@ fn dropping_without_destroy_warns_in_debug_builds_and_destroy_then_drop_is_silen
     log::set_boxed_logger(Box::new(Capture)).expect("the first logger of this binary");
     log::set_max_level(log::LevelFilter::Trace);
 
-    let ctx = Arc::new(validated_context()); // its env_logger init is refused: ours stays
+    let ctx = validated_context(); // its env_logger init is refused: ours stays
     let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
     let scene = Scene::default();
     // DIG with the pyramid guard: every optional part (pyramid, per-slot grids) exists.

@@ -234,7 +234,7 @@ impl Host {
             slot.resolved_written = true;
         }
         self.frames.submit(s);
-        (s, recorded.passes)
+        (s, recorded.passes.iter().map(|p| p.as_str()).collect())
     }
 
     fn destroy(mut self) {
@@ -261,7 +261,7 @@ fn teardown(ctx: Arc<Context>, mut pass: DisplacementPass, host: Host, shot: Opt
     // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
     unsafe { pass.destroy() };
     drop(pass);
-    common::finish_shared(ctx);
+    common::finish(ctx);
 }
 
 /// What a frame produced (or the standalone renderer's equivalent).
@@ -328,7 +328,7 @@ fn read_slot(
 
 /// The standalone renderer's frame for the same scene and settings.
 fn standalone(
-    ctx: &Context,
+    ctx: &Arc<Context>,
     field: &HeightField,
     method: Method,
     params: MethodParams,
@@ -341,7 +341,7 @@ fn standalone(
 
 /// [`standalone`] at `extent`; `features`: shadows, depth output, colour read.
 fn standalone_at(
-    ctx: &Context,
+    ctx: &Arc<Context>,
     field: &HeightField,
     method: Method,
     params: MethodParams,
@@ -475,7 +475,7 @@ const fn shadows(mode: ShadowMode, samples: u32) -> ShadowSettings {
 
 #[test]
 fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggles() {
-    let ctx = Arc::new(validated_context());
+    let ctx = validated_context();
     let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
     let off = ShadowSettings::default();
     let steps = [
@@ -594,7 +594,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
                 .timings(other as u32)
                 .unwrap()
                 .iter()
-                .map(|t| t.0)
+                .map(|t| t.0.as_str())
                 .collect();
             assert!(names.ends_with(step.later), "{what}: timings {names:?}");
         }
@@ -650,7 +650,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
 fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
     // `pyramid` with hard shadows: the stage owns a cell pyramid of the map, which a new
     // map (swapped while frames are in flight) must replace, not rebuild in place.
-    let ctx = Arc::new(validated_context());
+    let ctx = validated_context();
     let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
     // The same map read the other way up: new contents, the same size (so the stage is
     // rebuilt for the contents, not because its key's map size changed).
@@ -669,14 +669,7 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
     let (_, first) = host.frame(&mut pass, Output::Shaded);
     assert_eq!(
         first,
-        [
-            "height_upload",
-            "pyramid",
-            "trace",
-            "shadow",
-            "shade",
-            "hit_depth"
-        ]
+        ["upload", "pyramid", "trace", "shadow", "shade", "hit_depth"]
     );
     host.frame(&mut pass, Output::Shaded);
     assert!(host.frames.all_in_flight());
@@ -684,14 +677,7 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
     assert_eq!(
         passes,
-        [
-            "height_upload",
-            "pyramid",
-            "trace",
-            "shadow",
-            "shade",
-            "hit_depth"
-        ]
+        ["upload", "pyramid", "trace", "shadow", "shade", "hit_depth"]
     );
     for _ in 0..3 {
         let (_, passes) = host.frame(&mut pass, Output::Shaded);
@@ -717,7 +703,7 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
 fn resize_with_shadows_and_depth_in_flight_matches_standalone_at_the_new_size() {
     // The visibility and corrected-depth images are per slot and of the frame's size:
     // resize retires them (frames in flight still write theirs) and builds new ones.
-    let ctx = Arc::new(validated_context());
+    let ctx = validated_context();
     let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
     let method = Method::DigGuarded;
     let params = MethodParams::for_method(method);
@@ -755,7 +741,7 @@ fn resize_with_shadows_and_depth_in_flight_matches_standalone_at_the_new_size() 
 
 #[test]
 fn depth_output_without_a_camera_is_a_clear_error() {
-    let ctx = Arc::new(validated_context());
+    let ctx = validated_context();
     let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
     let mut host = Host::new(ctx.clone(), Scene::default());
     let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(Method::Relief)).unwrap();
@@ -783,6 +769,6 @@ fn depth_output_without_a_camera_is_a_clear_error() {
     // With depth on and a ShadeTarget the frame records and reaches the standalone depth
     // (checked in the test above); here only that nothing leaks.
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
-    assert_eq!(passes, ["height_upload", "trace", "shade", "hit_depth"]);
+    assert_eq!(passes, ["upload", "trace", "shade", "hit_depth"]);
     teardown(ctx, pass, host, None);
 }

@@ -41,7 +41,7 @@ mod common;
 
 use ash::vk;
 use common::host::RayHost;
-use common::{finish_shared, unexplained, validated_context};
+use common::{finish, unexplained, validated_context};
 use dispmap::Context;
 use dispmap::abi::GBufferParams;
 use dispmap::embed::{DisplacementPass, PassSettings};
@@ -718,7 +718,7 @@ fn run_case(case: &Case, host: &mut RayHost, passes: &mut Passes, max_dim: u32) 
 
 #[test]
 fn hard_case_matrix() {
-    let ctx = Arc::new(validated_context());
+    let ctx = validated_context();
     let max_dim = ctx.info().max_image_dimension_2d;
     let extent = vk::Extent2D {
         width: FRAME,
@@ -769,7 +769,7 @@ fn hard_case_matrix() {
         "hard-case failures:\n{}",
         failures.join("\n")
     );
-    finish_shared(ctx);
+    finish(ctx);
 }
 
 /// Determinism: the same input gives a bit-identical hit buffer from two fresh passes,
@@ -778,7 +778,7 @@ fn hard_case_matrix() {
 /// still running when slot 0's frame is submitted to read them; then slot 0 first).
 #[test]
 fn hits_are_bit_identical_across_runs_and_frame_orderings() {
-    let ctx = Arc::new(validated_context());
+    let ctx = validated_context();
     let field = rocks(0);
     let extent = vk::Extent2D {
         width: FRAME,
@@ -831,5 +831,5 @@ fn hits_are_bit_identical_across_runs_and_frame_orderings() {
         }
     }
     host.destroy();
-    finish_shared(ctx);
+    finish(ctx);
 }

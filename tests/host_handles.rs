@@ -152,19 +152,21 @@ fn host_handles_give_the_same_hits_as_standalone() {
             })
             .unwrap(),
         ));
-        let ctx = Context::from_handles(
-            HostHandles {
-                entry: entry.clone(),
-                instance: instance.clone(),
-                physical_device,
-                device: device.clone(),
-                queue_family_index: family,
-                queue,
-                allocator: allocator.clone(),
-            },
-            true,
-        )
-        .unwrap();
+        let ctx = Arc::new(
+            Context::from_handles(
+                HostHandles {
+                    entry: entry.clone(),
+                    instance: instance.clone(),
+                    physical_device,
+                    device: device.clone(),
+                    queue_family_index: family,
+                    queue,
+                    allocator: allocator.clone(),
+                },
+                true,
+            )
+            .unwrap(),
+        );
         let hits = {
             let mut r = Renderer::new(&ctx, &rocks, settings()).unwrap();
             r.render().unwrap();

@@ -10,6 +10,7 @@ mod common;
 
 use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::Convention;
+use dispmap::measure::Measure as _;
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::metrics::{self, ErrorMetrics, HitTexel};
 use dispmap::reference::{Ray, Reference};

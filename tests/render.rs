@@ -4,6 +4,7 @@ mod common;
 
 use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Convention, HeightField};
+use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
 use dispmap::metrics::ErrorMetrics;
 use dispmap::reference::Reference;

@@ -8,6 +8,7 @@ mod common;
 
 use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Convention, HeightField};
+use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
 use dispmap::reference::Reference;

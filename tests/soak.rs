@@ -22,12 +22,11 @@ mod common;
 
 use ash::vk;
 use common::host::RayHost;
-use common::{asset_map, finish_shared, validated_context};
+use common::{asset_map, finish, validated_context};
 use dispmap::embed::{DisplacementPass, PassSettings};
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::scene::Scene;
-use std::sync::Arc;
 
 /// Allowed growth of resident memory after warm-up, KiB. Measured on lavapipe: 1.9 MiB
 /// during the second cycle through the maps (allocator and driver caches), then none.
@@ -54,7 +53,7 @@ struct Sample {
 }
 
 fn soak(frames: usize, swap_every: usize) {
-    let ctx = Arc::new(validated_context());
+    let ctx = validated_context();
     // Three maps of different sizes and texel formats (R8, R32F, R16).
     let maps: Vec<HeightField> = vec![
         asset_map("rocks_depth.jpg", Convention::Depth),
@@ -116,7 +115,7 @@ fn soak(frames: usize, swap_every: usize) {
     unsafe { pass.destroy() };
     drop(pass);
     host.destroy();
-    finish_shared(ctx);
+    finish(ctx);
 
     for s in &samples {
         eprintln!("{s:?}");

@@ -57,12 +57,15 @@ use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::heatmap;
 use crate::heightfield::{HeightField, Texels};
+use crate::measure::{Compared, FrameReference, Measure as _};
 use crate::method::{MAX_STEPS, Method, MethodParams};
 use crate::metrics::{self, ErrorMetrics};
+use crate::passes::PassName;
 use crate::reference::Reference;
-use crate::renderer::{FrameReference, MAX_FRAME_SIDE, RenderSettings, Renderer};
+use crate::renderer::{MAX_FRAME_SIDE, RenderSettings, Renderer};
 use crate::scene::{Camera, Geometry, Scene};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime};
 
 /// The central view ray's angle below the horizon, degrees: with [`FOV_Y_DEG`] the
@@ -686,7 +689,7 @@ impl Tracker<'_> {
 /// and `size_source` is given) the map-size sweep on `size_source`. `progress` is called
 /// after every frame. Validates `config` first.
 pub fn run(
-    ctx: &Context,
+    ctx: &Arc<Context>,
     config: &BenchConfig,
     maps: &[MapSpec],
     size_source: Option<&MapSpec>,
@@ -798,7 +801,7 @@ struct RunSpec {
 /// What a run has measured so far.
 #[derive(Default)]
 struct RunAccumulator {
-    passes: Vec<(&'static str, Vec<f64>)>,
+    passes: Vec<(PassName, Vec<f64>)>,
     method_ms: Vec<f64>,
     total_ms: Vec<f64>,
     errors: Vec<ErrorMetrics>,
@@ -807,15 +810,15 @@ struct RunAccumulator {
 }
 
 impl RunAccumulator {
-    fn add_times(&mut self, times: &[(&'static str, f64)]) {
+    fn add_times(&mut self, times: &[(PassName, f64)]) {
         let mut frame_method = 0.0;
         let mut frame_total = 0.0;
         for &(name, ms) in times {
-            if name == "pyramid" {
+            if name.is_one_off() {
                 continue;
             }
             frame_total += ms;
-            if name == "trace" || name == "dig_corners" {
+            if name == PassName::Trace || name == PassName::DigCorners {
                 frame_method += ms;
             }
             match self.passes.iter_mut().find(|(n, _)| *n == name) {
@@ -827,7 +830,7 @@ impl RunAccumulator {
         self.total_ms.push(frame_total);
     }
 
-    fn median_of(&self, name: &str) -> Option<f64> {
+    fn median_of(&self, name: PassName) -> Option<f64> {
         self.passes
             .iter()
             .find(|(n, _)| *n == name)
@@ -844,7 +847,7 @@ impl RunAccumulator {
 /// the machine spreads over every method's frames instead of skewing the methods that
 /// happened to run at that time; the per-pass medians then discard the slow frames.
 struct MapSweep<'a> {
-    ctx: &'a Context,
+    ctx: &'a Arc<Context>,
     config: &'a BenchConfig,
     name: String,
     field: &'a HeightField,
@@ -856,7 +859,7 @@ struct MapSweep<'a> {
 impl<'a> MapSweep<'a> {
     /// Computes the references of the error frames (with a `bump` renderer).
     fn new(
-        ctx: &'a Context,
+        ctx: &'a Arc<Context>,
         config: &'a BenchConfig,
         map: &'a MapSpec,
         sweep: Sweep,
@@ -907,7 +910,7 @@ impl<'a> MapSweep<'a> {
         let config = self.config;
         // One renderer per method; each gets one untimed warm-up frame (first use of its
         // pipelines; it builds the pyramid, whose time is kept).
-        let mut renderers: Vec<(Method, Renderer<'a>, Option<f64>)> = Vec::new();
+        let mut renderers: Vec<(Method, Renderer, Option<f64>)> = Vec::new();
         for run in runs {
             if renderers.iter().any(|(m, _, _)| *m == run.method) {
                 continue;
@@ -915,8 +918,8 @@ impl<'a> MapSweep<'a> {
             let mut settings = Self::settings(config, run.method);
             settings.params = protocol_params(run.steps);
             let mut renderer = Renderer::new(self.ctx, self.field, settings)?;
-            let warm = renderer.render()?;
-            let pyramid = warm.iter().find(|(n, _)| *n == "pyramid").map(|t| t.1);
+            renderer.render()?;
+            let pyramid = renderer.pyramid_ms();
             renderers.push((run.method, renderer, pyramid));
         }
         let mut acc: Vec<RunAccumulator> = runs.iter().map(|_| RunAccumulator::default()).collect();
@@ -974,22 +977,18 @@ impl<'a> MapSweep<'a> {
     /// heat and interval maps when the run wants them and `f` is frame 0.
     fn measure(
         &self,
-        renderer: &Renderer<'_>,
+        renderer: &Renderer,
         run: &RunSpec,
         f: u32,
         reference: &FrameReference,
         acc: &mut RunAccumulator,
     ) -> Result<Vec<NamedImage>> {
         let frame = self.config.frame;
-        let hits = renderer.read_hits()?;
-        let color = renderer.read_color()?;
-        let mut e = metrics::hit_errors(
-            &hits,
-            &reference.hits,
-            &reference.rays,
-            renderer.map_geometry(),
-        );
-        e.psnr_db = metrics::psnr_rgba8(&color, &reference.color);
+        let Compared {
+            error: e,
+            hits,
+            color: _,
+        } = renderer.compare_last(reference)?;
         let covered = heatmap::coverage(&hits, Some(&reference.rays));
         acc.lockstep.push([
             lockstep_iterations(&hits, &covered, frame[0], [8, 1]),
@@ -1030,12 +1029,12 @@ impl<'a> MapSweep<'a> {
             frames: config.frames,
             error_frames: acc.errors.len() as u32,
             frame_set: config.frame_set(),
-            gbuffer_ms: acc.median_of("gbuffer").unwrap_or(0.0),
+            gbuffer_ms: acc.median_of(PassName::GBuffer).unwrap_or(0.0),
             pyramid_build_ms: run.method.needs().pyramid.and(pyramid_ms),
-            dig_corners_ms: acc.median_of("dig_corners"),
-            trace_ms: acc.median_of("trace").unwrap_or(0.0),
-            shade_ms: acc.median_of("shade").unwrap_or(0.0),
-            shadow_ms: acc.median_of("shadow"),
+            dig_corners_ms: acc.median_of(PassName::DigCorners),
+            trace_ms: acc.median_of(PassName::Trace).unwrap_or(0.0),
+            shade_ms: acc.median_of(PassName::Shade).unwrap_or(0.0),
+            shadow_ms: acc.median_of(PassName::Shadow),
             method_ms: crate::timing::median(&acc.method_ms),
             total_ms: crate::timing::median(&acc.total_ms),
             iterations_mean: acc.mean(|e| e.mean_iterations),
@@ -1057,7 +1056,7 @@ impl<'a> MapSweep<'a> {
     /// and, for `dig`, the interval map of the same frame.
     fn images(
         &self,
-        renderer: &Renderer<'_>,
+        renderer: &Renderer,
         method: Method,
         hits: &[metrics::HitTexel],
         rays: &[Option<crate::reference::Ray>],

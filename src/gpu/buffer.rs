@@ -36,7 +36,11 @@ impl Buffer {
         let allocation = ctx
             .allocator()
             .lock()
-            .map_err(|_| Error::invalid("allocator", "mutex poisoned"))?
+            .map_err(|_| {
+                Error::Internal(
+                    "the allocator's mutex is poisoned (a thread panicked holding it)".into(),
+                )
+            })?
             .allocate(&AllocationCreateDesc {
                 name,
                 requirements,

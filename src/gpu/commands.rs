@@ -117,14 +117,29 @@ fn texel_bytes(image: &Image) -> Result<u64> {
         })
 }
 
-/// Uploads tightly packed `bytes` into mip level 0 of `image` and leaves it in `after`.
-pub fn upload_image(
-    ctx: &Context,
-    shot: &OneShot,
-    image: &Image,
-    bytes: &[u8],
-    after: Access,
-) -> Result<()> {
+/// A host-visible `TRANSFER_SRC` buffer named `name` holding `bytes`.
+pub fn staging_buffer(ctx: &Context, name: &str, bytes: &[u8]) -> Result<Buffer> {
+    let mut staging = Buffer::new(
+        ctx,
+        name,
+        bytes.len() as u64,
+        vk::BufferUsageFlags::TRANSFER_SRC,
+        MemoryLocation::CpuToGpu,
+    )?;
+    match staging.mapped_mut() {
+        Some(mapped) => {
+            mapped.copy_from_slice(bytes);
+            Ok(staging)
+        }
+        None => {
+            staging.destroy(ctx);
+            Err(Error::invalid(name, "staging buffer is not mapped"))
+        }
+    }
+}
+
+/// Checks that `bytes` is exactly mip level 0 of `image`, tightly packed.
+fn check_level0_bytes(image: &Image, bytes: &[u8]) -> Result<()> {
     let extent = level_extent(image, 0);
     let expected = texel_bytes(image)? * extent.width as u64 * extent.height as u64;
     if bytes.len() as u64 != expected {
@@ -133,48 +148,72 @@ pub fn upload_image(
             format!("upload of {} bytes, expected {expected}", bytes.len()),
         ));
     }
-    let mut staging = Buffer::new(
-        ctx,
-        &format!("{}.staging", image.name()),
-        expected,
-        vk::BufferUsageFlags::TRANSFER_SRC,
-        MemoryLocation::CpuToGpu,
-    )?;
+    Ok(())
+}
+
+/// A staging buffer for mip level 0 of `image` (checked to be exactly that size).
+pub fn staging_for(ctx: &Context, image: &Image, bytes: &[u8]) -> Result<Buffer> {
+    check_level0_bytes(image, bytes)?;
+    staging_buffer(ctx, &format!("{}.staging", image.name()), bytes)
+}
+
+/// Uploads tightly packed `bytes` into mip level 0 of `image` and leaves it in `after`.
+pub fn upload_image(
+    ctx: &Context,
+    shot: &OneShot,
+    image: &Image,
+    bytes: &[u8],
+    after: Access,
+) -> Result<()> {
+    let mut staging = staging_for(ctx, image, bytes)?;
     let result = (|| {
-        staging
-            .mapped_mut()
-            .ok_or_else(|| Error::invalid(image.name(), "staging buffer is not mapped"))?
-            .copy_from_slice(bytes);
         let cmd = shot.begin(ctx)?;
-        let range = vk::ImageSubresourceRange {
-            level_count: 1,
-            ..image.range()
-        };
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                range,
-                Access::UNDEFINED,
-                Access::TRANSFER_WRITE,
-            )],
-        );
-        record_copy_to_level0(ctx, cmd, &staging, image);
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                range,
-                Access::TRANSFER_WRITE,
-                after,
-            )],
-        );
+        // SAFETY: `cmd` was just begun; the staging buffer holds level 0.
+        unsafe { record_upload_level0(ctx, cmd, &staging, image, after) };
         shot.submit_and_wait(ctx)
     })();
     staging.destroy(ctx);
     result
+}
+
+/// Records the upload of `staging` into mip level 0 of `image`: its contents discarded
+/// -> `TRANSFER_DST_OPTIMAL`, the copy, then -> `after`.
+///
+/// # Safety
+/// `cmd` is recording outside a render pass; `staging` holds level 0 tightly packed;
+/// both stay alive until the command buffer has executed.
+pub unsafe fn record_upload_level0(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    staging: &Buffer,
+    image: &Image,
+    after: Access,
+) {
+    let range = vk::ImageSubresourceRange {
+        level_count: 1,
+        ..image.range()
+    };
+    sync::record(
+        ctx,
+        cmd,
+        &[sync::image_barrier(
+            image.raw,
+            range,
+            Access::UNDEFINED,
+            Access::TRANSFER_WRITE,
+        )],
+    );
+    record_copy_to_level0(ctx, cmd, staging, image);
+    sync::record(
+        ctx,
+        cmd,
+        &[sync::image_barrier(
+            image.raw,
+            range,
+            Access::TRANSFER_WRITE,
+            after,
+        )],
+    );
 }
 
 /// Records the copy of `staging` (tightly packed texels) into mip level 0 of `image`,

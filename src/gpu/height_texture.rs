@@ -22,10 +22,9 @@ use super::commands::{OneShot, record_copy_to_level0};
 use super::sync::{self, Access};
 use super::{Buffer, Image};
 use crate::context::Context;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::heightfield::{Addressing, HeightField};
 use ash::vk;
-use gpu_allocator::MemoryLocation;
 
 /// The uploaded height field.
 pub struct HeightTexture {
@@ -75,36 +74,19 @@ impl HeightTexture {
         addressing: Addressing,
         chain: bool,
     ) -> Result<(Self, Buffer)> {
-        let mut staging = Buffer::new(
+        let staging = crate::gpu::commands::staging_buffer(
             ctx,
             &format!("heightfield[{}].staging", field.label()),
-            field.bytes().len() as u64,
-            vk::BufferUsageFlags::TRANSFER_SRC,
-            MemoryLocation::CpuToGpu,
+            field.bytes(),
         )?;
-        match staging.mapped_mut() {
-            Some(bytes) => bytes.copy_from_slice(field.bytes()),
-            None => {
-                staging.destroy(ctx);
-                return Err(Error::invalid(
-                    field.label(),
-                    "staging buffer is not mapped",
-                ));
-            }
-        }
+        let staging = crate::gpu::owned::Guard::new(ctx, staging);
         let extent = vk::Extent2D {
             width: field.width(),
             height: field.height(),
         };
         let name = format!("heightfield[{}]", field.label());
-        let texture = Self::create(ctx, &name, field.format(), extent, addressing, chain);
-        match texture {
-            Ok(t) => Ok((t, staging)),
-            Err(e) => {
-                staging.destroy(ctx);
-                Err(e)
-            }
-        }
+        let texture = Self::create(ctx, &name, field.format(), extent, addressing, chain)?;
+        Ok((texture, staging.keep()))
     }
 
     /// Creates an empty texture (contents undefined until a fill is recorded).

@@ -98,7 +98,11 @@ impl Image {
         let allocation = ctx
             .allocator()
             .lock()
-            .map_err(|_| Error::invalid("allocator", "mutex poisoned"))?
+            .map_err(|_| {
+                Error::Internal(
+                    "the allocator's mutex is poisoned (a thread panicked holding it)".into(),
+                )
+            })?
             .allocate(&AllocationCreateDesc {
                 name,
                 requirements,

@@ -8,6 +8,7 @@ pub mod buffer;
 pub mod commands;
 pub mod height_texture;
 pub mod image;
+pub mod owned;
 pub mod pipeline;
 pub mod sync;
 

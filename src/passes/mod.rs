@@ -40,3 +40,67 @@ pub(crate) fn sampler(
     ctx.set_name(sampler, name);
     Ok(sampler)
 }
+
+/// The passes of a frame, in recording order; what timestamps and debug labels name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum PassName {
+    /// The G-buffer raster pass (the standalone renderer's; a host records its own).
+    GBuffer,
+    /// Copies of staged data: a new height map (and its mip chain) or material maps, or
+    /// the height texture refilled when level of detail is switched. One-off.
+    Upload,
+    /// The min-reduce chain of the pyramid methods (and of hard shadows' cell pyramid).
+    /// One-off: built once per height map.
+    Pyramid,
+    /// The DIG corner pass.
+    DigCorners,
+    /// The intersection method, writing the hit buffer.
+    Trace,
+    /// Self-shadowing: the light visibility of each hit.
+    Shadow,
+    /// Lighting of the hits into the colour image.
+    Shade,
+    /// The corrected depth of the displaced surface.
+    HitDepth,
+}
+
+impl PassName {
+    /// Every pass, in recording order.
+    pub const ALL: [PassName; 8] = [
+        PassName::GBuffer,
+        PassName::Upload,
+        PassName::Pyramid,
+        PassName::DigCorners,
+        PassName::Trace,
+        PassName::Shadow,
+        PassName::Shade,
+        PassName::HitDepth,
+    ];
+
+    /// The name in reports, metrics files and debug labels (`gbuffer`, `upload`,
+    /// `pyramid`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PassName::GBuffer => "gbuffer",
+            PassName::Upload => "upload",
+            PassName::Pyramid => "pyramid",
+            PassName::DigCorners => "dig_corners",
+            PassName::Trace => "trace",
+            PassName::Shadow => "shadow",
+            PassName::Shade => "shade",
+            PassName::HitDepth => "hit_depth",
+        }
+    }
+
+    /// Whether the pass runs once after a change (a new map or method) rather than
+    /// every frame: such times are reported apart from the per-frame total.
+    pub fn is_one_off(self) -> bool {
+        matches!(self, PassName::Upload | PassName::Pyramid)
+    }
+}
+
+impl std::fmt::Display for PassName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}

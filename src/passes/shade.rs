@@ -52,6 +52,9 @@ pub struct ShadeInputs<'a> {
     pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
+    /// Albedo and normal map (bindings 5 and 6; `None`: the height texture stands in,
+    /// which the shader reads as "no map", see [`crate::material`]).
+    pub material: Option<&'a crate::material::MaterialTextures>,
     /// The colour output (written; the frame's size).
     pub color: ViewRef,
     /// The light visibility of the `shadow` pass (read); required by a
@@ -107,8 +110,8 @@ impl ShadePass {
         self.shadowed
     }
 
-    /// Records the dispatch over the whole frame (no albedo or normal map). Fails
-    /// (recording nothing) when a shadowed pass gets no visibility image.
+    /// Records the dispatch over the whole frame. Fails (recording nothing) when a
+    /// shadowed pass gets no visibility image.
     pub fn record(
         &self,
         ctx: &Context,
@@ -116,23 +119,11 @@ impl ShadePass {
         inputs: ShadeInputs,
         params: &ShadeParams,
     ) -> Result<()> {
-        self.record_with_material(ctx, cmd, inputs, None, params)
-    }
-
-    /// Records the dispatch with the maps of `material` (bindings 5 and 6). Fails
-    /// (recording nothing) when a shadowed pass gets no visibility image.
-    pub fn record_with_material(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        inputs: ShadeInputs,
-        material: Option<&crate::material::MaterialTextures>,
-        params: &ShadeParams,
-    ) -> Result<()> {
         let ShadeInputs {
             hit,
             gbuffer,
             height,
+            material,
             color,
             visibility,
         } = inputs;

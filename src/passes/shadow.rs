@@ -65,11 +65,11 @@ use crate::abi::{SHADOW_MODE_HARD, SHADOW_MODE_SOFT, ShadeParams, ShadowParams};
 use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
-use crate::gpu::{HeightTexture, Image, ViewRef};
+use crate::gpu::{HeightTexture, ViewRef};
 use crate::heightfield::Addressing;
 use crate::method::{Method, PyramidKind};
 use crate::passes::gbuffer::GBufferViews;
-use crate::passes::pyramid::{Pyramid, PyramidPass};
+use crate::passes::pyramid::Pyramid;
 use crate::reference::{Hit, Reference, SHADOW_BIAS, SHADOW_MIN_COS};
 use crate::scene::addressing_code;
 use crate::shaders;
@@ -328,138 +328,6 @@ impl ShadowPass {
     /// Destroys the pipeline and sampler.
     pub fn destroy(&mut self, ctx: &Context) {
         self.pipeline.destroy(ctx);
-    }
-}
-
-/// What a renderer builds for self-shadowing: the pass, the frame's visibility image
-/// and, when the method's pyramid is not a cell pyramid (`pyramid`), a cell pyramid of
-/// its own with the pass that builds it.
-pub struct ShadowStage {
-    /// The pass.
-    pub pass: ShadowPass,
-    /// The visibility image (`R16_SFLOAT`, the frame's size).
-    pub visibility: Image,
-    own_pyramid: Option<(PyramidPass, Pyramid)>,
-    own_built: bool,
-}
-
-impl ShadowStage {
-    /// The stage `settings` with `method` need: its query and whether it owns a cell
-    /// pyramid (`None`: no stage).
-    fn wanted(settings: &ShadowSettings, method: Method) -> Option<(ShadowTrace, bool)> {
-        settings.is_on().then(|| {
-            let trace = ShadowTrace::for_method(settings.mode, method);
-            let own =
-                trace == ShadowTrace::Pyramid && method.needs().pyramid != Some(PyramidKind::Cell);
-            (trace, own)
-        })
-    }
-
-    /// Builds, keeps or drops `stage` so it fits `settings` and `method` (a frame of
-    /// `extent`, a `map_size` map with `addressing`).
-    pub fn sync(
-        ctx: &Context,
-        stage: &mut Option<ShadowStage>,
-        settings: &ShadowSettings,
-        method: Method,
-        extent: vk::Extent2D,
-        map_size: [u32; 2],
-        addressing: Addressing,
-    ) -> Result<()> {
-        let wanted = Self::wanted(settings, method);
-        let current = stage
-            .as_ref()
-            .map(|s| (s.pass.trace(), s.own_pyramid.is_some()));
-        if wanted == current {
-            return Ok(());
-        }
-        if let Some(mut old) = stage.take() {
-            old.destroy(ctx);
-        }
-        let Some((trace, own)) = wanted else {
-            return Ok(());
-        };
-        let mut pass = ShadowPass::new(ctx, trace)?;
-        let visibility = match Image::new(
-            ctx,
-            "visibility",
-            VISIBILITY_FORMAT,
-            extent,
-            1,
-            vk::ImageUsageFlags::STORAGE
-                | vk::ImageUsageFlags::TRANSFER_SRC
-                | vk::ImageUsageFlags::TRANSFER_DST,
-        ) {
-            Ok(i) => i,
-            Err(e) => {
-                pass.destroy(ctx);
-                return Err(e);
-            }
-        };
-        let mut built = ShadowStage {
-            pass,
-            visibility,
-            own_pyramid: None,
-            own_built: false,
-        };
-        if own {
-            let made = PyramidPass::new(ctx).and_then(|mut p| {
-                match Pyramid::new(ctx, map_size, PyramidKind::Cell, addressing) {
-                    Ok(pyramid) => Ok((p, pyramid)),
-                    Err(e) => {
-                        p.destroy(ctx);
-                        Err(e)
-                    }
-                }
-            });
-            match made {
-                Ok(p) => built.own_pyramid = Some(p),
-                Err(e) => {
-                    built.destroy(ctx);
-                    return Err(e);
-                }
-            }
-        }
-        *stage = Some(built);
-        Ok(())
-    }
-
-    /// The stage's own cell pyramid and its pass while it is not built yet (record it
-    /// before the shadow pass, then call [`ShadowStage::mark_built`]).
-    pub fn unbuilt_pyramid(&self) -> Option<(&PyramidPass, &Pyramid)> {
-        match (&self.own_pyramid, self.own_built) {
-            (Some((pass, pyramid)), false) => Some((pass, pyramid)),
-            _ => None,
-        }
-    }
-
-    /// Marks the own pyramid built (after the frame that recorded its build finished).
-    pub fn mark_built(&mut self) {
-        if self.own_pyramid.is_some() {
-            self.own_built = true;
-        }
-    }
-
-    /// The cell pyramid the pass reads: its own or the method's. The caller records the
-    /// build of an [unbuilt](ShadowStage::unbuilt_pyramid) one earlier in the same
-    /// frame, as [`Renderer::render`](crate::renderer::Renderer::render) does.
-    pub fn pyramid<'a>(&'a self, method_pyramid: Option<&'a Pyramid>) -> Option<&'a Pyramid> {
-        match &self.own_pyramid {
-            Some((_, p)) => Some(p),
-            None => method_pyramid,
-        }
-    }
-
-    /// Destroys everything. The GPU must be done with it.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pass.destroy(ctx);
-        self.visibility.destroy(ctx);
-        if let Some((pass, pyramid)) = &mut self.own_pyramid {
-            pass.destroy(ctx);
-            pyramid.destroy(ctx);
-        }
-        self.own_pyramid = None;
-        self.own_built = false;
     }
 }
 

@@ -18,22 +18,26 @@ use std::sync::Arc;
 
 /// A context with the Khronos validation layer (and synchronization validation) on.
 /// Panics with a setup hint when no Vulkan driver or no validation layer is installed.
-pub fn validated_context() -> Context {
+pub fn validated_context() -> Arc<Context> {
     let _ = env_logger::builder().is_test(true).try_init();
-    Context::headless(&ContextOptions {
-        validation: Some(true),
-        device: None,
-    })
-    .unwrap_or_else(|e| {
-        panic!("cannot create a validated Vulkan context: {e}\n(run ./scripts/setup-debian.sh)")
-    })
+    Arc::new(
+        Context::headless(&ContextOptions {
+            validation: Some(true),
+            device: None,
+        })
+        .unwrap_or_else(|e| {
+            panic!("cannot create a validated Vulkan context: {e}\n(run ./scripts/setup-debian.sh)")
+        }),
+    )
 }
 
 /// The end of every GPU test: checks that no `gpu-allocator` allocation is left (its
 /// report), destroys the device (the validation layer's object tracker reports every
 /// Vulkan object still alive there as an error) and asserts that validation reported
-/// no warning or error from the context's creation to its destruction.
-pub fn finish(ctx: Context) {
+/// no warning or error from the context's creation to its destruction. Every other
+/// holder of the context (renderers, passes) must be gone.
+pub fn finish(ctx: Arc<Context>) {
+    let ctx = Arc::into_inner(ctx).expect("nothing else holds the context");
     let report = ctx.allocator().lock().unwrap().generate_report();
     let names: Vec<&str> = report.allocations.iter().map(|a| a.name.as_str()).collect();
     assert!(names.is_empty(), "allocations left at teardown: {names:?}");
@@ -48,11 +52,6 @@ pub fn finish(ctx: Context) {
         (0, 0),
         "validation reported errors/warnings up to the device's destruction (see the log)"
     );
-}
-
-/// [`finish`] for a shared context: every other holder must be gone.
-pub fn finish_shared(ctx: Arc<Context>) {
-    finish(Arc::into_inner(ctx).expect("nothing else holds the context"));
 }
 
 /// A height map from `assets/heightmaps`.
