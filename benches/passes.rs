@@ -1,5 +1,5 @@
 //! `cargo bench`: a reduced run of `dispmap bench` (the same protocol through
-//! `dispmap::bench`): 480x270 frames, 3 frames per run (error on the first), settings 75
+//! `dispmap_cli::bench`): 480x270 frames, 3 frames per run (error on the first), settings 75
 //! and 150, every method on the rocks, bricks and mountains maps, and a 256/2048 map-size
 //! sweep. Times are GPU timestamp medians, not wall-clock: compare ratios within one run
 //! (on lavapipe they are CPU times). Prints the report's tables and writes the full
@@ -8,9 +8,9 @@
 //! Arguments other than cargo's `--bench` select methods by name substring
 //! (`cargo bench -- dig pom`).
 
-use dispmap::bench::{self, BenchConfig, MapSpec};
 use dispmap::context::{Context, ContextOptions};
 use dispmap::method::Method;
+use dispmap_cli::bench::{self, BenchConfig, MapSpec};
 use std::path::Path;
 
 fn main() -> anyhow::Result<()> {

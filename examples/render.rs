@@ -3,10 +3,10 @@
 //!
 //! `cargo run --example render -- path/to/map.png depth out.png`
 
-use dispmap::measure::Measure as _;
 use dispmap::{
     Context, ContextOptions, HeightField, Method, MethodParams, RenderSettings, Renderer, Scene,
 };
+use dispmap_cli::measure::Measure as _;
 
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
@@ -25,10 +25,10 @@ fn main() -> anyhow::Result<()> {
         scene: Scene::default(),
     };
     let mut renderer = Renderer::new(&ctx, &field, settings)?;
-    let reference = dispmap::reference::Reference::new(&field, settings.scene.addressing());
+    let reference = dispmap_cli::reference::Reference::new(&field, settings.scene.addressing());
     let frame_ref = renderer.reference(&reference)?;
     let m = renderer.measure(&frame_ref, 3)?;
     println!("{:?}\n{:?}", m.timings_ms, m.error);
-    dispmap::output::write_png(out.as_ref(), settings.width, settings.height, &m.color)?;
+    dispmap_cli::output::write_png(out.as_ref(), settings.width, settings.height, &m.color)?;
     Ok(())
 }

@@ -31,7 +31,7 @@
 //   parallax -climb, its ray parameter t = 1 - h; the hit is occluded when that ray meets
 //   the bilinear surface for t in [0, 1 - h0 - bias] (the light ray from h0 + bias
 //   up to the macro surface; clamp addressing: only inside the decal). The CPU twin is
-//   Reference::occluded (src/reference.rs), in f64.
+//   Reference::occluded (cli/src/reference.rs), in f64.
 // * hard, marching methods: a linear march up the light ray with the method's step
 //   (1/steps of the full depth), from Tatarchuk's reference height h0 = H(uv_hit) (the
 //   surface under the hit: a march's hit may lie up to a step below it); occluded at the

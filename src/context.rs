@@ -93,7 +93,8 @@ pub struct ContextOptions {
 }
 
 /// Facts about the chosen device, for reports.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct DeviceInfo {
     /// `deviceName`.
     pub name: String,

@@ -16,8 +16,9 @@ use image::DynamicImage;
 use std::path::Path;
 
 /// How a file encodes heights.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
 pub enum Convention {
     /// White is high (the macro surface), black is the deepest point.
     Height,
@@ -40,8 +41,9 @@ impl std::str::FromStr for Convention {
 }
 
 /// How UVs outside `[0, 1]²` are treated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
 pub enum Addressing {
     /// Tiled surface: the height field repeats.
     Repeat,

@@ -9,8 +9,9 @@ use crate::error::{Error, Result};
 use crate::shaders::{self, Shader};
 
 /// An intersection method (CLI `--method` names in [`Method::name`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum Method {
     /// One fetch at the entry point: the cost floor (plain bump mapping).
     Bump,
@@ -186,8 +187,9 @@ pub const MAX_SEGMENTS: u32 = 64;
 pub const MAX_LOD_THRESHOLD: f32 = 31.0;
 
 /// The coarsest level the `pyramid` method may stop at (minification).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
 pub enum MaxLevel {
     /// Always traverse down to this level (0 = full detail).
     Fixed(u32),
@@ -215,7 +217,8 @@ impl std::str::FromStr for MaxLevel {
 }
 
 /// Parameters of the methods; each method reads the ones it documents.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct MethodParams {
     /// The quality: linear steps over the full depth (`linear`, `relief`, `dig`'s corner
     /// pass and `iter`), `n_max` of `pom`, samples per segment of `secant`.
@@ -237,7 +240,7 @@ pub struct MethodParams {
     /// threshold `L` takes the bump result without tracing; in `L - 1 < l < L` the traced
     /// hit is blended toward it (see `trace_lod` in `glsl/common/trace.glsl`). `L >= 1`
     /// leaves every magnified pixel untouched.
-    #[serde(default)]
+    #[cfg_attr(feature = "serde", serde(default))]
     pub lod_threshold: Option<f32>,
 }
 

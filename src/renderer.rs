@@ -31,14 +31,12 @@ use crate::heightfield::HeightField;
 use crate::material::MaterialImages;
 use crate::mesh::{Mesh, MeshBuffers};
 use crate::method::{Method, MethodParams};
-use crate::metrics::{HitTexel, MapGeometry};
 use crate::passes::PassName;
 use crate::passes::dig::Corner;
-use crate::passes::gbuffer::{GBuffer, GBufferPass};
+use crate::passes::gbuffer::{GBuffer, GBufferPass, Ray};
 use crate::passes::shade::COLOR_FORMAT;
 use crate::passes::shadow::{ShadowSettings, VISIBILITY_FORMAT};
-use crate::passes::trace::HIT_FORMAT;
-use crate::reference::Ray;
+use crate::passes::trace::{HIT_FORMAT, HitTexel};
 use crate::scene::Scene;
 use crate::timing::{QueryPool, ScopeWriter, read_timestamps};
 use ash::vk;
@@ -105,6 +103,9 @@ const DISCARD: Access = Access {
     access: vk::AccessFlags2::NONE,
     layout: vk::ImageLayout::UNDEFINED,
 };
+
+/// The G-buffer's `normal` and `tangent` texels of a frame ([`Renderer::read_frames`]).
+pub type TangentFrames = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
 /// Timestamp queries of the renderer's own scope (the G-buffer), before the pass's.
 const GBUFFER_QUERIES: u32 = 2;
@@ -554,7 +555,7 @@ impl Renderer {
 
     /// The last frame's G-buffer `normal` and `tangent` texels (RGBA16F decoded), row by
     /// row.
-    pub fn read_frames(&self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    pub fn read_frames(&self) -> Result<TangentFrames> {
         let read = |image: &Image| -> Result<Vec<[f32; 4]>> {
             let bytes = read_image(&self.ctx, &self.shot, image, Access::COMPUTE_SAMPLED)?;
             Ok(crate::passes::shadow::decode_rgba16f(&bytes))
@@ -664,16 +665,6 @@ impl Renderer {
         self.shot.submit_and_wait(ctx)?;
         given.destroy(ctx);
         self.read_color()
-    }
-
-    /// Map size and depth scale for the metrics.
-    pub fn map_geometry(&self) -> MapGeometry {
-        let [w, h] = self.pass.map_size();
-        MapGeometry {
-            map_width: w,
-            map_height: h,
-            depth_scale: self.settings.scene.depth_scale as f64,
-        }
     }
 }
 

@@ -32,8 +32,9 @@ pub const NEAR: f32 = 0.005;
 pub const MIN_COS: f32 = 1e-4;
 
 /// The macro geometry the height field displaces.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum Geometry {
     /// An effectively infinite plane tiled with the map (repeat addressing).
     TiledPlane,
@@ -100,7 +101,8 @@ impl std::str::FromStr for Geometry {
 }
 
 /// An orbit camera looking at the geometry's centre.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Camera {
     /// Angle in degrees between the central view ray and the plane (90 = straight down).
     pub elevation_deg: f32,
@@ -125,7 +127,8 @@ impl Default for Camera {
 }
 
 /// A directional light.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Light {
     /// Angle above the plane, degrees.
     pub elevation_deg: f32,
@@ -146,7 +149,8 @@ impl Default for Light {
 }
 
 /// Everything about the frame except the height field and the method.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Scene {
     /// Macro geometry.
     pub geometry: Geometry,

@@ -10,12 +10,12 @@ mod common;
 
 use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::Convention;
-use dispmap::measure::Measure as _;
 use dispmap::method::{MaxLevel, Method, MethodParams};
-use dispmap::metrics::{self, ErrorMetrics, HitTexel};
-use dispmap::reference::{Ray, Reference};
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Scene};
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::metrics::{self, ErrorMetrics, HitTexel};
+use dispmap_cli::reference::{Ray, Reference};
 
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 144;

@@ -7,14 +7,14 @@ mod common;
 
 use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Addressing, Convention, HeightField};
-use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
-use dispmap::metrics::ErrorMetrics;
 use dispmap::passes::PassName;
 use dispmap::passes::pyramid::{PyramidKind, cpu_build};
-use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Geometry, Scene};
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::metrics::ErrorMetrics;
+use dispmap_cli::reference::Reference;
 
 const ELEVATIONS: [f32; 3] = [30.0, 5.0, 1.0];
 

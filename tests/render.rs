@@ -4,12 +4,12 @@ mod common;
 
 use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Convention, HeightField};
-use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
-use dispmap::metrics::ErrorMetrics;
-use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Geometry, Scene};
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::metrics::ErrorMetrics;
+use dispmap_cli::reference::Reference;
 
 fn settings(method: Method, steps: u32, elevation: f32) -> RenderSettings {
     RenderSettings {

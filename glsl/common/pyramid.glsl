@@ -1,6 +1,6 @@
 // Traversal of the cell-max pyramid (PYRAMID_KIND_CELL, glsl/pyramid.comp) with the
 // exact ray / bilinear-patch intersection in the leaf: the GPU twin of the CPU reference
-// (src/reference.rs, whose module docs explain the algorithm), in f32. Used by `exact`
+// (cli/src/reference.rs, whose module docs explain the algorithm), in f32. Used by `exact`
 // and by `dig-guarded`'s guard. Include after trace.glsl (which brings texels.glsl).
 //
 // Texel space: x = u W - 0.5, y = v H - 0.5; texel (i, j) at the integer point (i, j);

@@ -1,7 +1,7 @@
 // dispmap's G-buffer contract for a host engine's fragment shader (and dispmap's own
 // glsl/gbuffer.frag, so there is one source of truth). Include it, fill a
 // DispmapSurface per fragment and write the three colour outputs it returns; the depth
-// attachment is the host's own reverse-Z depth. Formats and channels (src/embed.rs,
+// attachment is the host's own reverse-Z depth. Formats and channels (src/embed/mod.rs,
 // src/passes/gbuffer.rs):
 //
 //   ray     R32G32B32A32_SFLOAT  (uv0.x, uv0.y, P.x, P.y): the entry uv (reduced to [0, 1)

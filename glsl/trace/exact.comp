@@ -5,7 +5,7 @@
 // the surface the ray reaches; the leaf cell is intersected exactly (the quadratic of
 // the bilinear patch along the ray, stable root, bisection when rounding defeats the
 // closed form). See glsl/common/pyramid.glsl; it agrees with the CPU reference
-// (src/reference.rs) to f32 precision. The surface is the map's exact bilinear
+// (cli/src/reference.rs) to f32 precision. The surface is the map's exact bilinear
 // interpolation (texelFetch), not the hardware filter (8-bit weights on lavapipe).
 #include "trace.glsl"
 #include "pyramid.glsl"

@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 use ash::vk;
 use std::ffi::CStr;
 
-/// Timestamp queries one [`DisplacementPass::record`] writes at most: a begin/end pair
+/// Timestamp queries one [`DisplacementPass::record`](super::DisplacementPass::record) writes at most: a begin/end pair
 /// for each of `upload`, `pyramid`, `dig_corners`, `trace`, `shadow`, `shade` and
 /// `hit_depth`.
 pub const MAX_QUERIES: u32 = 14;

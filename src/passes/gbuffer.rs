@@ -26,6 +26,15 @@ use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
 use crate::shaders;
 use ash::vk;
 
+/// One pixel's ray as read back from the G-buffer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Entry point (the macro surface, `h = 1`) in UV units.
+    pub uv0: [f64; 2],
+    /// Parallax vector: the UV offset after descending the full depth (to `h = 0`).
+    pub parallax: [f64; 2],
+}
+
 /// Format of the `ray` attachment.
 pub const RAY_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 /// Format of the `normal` and `tangent` attachments.

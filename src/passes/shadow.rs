@@ -23,7 +23,7 @@
 //!     anywhere from `H(uv_hit) + SHADOW_BIAS` up to the macro surface (clamp addressing:
 //!     inside the decal). The receiver is the surface point under the hit (`H` the exact
 //!     bilinear surface), so an approximate hit a little under the surface (`pyramid`'s)
-//!     does not shadow itself. This is [`Reference::occluded`](crate::reference::Reference::occluded)
+//!     does not shadow itself. This is `dispmap_cli::reference::Reference::occluded`
 //!     in `f32`. `exact` and `dig-guarded` share their method's cell pyramid; the
 //!     `pyramid` method's own pyramid bounds texel footprints, so the stage builds a cell
 //!     pyramid of its own (once, timed with the method's as `pyramid`).
@@ -70,10 +70,19 @@ use crate::heightfield::Addressing;
 use crate::method::{Method, PyramidKind};
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::pyramid::Pyramid;
-use crate::reference::{Hit, Reference, SHADOW_BIAS, SHADOW_MIN_COS};
 use crate::scene::addressing_code;
 use crate::shaders;
 use ash::vk;
+
+/// Self-shadowing: the light ray starts this far (in heights, the depth being 1) above
+/// the receiver, so the receiver's own surface does not shadow it where it faces the
+/// light (see `dispmap_cli::reference::Reference::occluded`; the GPU `shadow` pass uses the same value).
+pub const SHADOW_BIAS: f64 = 1.0 / 4096.0;
+
+/// Self-shadowing: lower bound of the light's `L_ts.z` when the light ray's climb
+/// `depth_scale * L.xy / L.z` is formed (the view ray's `MIN_COS` in `scene`), so the
+/// climb stays finite for a light on the horizon.
+pub const SHADOW_MIN_COS: f64 = 1e-4;
 
 /// Format of the visibility image.
 pub const VISIBILITY_FORMAT: vk::Format = vk::Format::R16_SFLOAT;
@@ -85,10 +94,9 @@ pub const DEFAULT_SHADOW_SAMPLES: u32 = 8;
 pub const MAX_SHADOW_SAMPLES: u32 = 1024;
 
 /// Self-shadowing mode (CLI `--shadows`).
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum ShadowMode {
     /// No self-shadowing: no pass, no image.
     #[default]
@@ -133,7 +141,8 @@ impl std::str::FromStr for ShadowMode {
 }
 
 /// Self-shadowing settings (part of [`RenderSettings`](crate::renderer::RenderSettings)).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ShadowSettings {
     /// The mode (`--shadows`).
     pub mode: ShadowMode,
@@ -331,50 +340,6 @@ impl ShadowPass {
     }
 }
 
-/// The exact hard-shadow visibility (1 = lit, 0 = shadowed) of reference hits:
-/// [`Reference::occluded`] per pixel, with `L_ts` from the G-buffer's `normal` and
-/// `tangent` texels (as the pass forms it: `B = w cross(N, T)`) and the frame's world
-/// light direction. Pixels without a hit get 1. This is what the renderer shades the
-/// reference colour with when hard shadows are on, whatever the method.
-pub fn reference_visibility(
-    reference: &Reference,
-    hits: &[Option<Hit>],
-    normal: &[[f32; 4]],
-    tangent: &[[f32; 4]],
-    light_dir: [f32; 3],
-    depth_scale: f32,
-) -> Vec<f32> {
-    use rayon::prelude::*;
-    let l = light_dir.map(f64::from);
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let unit = |v: [f32; 4]| {
-        let v = [f64::from(v[0]), f64::from(v[1]), f64::from(v[2])];
-        let n = dot(v, v).sqrt();
-        v.map(|c| c / n)
-    };
-    hits.par_iter()
-        .zip(normal.par_iter().zip(tangent.par_iter()))
-        .map(|(hit, (n4, t4))| {
-            let Some(hit) = hit else { return 1.0 };
-            let (n, t) = (unit(*n4), unit(*t4));
-            let w = f64::from(t4[3]);
-            let b = [
-                w * (n[1] * t[2] - n[2] * t[1]),
-                w * (n[2] * t[0] - n[0] * t[2]),
-                w * (n[0] * t[1] - n[1] * t[0]),
-            ];
-            let l_ts = [dot(l, t), dot(l, b), dot(l, n)];
-            // The receiver as the pass takes it: the surface under the hit's uv.
-            let h = reference.height(hit.uv);
-            if reference.occluded(hit.uv, h, l_ts, f64::from(depth_scale)) {
-                0.0
-            } else {
-                1.0
-            }
-        })
-        .collect()
-}
-
 /// RGBA texels of an `R16G16B16A16_SFLOAT` image's bytes (the G-buffer's normal and
 /// tangent).
 pub fn decode_rgba16f(bytes: &[u8]) -> Vec<[f32; 4]> {
@@ -387,53 +352,17 @@ pub fn decode_rgba16f(bytes: &[u8]) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// The visibility image's bytes of `values` (IEEE halves, rounded to nearest; values
-/// outside the half range saturate, NaN stays NaN).
+/// The visibility image's bytes of `values` (IEEE halves, rounded to nearest even).
 pub fn encode_visibility(values: &[f32]) -> Vec<u8> {
     values
         .iter()
-        .flat_map(|&v| f32_to_f16(v).to_le_bytes())
+        .flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes())
         .collect()
-}
-
-/// The IEEE half nearest to `v` (ties away from zero; tiny values flush to zero).
-fn f32_to_f16(v: f32) -> u16 {
-    let sign = if v.is_sign_negative() { 0x8000 } else { 0 };
-    let a = v.abs();
-    if a.is_nan() {
-        return 0x7e00;
-    }
-    if a >= 65520.0 {
-        return sign | 0x7c00;
-    }
-    if a < 2f32.powi(-24) * 0.5 {
-        return sign;
-    }
-    if a < 2f32.powi(-14) {
-        // Subnormal: a multiple of 2^-24.
-        return sign | (a / 2f32.powi(-24)).round() as u16;
-    }
-    let e = a.log2().floor() as i32;
-    let e = if 2f32.powi(e) > a { e - 1 } else { e };
-    let m = ((a / 2f32.powi(e) - 1.0) * 1024.0).round() as u32;
-    let (e, m) = if m == 1024 { (e + 1, 0) } else { (e, m) };
-    if e > 15 {
-        return sign | 0x7c00;
-    }
-    sign | (((e + 15) as u16) << 10) | m as u16
 }
 
 /// `f32` of an IEEE half (the visibility image's texels).
 pub fn f16_to_f32(bits: u16) -> f32 {
-    let sign = if bits & 0x8000 != 0 { -1.0f32 } else { 1.0 };
-    let exponent = i32::from((bits >> 10) & 0x1f);
-    let mantissa = f32::from(bits & 0x3ff);
-    match exponent {
-        0 => sign * mantissa * 2f32.powi(-24),
-        31 if mantissa == 0.0 => sign * f32::INFINITY,
-        31 => f32::NAN,
-        e => sign * (1.0 + mantissa / 1024.0) * 2f32.powi(e - 15),
-    }
+    half::f16::from_bits(bits).to_f32()
 }
 
 #[cfg(test)]
@@ -469,17 +398,7 @@ mod tests {
     }
 
     #[test]
-    fn halves_round_trip() {
-        for v in [
-            0.0f32, 1.0, 0.5, 0.25, 0.1, 0.999, 1e-5, 3e-8, -2.0, 65504.0,
-        ] {
-            let back = f16_to_f32(f32_to_f16(v));
-            assert!((back - v).abs() <= v.abs() / 2048.0 + 3e-8, "{v} -> {back}");
-        }
-        assert_eq!(f32_to_f16(1.0), 0x3c00);
-        assert_eq!(f32_to_f16(0.0), 0);
-        assert_eq!(f32_to_f16(1e6), 0x7c00);
-        assert!(f16_to_f32(f32_to_f16(f32::NAN)).is_nan());
+    fn visibility_and_frames_as_halves() {
         assert_eq!(encode_visibility(&[1.0, 0.0]), vec![0x00, 0x3c, 0, 0]);
         let rgba = decode_rgba16f(&[0x00, 0x3c, 0x00, 0xc0, 0, 0, 0x00, 0x38]);
         assert_eq!(rgba, vec![[1.0, -2.0, 0.0, 0.5]]);

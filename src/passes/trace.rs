@@ -29,6 +29,10 @@ use crate::passes::pyramid::Pyramid;
 use crate::scene::addressing_code;
 use ash::vk;
 
+/// One texel of the GPU hit buffer (RGBA32F): hit u, hit v, hit height, iteration count.
+/// Height < 0 means no hit.
+pub type HitTexel = [f32; 4];
+
 /// Format of the hit buffer.
 pub const HIT_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 

@@ -17,7 +17,7 @@ use dispmap::gpu::commands::{read_image, upload_image};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
-use dispmap::reference::Ray;
+use dispmap_cli::reference::Ray;
 use std::sync::Arc;
 
 use super::frames::{DISCARD, FrameSlots, record_gbuffer};

@@ -11,9 +11,9 @@ pub mod host;
 
 use dispmap::context::{Context, ContextOptions};
 use dispmap::heightfield::{Convention, HeightField};
-use dispmap::metrics::{MapGeometry, hit_distance_texels};
-use dispmap::reference::{Hit, Ray, Reference};
-use std::path::Path;
+use dispmap_cli::metrics::{MapGeometry, hit_distance_texels};
+use dispmap_cli::reference::{Hit, Ray, Reference};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// A context with the Khronos validation layer (and synchronization validation) on.
@@ -54,11 +54,18 @@ pub fn finish(ctx: Arc<Context>) {
     );
 }
 
+/// The repository's root (the tests of both crates include this module).
+pub fn repo_root() -> PathBuf {
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    match manifest.join("assets").is_dir() {
+        true => manifest.to_path_buf(),
+        false => manifest.join(".."),
+    }
+}
+
 /// A height map from `assets/heightmaps`.
 pub fn asset_map(name: &str, convention: Convention) -> HeightField {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets/heightmaps")
-        .join(name);
+    let path = repo_root().join("assets/heightmaps").join(name);
     HeightField::load(&path, convention).expect("bundled map loads")
 }
 

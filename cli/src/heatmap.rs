@@ -29,10 +29,10 @@
 //!
 //! [`output::write_png`]: crate::output::write_png
 
-use crate::error::{Error, Result};
 use crate::metrics::HitTexel;
-use crate::passes::dig::Corner;
 use crate::reference::Ray;
+use dispmap::error::{Error, Result};
+use dispmap::passes::dig::Corner;
 
 /// The ramp's control points: viridis (matplotlib) sampled at `k / 8`; [`ramp`]
 /// interpolates linearly between them.
@@ -340,7 +340,7 @@ mod tests {
 
     #[test]
     fn heatmap_scales_to_the_frame_max_and_blacks_out_empty_pixels() {
-        let miss = [0.0, 0.0, crate::abi::NO_HIT_HEIGHT, 0.0];
+        let miss = [0.0, 0.0, dispmap::abi::NO_HIT_HEIGHT, 0.0];
         let hits = [
             [0.1, 0.2, 0.5, 4.0],
             [0.1, 0.2, 0.5, 8.0],
@@ -475,7 +475,7 @@ mod tests {
         assert!(interval_map(&iv[..1], [2, 1], [4, 4], [6, 3]).is_err());
         // The grid of the corner pass covers any frame.
         let frame = [67, 45];
-        let grid = crate::passes::dig::corner_size(frame, [4, 4]);
+        let grid = dispmap::passes::dig::corner_size(frame, [4, 4]);
         let blocks = block_count(grid);
         let all = vec![Some(long); (blocks[0] * blocks[1]) as usize];
         assert!(interval_map(&all, blocks, [4, 4], frame).is_ok());

@@ -1,19 +1,19 @@
 //! Height maps compiled into the binary, so the default job and the benchmark run from
 //! any folder. Sources and licenses: `assets/heightmaps/SOURCES.md`.
 
-use crate::error::{Error, Result};
-use crate::heightfield::{Convention, HeightField};
+use dispmap::error::{Error, Result};
+use dispmap::heightfield::{Convention, HeightField};
 
 /// `rocks_depth.jpg` (Godot demo projects, MIT): 1024x1024, 8-bit, depth convention.
-pub const ROCKS_DEPTH_JPG: &[u8] = include_bytes!("../assets/heightmaps/rocks_depth.jpg");
+pub const ROCKS_DEPTH_JPG: &[u8] = include_bytes!("../../assets/heightmaps/rocks_depth.jpg");
 
 /// `bricks_depth.jpg` (Godot demo projects, MIT): 1000x1000, 8-bit, depth convention.
-pub const BRICKS_DEPTH_JPG: &[u8] = include_bytes!("../assets/heightmaps/bricks_depth.jpg");
+pub const BRICKS_DEPTH_JPG: &[u8] = include_bytes!("../../assets/heightmaps/bricks_depth.jpg");
 
 /// `mountains_height16.png` (Diligent Samples, Apache-2.0): 1025x1025, 16-bit, height
 /// convention.
 pub const MOUNTAINS_HEIGHT16_PNG: &[u8] =
-    include_bytes!("../assets/heightmaps/mountains_height16.png");
+    include_bytes!("../../assets/heightmaps/mountains_height16.png");
 
 /// The names [`by_name`] knows, in the DIG paper's order of height distributions:
 /// roughly uniform, top heavy, bottom heavy.

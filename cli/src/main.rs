@@ -4,16 +4,16 @@ use anyhow::{Context as _, Result, bail};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use dispmap::context::{Context, ContextOptions};
-use dispmap::heatmap::{self, CornerStats, IterationStats};
 use dispmap::heightfield::{Convention, HeightField};
-use dispmap::measure::Measure as _;
 use dispmap::method::{MaxLevel, Method, MethodParams};
-use dispmap::metrics::ErrorMetrics;
 use dispmap::passes::shadow::{DEFAULT_SHADOW_SAMPLES, ShadowMode, ShadowSettings};
-use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer, SceneAssets};
 use dispmap::scene::{Camera, Geometry, Light, Scene};
-use dispmap::{bench, bundled, output};
+use dispmap_cli::heatmap::{self, CornerStats, IterationStats};
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::metrics::ErrorMetrics;
+use dispmap_cli::reference::Reference;
+use dispmap_cli::{bench, bundled, output};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -292,7 +292,7 @@ impl CommonArgs {
     fn override_scene(
         &self,
         settings: &mut RenderSettings,
-        file: &dispmap::scene_file::SceneFile,
+        file: &dispmap_cli::scene_file::SceneFile,
         method: Option<Method>,
         matches: &ArgMatches,
     ) {
@@ -404,7 +404,7 @@ struct ErrorSummary {
 }
 
 /// The trace pass's per-pixel iteration counts over covered pixels (see
-/// `dispmap::heatmap::iteration_stats`).
+/// `dispmap_cli::heatmap::iteration_stats`).
 #[derive(Serialize)]
 struct Iterations {
     mean: f64,
@@ -577,7 +577,7 @@ fn render_inputs(
             SceneAssets::default(),
         ));
     };
-    let file = dispmap::scene_file::SceneFile::read(scene_path)?;
+    let file = dispmap_cli::scene_file::SceneFile::read(scene_path)?;
     let mut loaded = file.resolve(scene_path)?;
     args.common.override_scene(
         &mut loaded.settings,
@@ -765,7 +765,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         let frame_ref = renderer.reference(&reference)?;
         let path = args.out_dir.join("reference.png");
         output::write_png(&path, first.width, first.height, &frame_ref.color)?;
-        let mut tiles = vec![dispmap::contact_sheet::Tile {
+        let mut tiles = vec![dispmap_cli::contact_sheet::Tile {
             label: "reference (CPU, exact)".into(),
             rgba: frame_ref.color.clone(),
         }];
@@ -812,7 +812,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             }
             let path: &Path = &args.out_dir.join(format!("{}.png", method.name()));
             output::write_png(path, settings.width, settings.height, &m.color)?;
-            tiles.push(dispmap::contact_sheet::Tile {
+            tiles.push(dispmap_cli::contact_sheet::Tile {
                 label: format!(
                     "{}  {:.2}% artifacts",
                     method.name(),
@@ -821,7 +821,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
                 rgba: m.color,
             });
         }
-        let sheet = dispmap::contact_sheet::compose(&tiles, first.width, first.height, 5)?;
+        let sheet = dispmap_cli::contact_sheet::compose(&tiles, first.width, first.height, 5)?;
         output::write_png(
             &args.out_dir.join("contact_sheet.png"),
             sheet.width,

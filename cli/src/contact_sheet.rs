@@ -3,7 +3,7 @@
 //! bundled DejaVu Sans through plotters (as the benchmark plots are).
 
 use crate::bench::plot::{FAMILY, register_font};
-use crate::error::{Error, Result};
+use dispmap::error::{Error, Result};
 use plotters::prelude::*;
 
 /// Height of the label band under each tile, pixels.

@@ -4,6 +4,7 @@
 //! be in stderr), never panic, and leave nothing behind: neither the output file nor a
 //! temporary file next to it. To add a row, add one line to [`rows`].
 
+#[path = "../../tests/common/mod.rs"]
 mod common;
 
 use std::path::{Path, PathBuf};
@@ -57,12 +58,7 @@ fn png(width: u32, height: u32) -> Vec<u8> {
 
 fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
     let asset = |name: &str| {
-        std::fs::read(
-            Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("assets/heightmaps")
-                .join(name),
-        )
-        .unwrap()
+        std::fs::read(common::repo_root().join("assets/heightmaps").join(name)).unwrap()
     };
     let write = |name: &str, bytes: &[u8]| std::fs::write(dir.join(name), bytes).unwrap();
     write("junk.png", b"not a png");
@@ -193,7 +189,7 @@ fn rows(f: &Fixtures) -> Vec<Row> {
 /// Runs `dispmap render` with the valid defaults overridden by `row` and returns the
 /// exit status's success and stderr; fails on a hang.
 fn run(row: &Row, out: &Path) -> (bool, String) {
-    let rocks = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/heightmaps/rocks_depth.jpg");
+    let rocks = common::repo_root().join("assets/heightmaps/rocks_depth.jpg");
     let mut options: Vec<(&str, String)> = vec![
         ("--heightmap", rocks.to_str().unwrap().to_owned()),
         ("--convention", "depth".into()),

@@ -28,9 +28,7 @@
 
 use crate::reference::{Hit, Ray};
 
-/// One texel of the GPU hit buffer (RGBA32F): hit u, hit v, hit height, iteration count.
-/// Height < 0 means no hit.
-pub type HitTexel = [f32; 4];
+pub use dispmap::passes::trace::HitTexel;
 
 /// A hit farther than this (in texels) from the reference is an artifact.
 pub const ARTIFACT_TEXELS: f64 = 1.0;

@@ -13,8 +13,8 @@
 
 use super::report::curve_rows;
 use super::{RunRow, Sweep, has_steps};
-use crate::error::{Error, Result};
-use crate::method::Method;
+use dispmap::error::{Error, Result};
+use dispmap::method::Method;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -22,7 +22,7 @@ use std::sync::OnceLock;
 
 /// The bundled font (DejaVu Sans, subset to Latin-1, Greek, punctuation and maths;
 /// license in `assets/fonts/LICENSE-DejaVu.txt`).
-pub const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
+pub const FONT: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans-subset.ttf");
 
 /// The font family name the plots use.
 pub(crate) const FAMILY: &str = "sans-serif";

@@ -3,25 +3,27 @@
 //! straddle cube faces, the material maps reach the shading, and the demo's contact
 //! sheet has one tile per method. Validation on, frames <= 256x256.
 
+#[path = "../../tests/common/mod.rs"]
 mod common;
 
 use common::{finish, validated_context};
-use dispmap::heatmap;
+use dispmap::HeightField;
 use dispmap::material::MaterialImages;
-use dispmap::measure::FrameReference;
-use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
-use dispmap::metrics::MapGeometry;
-use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer, SceneAssets};
 use dispmap::scene::{Camera, Geometry, Scene};
-use dispmap::scene_file;
-use dispmap::{HeightField, bundled};
+use dispmap_cli::bundled;
+use dispmap_cli::heatmap;
+use dispmap_cli::measure::FrameReference;
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::metrics::MapGeometry;
+use dispmap_cli::reference::Reference;
+use dispmap_cli::scene_file;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
+fn root() -> PathBuf {
+    common::repo_root()
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -51,7 +53,7 @@ fn unexplained(
         let explained = match (hit[2] >= 0.0, exact) {
             (false, None) => true,
             (true, Some(exact)) => {
-                if dispmap::metrics::hit_distance_texels(hit, exact, geometry) <= 1.0 {
+                if dispmap_cli::metrics::hit_distance_texels(hit, exact, geometry) <= 1.0 {
                     true
                 } else {
                     let (t_gpu, t_ref) = (1.0 - f64::from(hit[2]), 1.0 - exact.height);
@@ -140,7 +142,7 @@ fn scene_file_errors_defaults_and_overrides() {
     // A mesh without texture coordinates, or missing, is refused by name.
     let no_uv = dir.join("no_uv.obj");
     std::fs::write(&no_uv, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-    let err = dispmap::mesh::Mesh::load_obj(&no_uv)
+    let err = dispmap_cli::mesh_file::load_obj(&no_uv)
         .err()
         .unwrap()
         .to_string();
@@ -272,7 +274,7 @@ fn exact_matches_the_reference_on_every_geometry() {
     let dir = scratch("obj");
     let obj = dir.join("bumpy.obj");
     write_obj(&obj);
-    let mesh = dispmap::mesh::Mesh::load_obj(&obj).unwrap();
+    let mesh = dispmap_cli::mesh_file::load_obj(&obj).unwrap();
     assert_eq!(mesh.surface_ids(), vec![1, 2]);
     let cases: [(Geometry, Option<dispmap::mesh::Mesh>); 4] = [
         (Geometry::Cube, None),
@@ -394,7 +396,7 @@ fn dig_falls_back_on_blocks_across_cube_faces() {
                 let ok = match (hit[2] >= 0.0, exact) {
                     (false, None) => true,
                     (true, Some(e)) => {
-                        dispmap::metrics::hit_distance_texels(hit, e, geometry) <= 1.0
+                        dispmap_cli::metrics::hit_distance_texels(hit, e, geometry) <= 1.0
                     }
                     _ => false,
                 };
@@ -575,7 +577,7 @@ fn demo_writes_a_contact_sheet_with_one_tile_per_method() {
     let columns = 5u32;
     let rows = (names.len() as u32).div_ceil(columns);
     let (w, h) = (96u32, 54u32);
-    use dispmap::contact_sheet::{GAP, LABEL_HEIGHT, tile_origin};
+    use dispmap_cli::contact_sheet::{GAP, LABEL_HEIGHT, tile_origin};
     assert_eq!(
         sheet.dimensions(),
         (
@@ -743,7 +745,7 @@ fn gltf_meshes_load_with_their_node_transforms() {
     std::fs::write(dir.join("square.bin"), &bin).unwrap();
     let path = dir.join("square.gltf");
     std::fs::write(&path, json).unwrap();
-    let mesh = dispmap::mesh::Mesh::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let mesh = dispmap_cli::mesh_file::load(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(mesh.vertices.len(), count as usize);
     for v in &mesh.vertices {
         // +y rotated about x by 90 degrees is +z; the tangent +x stays.

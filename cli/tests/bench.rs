@@ -1,11 +1,12 @@
 //! The benchmark on a tiny sweep, through the library and through the binary, with
 //! validation on: every output exists and is well formed. No timing is asserted.
 
+#[path = "../../tests/common/mod.rs"]
 mod common;
 
 use common::{finish, validated_context};
-use dispmap::bench::{self, BenchConfig, MapSpec, Sweep, report};
 use dispmap::method::Method;
+use dispmap_cli::bench::{self, BenchConfig, MapSpec, Sweep, report};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -4,6 +4,7 @@
 //! depth-tested against the resolved `D32_SFLOAT` attachment, is visible exactly where it
 //! is nearer than the reference surface. Validation on throughout.
 
+#[path = "../../tests/common/mod.rs"]
 mod common;
 
 use ash::vk;
@@ -14,15 +15,15 @@ use dispmap::gpu::pipeline::{RasterDesc, raster_pipeline};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::Convention;
-use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
-use dispmap::metrics::{self, HitTexel};
 use dispmap::passes::PassName;
 use dispmap::passes::depth_resolve::{DEPTH_FORMAT, DepthResolvePass};
-use dispmap::reference::{Hit, Reference};
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Geometry, Scene};
 use dispmap::shaders;
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::metrics::{self, HitTexel};
+use dispmap_cli::reference::{Hit, Reference};
 use glam::{DMat4, DVec3, DVec4, Mat4, Vec4};
 
 const WIDTH: u32 = 256;
@@ -578,8 +579,7 @@ fn dispmap_cli() -> std::process::Command {
 fn cli_depth_out_writes_the_corrected_depth() {
     let dir = std::env::temp_dir().join(format!("dispmap-depth-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let map =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/heightmaps/rocks_depth.jpg");
+    let map = common::repo_root().join("assets/heightmaps/rocks_depth.jpg");
     let run = |depth_out: &std::path::Path, extra: &[&str]| {
         dispmap_cli()
             .args(["render", "--heightmap"])

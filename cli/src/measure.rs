@@ -4,12 +4,12 @@
 //! with the method's hits and colour ([`Measure::measure`]). Implemented for the
 //! standalone [`Renderer`]; the renderer itself only renders and reads back.
 
-use crate::error::Result;
-use crate::metrics::{self, ErrorMetrics, HitTexel};
-use crate::passes::PassName;
-use crate::passes::shadow::ShadowMode;
+use crate::metrics::{self, ErrorMetrics, HitTexel, MapGeometry};
 use crate::reference::{Hit, Ray, Reference};
-use crate::renderer::Renderer;
+use dispmap::error::Result;
+use dispmap::passes::PassName;
+use dispmap::passes::shadow::ShadowMode;
+use dispmap::renderer::Renderer;
 
 /// The reference for one frame: rays read from the G-buffer, exact hits, and those
 /// hits shaded by the same `shade` pass.
@@ -69,6 +69,9 @@ pub trait Measure {
     /// The last rendered frame's hits and colour against `reference` (which must come
     /// from the same scene).
     fn compare_last(&self, reference: &FrameReference) -> Result<Compared>;
+
+    /// Map size and depth scale for the metrics.
+    fn map_geometry(&self) -> MapGeometry;
 }
 
 impl Measure for Renderer {
@@ -93,9 +96,9 @@ impl Measure for Renderer {
         out.extend(
             samples
                 .into_iter()
-                .map(|(n, v)| (n.to_string(), crate::timing::median(&v))),
+                .map(|(n, v)| (n.to_string(), dispmap::timing::median(&v))),
         );
-        out.push((TOTAL.into(), crate::timing::median(&totals)));
+        out.push((TOTAL.into(), dispmap::timing::median(&totals)));
         Ok(out)
     }
 
@@ -107,7 +110,7 @@ impl Measure for Renderer {
             .iter()
             .map(|h| match h {
                 Some(h) => [h.uv[0] as f32, h.uv[1] as f32, h.height as f32, 0.0],
-                None => [0.0, 0.0, crate::abi::NO_HIT_HEIGHT, 0.0],
+                None => [0.0, 0.0, dispmap::abi::NO_HIT_HEIGHT, 0.0],
             })
             .collect();
         let color = if self.settings().shadows.mode == ShadowMode::Hard {
@@ -116,7 +119,7 @@ impl Measure for Renderer {
             let (normal, tangent) = self.read_frames()?;
             let scene = self.settings().scene;
             let light = scene.light_direction();
-            let visibility = crate::passes::shadow::reference_visibility(
+            let visibility = crate::reference::reference_visibility(
                 reference,
                 &hits,
                 &normal,
@@ -141,6 +144,15 @@ impl Measure for Renderer {
             hits,
             color,
         })
+    }
+
+    fn map_geometry(&self) -> MapGeometry {
+        let [w, h] = self.pass().map_size();
+        MapGeometry {
+            map_width: w,
+            map_height: h,
+            depth_scale: self.settings().scene.depth_scale as f64,
+        }
     }
 
     fn compare_last(&self, reference: &FrameReference) -> Result<Compared> {

@@ -66,31 +66,16 @@
 //! for grazing rays. Rays with non-finite components, or that span more than `2^40`
 //! texels (far beyond any G-buffer's bounded `P`), are rejected with `None`.
 
-use crate::heightfield::{Addressing, HeightField};
+use dispmap::heightfield::{Addressing, HeightField};
 use rayon::prelude::*;
 
 /// Rays longer than this (in texels, per axis, including the start offset) are rejected:
 /// cell indices and positions must stay exactly representable.
 const MAX_TEXEL_EXTENT: f64 = (1u64 << 40) as f64;
 
-/// Self-shadowing: the light ray starts this far (in heights, the depth being 1) above
-/// the receiver, so the receiver's own surface does not shadow it where it faces the
-/// light (see [`Reference::occluded`]; the GPU `shadow` pass uses the same value).
-pub const SHADOW_BIAS: f64 = 1.0 / 4096.0;
+pub use dispmap::passes::shadow::{SHADOW_BIAS, SHADOW_MIN_COS};
 
-/// Self-shadowing: lower bound of the light's `L_ts.z` when the light ray's climb
-/// `depth_scale * L.xy / L.z` is formed (the view ray's `MIN_COS` in `scene`), so the
-/// climb stays finite for a light on the horizon.
-pub const SHADOW_MIN_COS: f64 = 1e-4;
-
-/// One pixel's ray as read back from the G-buffer.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ray {
-    /// Entry point (the macro surface, `h = 1`) in UV units.
-    pub uv0: [f64; 2],
-    /// Parallax vector: the UV offset after descending the full depth (to `h = 0`).
-    pub parallax: [f64; 2],
-}
+pub use dispmap::passes::gbuffer::Ray;
 
 /// The exact first intersection.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -566,6 +551,50 @@ fn increasing_root(a: f64, b: f64, c: f64, l: f64, r: f64) -> f64 {
         }
     }
     hi
+}
+
+/// The exact hard-shadow visibility (1 = lit, 0 = shadowed) of reference hits:
+/// [`Reference::occluded`] per pixel, with `L_ts` from the G-buffer's `normal` and
+/// `tangent` texels (as the pass forms it: `B = w cross(N, T)`) and the frame's world
+/// light direction. Pixels without a hit get 1. This is what the renderer shades the
+/// reference colour with when hard shadows are on, whatever the method.
+pub fn reference_visibility(
+    reference: &Reference,
+    hits: &[Option<Hit>],
+    normal: &[[f32; 4]],
+    tangent: &[[f32; 4]],
+    light_dir: [f32; 3],
+    depth_scale: f32,
+) -> Vec<f32> {
+    use rayon::prelude::*;
+    let l = light_dir.map(f64::from);
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |v: [f32; 4]| {
+        let v = [f64::from(v[0]), f64::from(v[1]), f64::from(v[2])];
+        let n = dot(v, v).sqrt();
+        v.map(|c| c / n)
+    };
+    hits.par_iter()
+        .zip(normal.par_iter().zip(tangent.par_iter()))
+        .map(|(hit, (n4, t4))| {
+            let Some(hit) = hit else { return 1.0 };
+            let (n, t) = (unit(*n4), unit(*t4));
+            let w = f64::from(t4[3]);
+            let b = [
+                w * (n[1] * t[2] - n[2] * t[1]),
+                w * (n[2] * t[0] - n[0] * t[2]),
+                w * (n[0] * t[1] - n[1] * t[0]),
+            ];
+            let l_ts = [dot(l, t), dot(l, b), dot(l, n)];
+            // The receiver as the pass takes it: the surface under the hit's uv.
+            let h = reference.height(hit.uv);
+            if reference.occluded(hit.uv, h, l_ts, f64::from(depth_scale)) {
+                0.0
+            } else {
+                1.0
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

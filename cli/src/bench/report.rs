@@ -22,8 +22,8 @@
 //! fixed targets ([`ARTIFACT_TARGETS`], [`TEXEL_TARGETS`]).
 
 use super::{BenchResults, RunRow, Sweep, file_stem};
-use crate::error::{Error, Result};
-use crate::method::Method;
+use dispmap::error::{Error, Result};
+use dispmap::method::Method;
 use std::fmt::Write as _;
 
 /// File name of the map-size plot.

@@ -4,16 +4,17 @@
 //! shadows in range and darker with a lower light, and the `shadow` timing only when on.
 //! Run with `--nocapture` to see the measured numbers.
 
+#[path = "../../tests/common/mod.rs"]
 mod common;
 
 use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::{Convention, HeightField};
-use dispmap::measure::Measure as _;
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
-use dispmap::reference::Reference;
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Geometry, Light, Scene};
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::reference::Reference;
 
 const HARD: ShadowSettings = ShadowSettings {
     mode: ShadowMode::Hard,
@@ -483,8 +484,7 @@ fn the_shadow_pass_is_timed_only_when_on() {
 fn cli_render_shadows() {
     let dir = std::env::temp_dir().join(format!("dispmap-shadows-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let map =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/heightmaps/rocks_depth.jpg");
+    let map = common::repo_root().join("assets/heightmaps/rocks_depth.jpg");
     let run = |extra: &[&str], png: &std::path::Path, json: &std::path::Path| {
         std::process::Command::new(env!("CARGO_BIN_EXE_dispmap"))
             .env("DISPMAP_VALIDATION", "1")

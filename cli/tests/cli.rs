@@ -12,6 +12,7 @@ fn dispmap() -> Command {
 
 fn asset(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
         .join("assets/heightmaps")
         .join(name)
 }

@@ -1,7 +1,7 @@
 //! Writing result files without ever leaving a partial one: everything is written to a
 //! temporary file next to the target and renamed over it only when complete.
 
-use crate::error::{Error, Result};
+use dispmap::error::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -46,14 +46,13 @@
 //! ```
 
 use crate::bundled;
-use crate::error::{Error, Result};
-use crate::heightfield::{Addressing, Convention, HeightField};
-use crate::material::{self, MaterialImages};
-use crate::mesh::Mesh;
-use crate::method::{MaxLevel, Method, MethodParams};
-use crate::passes::shadow::{ShadowMode, ShadowSettings};
-use crate::renderer::{RenderSettings, SceneAssets};
-use crate::scene::{Camera, Geometry, Light, Scene};
+use dispmap::error::{Error, Result};
+use dispmap::heightfield::{Addressing, Convention, HeightField};
+use dispmap::material::{self, MaterialImages};
+use dispmap::method::{MaxLevel, Method, MethodParams};
+use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
+use dispmap::renderer::{RenderSettings, SceneAssets};
+use dispmap::scene::{Camera, Geometry, Light, Scene};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -345,7 +344,7 @@ impl SceneFile {
             }
         };
         let mesh = match &self.mesh {
-            Some(m) => Some(Mesh::load(&dir.join(m))?),
+            Some(m) => Some(crate::mesh_file::load(&dir.join(m))?),
             None => None,
         };
         let green_up = self.material.normal_map_green.unwrap_or(GreenAxis::Up) == GreenAxis::Up;

@@ -5,7 +5,7 @@
 //! add a row to [`LOADERS`] and its seed files to [`seeds`].
 
 use dispmap::heightfield::{Convention, HeightField, Texels};
-use dispmap::scene_file::SceneFile;
+use dispmap_cli::scene_file::SceneFile;
 use image::{DynamicImage, ImageFormat};
 use proptest::prelude::*;
 use std::io::Cursor;
@@ -96,7 +96,9 @@ fn seeds() -> Vec<Vec<u8>> {
 
 /// The example scenes in `scenes/`.
 fn scene_seeds() -> Vec<Vec<u8>> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("scenes");
     let mut files: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())

@@ -53,17 +53,17 @@ pub mod report;
 
 pub use report::{CurvePoint, TimeToError, time_to_reach};
 
-use crate::context::Context;
-use crate::error::{Error, Result};
 use crate::heatmap;
-use crate::heightfield::{HeightField, Texels};
 use crate::measure::{Compared, FrameReference, Measure as _};
-use crate::method::{MAX_STEPS, Method, MethodParams};
 use crate::metrics::{self, ErrorMetrics};
-use crate::passes::PassName;
 use crate::reference::Reference;
-use crate::renderer::{MAX_FRAME_SIDE, RenderSettings, Renderer};
-use crate::scene::{Camera, Geometry, Scene};
+use dispmap::context::Context;
+use dispmap::error::{Error, Result};
+use dispmap::heightfield::{HeightField, Texels};
+use dispmap::method::{MAX_STEPS, Method, MethodParams};
+use dispmap::passes::PassName;
+use dispmap::renderer::{MAX_FRAME_SIDE, RenderSettings, Renderer};
+use dispmap::scene::{Camera, Geometry, Scene};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime};
@@ -151,7 +151,7 @@ impl MapSpec {
     }
 
     /// A map file, named after its stem.
-    pub fn load(path: &Path, convention: crate::heightfield::Convention) -> Result<Self> {
+    pub fn load(path: &Path, convention: dispmap::heightfield::Convention) -> Result<Self> {
         let field = HeightField::load(path, convention)?;
         let name = path
             .file_stem()
@@ -209,7 +209,7 @@ pub struct BenchConfig {
     pub scene: Scene,
     /// Self-shadowing of every run (`--shadows`, default off): when on, the `shadow`
     /// pass is timed (`shadow_ms`) and counted in `total_ms`, not in `method_ms`.
-    pub shadows: crate::passes::shadow::ShadowMode,
+    pub shadows: dispmap::passes::shadow::ShadowMode,
 }
 
 impl Default for BenchConfig {
@@ -224,7 +224,7 @@ impl Default for BenchConfig {
             size_methods: SIZE_METHODS.to_vec(),
             size_steps: DEFAULT_SIZE_STEPS,
             scene: protocol_scene(),
-            shadows: crate::passes::shadow::ShadowMode::Off,
+            shadows: dispmap::passes::shadow::ShadowMode::Off,
         }
     }
 }
@@ -452,7 +452,7 @@ pub fn resample(field: &HeightField, width: u32, height: u32, label: &str) -> Re
             let out = resize(&img, width, height, filter);
             HeightField::from_image(
                 DynamicImage::ImageLuma8(out),
-                crate::heightfield::Convention::Height,
+                dispmap::heightfield::Convention::Height,
                 label.to_owned(),
             )
         }
@@ -461,7 +461,7 @@ pub fn resample(field: &HeightField, width: u32, height: u32, label: &str) -> Re
             let out = resize(&img, width, height, filter);
             HeightField::from_image(
                 DynamicImage::ImageLuma16(out),
-                crate::heightfield::Convention::Height,
+                dispmap::heightfield::Convention::Height,
                 label.to_owned(),
             )
         }
@@ -834,7 +834,7 @@ impl RunAccumulator {
         self.passes
             .iter()
             .find(|(n, _)| *n == name)
-            .map(|(_, v)| crate::timing::median(v))
+            .map(|(_, v)| dispmap::timing::median(v))
     }
 
     fn mean(&self, get: fn(&ErrorMetrics) -> f64) -> f64 {
@@ -893,7 +893,7 @@ impl<'a> MapSweep<'a> {
             method,
             params: protocol_params(None),
             scene: config.frame_scene(0),
-            shadows: crate::passes::shadow::ShadowSettings {
+            shadows: dispmap::passes::shadow::ShadowSettings {
                 mode: config.shadows,
                 ..Default::default()
             },
@@ -1035,8 +1035,8 @@ impl<'a> MapSweep<'a> {
             trace_ms: acc.median_of(PassName::Trace).unwrap_or(0.0),
             shade_ms: acc.median_of(PassName::Shade).unwrap_or(0.0),
             shadow_ms: acc.median_of(PassName::Shadow),
-            method_ms: crate::timing::median(&acc.method_ms),
-            total_ms: crate::timing::median(&acc.total_ms),
+            method_ms: dispmap::timing::median(&acc.method_ms),
+            total_ms: dispmap::timing::median(&acc.total_ms),
             iterations_mean: acc.mean(|e| e.mean_iterations),
             iterations_p99: acc.mean(|e| e.p99_iterations),
             iterations_simd8: mean_of(acc.lockstep.iter().map(|l| l[0])),
@@ -1060,7 +1060,7 @@ impl<'a> MapSweep<'a> {
         method: Method,
         hits: &[metrics::HitTexel],
         rays: &[Option<crate::reference::Ray>],
-        corners: Option<([u32; 2], Vec<crate::passes::dig::Corner>)>,
+        corners: Option<([u32; 2], Vec<dispmap::passes::dig::Corner>)>,
     ) -> Result<Vec<NamedImage>> {
         let config = self.config;
         let [w, h] = config.frame;
