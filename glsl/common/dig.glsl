@@ -47,39 +47,71 @@ float dig_step(Ray ray, float h_bottom, float h_top) {
     return len > 0.0 ? len / i_l : 1.0 / iter;
 }
 
-// Linear search from h_top down with the step of dig_step, then I_B = `refine_steps`
-// bisections between the last two samples (hardware filter, as the paper).
+// The search of a pixel: with a valid interval (`constrained`), a linear search from
+// h_top down with the step of dig_step, then I_B = `refine_steps` bisections between the
+// last two samples (hardware filter, as the paper); without one, relief's unconstrained
+// search (relief_search in trace.glsl: `steps` equal steps from the entry, bisection).
 //  * If the interval's top sample is already on or below the surface, the hit lies
-//    above the interval (the corners missed a feature): the unconstrained search
-//    (relief_search) runs.
+//    above the interval (the corners missed a feature): relief's search runs, from the
+//    entry (the top sample stays counted).
 //  * If no sample of the interval reaches the surface, the hit lies below it: the march
 //    continues below the interval with the same step down to h = 0 (where every height
 //    is on or above the ray, so the loop always ends).
-// The loop only finds the crossing sample; the fallback and the bisection run after it.
-// Calling them inside the loop made every lane of a SIMD group pay for them on CPU
-// drivers (lavapipe emulates the group's control flow): moving them out gave identical
-// hits and counts and a 2.1-2.8x faster trace there (BENCHMARKS.md).
-Hit dig_constrained(Ray ray, float h_bottom, float h_top, inout uint iterations) {
-    float dh = dig_step(ray, h_bottom, h_top);
-    float h_prev = h_top;
-    float h = h_top;
+// One loop and one bisection serve both searches: each lane picks its start, step and
+// end before the loop (the top sample decides), so a SIMD group whose lanes mix the two
+// runs one loop as long as its slowest lane, not a DIG loop and a relief loop one after
+// the other (CPU drivers such as lavapipe run every branch any lane takes, for all
+// lanes). The samples, counts and hits are exactly those of the two searches run apart:
+// relief's lanes sample `1 - k / steps` unclamped, stop at k = steps and bisect from one
+// step above, as relief_search does; DIG's lanes sample max(h_top - k dh, 0) and bisect
+// from the previous sample.
+Hit dig_search(Ray ray, bool constrained, float h_bottom, float h_top, inout uint iterations) {
+    float steps = float(max(pc.steps, 1u));
+    bool relief = !constrained;
+    float start = 1.0;
+    float dh = 1.0 / steps;
     float k = 0.0;
+    float k_last = steps;
+    float h_prev = 1.0;
+    if (constrained) {
+        vec2 uv = ray_uv(ray, h_top);
+        if (leaves_domain(uv)) {
+            return miss(ray, iterations);
+        }
+        iterations += 1u;
+        if (height_at(uv) >= h_top || h_top <= 0.0) {
+            if (h_top >= 1.0) {
+                return hit_at(ray, 1.0, iterations);
+            }
+            relief = true;
+        } else {
+            start = h_top;
+            dh = dig_step(ray, h_bottom, h_top);
+            k = 1.0;
+            // DIG's march ends at h = 0 (every sample there is on or below the surface).
+            k_last = 3.0e38;
+            h_prev = h_top;
+        }
+    }
+    float h;
     for (;; k += 1.0) {
-        h = max(h_top - k * dh, 0.0);
+        float raw = start - k * dh;
+        h = relief ? raw : max(raw, 0.0);
         vec2 uv = ray_uv(ray, h);
         if (leaves_domain(uv)) {
             return miss(ray, iterations);
         }
         iterations += 1u;
-        if (height_at(uv) >= h || h <= 0.0) {
+        if (height_at(uv) >= h || h <= 0.0 || k >= k_last) {
             break;
         }
         h_prev = h;
     }
-    if (k == 0.0) {
-        return h_top >= 1.0 ? hit_at(ray, 1.0, iterations) : relief_search(ray, iterations);
+    if (relief && k == 0.0) {
+        return hit_at(ray, 1.0, iterations);
     }
-    return hit_at(ray, bisect(ray, h_prev, h, pc.refine_steps, iterations), iterations);
+    float h_above = relief ? h + dh : h_prev;
+    return hit_at(ray, bisect(ray, h_above, h, pc.refine_steps, iterations), iterations);
 }
 
 #endif

@@ -6,9 +6,15 @@
 #ifndef DISPMAP_TEXELS_GLSL
 #define DISPMAP_TEXELS_GLSL
 
-// i mod n in [0, n) for any sign of i.
+// i mod n in [0, n) for any sign of i, without integer division (CPU drivers such as
+// lavapipe run `%` and `/` on ints one lane at a time; GPUs expand them into long
+// sequences). The float quotient is exact in its inputs for |i|, n < 2^24 (texel
+// coordinates of any ray a f32 position can resolve) and correctly rounded, so its floor
+// is off by at most one: one fix-up each way makes the result exactly `i mod n`.
 int wrap_index(int i, int n) {
-    return ((i % n) + n) % n;
+    int r = i - int(floor(float(i) / float(n))) * n;
+    r += r < 0 ? n : 0;
+    return r >= n ? r - n : r;
 }
 
 // Texel p of the map, wrapped (repeat) or clamped (clamp) into it.

@@ -11,8 +11,6 @@
 Hit trace_ray(Ray ray, ivec2 pixel) {
     uint iterations = 0u;
     float h_bottom, h_top;
-    if (!dig_interval(pixel, h_bottom, h_top)) {
-        return relief_search(ray, iterations);
-    }
-    return dig_constrained(ray, h_bottom, h_top, iterations);
+    bool constrained = dig_interval(pixel, h_bottom, h_top);
+    return dig_search(ray, constrained, h_bottom, h_top, iterations);
 }

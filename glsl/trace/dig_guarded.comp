@@ -29,21 +29,28 @@ Hit exact_hit(Ray ray, float t, uint iterations) {
     return t < 0.0 ? miss(ray, iterations) : hit_at(ray, 1.0 - t, iterations);
 }
 
+// Blocks without a valid interval take the full traversal from the root; it is the same
+// loop as the constrained pixels' second traversal (from t = 0 at the root level instead
+// of from the interval's top at its level), so a SIMD group mixing both kinds runs it
+// once, not a fallback traversal and then the constrained one.
 Hit trace_ray(Ray ray, ivec2 pixel) {
     uint iterations = 0u;
     float h_bottom, h_top;
-    if (!dig_interval(pixel, h_bottom, h_top)) {
-        return exact_hit(ray, pyramid_first_hit(ray, 0.0, 1.0, iterations), iterations);
-    }
+    bool constrained = dig_interval(pixel, h_bottom, h_top);
     float t_top = 1.0 - h_top;
-    if (t_top > 0.0) {
+    if (constrained && t_top > 0.0) {
         float t = pyramid_first_hit(ray, 0.0, t_top, iterations);
         if (t >= 0.0) {
             return hit_at(ray, 1.0 - t, iterations);
         }
     }
-    vec2 origin, dir;
-    texel_ray(ray, origin, dir);
-    int level = level_for_span(max(abs(dir.x), abs(dir.y)) * (h_top - h_bottom));
+    int level = int(pc.pyramid_levels) - 1;
+    if (constrained) {
+        vec2 origin, dir;
+        texel_ray(ray, origin, dir);
+        level = level_for_span(max(abs(dir.x), abs(dir.y)) * (h_top - h_bottom));
+    } else {
+        t_top = 0.0;
+    }
     return exact_hit(ray, pyramid_first_hit_from(ray, t_top, 1.0, level, iterations), iterations);
 }
