@@ -61,16 +61,20 @@ struct BenchArgs {
     #[arg(long, default_value = "bench-out")]
     out: PathBuf,
     /// Frames per run: the camera turns about the vertical axis by 360/K degrees per
-    /// frame; times are medians over the frames.
+    /// frame.
     #[arg(long, default_value_t = bench::DEFAULT_FRAMES, value_name = "K")]
     frames: u32,
+    /// Interleaved passes over the frames: times are the minimum over every frame of
+    /// every pass, with the range of the per-pass minima as their spread.
+    #[arg(long, default_value_t = bench::DEFAULT_REPEAT, value_name = "R")]
+    repeat: u32,
     /// How many of the frames (spread evenly, frame 0 first) are measured against the
     /// exact reference [default: all of them].
     #[arg(long, value_name = "N")]
     error_frames: Option<u32>,
     /// Quality settings: linear steps over the full depth, the same for every method that
     /// has a step count (DIG: eps1 = eps2 = 1/steps).
-    #[arg(long, default_value = "75,100,125,150", value_name = "LIST")]
+    #[arg(long, default_value = "25,35,50,75,100,125,150", value_name = "LIST")]
     steps: String,
     /// Methods, comma-separated, or `all`: bump, linear, relief, pom, secant, dig,
     /// dig-guarded, pyramid, exact.
@@ -842,6 +846,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
     let mut config = bench::BenchConfig {
         frame: [args.size.0, args.size.1],
         frames: args.frames,
+        repeat: args.repeat,
         error_frames: args.error_frames,
         steps: bench::parse_steps(&args.steps)?,
         methods: bench::parse_methods(&args.methods)?,

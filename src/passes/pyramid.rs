@@ -321,36 +321,46 @@ impl PyramidPass {
 /// reference the GPU build is compared with bit for bit). Levels in logical sizes.
 pub fn cpu_build(field: &HeightField, addressing: Addressing, kind: PyramidKind) -> Vec<Vec<f32>> {
     let size = [field.width(), field.height()];
-    let (w, h) = (size[0] as i64, size[1] as i64);
-    let texel = |i: i64, j: i64| {
-        let (i, j) = match addressing {
-            Addressing::Repeat => (i.rem_euclid(w), j.rem_euclid(h)),
-            Addressing::Clamp => (i.clamp(0, w - 1), j.clamp(0, h - 1)),
-        };
-        field.texel(i as u32, j as u32)
+    let (w, h) = (size[0] as usize, size[1] as usize);
+    // Every texel converted once, and per column and row the indices of the neighbours
+    // at -1, 0 and +1 with the addressing applied: the inner loop only reads and compares.
+    let heights: Vec<f32> = (0..size[1])
+        .flat_map(|j| (0..size[0]).map(move |i| field.texel(i, j)))
+        .collect();
+    let neighbours = |n: usize| -> [Vec<usize>; 3] {
+        [-1i64, 0, 1].map(|d| {
+            (0..n as i64)
+                .map(|i| match addressing {
+                    Addressing::Repeat => (i + d).rem_euclid(n as i64) as usize,
+                    Addressing::Clamp => (i + d).clamp(0, n as i64 - 1) as usize,
+                })
+                .collect()
+        })
     };
-    let mut level0 = Vec::with_capacity((w * h) as usize);
+    let [c_prev, c_same, c_next] = neighbours(w);
+    let [r_prev, r_same, r_next] = neighbours(h);
+    let mut level0 = Vec::with_capacity(w * h);
     for j in 0..h {
+        let rows = [r_prev[j] * w, r_same[j] * w, r_next[j] * w];
         for i in 0..w {
+            let cols = [c_prev[i], c_same[i], c_next[i]];
+            let t = |di: usize, dj: usize| heights[rows[dj] + cols[di]];
             level0.push(match kind {
-                PyramidKind::Cell => texel(i, j)
-                    .max(texel(i + 1, j))
-                    .max(texel(i, j + 1).max(texel(i + 1, j + 1))),
+                PyramidKind::Cell => t(1, 1).max(t(2, 1)).max(t(1, 2).max(t(2, 2))),
                 PyramidKind::Footprint => {
-                    let t = |di: i64, dj: i64| texel(i + di, j + dj);
                     let edges = [
-                        (t(-1, 0) + t(0, 0)) * 0.5,
-                        (t(0, 0) + t(1, 0)) * 0.5,
-                        (t(0, -1) + t(0, 0)) * 0.5,
-                        (t(0, 0) + t(0, 1)) * 0.5,
+                        (t(0, 1) + t(1, 1)) * 0.5,
+                        (t(1, 1) + t(2, 1)) * 0.5,
+                        (t(1, 0) + t(1, 1)) * 0.5,
+                        (t(1, 1) + t(1, 2)) * 0.5,
                     ];
                     let corners = [
-                        ((t(-1, -1) + t(0, -1)) + (t(-1, 0) + t(0, 0))) * 0.25,
-                        ((t(0, -1) + t(1, -1)) + (t(0, 0) + t(1, 0))) * 0.25,
-                        ((t(-1, 0) + t(0, 0)) + (t(-1, 1) + t(0, 1))) * 0.25,
                         ((t(0, 0) + t(1, 0)) + (t(0, 1) + t(1, 1))) * 0.25,
+                        ((t(1, 0) + t(2, 0)) + (t(1, 1) + t(2, 1))) * 0.25,
+                        ((t(0, 1) + t(1, 1)) + (t(0, 2) + t(1, 2))) * 0.25,
+                        ((t(1, 1) + t(2, 1)) + (t(1, 2) + t(2, 2))) * 0.25,
                     ];
-                    edges.iter().chain(&corners).fold(t(0, 0), |m, &v| m.max(v))
+                    edges.iter().chain(&corners).fold(t(1, 1), |m, &v| m.max(v))
                 }
             });
         }

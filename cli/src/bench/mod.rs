@@ -75,8 +75,9 @@ pub const CAMERA_ELEVATION_DEG: f32 = 20.25;
 /// Vertical field of view of the benchmark camera, degrees.
 pub const FOV_Y_DEG: f32 = 39.5;
 
-/// The DIG paper's quality settings (iterations).
-pub const DEFAULT_STEPS: [u32; 4] = [75, 100, 125, 150];
+/// The quality settings (iterations): the DIG paper's 75 to 150, and 25 to 50 so that the
+/// setting where DIG reaches `pom`-150's error is read off measured points.
+pub const DEFAULT_STEPS: [u32; 7] = [25, 35, 50, 75, 100, 125, 150];
 
 /// Map sides of the map-size sweep (the pyramid paper's Fig. 21).
 pub const DEFAULT_SIZES: [u32; 4] = [256, 512, 1024, 2048];
@@ -92,6 +93,12 @@ pub const DEFAULT_FRAME: [u32; 2] = [640, 360];
 
 /// Default number of frames (camera azimuths) per run.
 pub const DEFAULT_FRAMES: u32 = 8;
+
+/// Default `--repeat`: interleaved passes over the frames.
+pub const DEFAULT_REPEAT: u32 = 3;
+
+/// Largest `--repeat`.
+pub const MAX_REPEAT: u32 = 100;
 
 /// Largest `--frames`.
 pub const MAX_FRAMES: u32 = 10_000;
@@ -192,6 +199,10 @@ pub struct BenchConfig {
     pub frame: [u32; 2],
     /// Frames (camera azimuths) per run (`--frames`).
     pub frames: u32,
+    /// Interleaved passes over the frames (`--repeat`): every run renders its `frames`
+    /// frames `repeat` times; the times are the minimum over all of them, with the range
+    /// of the per-pass minima as the spread.
+    pub repeat: u32,
     /// Frames that get the reference and the error measures (`--error-frames`); `None`:
     /// all of them.
     pub error_frames: Option<u32>,
@@ -217,6 +228,7 @@ impl Default for BenchConfig {
         BenchConfig {
             frame: DEFAULT_FRAME,
             frames: DEFAULT_FRAMES,
+            repeat: DEFAULT_REPEAT,
             error_frames: None,
             steps: DEFAULT_STEPS.to_vec(),
             methods: Method::ALL.to_vec(),
@@ -244,6 +256,12 @@ impl BenchConfig {
             return Err(Error::invalid(
                 "--frames",
                 format!("{} is outside 1..={MAX_FRAMES}", self.frames),
+            ));
+        }
+        if self.repeat == 0 || self.repeat > MAX_REPEAT {
+            return Err(Error::invalid(
+                "--repeat",
+                format!("{} is outside 1..={MAX_REPEAT}", self.repeat),
             ));
         }
         if let Some(n) = self.error_frames
@@ -508,28 +526,45 @@ pub struct RunRow {
     pub frame_width: u32,
     /// Frame height in pixels.
     pub frame_height: u32,
-    /// Timed frames.
+    /// Frames (camera azimuths) per pass.
     pub frames: u32,
+    /// Interleaved passes over the frames (`--repeat`).
+    pub repeat: u32,
     /// Frames measured against the reference.
     pub error_frames: u32,
     /// The frames (azimuths and error frames) in words.
     pub frame_set: String,
-    /// Median G-buffer pass.
+    /// G-buffer pass (every `*_ms` time below is the minimum over the `frames` frames of
+    /// the `repeat` passes unless it says median).
     pub gbuffer_ms: f64,
     /// The pyramid's one build (once per map and pyramid kind), if the method uses one.
     pub pyramid_build_ms: Option<f64>,
-    /// Median DIG corner pass, DIG methods only.
+    /// Map-size sweep: the same pyramid built on the CPU by one thread
+    /// (`dispmap::passes::pyramid::cpu_build`, the minimum of 3 builds), the yardstick
+    /// of the GPU build.
+    pub cpu_pyramid_build_ms: Option<f64>,
+    /// DIG corner pass, DIG methods only.
     pub dig_corners_ms: Option<f64>,
-    /// Median trace pass.
+    /// Trace pass.
     pub trace_ms: f64,
-    /// Median shade pass.
+    /// Shade pass.
     pub shade_ms: f64,
-    /// Median self-shadowing pass (`--shadows` on only).
+    /// Self-shadowing pass (`--shadows` on only).
     pub shadow_ms: Option<f64>,
-    /// Median per-frame `dig_corners + trace`: the method's time.
+    /// The method's time, per-frame `dig_corners + trace`: the minimum over every frame
+    /// of every pass, the statistic the speed-ups and plots use.
     pub method_ms: f64,
-    /// Median per-frame total (without the pyramid build).
+    /// Its median over every frame of every pass.
+    pub method_median_ms: f64,
+    /// The lowest per-pass minimum of the method time.
+    pub method_lo_ms: f64,
+    /// The highest per-pass minimum of the method time (with `method_lo_ms`: the spread
+    /// of `method_ms` over the repeat).
+    pub method_hi_ms: f64,
+    /// Per-frame total (without the one-off passes), minimum.
     pub total_ms: f64,
+    /// Per-frame total, median.
+    pub total_median_ms: f64,
     /// Mean per-pixel iterations of the trace pass.
     pub iterations_mean: f64,
     /// p99 per-pixel iterations of the trace pass.
@@ -639,8 +674,33 @@ pub const NO_STEPS_WEIGHT: u64 = 100;
 /// Progress weight of one reference frame (CPU intersection).
 pub const REFERENCE_WEIGHT: u64 = 150;
 
+/// The fastest of 3 single-threaded CPU builds of `field`'s pyramid of `kind`, ms.
+fn cpu_pyramid_ms(
+    field: &HeightField,
+    config: &BenchConfig,
+    kind: dispmap::method::PyramidKind,
+) -> f64 {
+    let addressing = config.scene.addressing();
+    min_of((0..3).map(|_| {
+        let start = Instant::now();
+        let levels = dispmap::passes::pyramid::cpu_build(field, addressing, kind);
+        std::hint::black_box(levels);
+        start.elapsed().as_secs_f64() * 1e3
+    }))
+}
+
+/// The smallest of `values` (infinity when empty).
+fn min_of(values: impl Iterator<Item = f64>) -> f64 {
+    values.fold(f64::INFINITY, f64::min)
+}
+
 fn run_weight(steps: Option<u32>, frames: u32) -> u64 {
     u64::from(frames) * steps.map_or(NO_STEPS_WEIGHT, u64::from)
+}
+
+/// [`run_weight`] of every frame of every pass.
+fn frames_rendered(config: &BenchConfig) -> u32 {
+    config.frames * config.repeat
 }
 
 /// The total progress weight of a sweep over `maps` maps (and the size sweep if
@@ -651,13 +711,18 @@ fn total_weight(config: &BenchConfig, maps: usize, size_sweep: bool) -> u64 {
         .methods
         .iter()
         .flat_map(|&m| config.settings_of(m))
-        .map(|s| run_weight(s, config.frames))
+        .map(|s| run_weight(s, frames_rendered(config)))
         .sum::<u64>()
         + refs;
     let per_size: u64 = config
         .size_methods
         .iter()
-        .map(|&m| run_weight(has_steps(m).then_some(config.size_steps), config.frames))
+        .map(|&m| {
+            run_weight(
+                has_steps(m).then_some(config.size_steps),
+                frames_rendered(config),
+            )
+        })
         .sum::<u64>()
         + refs;
     per_map * maps as u64
@@ -801,8 +866,11 @@ struct RunSpec {
 /// What a run has measured so far.
 #[derive(Default)]
 struct RunAccumulator {
+    /// Every frame's time of each pass, over all passes of the repeat.
     passes: Vec<(PassName, Vec<f64>)>,
-    method_ms: Vec<f64>,
+    /// Every frame's method time (`dig_corners + trace`), with its repeat pass.
+    method_ms: Vec<(u32, f64)>,
+    /// Every frame's total (without the one-off passes).
     total_ms: Vec<f64>,
     errors: Vec<ErrorMetrics>,
     corner_iterations: Vec<f64>,
@@ -810,7 +878,7 @@ struct RunAccumulator {
 }
 
 impl RunAccumulator {
-    fn add_times(&mut self, times: &[(PassName, f64)]) {
+    fn add_times(&mut self, times: &[(PassName, f64)], pass: u32) {
         let mut frame_method = 0.0;
         let mut frame_total = 0.0;
         for &(name, ms) in times {
@@ -826,15 +894,32 @@ impl RunAccumulator {
                 None => self.passes.push((name, vec![ms])),
             }
         }
-        self.method_ms.push(frame_method);
+        self.method_ms.push((pass, frame_method));
         self.total_ms.push(frame_total);
     }
 
-    fn median_of(&self, name: PassName) -> Option<f64> {
+    /// The robust time of a pass: its minimum over every frame of every pass.
+    fn min_of(&self, name: PassName) -> Option<f64> {
         self.passes
             .iter()
             .find(|(n, _)| *n == name)
-            .map(|(_, v)| dispmap::timing::median(v))
+            .map(|(_, v)| min_of(v.iter().copied()))
+    }
+
+    /// The method time's minimum over all frames, its median, and the lowest and the
+    /// highest per-pass minimum (the spread of the robust statistic over the repeat).
+    fn method_stats(&self) -> (f64, f64, f64, f64) {
+        let all: Vec<f64> = self.method_ms.iter().map(|&(_, ms)| ms).collect();
+        let passes = self.method_ms.iter().map(|&(p, _)| p).max().map_or(0, |p| p + 1);
+        let per_pass: Vec<f64> = (0..passes)
+            .map(|p| min_of(self.method_ms.iter().filter(|m| m.0 == p).map(|m| m.1)))
+            .collect();
+        (
+            min_of(all.iter().copied()),
+            dispmap::timing::median(&all),
+            min_of(per_pass.iter().copied()),
+            per_pass.iter().copied().fold(0.0, f64::max),
+        )
     }
 
     fn mean(&self, get: fn(&ErrorMetrics) -> f64) -> f64 {
@@ -925,9 +1010,10 @@ impl<'a> MapSweep<'a> {
         let mut acc: Vec<RunAccumulator> = runs.iter().map(|_| RunAccumulator::default()).collect();
         let mut images = Vec::new();
         let mut next_ref = 0;
-        for f in 0..config.frames {
+        for (pass, f) in (0..config.repeat).flat_map(|p| (0..config.frames).map(move |f| (p, f))) {
+            // The references are measured in the first pass only.
             let reference = match self.references.get(next_ref) {
-                Some((rf, r)) if *rf == f => {
+                Some((rf, r)) if *rf == f && pass == 0 => {
                     next_ref += 1;
                     Some(r)
                 }
@@ -941,7 +1027,7 @@ impl<'a> MapSweep<'a> {
                 renderer.set_method(run.method, protocol_params(run.steps))?;
                 renderer.set_scene(config.frame_scene(f))?;
                 let times = renderer.render()?;
-                acc.add_times(&times);
+                acc.add_times(&times, pass);
                 if let Some(reference) = reference {
                     let img = self.measure(renderer, run, f, reference, acc)?;
                     images.extend(img);
@@ -949,12 +1035,14 @@ impl<'a> MapSweep<'a> {
                 tracker.advance(
                     run.steps.map_or(NO_STEPS_WEIGHT, u64::from),
                     format!(
-                        "{} {} {} (frame {}/{})",
+                        "{} {} {} (frame {}/{}, pass {}/{})",
                         self.name,
                         run.method,
                         run.steps.map_or("-".to_owned(), |s| s.to_string()),
                         f + 1,
-                        config.frames
+                        config.frames,
+                        pass + 1,
+                        config.repeat
                     ),
                 );
             }
@@ -1017,6 +1105,7 @@ impl<'a> MapSweep<'a> {
 
     fn row(&self, run: &RunSpec, acc: &RunAccumulator, pyramid_ms: Option<f64>) -> RunRow {
         let config = self.config;
+        let (method_ms, method_median_ms, method_lo_ms, method_hi_ms) = acc.method_stats();
         RunRow {
             sweep: self.sweep,
             map: self.name.clone(),
@@ -1027,16 +1116,25 @@ impl<'a> MapSweep<'a> {
             frame_width: config.frame[0],
             frame_height: config.frame[1],
             frames: config.frames,
+            repeat: config.repeat,
             error_frames: acc.errors.len() as u32,
             frame_set: config.frame_set(),
-            gbuffer_ms: acc.median_of(PassName::GBuffer).unwrap_or(0.0),
+            gbuffer_ms: acc.min_of(PassName::GBuffer).unwrap_or(0.0),
             pyramid_build_ms: run.method.needs().pyramid.and(pyramid_ms),
-            dig_corners_ms: acc.median_of(PassName::DigCorners),
-            trace_ms: acc.median_of(PassName::Trace).unwrap_or(0.0),
-            shade_ms: acc.median_of(PassName::Shade).unwrap_or(0.0),
-            shadow_ms: acc.median_of(PassName::Shadow),
-            method_ms: dispmap::timing::median(&acc.method_ms),
-            total_ms: dispmap::timing::median(&acc.total_ms),
+            cpu_pyramid_build_ms: match (self.sweep, run.method.needs().pyramid) {
+                (Sweep::MapSize, Some(kind)) => Some(cpu_pyramid_ms(self.field, config, kind)),
+                _ => None,
+            },
+            dig_corners_ms: acc.min_of(PassName::DigCorners),
+            trace_ms: acc.min_of(PassName::Trace).unwrap_or(0.0),
+            shade_ms: acc.min_of(PassName::Shade).unwrap_or(0.0),
+            shadow_ms: acc.min_of(PassName::Shadow),
+            method_ms,
+            method_median_ms,
+            method_lo_ms,
+            method_hi_ms,
+            total_ms: min_of(acc.total_ms.iter().copied()),
+            total_median_ms: dispmap::timing::median(&acc.total_ms),
             iterations_mean: acc.mean(|e| e.mean_iterations),
             iterations_p99: acc.mean(|e| e.p99_iterations),
             iterations_simd8: mean_of(acc.lockstep.iter().map(|l| l[0])),

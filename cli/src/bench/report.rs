@@ -50,7 +50,7 @@ pub fn csv_bytes(rows: &[RunRow]) -> Result<Vec<u8>> {
 }
 
 /// The columns of `results.csv`, in order.
-pub const CSV_HEADER: [&str; 30] = [
+pub const CSV_HEADER: [&str; 36] = [
     "sweep",
     "map",
     "map_width",
@@ -60,16 +60,22 @@ pub const CSV_HEADER: [&str; 30] = [
     "frame_width",
     "frame_height",
     "frames",
+    "repeat",
     "error_frames",
     "frame_set",
     "gbuffer_ms",
     "pyramid_build_ms",
+    "cpu_pyramid_build_ms",
     "dig_corners_ms",
     "trace_ms",
     "shade_ms",
     "shadow_ms",
     "method_ms",
+    "method_median_ms",
+    "method_lo_ms",
+    "method_hi_ms",
     "total_ms",
+    "total_median_ms",
     "iterations_mean",
     "iterations_p99",
     "iterations_simd8",
@@ -230,6 +236,19 @@ pub fn same_setting_speedup(
     let dig = row_at(rows, map, Method::Dig, steps)?;
     let o = row_at(rows, map, other, steps)?;
     Some((o.method_ms / dig.method_ms, o.total_ms / dig.total_ms))
+}
+
+/// DIG's lockstep ceiling over `relief` on `map` at `steps`: relief's 8-lane lockstep
+/// iterations per pixel over DIG's (trace plus corner-pass fetches per pixel), the
+/// speed-up DIG would have if time followed the lockstep count; and DIG's measured
+/// speed-up over relief as a fraction of it.
+pub fn lockstep_ceiling(rows: &[RunRow], map: &str, steps: u32) -> Option<(f64, f64)> {
+    let dig = row_at(rows, map, Method::Dig, steps)?;
+    let relief = row_at(rows, map, Method::Relief, steps)?;
+    let ceiling =
+        relief.iterations_simd8 / (dig.iterations_simd8 + dig.corner_iterations.unwrap_or(0.0));
+    let measured = relief.method_ms / dig.method_ms;
+    Some((ceiling, measured / ceiling))
 }
 
 /// DIG's speed-up over another method at equal error.
@@ -402,9 +421,14 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     );
     let _ = writeln!(
         s,
-        "\nTimes are milliseconds of GPU timestamps, medians over the frames (the runs are \
-         interleaved frame by frame, so a passing load spreads over every method). **method** = \
-         `dig_corners` + `trace` (what the speed-ups compare), **frame** = the whole frame \
+        "\nTimes are milliseconds of GPU timestamps, the **minimum** over every frame of {} \
+         interleaved passes over the {} frames (the runs are interleaved frame by frame, and \
+         the passes one after the other, so a passing load spreads over every method; on a \
+         shared machine the minimum repeats far better than the median, which is listed as \
+         **method med.**). **spread** = the lowest and the highest of the per-pass minima of \
+         the method time: a ratio whose two sides' spreads overlap is within noise. **method** \
+         = `dig_corners` + `trace` (what the speed-ups compare, all from the minimum), \
+         **frame** = the whole frame \
          (G-buffer, corner pass, trace, shade; without the one-off pyramid build, listed as \
          **pyr. build**). Errors are means over the error frames against the exact CPU \
          reference: **artifacts** = covered pixels more than one texel off, **mean tx** = mean \
@@ -412,7 +436,8 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
          **SIMD-8** / **warp-32** = the mean over 8x1 / 8x4 pixel groups of the group's largest \
          count (a SIMD group runs until its slowest lane is done: lavapipe's subgroups have 8 \
          lanes, a GPU warp 32); **corner it./px** = DIG's corner-pass fetches per pixel. \
-         **x bump** = method time over `bump`'s (the cost floor: one fetch). On lavapipe the times are CPU times: read ratios within this run only."
+         **x bump** = method time over `bump`'s (the cost floor: one fetch). On lavapipe the times are CPU times: read ratios within this run only.",
+        c.repeat, c.frames
     );
     for map in &results.maps {
         map_section(&mut s, results, &map.name, map);
@@ -446,23 +471,26 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
         .map(|r| r.method_ms);
     let _ = writeln!(
         s,
-        "| method | steps | pyr. build | corners | trace | method | frame | x bump | iters mean | iters p99 | SIMD-8 | warp-32 | corner it./px | artifacts | mean tx | p99 tx | PSNR dB |"
+        "| method | steps | pyr. build | corners | trace | method | spread | method med. | frame | x bump | iters mean | iters p99 | SIMD-8 | warp-32 | corner it./px | artifacts | mean tx | p99 tx | PSNR dB |"
     );
     let _ = writeln!(
         s,
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for &method in &c.methods {
         for r in curve_rows(rows, name, method) {
             let _ = writeln!(
                 s,
-                "| `{}` | {} | {} | {} | {:.2} | {:.2} | {:.2} | {} | {:.1} | {:.0} | {:.1} | {:.1} | {} | {:.3}% | {:.3} | {:.3} | {:.2} |",
+                "| `{}` | {} | {} | {} | {:.2} | {:.2} | {:.2}-{:.2} | {:.2} | {:.2} | {} | {:.1} | {:.0} | {:.1} | {:.1} | {} | {:.3}% | {:.3} | {:.3} | {:.2} |",
                 r.method,
                 steps_cell(r),
                 opt_ms(r.pyramid_build_ms),
                 opt_ms(r.dig_corners_ms),
                 r.trace_ms,
                 r.method_ms,
+                r.method_lo_ms,
+                r.method_hi_ms,
+                r.method_median_ms,
                 r.total_ms,
                 bump.map_or_else(|| "-".into(), |b| format!("{:.1}", r.method_ms / b)),
                 r.iterations_mean,
@@ -484,19 +512,32 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
             s,
             "\n**DIG's speed-up at the same setting** (method time; whole frame in brackets):\n"
         );
-        let _ = writeln!(s, "| iter | over `pom` | over `relief` |\n|---:|---:|---:|");
+        let _ = writeln!(
+            s,
+            "| iter | over `pom` | over `relief` | lockstep ceiling over `relief` | of the ceiling |\n|---:|---:|---:|---:|---:|"
+        );
         for &st in &c.steps {
             let cell = |m: Method| {
                 same_setting_speedup(rows, name, m, st)
                     .map_or_else(|| "-".into(), |(a, b)| format!("{a:.2}x ({b:.2}x)"))
             };
+            let (ceiling, share) = lockstep_ceiling(rows, name, st).map_or_else(
+                || ("-".to_owned(), "-".to_owned()),
+                |(c, f)| (format!("{c:.2}x"), format!("{:.0}%", 100.0 * f)),
+            );
             let _ = writeln!(
                 s,
-                "| {st} | {} | {} |",
+                "| {st} | {} | {} | {ceiling} | {share} |",
                 cell(Method::Pom),
                 cell(Method::Relief)
             );
         }
+        let _ = writeln!(
+            s,
+            "\nThe lockstep ceiling is relief's SIMD-8 count over DIG's (its corner-pass fetches \
+             per pixel added): the speed-up DIG would show if a group of 8 lanes cost what its \
+             slowest lane's fetches cost."
+        );
         let _ = writeln!(
             s,
             "\n**DIG's speed-up at equal error**, two readings: (a) the other method's error at \
@@ -658,15 +699,16 @@ fn size_section(s: &mut String, results: &BenchResults) {
         s,
         "\n## Map-size sweep\n\n`{}` resampled (Catmull-Rom, {}) to each size; the methods \
          at iter = {} (where they have a step count), the same frames. **build** = the \
-         pyramid's one build per map (not in the per-frame time).\n",
+         pyramid's one GPU build per map (not in the per-frame time); **CPU build** = the \
+         same pyramid built by one CPU thread (`cpu_build`, fastest of 3), the yardstick.\n",
         source.label, source.format, c.size_steps
     );
     let mut header = "| map size |".to_owned();
     let mut rule = "|---:|".to_owned();
     for &m in &c.size_methods {
         if m.needs().pyramid.is_some() {
-            let _ = write!(header, " `{m}` build |");
-            rule.push_str("---:|");
+            let _ = write!(header, " `{m}` build | `{m}` CPU build |");
+            rule.push_str("---:|---:|");
         }
         let _ = write!(header, " `{m}` method | `{m}` artifacts |");
         rule.push_str("---:|---:|");
@@ -679,7 +721,12 @@ fn size_section(s: &mut String, results: &BenchResults) {
                 .iter()
                 .find(|r| r.map_width == side && r.method == m.name());
             if m.needs().pyramid.is_some() {
-                let _ = write!(line, " {} |", opt_ms(r.and_then(|r| r.pyramid_build_ms)));
+                let _ = write!(
+                    line,
+                    " {} | {} |",
+                    opt_ms(r.and_then(|r| r.pyramid_build_ms)),
+                    opt_ms(r.and_then(|r| r.cpu_pyramid_build_ms))
+                );
             }
             match r {
                 Some(r) => {
@@ -772,16 +819,22 @@ mod tests {
             frame_width: 64,
             frame_height: 36,
             frames: 2,
+            repeat: 1,
             error_frames: 1,
             frame_set: "azimuth (f+0.5)*180deg for f<2; error frames 0".into(),
             gbuffer_ms: 0.5,
             pyramid_build_ms: None,
+            cpu_pyramid_build_ms: None,
             dig_corners_ms: (method == "dig").then_some(0.25),
             trace_ms: method_ms,
             shade_ms: 0.75,
             shadow_ms: None,
             method_ms,
+            method_median_ms: method_ms,
+            method_lo_ms: method_ms,
+            method_hi_ms: method_ms,
             total_ms: method_ms + 1.25,
+            total_median_ms: method_ms + 1.25,
             iterations_mean: 12.5,
             iterations_p99: 40.0,
             iterations_simd8: 20.0,
