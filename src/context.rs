@@ -480,21 +480,33 @@ impl Context {
     }
 
     /// Opens a debug label region in `cmd` (shows up in captures and validation messages).
-    pub fn begin_label(&self, cmd: vk::CommandBuffer, name: &str) {
+    ///
+    /// # Safety
+    /// `cmd` is a command buffer of this context's device in the recording state; the
+    /// region is closed by [`Context::end_label`] later in the same command buffer (or one
+    /// submitted after it to the same queue).
+    pub unsafe fn begin_label(&self, cmd: vk::CommandBuffer, name: &str) {
         if let Some(du) = &self.debug_utils {
             let Ok(cname) = CString::new(name) else {
                 return;
             };
             let label = vk::DebugUtilsLabelEXT::default().label_name(&cname);
-            // SAFETY: `cmd` is in the recording state (caller's contract for every pass).
+            // SAFETY: this function's # Safety contract: `cmd` is a recording command
+            // buffer of this device; `label` outlives the call.
             unsafe { du.cmd_begin_debug_utils_label(cmd, &label) };
         }
     }
 
     /// Closes the region opened by [`Context::begin_label`].
-    pub fn end_label(&self, cmd: vk::CommandBuffer) {
+    ///
+    /// # Safety
+    /// `cmd` is a command buffer of this context's device in the recording state, and a
+    /// region opened by [`Context::begin_label`] is open in it (or in one submitted
+    /// earlier to the same queue).
+    pub unsafe fn end_label(&self, cmd: vk::CommandBuffer) {
         if let Some(du) = &self.debug_utils {
-            // SAFETY: pairs with `begin_label` on the same recording command buffer.
+            // SAFETY: this function's # Safety contract: `cmd` is recording and a region
+            // opened by `begin_label` is open.
             unsafe { du.cmd_end_debug_utils_label(cmd) };
         }
     }

@@ -347,18 +347,17 @@ impl Renderer {
             sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE)
         });
         let depth = &self.gbuffer.depth;
-        sync::record(ctx, cmd, &to_attachments);
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                depth.raw,
-                depth.range(),
-                DISCARD,
-                Access::DEPTH_ATTACHMENT_WRITE,
-            )],
-        );
-        // SAFETY: `cmd` is recording; the G-buffer is in the attachment layouts.
+        // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
+        // context's queue family) and is submitted and waited for below, while the
+        // G-buffer lives; its previous frame was waited for, so the contents may be
+        // discarded; the images have `COLOR_ATTACHMENT` usage (`GBuffer::new`).
+        unsafe { sync::record(ctx, cmd, &to_attachments) };
+        // SAFETY: as above; the depth image has `DEPTH_STENCIL_ATTACHMENT` usage.
+        unsafe { sync::transition(ctx, cmd, depth, DISCARD, Access::DEPTH_ATTACHMENT_WRITE) };
+        // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
+        // above (the scope's contract). In the body (inside this block): the G-buffer is
+        // in the attachment layouts (the barriers above); it, the pass and the mesh's
+        // buffers live until the submission below has completed.
         unsafe {
             w.scope(ctx, cmd, PassName::GBuffer, |cmd| match &self.mesh {
                 Some(mesh) => {
@@ -400,7 +399,11 @@ impl Renderer {
                 Access::COMPUTE_STORAGE_WRITE,
             ));
         }
-        sync::record(ctx, cmd, &entry);
+        // SAFETY: `cmd` is recording outside a render pass (begun above, submitted
+        // below); the G-buffer was written as attachments by the scope above; the hit and
+        // colour images are the renderer's, alive, and their previous frame was waited
+        // for, so they may be discarded.
+        unsafe { sync::record(ctx, cmd, &entry) };
         let inputs = self.frame_inputs(Some(target));
         // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
         // submitted below; the views are the renderer's, in the entry states; one slot,
@@ -641,16 +644,11 @@ impl Renderer {
         let inputs = self.frame_inputs(Some(target));
         let cmd = self.shot.begin(ctx)?;
         let color = &self.color;
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                color.raw,
-                color.range(),
-                DISCARD,
-                Access::COMPUTE_STORAGE_WRITE,
-            )],
-        );
+        // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
+        // context's queue family) and is submitted and waited for below; the colour image
+        // is the renderer's, alive, and its previous frame was waited for, so it may be
+        // discarded.
+        unsafe { sync::transition(ctx, cmd, color, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
         // SAFETY: `cmd` is recording and submitted below; the hits (and the given
         // visibility) were uploaded and made visible to storage reads; one slot, whose
         // previous frame was waited for.

@@ -77,7 +77,9 @@ impl ScopeWriter {
         name: PassName,
         body: impl FnOnce(vk::CommandBuffer) -> R,
     ) -> R {
-        ctx.begin_label(cmd, name.as_str());
+        // SAFETY: `cmd` is recording (this function's # Safety contract); the label is
+        // closed by `end_label` below, in the same command buffer.
+        unsafe { ctx.begin_label(cmd, name.as_str()) };
         let used = 2 * self.scopes.len() as u32;
         let queries = self
             .pool
@@ -113,7 +115,9 @@ impl ScopeWriter {
                 end_query: begin + 1,
             });
         }
-        ctx.end_label(cmd);
+        // SAFETY: `cmd` is recording (this function's # Safety contract); `begin_label`
+        // above opened the region (the bodies, dispmap's passes, open none of their own).
+        unsafe { ctx.end_label(cmd) };
         self.passes.push(name);
         result
     }

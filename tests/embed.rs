@@ -113,17 +113,13 @@ impl Host {
         let params = self.scene.gbuffer_params(&camera);
         let g = &slot.gbuffer;
         // The pass's entry state (module docs of `dispmap::embed`).
-        record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params);
-        sync::record(
-            &ctx,
-            cmd,
-            &[sync::image_barrier(
-                slot.hit.raw,
-                slot.hit.range(),
-                DISCARD,
-                Access::COMPUTE_STORAGE_WRITE,
-            )],
-        );
+        // SAFETY: `cmd` was begun by `frames.begin` above (outside a render pass, on the
+        // context's queue family) and is submitted below; the slot's images are replaced
+        // only after its fence, and its last frame completed (`begin` waited), so they
+        // may be discarded.
+        unsafe { record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params) };
+        // SAFETY: as above, for the slot's hit image.
+        unsafe { sync::transition(&ctx, cmd, &slot.hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: g.views(),

@@ -164,7 +164,11 @@ impl Host {
             .light_dir;
         let g = &slot.gbuffer;
         // The pass's entry state (module docs of `dispmap::embed`).
-        record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params);
+        // SAFETY: `cmd` was begun by `frames.begin` above (outside a render pass, on the
+        // context's queue family) and is submitted below; the slot's images are replaced
+        // only after its fence, and its last frame completed (`begin` waited), so they
+        // may be discarded.
+        unsafe { record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params) };
         let mut entry = Vec::new();
         for image in [&slot.hit, &slot.color] {
             entry.push(sync::image_barrier(
@@ -174,7 +178,8 @@ impl Host {
                 Access::COMPUTE_STORAGE_WRITE,
             ));
         }
-        sync::record(&ctx, cmd, &entry);
+        // SAFETY: as above, for the slot's hit and colour images.
+        unsafe { sync::record(&ctx, cmd, &entry) };
         let shade = ShadeTarget {
             color: slot.color.view,
             view_proj: camera.view_proj,
@@ -211,26 +216,38 @@ impl Host {
         // image in SHADER_READ_ONLY_OPTIMAL (the next record of the slot discards it).
         slot.resolved_written = false;
         if let Some(source) = pass.hit_depth(s as u32) {
-            sync::record(
-                &ctx,
-                cmd,
-                &[
-                    sync::image_barrier(
-                        source.raw,
-                        source.range(),
-                        Access::COMPUTE_STORAGE_WRITE,
-                        FRAGMENT_SAMPLED,
-                    ),
-                    sync::image_barrier(
-                        slot.resolved.raw,
-                        slot.resolved.range(),
-                        DISCARD,
-                        Access::DEPTH_ATTACHMENT_WRITE,
-                    ),
-                ],
-            );
-            self.resolve
-                .record(&ctx, cmd, source.view, slot.resolved.view, extent);
+            // SAFETY: `cmd` is still recording outside a render pass (the pass records
+            // none open); `source` is the pass's image of this slot, in `GENERAL` written
+            // by `hit_depth` (its exit state) and alive until the slot is recorded again;
+            // the resolved image is the slot's, its last frame completed, so it may be
+            // discarded; it has depth-attachment usage (`slot_images`).
+            unsafe {
+                sync::record(
+                    &ctx,
+                    cmd,
+                    &[
+                        sync::image_barrier(
+                            source.raw,
+                            source.range(),
+                            Access::COMPUTE_STORAGE_WRITE,
+                            FRAGMENT_SAMPLED,
+                        ),
+                        sync::image_barrier(
+                            slot.resolved.raw,
+                            slot.resolved.range(),
+                            DISCARD,
+                            Access::DEPTH_ATTACHMENT_WRITE,
+                        ),
+                    ],
+                )
+            };
+            // SAFETY: as above; `source` is sampled-readable by fragment shaders and the
+            // resolved image in `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), both of
+            // the frame's extent; the resolve pass lives as long as the host.
+            unsafe {
+                self.resolve
+                    .record(&ctx, cmd, source.view, slot.resolved.view, extent)
+            };
             slot.resolved_written = true;
         }
         self.frames.submit(s);

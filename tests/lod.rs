@@ -468,7 +468,11 @@ fn the_height_mip_chain_is_the_box_average_and_level_0_is_the_map() {
     let derive = |from: &dispmap::gpu::HeightTexture, chain: bool| {
         let texture = from.create_like(&ctx, chain).unwrap();
         let cmd = shot.begin(&ctx).unwrap();
-        texture.record_copy_from(&ctx, cmd, from);
+        // SAFETY: `cmd` was just begun by `shot.begin` (outside a render pass, on the
+        // context's queue family) and is submitted and waited for below, while both
+        // textures live; `texture` is `from`'s new twin (`create_like`), never accessed,
+        // and `from` was left sampled-readable by its upload or derivation.
+        unsafe { texture.record_copy_from(&ctx, cmd, from) };
         shot.submit_and_wait(&ctx).unwrap();
         texture
     };

@@ -285,7 +285,14 @@ impl BoxPipeline {
     }
 
     /// Draws the box into `color` with depth testing against `depth` (both kept).
-    fn record(
+    ///
+    /// # Safety
+    /// `cmd` is a command buffer of `ctx`'s device in the recording state, outside a render
+    /// pass instance, for a queue of the context's queue family; when it executes `color`
+    /// is in `COLOR_ATTACHMENT_OPTIMAL` and `depth` in `DEPTH_ATTACHMENT_OPTIMAL`, both of
+    /// the same size, earlier writes ordered before the attachment accesses; both images
+    /// and the pipeline stay alive until it has executed.
+    unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -314,9 +321,11 @@ impl BoxPipeline {
             .color_attachments(&color_attachments)
             .depth_attachment(&depth_attachment);
         let dev = ctx.device();
-        dispmap::gpu::pipeline::set_frame_viewport(ctx, cmd, extent);
-        // SAFETY: `cmd` is recording outside a render pass; the attachments are alive and
-        // in the layouts named above (the test's barriers).
+        // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is an
+        // attachment's size, so it is non-zero and within the viewport limits.
+        unsafe { dispmap::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the attachments are alive and in the layouts named above.
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
@@ -402,53 +411,64 @@ fn a_box_clips_at_the_displaced_height() {
     let mut boxes = BoxPipeline::new(&ctx);
     let source = renderer.hit_depth().expect("depth output is on");
     let cmd = shot.begin(&ctx).unwrap();
-    sync::record(
-        &ctx,
-        cmd,
-        &[
-            sync::image_barrier(
-                source.raw,
-                source.range(),
-                Access::COMPUTE_STORAGE_WRITE,
-                FRAGMENT_SAMPLED,
-            ),
-            sync::image_barrier(
-                depth.raw,
-                depth.range(),
-                Access::UNDEFINED,
-                Access::DEPTH_ATTACHMENT_WRITE,
-            ),
-            sync::image_barrier(
-                color.raw,
-                color.range(),
-                Access::UNDEFINED,
-                Access::COLOR_ATTACHMENT_WRITE,
-            ),
-        ],
-    );
-    resolve.record(&ctx, cmd, source.view, depth.view, extent);
-    sync::record(
-        &ctx,
-        cmd,
-        &[sync::image_barrier(
-            depth.raw,
-            depth.range(),
+    // SAFETY: `cmd` was just begun by `shot.begin` (outside a render pass, on the context's
+    // queue family) and is submitted and waited for below, while every image lives;
+    // `source` is the renderer's corrected depth, in `GENERAL` written by `hit_depth` (the
+    // state the renderer documents after `render`); `depth` and `color` are new, never
+    // accessed, with attachment usage.
+    unsafe {
+        sync::record(
+            &ctx,
+            cmd,
+            &[
+                sync::image_barrier(
+                    source.raw,
+                    source.range(),
+                    Access::COMPUTE_STORAGE_WRITE,
+                    FRAGMENT_SAMPLED,
+                ),
+                sync::image_barrier(
+                    depth.raw,
+                    depth.range(),
+                    Access::UNDEFINED,
+                    Access::DEPTH_ATTACHMENT_WRITE,
+                ),
+                sync::image_barrier(
+                    color.raw,
+                    color.range(),
+                    Access::UNDEFINED,
+                    Access::COLOR_ATTACHMENT_WRITE,
+                ),
+            ],
+        )
+    };
+    // SAFETY: as above; `source` is sampled-readable by fragment shaders and `depth` in
+    // `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), both of `extent`.
+    unsafe { resolve.record(&ctx, cmd, source.view, depth.view, extent) };
+    // SAFETY: as above; `depth` was written in `DEPTH_ATTACHMENT_OPTIMAL` by the resolve.
+    unsafe {
+        sync::transition(
+            &ctx,
+            cmd,
+            &depth,
             Access::DEPTH_ATTACHMENT_WRITE,
             Access::DEPTH_ATTACHMENT_WRITE,
-        )],
-    );
-    boxes.record(&ctx, cmd, &color, &depth, &params);
+        )
+    };
+    // SAFETY: as above; `color` is in `COLOR_ATTACHMENT_OPTIMAL` (the first barriers) and
+    // `depth` holds the resolved depth in `DEPTH_ATTACHMENT_OPTIMAL` (the barrier above).
+    unsafe { boxes.record(&ctx, cmd, &color, &depth, &params) };
     // Back to the state the renderer documents for its corrected depth.
-    sync::record(
-        &ctx,
-        cmd,
-        &[sync::image_barrier(
-            source.raw,
-            source.range(),
+    // SAFETY: as above; `source` is in `SHADER_READ_ONLY_OPTIMAL` (the first barriers).
+    unsafe {
+        sync::transition(
+            &ctx,
+            cmd,
+            source,
             FRAGMENT_SAMPLED,
             Access::COMPUTE_STORAGE_WRITE,
-        )],
-    );
+        )
+    };
     shot.submit_and_wait(&ctx).unwrap();
     let rgba = read_image(&ctx, &shot, &color, Access::COLOR_ATTACHMENT_WRITE).unwrap();
     // The resolve copied the corrected depth pixel for pixel (the box wrote only where

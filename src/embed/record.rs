@@ -111,15 +111,20 @@ impl DisplacementPass {
                 "self-shadowing is off: nothing to shade with",
             ));
         }
-        // SAFETY (every block below): this function's contract, and each stage follows
-        // the state the previous one left.
+        // SAFETY: this function's contract is `begin`'s.
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
+        // SAFETY: this function's contract; `begin` reset the writer's queries.
         unsafe { self.record_builds(cmd, &mut w, inputs.frame_slot) };
         let params = self.shade_params(&target);
         let visibility = match visibility {
             Some(v) => Some(v),
+            // SAFETY: this function's contract: the host's hits are visible to storage
+            // reads.
             None => unsafe { self.record_shadow(cmd, &mut w, inputs, &params)? },
         };
+        // SAFETY: this function's contract: the host's hits and a given visibility are
+        // visible to storage reads; `record_shadow`'s visibility is made so by its exit
+        // barrier.
         unsafe { self.record_shade(cmd, &mut w, inputs, &target, &params, visibility)? };
         Ok(self.finish(inputs.frame_slot, w, timestamps))
     }
@@ -147,10 +152,12 @@ impl DisplacementPass {
                  record_with_camera",
             ));
         }
-        // SAFETY (every block below): this function's contract, and each stage follows
-        // the state the previous one left.
+        // SAFETY: this function's contract is `begin`'s.
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
         let slot = inputs.frame_slot;
+        // SAFETY: this function's contract; `begin` reset the writer's queries, and each
+        // stage follows the state the previous one left (builds, then the corner grid
+        // `trace` reads).
         unsafe {
             self.record_builds(cmd, &mut w, slot);
             self.record_corners(cmd, &mut w, inputs);
@@ -170,12 +177,17 @@ impl DisplacementPass {
         }
         if let Some(target) = &inputs.shade {
             let params = self.shade_params(target);
+            // SAFETY: this function's contract; the hits are visible to storage reads (the
+            // memory barrier above), and `shade` reads the visibility `record_shadow`
+            // left readable.
             unsafe {
                 let visibility = self.record_shadow(cmd, &mut w, inputs, &params)?;
                 self.record_shade(cmd, &mut w, inputs, target, &params, visibility)?;
             }
         }
         if let Some(camera) = camera {
+            // SAFETY: this function's contract; the hits are visible to storage reads (the
+            // memory barrier above, recorded whenever the depth output is on).
             unsafe { self.record_hit_depth(cmd, &mut w, inputs, &camera) };
         }
         Ok(self.finish(slot, w, timestamps))
@@ -263,8 +275,16 @@ impl DisplacementPass {
         let fill = self.pending_fill.take();
         let material = self.pending_material.take();
         if fill.is_some() || material.is_some() {
-            // SAFETY: `record`'s contract; the staging data and sources are retired below
-            // until the frames reading them have completed.
+            // SAFETY: `record`'s contract: `cmd` is recording outside a render pass on the
+            // context's queue family, after `begin` reset the writer's queries (the scope's
+            // contract). In the body (inside this block): a `Fill::Upload` staging buffer
+            // came with `self.height` from `create_for_upload`, a `Fill::Copy` source is
+            // the previous texture of the same map (`create_like`), its level 0
+            // sampled-readable as every fill leaves it; the material staging came with
+            // `self.material` from `create_for_upload`; the new images have never been
+            // accessed. The staging data and sources are retired below until the frames
+            // reading them have completed, and the textures live until the pass is
+            // destroyed after its frames.
             unsafe {
                 w.scope(&ctx, cmd, PassName::Upload, |cmd| {
                     match &fill {
@@ -303,7 +323,11 @@ impl DisplacementPass {
         if method_pyramid.is_none() && shadow_pyramid.is_none() {
             return;
         }
-        // SAFETY: `record`'s contract; the height texture was filled above or earlier.
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the height texture
+        // is sampled-readable (filled in the upload scope above or by an earlier frame);
+        // a pyramid is built only while unbuilt, so no frame has read it; the pass and
+        // pyramids live until they are retired after the frames that use them.
         unsafe {
             w.scope(&ctx, cmd, PassName::Pyramid, |cmd| {
                 for (pass, pyramid) in method_pyramid.into_iter().chain(shadow_pyramid) {
@@ -335,17 +359,23 @@ impl DisplacementPass {
         };
         let image = &grid.image;
         // The slot's previous frame (the last reader) has completed: discarded.
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                image.range(),
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the grid is
+        // the slot's, alive until retired after the slot's frames, and by the slot
+        // contract its last reader has completed, so it may be discarded.
+        unsafe {
+            sync::transition(
+                ctx,
+                cmd,
+                image,
                 DISCARD_COMPUTE,
                 Access::COMPUTE_STORAGE_WRITE,
-            )],
-        );
-        // SAFETY: `record`'s contract.
+            )
+        };
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the host's G-buffer
+        // is in its entry state (sampled-readable, `record`'s contract), the height
+        // texture sampled-readable (its fill), the grid in `GENERAL` for storage writes
+        // (the transition above) and made for this extent.
         unsafe {
             w.scope(ctx, cmd, PassName::DigCorners, |cmd| {
                 pass.record(
@@ -358,16 +388,17 @@ impl DisplacementPass {
                 )
             })
         };
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                image.range(),
+        // SAFETY: `record`'s contract; the grid is in `GENERAL`, written by the corner
+        // pass.
+        unsafe {
+            sync::transition(
+                ctx,
+                cmd,
+                image,
                 Access::COMPUTE_STORAGE_WRITE,
                 Access::COMPUTE_SAMPLED,
-            )],
-        );
+            )
+        };
     }
 
     /// The method into the hit buffer (which enters discarded in `GENERAL`: the host's
@@ -386,7 +417,11 @@ impl DisplacementPass {
             view: inputs.hit,
             extent: self.settings.extent,
         };
-        // SAFETY: `record`'s contract.
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the G-buffer is in
+        // its entry state and the hit buffer discarded in `GENERAL` (the host's barriers,
+        // `record`'s contract); the height texture and pyramid are sampled-readable
+        // (their builds), the slot's corner grid too (`record_corners`).
         unsafe {
             w.scope(ctx, cmd, PassName::Trace, |cmd| {
                 self.trace.record(
@@ -439,16 +474,18 @@ impl DisplacementPass {
         };
         let image = &stage.visibility[inputs.frame_slot as usize];
         // The slot's previous frame (the last reader) has completed: discarded.
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                image.range(),
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the
+        // visibility image is the slot's, alive until retired after the slot's frames,
+        // and by the slot contract its last reader has completed, so it may be discarded.
+        unsafe {
+            sync::transition(
+                ctx,
+                cmd,
+                image,
                 DISCARD_COMPUTE,
                 Access::COMPUTE_STORAGE_WRITE,
-            )],
-        );
+            )
+        };
         let shadow_params = ShadowPass::params(
             &self.shadows,
             self.settings.params.steps,
@@ -459,7 +496,11 @@ impl DisplacementPass {
             Some((_, p)) => Some(p),
             None => self.pyramid.as_ref(),
         };
-        // SAFETY: `record`'s contract.
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the hits are visible
+        // to storage reads (this function's contract), the G-buffer is in its entry
+        // state, the height texture and pyramid sampled-readable (their builds), the
+        // visibility in `GENERAL` for storage writes (the transition above).
         unsafe {
             w.scope(ctx, cmd, PassName::Shadow, |cmd| {
                 stage.pass.record(
@@ -476,16 +517,17 @@ impl DisplacementPass {
                 )
             })?
         };
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                image.range(),
+        // SAFETY: `record`'s contract; the visibility is in `GENERAL`, written by the
+        // shadow pass.
+        unsafe {
+            sync::transition(
+                ctx,
+                cmd,
+                image,
                 Access::COMPUTE_STORAGE_WRITE,
                 Access::COMPUTE_STORAGE_READ,
-            )],
-        );
+            )
+        };
         Ok(Some(image.view))
     }
 
@@ -505,7 +547,12 @@ impl DisplacementPass {
         visibility: Option<vk::ImageView>,
     ) -> Result<()> {
         let ctx = &*self.ctx;
-        // SAFETY: `record`'s contract.
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the hits and the
+        // visibility are visible to storage reads (this function's contract), the
+        // G-buffer is in its entry state and the colour image discarded in `GENERAL` (the
+        // host's barriers), the height texture and material maps sampled-readable (their
+        // uploads).
         unsafe {
             w.scope(ctx, cmd, PassName::Shade, |cmd| {
                 self.shade.record(
@@ -547,16 +594,10 @@ impl DisplacementPass {
         let image = &depth.images[inputs.frame_slot as usize];
         // Discarded: the host's reads of the slot's previous frame (any stage) have
         // completed by the slot contract; the barrier also orders them (WAR).
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                image.range(),
-                DISCARD_ANY,
-                Access::COMPUTE_STORAGE_WRITE,
-            )],
-        );
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the image is
+        // the slot's, alive until retired after the slot's frames, and may be discarded
+        // (the slot contract).
+        unsafe { sync::transition(ctx, cmd, image, DISCARD_ANY, Access::COMPUTE_STORAGE_WRITE) };
         let e = self.settings.extent;
         let params = crate::abi::HitDepthParams::new(
             camera.view_proj,
@@ -564,7 +605,11 @@ impl DisplacementPass {
             [e.width, e.height],
             self.settings.depth_scale,
         );
-        // SAFETY: `record`'s contract.
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the hits are visible
+        // to storage reads (this function's contract), the G-buffer is in its entry
+        // state, the corrected depth in `GENERAL` for storage writes (the transition
+        // above).
         unsafe {
             w.scope(ctx, cmd, PassName::HitDepth, |cmd| {
                 depth.pass.record(

@@ -180,8 +180,12 @@ pub fn upload_image(
 /// -> `TRANSFER_DST_OPTIMAL`, the copy, then -> `after`.
 ///
 /// # Safety
-/// `cmd` is recording outside a render pass; `staging` holds level 0 tightly packed;
-/// both stay alive until the command buffer has executed.
+/// As [`record_copy_to_level0`], except that level 0 may be in any layout on entry (its
+/// contents are discarded, its earlier accesses must have completed): `cmd` is a command
+/// buffer of `ctx`'s device in the recording state, outside a render pass instance, for
+/// a queue of the context's queue family; `staging` holds level 0 tightly packed; both
+/// stay alive until the command buffer has executed; `after.layout` is one the image's
+/// usage allows.
 pub unsafe fn record_upload_level0(
     ctx: &Context,
     cmd: vk::CommandBuffer,
@@ -193,32 +197,53 @@ pub unsafe fn record_upload_level0(
         level_count: 1,
         ..image.range()
     };
-    sync::record(
-        ctx,
-        cmd,
-        &[sync::image_barrier(
-            image.raw,
-            range,
-            Access::UNDEFINED,
-            Access::TRANSFER_WRITE,
-        )],
-    );
-    record_copy_to_level0(ctx, cmd, staging, image);
-    sync::record(
-        ctx,
-        cmd,
-        &[sync::image_barrier(
-            image.raw,
-            range,
-            Access::TRANSFER_WRITE,
-            after,
-        )],
-    );
+    // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+    // pass and `image` is alive; level 0's contents are discarded (`UNDEFINED`).
+    unsafe {
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                image.raw,
+                range,
+                Access::UNDEFINED,
+                Access::TRANSFER_WRITE,
+            )],
+        )
+    };
+    // SAFETY: as above; level 0 is in `TRANSFER_DST_OPTIMAL` (the barrier above) and
+    // `staging` holds it tightly packed (this function's contract).
+    unsafe { record_copy_to_level0(ctx, cmd, staging, image) };
+    // SAFETY: as above; level 0 is in `TRANSFER_DST_OPTIMAL` after the copy.
+    unsafe {
+        sync::record(
+            ctx,
+            cmd,
+            &[sync::image_barrier(
+                image.raw,
+                range,
+                Access::TRANSFER_WRITE,
+                after,
+            )],
+        )
+    };
 }
 
 /// Records the copy of `staging` (tightly packed texels) into mip level 0 of `image`,
 /// which must be in `TRANSFER_DST_OPTIMAL` ([`Access::TRANSFER_WRITE`]).
-pub fn record_copy_to_level0(
+///
+/// # Safety
+/// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+///   render pass instance, for a queue of the context's queue family.
+/// * `image` was created with `TRANSFER_DST` usage in a format [`texel_size`] knows,
+///   and when the copy executes its level 0 is in `TRANSFER_DST_OPTIMAL`, earlier
+///   accesses ordered before the transfer (the caller's barrier).
+/// * `staging` was created with `TRANSFER_SRC` usage and holds at least level 0's
+///   texels, tightly packed (as [`staging_for`] makes it).
+/// * Both stay alive until the command buffer has executed.
+///
+/// [`texel_size`]: super::image::texel_size
+pub unsafe fn record_copy_to_level0(
     ctx: &Context,
     cmd: vk::CommandBuffer,
     staging: &Buffer,
@@ -232,8 +257,9 @@ pub fn record_copy_to_level0(
             layer_count: 1,
         })
         .image_extent(level_extent(image, 0));
-    // SAFETY: `cmd` is recording outside a render pass (caller's contract); the buffer
-    // holds the image's tightly packed level 0 and both are alive.
+    // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+    // pass; level 0 is in `TRANSFER_DST_OPTIMAL`; the buffer holds the image's tightly
+    // packed level 0 and both are alive.
     unsafe {
         ctx.device().cmd_copy_buffer_to_image(
             cmd,
@@ -287,16 +313,21 @@ pub fn read_image_level(
             level_count: 1,
             ..image.range()
         };
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                range,
-                current,
-                Access::TRANSFER_READ,
-            )],
-        );
+        // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
+        // context's queue family) and is submitted and waited for below, while `image`
+        // is alive; the level is in `current` (this function's documented input).
+        unsafe {
+            sync::record(
+                ctx,
+                cmd,
+                &[sync::image_barrier(
+                    image.raw,
+                    range,
+                    current,
+                    Access::TRANSFER_READ,
+                )],
+            )
+        };
         let region = vk::BufferImageCopy::default()
             .image_subresource(vk::ImageSubresourceLayers {
                 aspect_mask: range.aspect_mask,

@@ -52,7 +52,11 @@ impl HeightTexture {
         let (mut texture, mut staging) = Self::create_for_upload(ctx, field, addressing, chain)?;
         let result = (|| {
             let cmd = shot.begin(ctx)?;
-            texture.record_upload(ctx, cmd, &staging);
+            // SAFETY: `cmd` was just begun by `shot.begin` (outside a render pass, on the
+            // context's queue family) and is submitted and waited for below, before
+            // `staging` is destroyed; `staging` came with `texture` from
+            // `create_for_upload`, and the new texture has no earlier accesses.
+            unsafe { texture.record_upload(ctx, cmd, &staging) };
             shot.submit_and_wait(ctx)
         })();
         staging.destroy(ctx);
@@ -166,8 +170,26 @@ impl HeightTexture {
     /// `SHADER_READ_ONLY_OPTIMAL` (frames in flight may still sample it): its level 0 is
     /// copied (bit for bit) and this texture's chain blitted from it as in
     /// [`HeightTexture::record_upload`]; `source` ends readable by compute shaders again.
-    pub fn record_copy_from(&self, ctx: &Context, cmd: vk::CommandBuffer, source: &HeightTexture) {
-        self.record_fill(ctx, cmd, Level0::Image(&source.image));
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `source` is a texture of the same size and format (e.g. `self` came from
+    ///   `source.create_like`), distinct from `self`, whose level 0 is in
+    ///   `SHADER_READ_ONLY_OPTIMAL` with its writes visible to compute-shader sampled
+    ///   reads ([`Access::COMPUTE_SAMPLED`], as every fill leaves it) when the command
+    ///   buffer executes.
+    /// * `self`'s contents may be discarded: no earlier access of it is pending.
+    /// * Both textures stay alive until the command buffer has executed.
+    pub unsafe fn record_copy_from(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        source: &HeightTexture,
+    ) {
+        // SAFETY: this function's # Safety contract is `record_fill`'s for an image
+        // source.
+        unsafe { self.record_fill(ctx, cmd, Level0::Image(&source.image)) };
     }
 
     /// Records the copy of `staging` (from [`HeightTexture::create_for_upload`]) into
@@ -176,28 +198,36 @@ impl HeightTexture {
     /// heights, for the level-of-detail sampling; level 0 stays the map, bit for bit),
     /// and every level -> `SHADER_READ_ONLY_OPTIMAL` visible to
     /// compute-shader sampled reads. All transfer work is in the `ALL_TRANSFER` stage.
-    pub fn record_upload(&self, ctx: &Context, cmd: vk::CommandBuffer, staging: &Buffer) {
-        self.record_fill(ctx, cmd, Level0::Buffer(staging));
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `staging` is the buffer [`HeightTexture::create_for_upload`] returned with this
+    ///   texture (level 0's texels, tightly packed).
+    /// * The texture's contents may be discarded: no earlier access of it is pending.
+    /// * The texture and `staging` stay alive until the command buffer has executed.
+    pub unsafe fn record_upload(&self, ctx: &Context, cmd: vk::CommandBuffer, staging: &Buffer) {
+        // SAFETY: this function's # Safety contract is `record_fill`'s for a buffer
+        // source.
+        unsafe { self.record_fill(ctx, cmd, Level0::Buffer(staging)) };
     }
 
     /// Level 0 from `source`, then the chain (see [`HeightTexture::record_upload`]).
-    fn record_fill(&self, ctx: &Context, cmd: vk::CommandBuffer, source: Level0) {
+    ///
+    /// # Safety
+    /// As [`HeightTexture::record_upload`] for a buffer source, as
+    /// [`HeightTexture::record_copy_from`] for an image source (level 0 of a texture of
+    /// the same size and format, distinct from this one, sampled-readable).
+    unsafe fn record_fill(&self, ctx: &Context, cmd: vk::CommandBuffer, source: Level0) {
         let image = &self.image;
         let level = |l: u32| vk::ImageSubresourceRange {
             base_mip_level: l,
             level_count: 1,
             ..image.range()
         };
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                image.range(),
-                Access::UNDEFINED,
-                Access::TRANSFER_WRITE,
-            )],
-        );
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the image is alive and its contents may be discarded.
+        unsafe { sync::transition(ctx, cmd, image, Access::UNDEFINED, Access::TRANSFER_WRITE) };
         let aspect = image.range().aspect_mask;
         let layers = |l: u32| vk::ImageSubresourceLayers {
             aspect_mask: aspect,
@@ -211,7 +241,10 @@ impl HeightTexture {
             depth: 1,
         };
         match source {
-            Level0::Buffer(staging) => record_copy_to_level0(ctx, cmd, staging, image),
+            // SAFETY: this function's # Safety contract: `staging` holds level 0 tightly
+            // packed; level 0 is in `TRANSFER_DST_OPTIMAL` (the transition above); the
+            // image has `TRANSFER_DST` usage (`create`).
+            Level0::Buffer(staging) => unsafe { record_copy_to_level0(ctx, cmd, staging, image) },
             Level0::Image(src) => {
                 let src_level0 = vk::ImageSubresourceRange {
                     base_mip_level: 0,
@@ -220,23 +253,27 @@ impl HeightTexture {
                 };
                 // Earlier sampled reads of the source (frames in flight, in submission
                 // order on this queue) finish before the layout changes.
-                sync::record(
-                    ctx,
-                    cmd,
-                    &[sync::image_barrier(
-                        src.raw,
-                        src_level0,
-                        Access::COMPUTE_SAMPLED,
-                        Access::TRANSFER_READ,
-                    )],
-                );
+                // SAFETY: this function's # Safety contract: the source is alive and its
+                // level 0 is in `SHADER_READ_ONLY_OPTIMAL`.
+                unsafe {
+                    sync::record(
+                        ctx,
+                        cmd,
+                        &[sync::image_barrier(
+                            src.raw,
+                            src_level0,
+                            Access::COMPUTE_SAMPLED,
+                            Access::TRANSFER_READ,
+                        )],
+                    )
+                };
                 let region = vk::ImageCopy::default()
                     .src_subresource(layers(0))
                     .dst_subresource(layers(0))
                     .extent(extent);
-                // SAFETY: `cmd` is recording outside a render pass (caller's contract); both
-                // images are alive, of the same format and size, in
-                // the layouts named (barriers above), and distinct.
+                // SAFETY: this function's # Safety contract: `cmd` is recording outside a
+                // render pass; both images are alive, of the same format and size, and
+                // distinct; they are in the layouts named (barriers above).
                 unsafe {
                     ctx.device().cmd_copy_image(
                         cmd,
@@ -247,16 +284,20 @@ impl HeightTexture {
                         &[region],
                     )
                 };
-                sync::record(
-                    ctx,
-                    cmd,
-                    &[sync::image_barrier(
-                        src.raw,
-                        src_level0,
-                        Access::TRANSFER_READ,
-                        Access::COMPUTE_SAMPLED,
-                    )],
-                );
+                // SAFETY: as above; the source's level 0 is in `TRANSFER_SRC_OPTIMAL`
+                // (the barrier before the copy).
+                unsafe {
+                    sync::record(
+                        ctx,
+                        cmd,
+                        &[sync::image_barrier(
+                            src.raw,
+                            src_level0,
+                            Access::TRANSFER_READ,
+                            Access::COMPUTE_SAMPLED,
+                        )],
+                    )
+                };
             }
         }
         let corner = |l: u32| vk::Offset3D {
@@ -265,16 +306,21 @@ impl HeightTexture {
             z: 1,
         };
         for l in 1..image.mip_levels {
-            sync::record(
-                ctx,
-                cmd,
-                &[sync::image_barrier(
-                    image.raw,
-                    level(l - 1),
-                    Access::TRANSFER_WRITE,
-                    Access::TRANSFER_READ,
-                )],
-            );
+            // SAFETY: this function's # Safety contract (`cmd` recording outside a render
+            // pass, the image alive); level `l - 1` was written in `TRANSFER_DST_OPTIMAL`
+            // (the copy or the previous blit).
+            unsafe {
+                sync::record(
+                    ctx,
+                    cmd,
+                    &[sync::image_barrier(
+                        image.raw,
+                        level(l - 1),
+                        Access::TRANSFER_WRITE,
+                        Access::TRANSFER_READ,
+                    )],
+                )
+            };
             let blit = vk::ImageBlit::default()
                 .src_subresource(layers(l - 1))
                 .src_offsets([vk::Offset3D::default(), corner(l - 1)])
@@ -313,7 +359,10 @@ impl HeightTexture {
                 Access::COMPUTE_SAMPLED,
             ));
         }
-        sync::record(ctx, cmd, &done);
+        // SAFETY: this function's # Safety contract (`cmd` recording outside a render
+        // pass, the image alive); the last level is in `TRANSFER_DST_OPTIMAL`, the others
+        // in `TRANSFER_SRC_OPTIMAL` (the loop above).
+        unsafe { sync::record(ctx, cmd, &done) };
     }
 
     /// Size in texels.

@@ -88,7 +88,19 @@ impl ComputePipeline {
 
     /// Binds the pipeline, pushes `writes` as set 0 and `push` as push constants, and
     /// dispatches enough workgroups to cover `width x height` invocations.
-    pub fn dispatch(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device (the one this pipeline was built
+    ///   on) in the recording state, outside a render pass instance, for a queue of the
+    ///   context's queue family.
+    /// * `writes` match set 0's layout (each binding declared, with its descriptor type)
+    ///   and give every binding the shader uses; the views and samplers they name belong
+    ///   to the device, stay alive until the command buffer has executed, and when it
+    ///   executes the images are in the layouts the writes name, their earlier writes
+    ///   made visible to the shader's accesses (the caller's barriers).
+    /// * `push` is empty or exactly the pipeline's push-constant size.
+    /// * The pipeline is not destroyed before the command buffer has executed.
+    pub unsafe fn dispatch(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -98,8 +110,9 @@ impl ComputePipeline {
         height: u32,
     ) {
         let dev = ctx.device();
-        // SAFETY: `cmd` is recording (caller's contract); the descriptors reference live
-        // resources in the layouts the pass documents.
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match the set layout and name live resources in their layouts;
+        // `push` fits the layout's push-constant range.
         unsafe {
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
             ctx.push_descriptor().cmd_push_descriptor_set(
@@ -339,7 +352,12 @@ pub fn frame_area(extent: vk::Extent2D) -> vk::Rect2D {
 
 /// Records the dynamic viewport (depth 0..1) and scissor covering all of `extent`: the
 /// state every raster pipeline of [`raster_pipeline`] leaves dynamic.
-pub fn set_frame_viewport(ctx: &Context, cmd: vk::CommandBuffer, extent: vk::Extent2D) {
+///
+/// # Safety
+/// `cmd` is a command buffer of `ctx`'s device in the recording state (inside or outside
+/// a render pass instance), for a queue of the context's queue family; `extent` is
+/// non-zero and within the device's viewport limits (`maxViewportDimensions`).
+pub unsafe fn set_frame_viewport(ctx: &Context, cmd: vk::CommandBuffer, extent: vk::Extent2D) {
     let viewport = vk::Viewport {
         x: 0.0,
         y: 0.0,
@@ -348,7 +366,8 @@ pub fn set_frame_viewport(ctx: &Context, cmd: vk::CommandBuffer, extent: vk::Ext
         min_depth: 0.0,
         max_depth: 1.0,
     };
-    // SAFETY: `cmd` is recording (caller's contract); viewport and scissor are plain values.
+    // SAFETY: this function's # Safety contract: `cmd` is recording and `extent` is a
+    // valid viewport size; viewport and scissor are plain values.
     unsafe {
         ctx.device().cmd_set_viewport(cmd, 0, &[viewport]);
         ctx.device().cmd_set_scissor(cmd, 0, &[frame_area(extent)]);

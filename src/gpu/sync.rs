@@ -1,5 +1,6 @@
 //! Image barriers (synchronization2).
 
+use super::Image;
 use crate::context::Context;
 use ash::vk;
 
@@ -91,12 +92,54 @@ pub fn image_barrier(
         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
 }
 
-/// Records `barriers` in one `vkCmdPipelineBarrier2`.
-pub fn record(ctx: &Context, cmd: vk::CommandBuffer, barriers: &[vk::ImageMemoryBarrier2]) {
+/// Records `barriers` in one `vkCmdPipelineBarrier2` (nothing when `barriers` is
+/// empty). Several barriers recorded together are one command: batch those that belong
+/// to the same point of the frame.
+///
+/// # Safety
+/// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+///   render pass instance, for a queue of the context's queue family.
+/// * Every barrier's image belongs to that device and stays alive until the command
+///   buffer has executed; its subresource range lies within the image.
+/// * When the command buffer executes, every subresource of a barrier's range is in the
+///   barrier's `old_layout` (or that layout is `UNDEFINED`: the contents are
+///   discarded), and its `new_layout` is one the image's usage allows (e.g.
+///   `COLOR_ATTACHMENT_OPTIMAL` needs `COLOR_ATTACHMENT`).
+pub unsafe fn record(ctx: &Context, cmd: vk::CommandBuffer, barriers: &[vk::ImageMemoryBarrier2]) {
     if barriers.is_empty() {
         return;
     }
     let dep = vk::DependencyInfo::default().image_memory_barriers(barriers);
-    // SAFETY: `cmd` is recording (every caller's contract) and the images are alive.
+    // SAFETY: this function's # Safety contract: `cmd` is recording outside a render pass
+    // and the barriers' images are alive, in their old layouts.
     unsafe { ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
+}
+
+/// Records one barrier of `image`'s whole range ([`Image::range`]: every level, the
+/// format's aspect) from `before` to `after`: the same command as [`record`] with the
+/// one [`image_barrier`].
+///
+/// # Safety
+/// As [`record`] for that barrier: `cmd` is a command buffer of `ctx`'s device in the
+/// recording state, outside a render pass instance, for a queue of the context's queue
+/// family; `image` stays alive until the command buffer has executed; when it executes,
+/// every level of `image` is in `before.layout` (or that is `UNDEFINED`: the contents are
+/// discarded), its earlier accesses are covered by `before`'s stages and accesses, and
+/// `after.layout` is one the image's usage allows.
+pub unsafe fn transition(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    image: &Image,
+    before: Access,
+    after: Access,
+) {
+    // SAFETY: this function's # Safety contract is `record`'s for this one barrier over
+    // `image`'s own full range.
+    unsafe {
+        record(
+            ctx,
+            cmd,
+            &[image_barrier(image.raw, image.range(), before, after)],
+        )
+    };
 }

@@ -93,7 +93,19 @@ impl DepthResolvePass {
 
     /// Records the pass: every pixel of `target` (a `D32_SFLOAT` view of `extent`) gets
     /// the value of `source` (an `R32_SFLOAT` view of the same size). Layouts: module docs.
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance (the pass begins and ends its own dynamic rendering), for a
+    ///   queue of the context's queue family.
+    /// * `source` (sampled usage) and `target` (`DEPTH_STENCIL_ATTACHMENT` usage, a
+    ///   `D32_SFLOAT` view) belong to that device and are views of images of `extent`.
+    /// * When the command buffer executes, `source` is in `SHADER_READ_ONLY_OPTIMAL`, its
+    ///   writes visible to fragment-shader sampled reads, and `target` in
+    ///   `DEPTH_ATTACHMENT_OPTIMAL`, earlier accesses ordered before the depth writes
+    ///   (the caller's barriers).
+    /// * Both images and this pass stay alive until the command buffer has executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -121,9 +133,12 @@ impl DepthResolvePass {
             .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
             .image_info(&image_info)];
         let dev = ctx.device();
-        crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent);
-        // SAFETY: `cmd` is recording outside a render pass (caller's contract); source and
-        // target are alive and in the layouts documented above.
+        // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
+        // size of the target attachment, so it is non-zero and within the viewport limits.
+        unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; source and target are alive and in the layouts documented above; the
+        // write matches the set layout (binding 0, a combined image sampler).
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);

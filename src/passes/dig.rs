@@ -132,7 +132,20 @@ impl DigCornerPass {
 
     /// Records the corner dispatch: the G-buffer and height field readable by compute,
     /// the grid in `GENERAL` ready for storage writes (see the module table).
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `gbuffer`'s views belong to that device and have the formats of
+    ///   [`crate::passes::gbuffer`] (sampled usage) and the size `gbuffer.extent`, the
+    ///   size `grid` was made for.
+    /// * When the command buffer executes, the images are in the layouts of the module's
+    ///   table: the G-buffer and `height` in `SHADER_READ_ONLY_OPTIMAL`, their writes
+    ///   visible to compute-shader sampled reads; the grid in `GENERAL`, earlier accesses
+    ///   ordered before compute-shader storage writes (the caller's barriers).
+    /// * The G-buffer's images, `height`, `grid` and this pass stay alive until the
+    ///   command buffer has executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -163,14 +176,20 @@ impl DigCornerPass {
             steps,
             addressing: addressing_code(height.addressing),
         };
-        self.pipeline.pipeline.dispatch(
-            ctx,
-            cmd,
-            &writes,
-            bytemuck::bytes_of(&push),
-            size[0],
-            size[1],
-        );
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match `BINDINGS` (the pipeline's set 0) and name live views in
+        // the layouts of the module's table; the push constants are the `CornerParams` the
+        // layout was built with; the pipeline lives as long as this pass.
+        unsafe {
+            self.pipeline.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(&push),
+                size[0],
+                size[1],
+            )
+        };
     }
 
     /// Destroys the pipeline and sampler.

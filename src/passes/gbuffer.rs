@@ -204,7 +204,17 @@ impl GBufferPass {
     /// in `glsl/include/dispmap_plane.glsl`, which a host engine may use to draw the
     /// same plane). Needs the pipeline of
     /// [`GBufferPass::new`].
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance (the pass begins and ends its own dynamic rendering), for a
+    ///   queue of the context's queue family.
+    /// * When the command buffer executes, `target`'s colour images are in
+    ///   `COLOR_ATTACHMENT_OPTIMAL` and its depth image in `DEPTH_ATTACHMENT_OPTIMAL`,
+    ///   earlier accesses ordered before the attachment writes (the caller's barriers;
+    ///   the contents are cleared).
+    /// * `target` and this pass stay alive until the command buffer has executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -212,12 +222,17 @@ impl GBufferPass {
         params: &GBufferParams,
     ) {
         debug_assert!(!self.mesh, "the mesh pipeline draws with record_mesh");
-        self.record_draw(ctx, cmd, target, params, None);
+        // SAFETY: this function's # Safety contract is `record_draw`'s without a mesh.
+        unsafe { self.record_draw(ctx, cmd, target, params, None) };
     }
 
     /// Records the pass: clears the G-buffer and draws `mesh` (its buffers must stay
     /// alive until the command buffer has executed). Needs [`GBufferPass::new_mesh`].
-    pub fn record_mesh(
+    ///
+    /// # Safety
+    /// As [`GBufferPass::record`]; in addition `mesh`'s buffers stay alive until the
+    /// command buffer has executed.
+    pub unsafe fn record_mesh(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -226,10 +241,13 @@ impl GBufferPass {
         mesh: &crate::mesh::MeshBuffers,
     ) {
         debug_assert!(self.mesh, "the plane pipeline draws with record");
-        self.record_draw(ctx, cmd, target, params, Some(mesh));
+        // SAFETY: this function's # Safety contract is `record_draw`'s with a mesh.
+        unsafe { self.record_draw(ctx, cmd, target, params, Some(mesh)) };
     }
 
-    fn record_draw(
+    /// # Safety
+    /// As [`GBufferPass::record`], and [`GBufferPass::record_mesh`] with a mesh.
+    unsafe fn record_draw(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -270,10 +288,14 @@ impl GBufferPass {
             .color_attachments(&color_attachments)
             .depth_attachment(&depth_attachment);
         let dev = ctx.device();
-        crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent);
-        // SAFETY: `cmd` is recording outside a render pass; the attachments are in the
-        // layouts documented above (the caller's barrier) and alive; a mesh's buffers are
-        // alive (the caller's contract) and match the mesh pipeline's vertex input.
+        // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
+        // size of attachments `Image::new` created (non-zero, within
+        // `maxImageDimension2D`), which the viewport limits cover.
+        unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the attachments are alive and in the layouts documented above (the
+        // caller's barriers); a mesh's buffers are alive and match the mesh pipeline's
+        // vertex input (`MeshBuffers` holds `Vertex`es and `u32` indices).
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);

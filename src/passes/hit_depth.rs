@@ -92,7 +92,20 @@ impl HitDepthPass {
     }
 
     /// Records the dispatch over the whole frame.
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `inputs`' views belong to that device and have the formats and usages of the
+    ///   module's table; the hit buffer and the G-buffer are of `inputs.hit_depth`'s size.
+    /// * When the command buffer executes, the images are in the layouts of the module's
+    ///   table: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   reads; the G-buffer in `SHADER_READ_ONLY_OPTIMAL`, its writes visible to
+    ///   compute-shader sampled reads; the corrected depth in `GENERAL`, earlier accesses
+    ///   ordered before compute-shader storage writes (the caller's barriers).
+    /// * The images behind `inputs` and this pass stay alive until the command buffer has
+    ///   executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -119,14 +132,20 @@ impl HitDepthPass {
             image_write(4, BINDINGS[4], &tangent),
             image_write(5, BINDINGS[5], &out),
         ];
-        self.pipeline.pipeline.dispatch(
-            ctx,
-            cmd,
-            &writes,
-            bytemuck::bytes_of(params),
-            hit_depth.extent.width,
-            hit_depth.extent.height,
-        );
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match `BINDINGS` (the pipeline's set 0) and name live views in
+        // the layouts of the module's table; the push constants are the `HitDepthParams`
+        // the layout was built with; the pipeline lives as long as this pass.
+        unsafe {
+            self.pipeline.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(params),
+                hit_depth.extent.width,
+                hit_depth.extent.height,
+            )
+        };
     }
 
     /// Destroys the pipeline and sampler. The GPU must be done with them.

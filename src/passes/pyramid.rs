@@ -218,29 +218,31 @@ impl PyramidPass {
     }
 
     /// Records the whole chain (see the module docs for the layouts on entry and exit).
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * When the command buffer executes, `height` is in `SHADER_READ_ONLY_OPTIMAL`, its
+    ///   writes visible to compute-shader sampled reads (as its fills leave it), and
+    ///   no access of `pyramid`'s image is pending (its contents are discarded: frames
+    ///   that read an earlier build have completed).
+    /// * `height`, `pyramid` and this pass stay alive until the command buffer has
+    ///   executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         height: &HeightTexture,
         pyramid: &Pyramid,
     ) {
-        let all = pyramid.image.range();
         // Every level is written, and (as `src`) read, by storage access below.
         let storage_rw = Access {
             access: vk::AccessFlags2::SHADER_STORAGE_WRITE | vk::AccessFlags2::SHADER_STORAGE_READ,
             ..Access::COMPUTE_STORAGE_WRITE
         };
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                pyramid.image.raw,
-                all,
-                Access::UNDEFINED,
-                storage_rw,
-            )],
-        );
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the pyramid is alive and its contents may be discarded.
+        unsafe { sync::transition(ctx, cmd, &pyramid.image, Access::UNDEFINED, storage_rw) };
         let heights = [height.descriptor()];
         let storage = |level: u32| {
             [vk::DescriptorImageInfo {
@@ -255,16 +257,21 @@ impl PyramidPass {
         };
         for level in 0..pyramid.levels() {
             if level > 0 {
-                sync::record(
-                    ctx,
-                    cmd,
-                    &[sync::image_barrier(
-                        pyramid.image.raw,
-                        pyramid.level_range(level - 1),
-                        Access::COMPUTE_STORAGE_WRITE,
-                        Access::COMPUTE_STORAGE_READ,
-                    )],
-                );
+                // SAFETY: this function's # Safety contract (`cmd` recording outside a
+                // render pass, the pyramid alive); level `level - 1` is in `GENERAL`,
+                // written by the previous dispatch.
+                unsafe {
+                    sync::record(
+                        ctx,
+                        cmd,
+                        &[sync::image_barrier(
+                            pyramid.image.raw,
+                            pyramid.level_range(level - 1),
+                            Access::COMPUTE_STORAGE_WRITE,
+                            Access::COMPUTE_STORAGE_READ,
+                        )],
+                    )
+                };
             }
             // Level 0 reads the height map only; its `src` binding (statically used by
             // the shader, not read on that path) names level 0 itself, so no later
@@ -290,25 +297,33 @@ impl PyramidPass {
                 addressing,
                 pad: 0,
             };
-            self.pipeline.dispatch(
+            // SAFETY: this function's # Safety contract: `cmd` is recording outside a
+            // render pass; the writes match `BINDINGS` (the pipeline's set 0) and name
+            // the live height texture (sampled-readable) and pyramid levels in `GENERAL`
+            // (the barriers above); the push constants are the `PyramidParams` the
+            // layout was built with; the pipeline lives as long as this pass.
+            unsafe {
+                self.pipeline.dispatch(
+                    ctx,
+                    cmd,
+                    &writes,
+                    bytemuck::bytes_of(&push),
+                    dst_size[0],
+                    dst_size[1],
+                )
+            };
+        }
+        // SAFETY: this function's # Safety contract (`cmd` recording outside a render
+        // pass, the pyramid alive); every level is in `GENERAL` (the first transition).
+        unsafe {
+            sync::transition(
                 ctx,
                 cmd,
-                &writes,
-                bytemuck::bytes_of(&push),
-                dst_size[0],
-                dst_size[1],
-            );
-        }
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                pyramid.image.raw,
-                all,
+                &pyramid.image,
                 storage_rw,
                 Access::COMPUTE_SAMPLED,
-            )],
-        );
+            )
+        };
     }
 
     /// Destroys the pipeline.

@@ -112,7 +112,22 @@ impl ShadePass {
 
     /// Records the dispatch over the whole frame. Fails (recording nothing) when a
     /// shadowed pass gets no visibility image.
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `inputs`' views belong to that device and have the formats and usages of the
+    ///   module's table; the hit buffer, the G-buffer and the visibility are of
+    ///   `inputs.color`'s size.
+    /// * When the command buffer executes, the images are in the layouts of the module's
+    ///   table: the hit buffer and the visibility in `GENERAL`, their writes visible to
+    ///   compute-shader storage reads; the G-buffer, `height` and the material maps in
+    ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
+    ///   reads; the colour image in `GENERAL`, earlier accesses ordered before
+    ///   compute-shader storage writes (the caller's barriers).
+    /// * The images behind `inputs` and this pass stay alive until the command buffer has
+    ///   executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -159,14 +174,21 @@ impl ShadePass {
                 v,
             ));
         }
-        self.pipeline.pipeline.dispatch(
-            ctx,
-            cmd,
-            &writes,
-            bytemuck::bytes_of(params),
-            color.extent.width,
-            color.extent.height,
-        );
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match the pipeline's set 0 (binding 7 exactly for the shadowed
+        // variant, checked above) and name live views in the layouts of the module's table;
+        // the push constants are the `ShadeParams` the layout was built with; the pipeline
+        // lives as long as this pass.
+        unsafe {
+            self.pipeline.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(params),
+                color.extent.width,
+                color.extent.height,
+            )
+        };
         Ok(())
     }
 

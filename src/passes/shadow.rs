@@ -279,7 +279,22 @@ impl ShadowPass {
 
     /// Records the dispatch over the whole frame. Fails (recording nothing) when the
     /// pyramid query gets no cell pyramid.
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `inputs`' views belong to that device and have the formats and usages of the
+    ///   module's table; the hit buffer and the G-buffer are of `inputs.visibility`'s
+    ///   size.
+    /// * When the command buffer executes, the images are in the layouts of the module's
+    ///   table: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   reads; the G-buffer, `height` and the pyramid in `SHADER_READ_ONLY_OPTIMAL`,
+    ///   their writes visible to compute-shader sampled reads; the visibility in
+    ///   `GENERAL`, earlier accesses ordered before compute-shader storage writes (the
+    ///   caller's barriers).
+    /// * The images behind `inputs` and this pass stay alive until the command buffer has
+    ///   executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -323,14 +338,21 @@ impl ShadowPass {
             pyramid_levels: pyramid.map_or(0, Pyramid::levels),
             ..*params
         };
-        self.pipeline.pipeline.dispatch(
-            ctx,
-            cmd,
-            &writes,
-            bytemuck::bytes_of(&push),
-            visibility.extent.width,
-            visibility.extent.height,
-        );
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match the pipeline's set 0 (the pyramid is bound exactly for
+        // `ShadowTrace::Pyramid`, checked above) and name live views in the layouts of the
+        // module's table; the push constants are the `ShadowParams` the layout was built
+        // with; the pipeline lives as long as this pass.
+        unsafe {
+            self.pipeline.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(&push),
+                visibility.extent.width,
+                visibility.extent.height,
+            )
+        };
         Ok(())
     }
 

@@ -103,7 +103,21 @@ impl TracePass {
 
     /// Records the dispatch over the whole frame. Fails (recording nothing) when a
     /// resource the method needs is missing from `inputs`.
-    pub fn record(
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `inputs`' views belong to that device and have the formats and usages of the
+    ///   module's table; `inputs.hit` and the G-buffer are of the frame's size, the
+    ///   corner grid (if any) was made for it.
+    /// * When the command buffer executes, the images are in the layouts of the module's
+    ///   table: the G-buffer, `height`, the pyramid and the corner grid in
+    ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
+    ///   reads; the hit buffer in `GENERAL`, earlier accesses ordered before
+    ///   compute-shader storage writes (the caller's barriers).
+    /// * The images behind `inputs` and this pass stay alive until the command buffer has
+    ///   executed.
+    pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
@@ -186,14 +200,21 @@ impl TracePass {
             lod_threshold: params.lod_threshold.unwrap_or(0.0),
             pad: 0,
         };
-        self.pipeline.pipeline.dispatch(
-            ctx,
-            cmd,
-            &writes,
-            bytemuck::bytes_of(&push),
-            extent.width,
-            extent.height,
-        );
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match `bindings(needs)` (the pipeline's set 0: the pyramid and
+        // grid are bound exactly when the method needs them, checked above) and name live
+        // views in the layouts of the module's table; the push constants are the
+        // `TraceParams` the layout was built with; the pipeline lives as long as this pass.
+        unsafe {
+            self.pipeline.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(&push),
+                extent.width,
+                extent.height,
+            )
+        };
         Ok(())
     }
 

@@ -157,7 +157,13 @@ impl FrameSlots {
 /// Records the host's G-buffer: every image discarded into its attachment layout, the
 /// raster pass with `params`, then the entry state of `dispmap::embed`'s pass (every
 /// image sampled by compute shaders).
-pub fn record_gbuffer(
+///
+/// # Safety
+/// `cmd` is a command buffer of `ctx`'s device in the recording state, outside a render
+/// pass instance, for a queue of the context's queue family; no access of `g`'s images
+/// is pending when it executes (their contents are discarded); `g` and `pass` stay alive
+/// until it has executed.
+pub unsafe fn record_gbuffer(
     ctx: &Context,
     cmd: vk::CommandBuffer,
     pass: &GBufferPass,
@@ -178,21 +184,30 @@ pub fn record_gbuffer(
         ));
         b
     };
-    sync::record(
-        ctx,
-        cmd,
-        &barriers(
-            (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
-            (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
-        ),
-    );
-    pass.record(ctx, cmd, g, params);
-    sync::record(
-        ctx,
-        cmd,
-        &barriers(
-            (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-            (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-        ),
-    );
+    // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+    // pass; the G-buffer is alive and its contents may be discarded; its images have
+    // attachment usage (`GBuffer::new`).
+    unsafe {
+        sync::record(
+            ctx,
+            cmd,
+            &barriers(
+                (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
+                (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
+            ),
+        )
+    };
+    // SAFETY: as above; the G-buffer is in the attachment layouts (the barriers above).
+    unsafe { pass.record(ctx, cmd, g, params) };
+    // SAFETY: as above; the G-buffer was written in the attachment layouts.
+    unsafe {
+        sync::record(
+            ctx,
+            cmd,
+            &barriers(
+                (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
+                (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
+            ),
+        )
+    };
 }

@@ -165,7 +165,10 @@ impl RayHost {
         }
         let cmd = self.shot.begin(c).unwrap();
         let pass = self.gbuffer_pass.as_ref().expect("created above");
-        record_gbuffer(c, cmd, pass, &self.gbuffer, params);
+        // SAFETY: `cmd` was begun by `shot.begin` above and is submitted and waited for
+        // below, while the G-buffer and the pass live; no frame is in flight
+        // (`wait_all` above), so the G-buffer may be discarded.
+        unsafe { record_gbuffer(c, cmd, pass, &self.gbuffer, params) };
         self.shot.submit_and_wait(c).unwrap();
     }
 
@@ -199,16 +202,11 @@ impl RayHost {
         let ctx = self.ctx.clone();
         let cmd = self.slots.begin(s);
         let hit = &self.hits[s];
-        sync::record(
-            &ctx,
-            cmd,
-            &[sync::image_barrier(
-                hit.raw,
-                hit.range(),
-                DISCARD,
-                Access::COMPUTE_STORAGE_WRITE,
-            )],
-        );
+        // SAFETY: `cmd` was begun by `slots.begin` above (outside a render pass, on the
+        // context's queue family) and is submitted below; the hit image lives until the
+        // host is destroyed after `wait_all`; the slot's last frame completed (`begin`
+        // waited), so its contents may be discarded.
+        unsafe { sync::transition(&ctx, cmd, hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: self.gbuffer.views(),
