@@ -910,7 +910,12 @@ impl RunAccumulator {
     /// highest per-pass minimum (the spread of the robust statistic over the repeat).
     fn method_stats(&self) -> (f64, f64, f64, f64) {
         let all: Vec<f64> = self.method_ms.iter().map(|&(_, ms)| ms).collect();
-        let passes = self.method_ms.iter().map(|&(p, _)| p).max().map_or(0, |p| p + 1);
+        let passes = self
+            .method_ms
+            .iter()
+            .map(|&(p, _)| p)
+            .max()
+            .map_or(0, |p| p + 1);
         let per_pass: Vec<f64> = (0..passes)
             .map(|p| min_of(self.method_ms.iter().filter(|m| m.0 == p).map(|m| m.1)))
             .collect();

@@ -862,8 +862,8 @@ mod tests {
         assert_eq!(header, CSV_HEADER);
         assert_eq!(
             lines.next().unwrap(),
-            "methods,rocks,1024,1024,pom,75,64,36,2,1,azimuth (f+0.5)*180deg for f<2; error frames 0,\
-             0.5,,,4.0,0.75,,4.0,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0"
+            "methods,rocks,1024,1024,pom,75,64,36,2,1,1,azimuth (f+0.5)*180deg for f<2; error frames 0,\
+             0.5,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0"
         );
         let bump = lines.next().unwrap();
         assert!(
