@@ -112,6 +112,10 @@ pub struct DeviceInfo {
     pub max_image_dimension_2d: u32,
     /// Queue family index used.
     pub queue_family_index: u32,
+    /// Loop iterations the driver lets one shader invocation run, when it ends an
+    /// invocation past a fixed count ([`crate::method::LOOP_LIMIT`] on lavapipe); `None`
+    /// when only a timeout bounds it.
+    pub loop_limit: Option<u32>,
 }
 
 /// Counts validation (debug messenger) messages of warning and error severity.
@@ -782,6 +786,8 @@ fn device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, family: u32) ->
             .unwrap_or(0),
         max_image_dimension_2d: props.limits.max_image_dimension2_d,
         queue_family_index: family,
+        loop_limit: (driver.driver_id == vk::DriverId::MESA_LLVMPIPE)
+            .then_some(crate::method::LOOP_LIMIT),
     }
 }
 

@@ -117,6 +117,75 @@ impl Method {
         }
     }
 
+    /// The most loop iterations one invocation of the method's passes can run with
+    /// `params`, when the parameters alone bound it: the trace pass per pixel and, for
+    /// the DIG methods, the corner pass per corner (the larger). `None` for `bump` (no
+    /// loop) and the traversal methods (`pyramid`, `exact`; `dig-guarded`'s traversal),
+    /// whose traversal caps its own steps (`glsl/common/pyramid.glsl`, `TRAVERSAL_CAP`)
+    /// below [`LOOP_LIMIT`]; `dig-guarded`'s corner pass is bounded like `dig`'s.
+    ///
+    /// DIG's march below its interval keeps the interval's step `len / I_L`, where the
+    /// interval is at least `eps` long and `I_L <= 4 max(ceil(len steps), 1)`: the step
+    /// is at least `min(1 / (8 steps), eps / 4)`, so reaching `h = 0` takes at most
+    /// `max(8 steps, 4 / eps)` samples; `eps = 0` leaves it unbounded.
+    pub fn loop_bound(self, params: &MethodParams) -> Option<u64> {
+        let steps = u64::from(params.steps.max(1));
+        let refine = u64::from(params.refine_steps);
+        let march = steps + 1;
+        match self {
+            Method::Bump | Method::Pyramid | Method::Exact => None,
+            Method::DigGuarded => Some(march),
+            Method::Linear => Some(march),
+            Method::Relief => Some(march + refine),
+            Method::Pom => Some(steps.max(u64::from(params.min_steps)) + 1),
+            Method::Secant => Some(u64::from(params.segments) * steps + u64::from(params.segments)),
+            Method::Dig => {
+                let eps = f64::from(params.dig_eps());
+                let below = if eps > 0.0 {
+                    (8 * steps).max((4.0 / eps).ceil() as u64)
+                } else {
+                    u64::MAX / 2
+                };
+                Some((below + 1).max(march) + refine)
+            }
+        }
+    }
+
+    /// Refuses `params` when [`Method::loop_bound`] exceeds `limit`, the loop
+    /// iterations a device lets one invocation run ([`crate::context::DeviceInfo`]'s
+    /// `loop_limit`): past it lavapipe ends the invocation silently, with a wrong hit.
+    /// The error names the option to lower.
+    pub fn check_loop_limit(self, params: &MethodParams, limit: u32) -> Result<()> {
+        let Some(bound) = self.loop_bound(params) else {
+            return Ok(());
+        };
+        if bound <= u64::from(limit) {
+            return Ok(());
+        }
+        let (option, remedy) = match self {
+            Method::Secant if params.segments > 1 => {
+                ("steps and segments", "lower --steps or --segments")
+            }
+            Method::Dig if params.eps.is_some() && bound > 8 * u64::from(params.steps) + 2 => {
+                ("eps", "raise --eps")
+            }
+            Method::Pom if params.min_steps > params.steps => ("min-steps", "lower --min-steps"),
+            _ => ("steps", "lower --steps"),
+        };
+        let needed = if bound >= u64::MAX / 4 {
+            "an unbounded number of".to_owned()
+        } else {
+            format!("up to {bound}")
+        };
+        Err(Error::invalid(
+            option,
+            format!(
+                "{self} with these settings needs {needed} loop iterations per invocation; this \
+                 device ends an invocation after {limit} (silently, with a wrong result): {remedy}"
+            ),
+        ))
+    }
+
     /// What the method needs besides the G-buffer (the renderer builds only that).
     pub fn needs(self) -> Needs {
         match self {
@@ -176,6 +245,10 @@ impl std::str::FromStr for Method {
 /// Largest accepted step count: beyond it a frame takes minutes on lavapipe and the
 /// linear step is far below the height map's own precision.
 pub const MAX_STEPS: u32 = 1 << 16;
+
+/// Loop iterations lavapipe (Mesa's llvmpipe) lets one shader invocation run, all of
+/// its loops together; past them it ends the invocation silently.
+pub const LOOP_LIMIT: u32 = 65_535;
 
 /// Largest DIG block side in pixels.
 pub const MAX_BLOCK: u32 = 64;
@@ -363,6 +436,68 @@ mod tests {
         }
         let err = "nope".parse::<Method>().unwrap_err().to_string();
         assert!(err.contains("nope") && err.contains("relief"), "{err}");
+    }
+
+    #[test]
+    fn loop_limits_refuse_what_lavapipe_would_cut_short() {
+        let p = |steps, segments, eps| MethodParams {
+            steps,
+            segments,
+            eps,
+            ..MethodParams::default()
+        };
+        // The issue's case: 2000 x 64 samples, each pixel cut off at 65,535.
+        let err = Method::Secant
+            .check_loop_limit(&p(2000, 64, None), LOOP_LIMIT)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("--steps or --segments") && err.contains("128064"),
+            "{err}"
+        );
+        assert!(
+            Method::Secant
+                .check_loop_limit(&p(1000, 64, None), LOOP_LIMIT)
+                .is_ok()
+        );
+        let err = Method::Relief
+            .check_loop_limit(&p(MAX_STEPS, 1, None), LOOP_LIMIT)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--steps"), "{err}");
+        // DIG's step below the interval: unbounded without eps, 4/eps with it.
+        let err = Method::Dig
+            .check_loop_limit(&p(150, 1, Some(0.0)), LOOP_LIMIT)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("raise --eps") && err.contains("unbounded"),
+            "{err}"
+        );
+        assert!(
+            Method::Dig
+                .check_loop_limit(&p(150, 1, Some(1e-3)), LOOP_LIMIT)
+                .is_ok()
+        );
+        assert!(
+            Method::Dig
+                .check_loop_limit(&p(8000, 1, None), LOOP_LIMIT)
+                .is_ok()
+        );
+        assert!(
+            Method::Dig
+                .check_loop_limit(&p(8200, 1, None), LOOP_LIMIT)
+                .is_err()
+        );
+        // Every default setting and the benchmark's largest run anywhere.
+        for &m in Method::ALL {
+            assert!(
+                m.check_loop_limit(&MethodParams::for_method(m), LOOP_LIMIT)
+                    .is_ok()
+            );
+            assert!(m.check_loop_limit(&p(1024, 1, None), LOOP_LIMIT).is_ok());
+        }
+        assert_eq!(Method::Exact.loop_bound(&p(MAX_STEPS, 1, None)), None);
     }
 
     #[test]

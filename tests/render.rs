@@ -201,3 +201,28 @@ fn tiny_non_square_map_matches_the_reference() {
     assert_eq!(e.nonfinite_pixels, 0);
     assert!(e.artifact_fraction < 0.02, "{e:?}");
 }
+
+/// On a device that ends invocations after a fixed loop count (lavapipe), settings that
+/// could exceed it are refused by the pass, naming the option, before anything is built
+/// or recorded; the same settings within the count render.
+#[test]
+fn settings_past_the_loop_limit_are_refused() {
+    let ctx = validated_context();
+    let rocks = asset_map("rocks_depth.jpg", Convention::Depth);
+    let mut s = settings(Method::Secant, 2000, 20.0);
+    s.params.segments = 64;
+    match ctx.info().loop_limit {
+        Some(_) => {
+            let err = Renderer::new(&ctx, &rocks, s).err().unwrap().to_string();
+            assert!(err.contains("--steps or --segments"), "{err}");
+            s.params.segments = 16;
+            let mut r = Renderer::new(&ctx, &rocks, s).unwrap();
+            r.render().unwrap();
+        }
+        None => eprintln!(
+            "{}: no fixed loop limit, nothing to refuse",
+            ctx.info().name
+        ),
+    }
+    finish(ctx);
+}

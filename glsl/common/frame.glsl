@@ -9,6 +9,15 @@
 #define ADDRESSING_REPEAT 0u
 #define ADDRESSING_CLAMP 1u
 
+// Steps a hierarchical traversal (pyramid, exact, dig-guarded, hard shadows of those) may
+// take per invocation: lavapipe ends an invocation after 65,535 loop iterations of all
+// its loops together, silently (src/method.rs: LOOP_LIMIT); a traversal that reaches
+// this cap stops with no hit instead. The cap counts the traversal's steps; what else
+// loops per step is small (the two-axis loops unroll; the leaf root's bisection runs
+// only when rounding defeats the closed form). Real traversals take tens to a few
+// thousand steps (the benchmark's p99 and maxima).
+#define TRAVERSAL_CAP 16384.0
+
 // The hit buffer: rgba32f = (hit u, hit v, hit height, iteration count).
 // Hit uv is in the frame of the G-buffer's uv0 (tile-local for repeat addressing).
 // Height < 0 means no hit: no geometry, or a clamp-addressed ray that left [0,1]^2.

@@ -201,9 +201,10 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
     }
     int level = clamp(start_level, 0, top);
     // Each skip moves a cell index by >= 1 along the ray and follows at most `top`
-    // descents: the cap is only reached through a bug (then: no hit).
+    // descents: the cap is only reached through a bug (then: no hit), or at
+    // TRAVERSAL_CAP (frame.glsl), within the loop budget of a lavapipe invocation.
     float span = abs(dir.x) + abs(dir.y) + 4.0;
-    float cap = min(2.0 * float(top + 2) * span + 16.0, 1e8);
+    float cap = min(2.0 * float(top + 2) * span + 16.0, TRAVERSAL_CAP);
     // Two loops: the inner one only traverses until the ray reaches a leaf cell it does
     // not clear; the cell's exact test follows it, and on a miss the traversal resumes.
     // The same steps in the same order as one loop with the test inside it, but a SIMD

@@ -81,7 +81,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     ivec2 cell = ivec2(0);
     bool fresh = true; // the cell must be recomputed from t
     float span = abs(dir.x) + abs(dir.y) + 4.0;
-    float cap = min(4.0 * float(top + 2) * span + 64.0, 1e8);
+    float cap = min(4.0 * float(top + 2) * span + 64.0, TRAVERSAL_CAP);
     // Two loops: the inner one only traverses until the ray sits on a leaf's bound; the
     // leaf's refinement follows it, and when the bilinear surface is not hit the
     // traversal resumes. The same steps in the same order as one loop with the refinement

@@ -639,6 +639,7 @@ impl DisplacementPass {
             params,
             ..self.settings
         };
+        validate(c, &settings)?;
         // Build everything new first (guarded: a failure destroys it and leaves the pass
         // as it was), then commit.
         let chain = params.lod_threshold.is_some();
@@ -962,6 +963,9 @@ impl Drop for DisplacementPass {
 
 fn validate(ctx: &Context, s: &PassSettings) -> Result<()> {
     s.params.validate()?;
+    if let Some(limit) = ctx.info().loop_limit {
+        s.method.check_loop_limit(&s.params, limit)?;
+    }
     if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&s.frames_in_flight) {
         return Err(Error::invalid(
             "frames_in_flight",
