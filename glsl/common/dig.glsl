@@ -11,18 +11,20 @@ layout(set = 0, binding = 5) uniform sampler2D u_corners;
 // corners' min - eps2 and max + eps1, clamped to [0, 1]). False when the block's corners
 // are not all on the pixel's surface (no geometry at a corner, another surface, a
 // silhouette of a clamp-addressed decal): then the interval means nothing.
+// The block index is the float quotient (exact: (p + 0.5) / block is never within
+// rounding of an integer for frame coordinates), not an integer division, and the 4
+// corners (b, b + 1 on each axis; b + 1 <= the grid's last corner) come from two
+// gathers, one per channel, instead of 4 fetches: a per-pixel cost that lavapipe pays
+// one lane at a time for `/` and per fetch for texelFetch.
 bool dig_interval(ivec2 pixel, out float h_bottom, out float h_top) {
     float surface = texelFetch(u_normal, pixel, 0).w;
-    ivec2 b = pixel / ivec2(pc.block);
-    float lo = 1.0, hi = 0.0;
-    bool same = surface > 0.0;
-    for (int k = 0; k < 4; ++k) {
-        ivec2 c = min(b + ivec2(k & 1, k >> 1), ivec2(pc.corner_size) - 1);
-        vec2 corner = texelFetch(u_corners, c, 0).xy;
-        same = same && corner.y == surface;
-        lo = min(lo, corner.x);
-        hi = max(hi, corner.x);
-    }
+    vec2 b = floor((vec2(pixel) + 0.5) / vec2(pc.block));
+    vec2 at = (b + 1.0) / vec2(pc.corner_size);
+    vec4 heights = textureGather(u_corners, at, 0);
+    vec4 ids = textureGather(u_corners, at, 1);
+    bool same = surface > 0.0 && all(equal(ids, vec4(surface)));
+    float lo = min(1.0, min(min(heights.x, heights.y), min(heights.z, heights.w)));
+    float hi = max(0.0, max(max(heights.x, heights.y), max(heights.z, heights.w)));
     h_bottom = clamp(lo - pc.eps, 0.0, 1.0);
     h_top = clamp(hi + pc.eps, 0.0, 1.0);
     return same;
