@@ -74,7 +74,11 @@ struct BenchArgs {
     error_frames: Option<u32>,
     /// Quality settings: linear steps over the full depth, the same for every method that
     /// has a step count (DIG: eps1 = eps2 = 1/steps).
-    #[arg(long, default_value = "25,35,50,75,100,125,150", value_name = "LIST")]
+    #[arg(
+        long,
+        default_value = "10,15,20,25,35,50,75,100,125,150",
+        value_name = "LIST"
+    )]
     steps: String,
     /// Methods, comma-separated, or `all`: bump, linear, relief, pom, secant, dig,
     /// dig-guarded, pyramid, exact.

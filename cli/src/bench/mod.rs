@@ -23,12 +23,16 @@
 //!   first use of its pipelines; it also builds the pyramid, whose one build is reported
 //!   as `pyramid_build_ms`). Then the runs are interleaved frame by frame: frame 0 of
 //!   every (method, setting), then frame 1, and so on, so that load from other processes
-//!   spreads over all methods instead of skewing the ones that ran while it lasted.
-//!   Every pass's time is the median over the `K` frames of its timestamp interval. The
-//!   *method time* (`method_ms`) is the median per-frame sum of the method's own passes
-//!   (`trace`, plus `dig_corners` for DIG): what the speed-ups and plots compare.
-//!   `total_ms` is the median whole frame (G-buffer, corner pass, trace, shade; without
-//!   the one-off pyramid build).
+//!   spreads over all methods instead of skewing the ones that ran while it lasted; the
+//!   whole pass over the `K` frames is repeated `R` times (`--repeat`). Every pass's time
+//!   is the **minimum** over the `K R` frames of its timestamp interval: on a shared
+//!   machine a frame median swung 2x between runs where the minimum repeated to about
+//!   10%. The *method time* (`method_ms`) is the minimum per-frame sum of the method's
+//!   own passes (`trace`, plus `dig_corners` for DIG): what the speed-ups and plots
+//!   compare; `method_median_ms` is its median, and `method_lo_ms` / `method_hi_ms` the
+//!   lowest and highest of the `R` per-pass minima (the spread of the statistic).
+//!   `total_ms` is the minimum whole frame (G-buffer, corner pass, trace, shade; without
+//!   the one-off pyramid build), `total_median_ms` its median.
 //! * **Error.** The reference of a frame (the exact CPU intersection of its rays,
 //!   [`Renderer::reference`]) is computed once per map and error frame and shared by
 //!   every method. `--error-frames N` picks frames `floor(i K / N)`, `i < N` (frame 0
@@ -75,9 +79,10 @@ pub const CAMERA_ELEVATION_DEG: f32 = 20.25;
 /// Vertical field of view of the benchmark camera, degrees.
 pub const FOV_Y_DEG: f32 = 39.5;
 
-/// The quality settings (iterations): the DIG paper's 75 to 150, and 25 to 50 so that the
-/// setting where DIG reaches `pom`-150's error is read off measured points.
-pub const DEFAULT_STEPS: [u32; 7] = [25, 35, 50, 75, 100, 125, 150];
+/// The quality settings (iterations): the DIG paper's 75 to 150, and 10 to 50 so that the
+/// setting where DIG reaches `pom`-150's error is read off measured points (DIG at 25
+/// already beats `pom` at 150 on every bundled map).
+pub const DEFAULT_STEPS: [u32; 10] = [10, 15, 20, 25, 35, 50, 75, 100, 125, 150];
 
 /// Map sides of the map-size sweep (the pyramid paper's Fig. 21).
 pub const DEFAULT_SIZES: [u32; 4] = [256, 512, 1024, 2048];
