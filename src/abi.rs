@@ -65,18 +65,21 @@ pub const TRACE_FLAG_LOD: u32 = 2;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PyramidParams {
-    /// Logical size of the level read (level 0: the map).
+    /// Logical size of the level below `level` (level 0: the map).
     pub src_size: [u32; 2],
-    /// Logical size of the level written.
+    /// Logical size of level `level`.
     pub dst_size: [u32; 2],
-    /// The level written.
+    /// Logical size of level `level + 1`, written by the same dispatch; `[0, 0]` when the
+    /// dispatch writes `level` alone.
+    pub next_size: [u32; 2],
+    /// The (first) level written.
     pub level: u32,
     /// `PYRAMID_KIND_*`.
     pub kind: u32,
     /// `ADDRESSING_*`.
     pub addressing: u32,
-    /// Padding.
-    pub pad: u32,
+    /// Padding (the size a multiple of 16 bytes).
+    pub pad: [u32; 3],
 }
 
 /// `CornerParams` in `glsl/dig_corners.comp`.
@@ -369,6 +372,7 @@ mod tests {
             &[
                 ("src_size", offset_of!(PyramidParams, src_size)),
                 ("dst_size", offset_of!(PyramidParams, dst_size)),
+                ("next_size", offset_of!(PyramidParams, next_size)),
                 ("level", offset_of!(PyramidParams, level)),
                 ("kind", offset_of!(PyramidParams, kind)),
                 ("addressing", offset_of!(PyramidParams, addressing)),

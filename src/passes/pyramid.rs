@@ -1,7 +1,7 @@
 //! The `pyramid` pass: the max-height pyramid (Oh, Ki & Lee's minimum-displacement
 //! pyramid; Tevs et al.'s maximum mipmap), built on the GPU by a chain of compute
-//! dispatches, one per level, each reducing the level below with `max`
-//! (`glsl/pyramid.comp`).
+//! dispatches, each writing two levels (a level and the one above it, from shared reads
+//! of the level below), reducing with `max` (`glsl/pyramid.comp`).
 //!
 //! # Levels and sizes
 //!
@@ -40,10 +40,11 @@ use ash::vk;
 /// Format of the pyramid.
 pub const PYRAMID_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
 
-const BINDINGS: [(u32, vk::DescriptorType); 3] = [
+const BINDINGS: [(u32, vk::DescriptorType); 4] = [
     (0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     (1, vk::DescriptorType::STORAGE_IMAGE),
     (2, vk::DescriptorType::STORAGE_IMAGE),
+    (3, vk::DescriptorType::STORAGE_IMAGE),
 ];
 
 /// `PYRAMID_KIND_*` in `glsl/pyramid.comp`.
@@ -255,7 +256,9 @@ impl PyramidPass {
             Addressing::Repeat => ADDRESSING_REPEAT,
             Addressing::Clamp => ADDRESSING_CLAMP,
         };
-        for level in 0..pyramid.levels() {
+        let levels = pyramid.levels();
+        let mut level = 0;
+        while level < levels {
             if level > 0 {
                 // SAFETY: this function's # Safety contract (`cmd` recording outside a
                 // render pass, the pyramid alive); level `level - 1` is in `GENERAL`,
@@ -273,15 +276,20 @@ impl PyramidPass {
                     )
                 };
             }
+            // Two levels per dispatch where there is a level above this one.
+            let pair = level + 1 < levels;
             // Level 0 reads the height map only; its `src` binding (statically used by
             // the shader, not read on that path) names level 0 itself, so no later
-            // dispatch's write follows an unsynchronised read.
+            // dispatch's write follows an unsynchronised read. A single-level dispatch
+            // binds its own level as `next` (not written on that path).
             let src = storage(level.saturating_sub(1));
             let dst = storage(level);
+            let next = storage(if pair { level + 1 } else { level });
             let writes = [
                 image_write(BINDINGS[0].0, BINDINGS[0].1, &heights),
                 image_write(BINDINGS[1].0, BINDINGS[1].1, &src),
                 image_write(BINDINGS[2].0, BINDINGS[2].1, &dst),
+                image_write(BINDINGS[3].0, BINDINGS[3].1, &next),
             ];
             let src_size = if level == 0 {
                 pyramid.size
@@ -289,14 +297,21 @@ impl PyramidPass {
                 level_size(pyramid.size, level - 1)
             };
             let dst_size = level_size(pyramid.size, level);
+            let next_size = if pair {
+                level_size(pyramid.size, level + 1)
+            } else {
+                [0, 0]
+            };
             let push = PyramidParams {
                 src_size,
                 dst_size,
+                next_size,
                 level,
                 kind: kind_code(pyramid.kind),
                 addressing,
-                pad: 0,
+                pad: [0; 3],
             };
+            let grid = if pair { next_size } else { dst_size };
             // SAFETY: this function's # Safety contract: `cmd` is recording outside a
             // render pass; the writes match `BINDINGS` (the pipeline's set 0) and name
             // the live height texture (sampled-readable) and pyramid levels in `GENERAL`
@@ -308,10 +323,11 @@ impl PyramidPass {
                     cmd,
                     &writes,
                     bytemuck::bytes_of(&push),
-                    dst_size[0],
-                    dst_size[1],
+                    grid[0],
+                    grid[1],
                 )
             };
+            level += if pair { 2 } else { 1 };
         }
         // SAFETY: this function's # Safety contract (`cmd` recording outside a render
         // pass, the pyramid alive); every level is in `GENERAL` (the first transition).
