@@ -4,8 +4,10 @@
 //! It wraps its handles in a [`Context`] with [`Context::from_handles`], builds one
 //! [`DisplacementPass`], and each frame calls [`DisplacementPass::record`], which only
 //! *records* `[upload] -> [pyramid] -> [dig_corners] -> trace -> [shadow] ->
-//! [shade] -> [hit_depth]` into the host's command buffer. On this path dispmap never creates a device, a command pool or a
-//! fence, and never submits: the host submits with its own fence.
+//! [shade] -> [hit_depth]` into the host's command buffer. On this path dispmap never
+//! creates a device, a command pool or a fence, and never submits: the host submits with
+//! its own fence. This is the one orchestrator of the compute passes: dispmap's own
+//! standalone [`crate::renderer::Renderer`] is a host of it like any engine.
 //!
 //! # Call sequence
 //!
@@ -29,10 +31,14 @@
 //!    (`examples/host_engine.rs`, `tests/host_engine.rs`).
 //! 5. [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] /
 //!    [`DisplacementPass::set_method`] / [`DisplacementPass::set_shadows`] /
-//!    [`DisplacementPass::set_depth_output`] any time between records, with frames in
+//!    [`DisplacementPass::set_depth_output`] / [`DisplacementPass::set_material`] (albedo
+//!    and normal maps for `shade`) / [`DisplacementPass::set_depth_scale`] any time
+//!    between records, with frames in
 //!    flight (what they replace is retired, see below; for `resize` the host's images of
 //!    the new size are used from the next record on). Self-shadowing and the corrected
 //!    depth are off after `new` and nothing of them is built until they are turned on.
+//!    To shade hits of its own (e.g. exact reference hits) exactly as a frame shades the
+//!    method's, a host records [`DisplacementPass::record_shading`] instead of `record`.
 //! 6. With the corrected depth on: after `record`, the host reads
 //!    [`DisplacementPass::hit_depth`] of the frame's slot, e.g. to write it into its own
 //!    `D32_SFLOAT` attachment (see "Corrected depth" below).

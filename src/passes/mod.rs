@@ -2,10 +2,10 @@
 //! chain), `dig` (the DIG corner pass), `trace` (the method), `shadow` (optional
 //! self-shadowing) and `shade`; on request `hit_depth` (the corrected depth of the
 //! displaced surface) and `depth_resolve` (graphics: that depth into a depth
-//! attachment). Every pass only
-//! records into a command buffer it is given; the caller places the barriers between
-//! passes (see [`crate::renderer`] for the order and
-//! the layouts each pass expects).
+//! attachment). Every pass only records into a command buffer it is given; the one
+//! orchestrator, [`crate::embed::DisplacementPass`], places the barriers between the
+//! compute passes (`src/embed/record.rs`, one method per stage), and its host (an engine,
+//! or [`crate::renderer::Renderer`]) the G-buffer's and the entry barriers.
 
 pub mod depth_resolve;
 pub mod dig;
