@@ -195,7 +195,7 @@ struct Messages {
 
 unsafe extern "system" fn on_message(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
-    _kind: vk::DebugUtilsMessageTypeFlagsEXT,
+    kind: vk::DebugUtilsMessageTypeFlagsEXT,
     data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
     user: *mut c_void,
 ) -> vk::Bool32 {
@@ -207,7 +207,15 @@ unsafe extern "system" fn on_message(
             .map(|d| CStr::from_ptr(d.p_message).to_string_lossy().into_owned())
             .unwrap_or_default()
     };
-    if severity.intersects(
+    // The layers' findings (VALIDATION, PERFORMANCE) count; GENERAL messages are notices,
+    // e.g. the loader's "adding layers" when VK_INSTANCE_LAYERS enables validation.
+    let finding = kind.intersects(
+        vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+            | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+    );
+    if !finding {
+        eprintln!("[host engine notice] {text}");
+    } else if severity.intersects(
         vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
             | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
     ) {

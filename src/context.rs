@@ -24,7 +24,8 @@ use std::sync::{Arc, Mutex};
 
 /// The validation layer's name.
 pub const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
-/// Environment variable that switches validation on (`1`, `true`, `on`).
+/// Environment variable that switches validation on (`1`, `true`, `on`, `yes`) or off
+/// (`0`, `false`, `off`, `no`, empty); any other value is an error naming it.
 pub const ENV_VALIDATION: &str = "DISPMAP_VALIDATION";
 /// Environment variable that selects the device (index or name substring).
 pub const ENV_DEVICE: &str = "DISPMAP_DEVICE";
@@ -182,7 +183,10 @@ impl Context {
         // SAFETY: loading the system Vulkan loader runs its initialisation code; it is the
         // documented way to get an entry and nothing else in this process races it.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))?;
-        let validation = options.validation.unwrap_or_else(validation_from_env);
+        let validation = match options.validation {
+            Some(v) => v,
+            None => validation_from_env()?,
+        };
         let messages = Arc::new(MessageCounter::default());
         let instance_exts = enumerate_instance_extensions(&entry)?;
         let has_debug_utils = instance_exts
@@ -544,10 +548,26 @@ impl Drop for Context {
     }
 }
 
-fn validation_from_env() -> bool {
-    std::env::var(ENV_VALIDATION)
-        .map(|v| matches!(v.to_ascii_lowercase().as_str(), "1" | "true" | "on" | "yes"))
-        .unwrap_or(false)
+fn validation_from_env() -> Result<bool> {
+    match std::env::var(ENV_VALIDATION) {
+        Err(std::env::VarError::NotPresent) => Ok(false),
+        Err(e) => Err(Error::invalid(ENV_VALIDATION, e.to_string())),
+        Ok(v) => parse_switch(&v).ok_or_else(|| {
+            Error::invalid(
+                ENV_VALIDATION,
+                format!("'{v}' is neither on (1, true, on, yes) nor off (0, false, off, no)"),
+            )
+        }),
+    }
+}
+
+/// An on/off environment value; `None` when it is neither.
+fn parse_switch(value: &str) -> Option<bool> {
+    match value.trim().to_ascii_lowercase().as_str() {
+        "1" | "true" | "on" | "yes" => Some(true),
+        "" | "0" | "false" | "off" | "no" => Some(false),
+        _ => None,
+    }
 }
 
 fn enumerate_instance_extensions(entry: &ash::Entry) -> Result<Vec<CString>> {
@@ -650,6 +670,21 @@ unsafe extern "system" fn debug_callback(
         })
         .map(|m| m.to_string_lossy().into_owned())
         .unwrap_or_default();
+    // Only the layers' findings count (validation, synchronization and best-practices
+    // messages are VALIDATION or PERFORMANCE); GENERAL messages are notices, e.g. the
+    // loader's "inserted layer" when VK_INSTANCE_LAYERS enables validation: logged only.
+    let finding = kind.intersects(
+        vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+            | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+    );
+    if !finding {
+        if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
+            log::warn!("[vulkan notice, not counted] {message}");
+        } else {
+            log::info!("[vulkan notice] {message}");
+        }
+        return vk::FALSE;
+    }
     // SAFETY: `user` is `Arc::as_ptr` of the context's MessageCounter, alive while the
     // messenger exists (destroyed before the counter is dropped).
     let counter = unsafe { (user as *const MessageCounter).as_ref() };
@@ -798,4 +833,58 @@ fn version_string(v: u32) -> String {
         vk::api_version_minor(v),
         vk::api_version_patch(v)
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Calls the messenger callback as a layer would.
+    fn deliver(
+        counter: &MessageCounter,
+        severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+        kind: vk::DebugUtilsMessageTypeFlagsEXT,
+    ) {
+        let text = c"a message";
+        let data = vk::DebugUtilsMessengerCallbackDataEXT::default().message(text);
+        // SAFETY: the data and its string live across the call; `user` points at a live
+        // MessageCounter, as the messenger's does.
+        unsafe {
+            debug_callback(
+                severity,
+                kind,
+                &data,
+                counter as *const MessageCounter as *mut c_void,
+            )
+        };
+    }
+
+    #[test]
+    fn loader_notices_are_logged_and_findings_counted() {
+        use vk::DebugUtilsMessageSeverityFlagsEXT as S;
+        use vk::DebugUtilsMessageTypeFlagsEXT as T;
+        let counter = MessageCounter::default();
+        // The loader's notice that VK_INSTANCE_LAYERS inserted the validation layer.
+        deliver(&counter, S::WARNING, T::GENERAL);
+        deliver(&counter, S::ERROR, T::GENERAL);
+        assert_eq!(counter.total(), 0);
+        deliver(&counter, S::WARNING, T::VALIDATION);
+        deliver(&counter, S::ERROR, T::VALIDATION);
+        deliver(&counter, S::WARNING, T::PERFORMANCE);
+        deliver(&counter, S::INFO, T::VALIDATION);
+        assert_eq!((counter.errors(), counter.warnings()), (1, 2));
+    }
+
+    #[test]
+    fn the_validation_switch_refuses_what_it_does_not_know() {
+        for on in ["1", "true", "ON", "yes", " on "] {
+            assert_eq!(parse_switch(on), Some(true), "{on}");
+        }
+        for off in ["", "0", "false", "Off", "no"] {
+            assert_eq!(parse_switch(off), Some(false), "{off}");
+        }
+        for bad in ["2", "enable", "y"] {
+            assert_eq!(parse_switch(bad), None, "{bad}");
+        }
+    }
 }

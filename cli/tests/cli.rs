@@ -319,3 +319,60 @@ fn demo_with_bad_options_prints_and_creates_nothing() {
     );
     assert!(!dir.exists(), "{} was created", dir.display());
 }
+
+/// Validation enabled the common way (`VK_INSTANCE_LAYERS`, alone or beside
+/// `DISPMAP_VALIDATION`): the loader's notices that it inserted the layer are logged, not
+/// counted, so the commands succeed; a value of `DISPMAP_VALIDATION` that is neither on
+/// nor off is refused by name instead of meaning "off".
+#[test]
+fn loader_notices_do_not_fail_commands_and_the_switch_is_checked() {
+    let dir = scratch("loader");
+    for dispmap_validation in [None, Some("1")] {
+        let command = || {
+            let mut c = Command::new(env!("CARGO_BIN_EXE_dispmap"));
+            c.env("VK_INSTANCE_LAYERS", "VK_LAYER_KHRONOS_validation");
+            c.env_remove("DISPMAP_VALIDATION");
+            if let Some(v) = dispmap_validation {
+                c.env("DISPMAP_VALIDATION", v);
+            }
+            c
+        };
+        let out = command().arg("info").output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{dispmap_validation:?}: {stderr}");
+        let png = dir.join("r.png");
+        let out = command()
+            .args(["render", "--heightmap"])
+            .arg(asset("rocks_depth.jpg"))
+            .args([
+                "--convention",
+                "depth",
+                "--size",
+                "32x32",
+                "--frames",
+                "1",
+                "--out",
+            ])
+            .arg(&png)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{dispmap_validation:?}: {stderr}");
+    }
+    for bad in ["2", "enable"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_dispmap"))
+            .env("DISPMAP_VALIDATION", bad)
+            .arg("info")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success(),
+            "DISPMAP_VALIDATION={bad} was accepted"
+        );
+        assert!(
+            stderr.contains("DISPMAP_VALIDATION") && stderr.contains(bad),
+            "{stderr}"
+        );
+    }
+}
