@@ -22,6 +22,22 @@ pub fn load(path: &Path) -> Result<Mesh> {
     }
 }
 
+/// The most triangles a loaded mesh may have (the G-buffer draws every one per frame).
+pub const MAX_TRIANGLES: usize = 16 << 20;
+
+/// Whether a buffer URI names a file at or below the glTF file's folder.
+fn stays_in_folder(uri: &str) -> bool {
+    let path = Path::new(uri);
+    !uri.contains("://")
+        && !path.is_absolute()
+        && path.components().all(|c| {
+            matches!(
+                c,
+                std::path::Component::Normal(_) | std::path::Component::CurDir
+            )
+        })
+}
+
 /// Loads the triangles of a glTF 2.0 file's default scene (every node, with its
 /// world transform) as one mesh. Errors name the file.
 pub fn load_gltf(path: &Path) -> Result<Mesh> {
@@ -34,6 +50,20 @@ pub fn load_gltf(path: &Path) -> Result<Mesh> {
         },
         other => bad(format!("not a valid glTF file: {other}")),
     })?;
+    // Buffers are read from the file itself or from files beside it: a URI that leaves
+    // the file's folder (absolute, `..`, a scheme other than data:) is refused by name.
+    for buffer in gltf.document.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = buffer.source()
+            && !uri.starts_with("data:")
+            && !stays_in_folder(uri)
+        {
+            return Err(bad(format!(
+                "buffer {} points outside the file's folder ({uri}): only relative paths \
+                 below it and data: URIs are read",
+                buffer.index()
+            )));
+        }
+    }
     let buffers = gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone())
         .map_err(|e| bad(format!("cannot read its buffers: {e}")))?;
     let mut positions = Vec::new();
@@ -49,7 +79,16 @@ pub fn load_gltf(path: &Path) -> Result<Mesh> {
         Some(scene) => scene.nodes().map(|n| (n, glam::Mat4::IDENTITY)).collect(),
         None => return Err(bad("has no scene".into())),
     };
+    // glTF nodes form trees (a node has at most one parent): a node reached twice is a
+    // cycle or a shared subtree, which would repeat (or never end) the walk.
+    let mut seen = vec![false; gltf.document.nodes().count()];
     while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut seen[node.index()], true) {
+            return Err(bad(format!(
+                "node {} is reached twice (a cycle or a shared subtree: glTF nodes form trees)",
+                node.index()
+            )));
+        }
         let world = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
         stack.extend(node.children().map(|c| (c, world)));
         let Some(mesh) = node.mesh() else { continue };

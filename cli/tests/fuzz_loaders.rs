@@ -254,3 +254,51 @@ proptest! {
         }
     }
 }
+
+/// glTF files whose node graph is not a forest, or whose buffers point outside their
+/// folder, are refused naming the file and the node or buffer (they used to make the
+/// loader allocate until the process aborted, or read any file).
+#[test]
+fn gltf_cycles_shared_nodes_and_outside_buffers_are_refused() {
+    let dir = std::env::temp_dir().join(format!("dispmap-gltf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cases = [
+        (
+            "self.gltf",
+            r#"{"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"nodes":[{"children":[0]}]}"#,
+            "node 0 is reached twice",
+        ),
+        (
+            "pair.gltf",
+            r#"{"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"nodes":[{"children":[1]},{"children":[0]}]}"#,
+            "reached twice",
+        ),
+        (
+            "diamond.gltf",
+            r#"{"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"nodes":[{"children":[1,2]},{"children":[3]},{"children":[3]},{}]}"#,
+            "node 3 is reached twice",
+        ),
+        (
+            "outside.gltf",
+            r#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"../secret.bin"}],"scenes":[{"nodes":[]}]}"#,
+            "points outside the file's folder",
+        ),
+        (
+            "absolute.gltf",
+            r#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"/etc/hostname"}],"scenes":[{"nodes":[]}]}"#,
+            "points outside the file's folder",
+        ),
+    ];
+    for (name, json, expected) in cases {
+        let path = dir.join(name);
+        std::fs::write(&path, json).unwrap();
+        let err = dispmap_cli::mesh_file::load(&path)
+            .err()
+            .unwrap_or_else(|| panic!("{name} loaded"))
+            .to_string();
+        assert!(
+            err.contains(name) && err.contains(expected),
+            "{name}: {err}"
+        );
+    }
+}
