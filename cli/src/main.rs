@@ -133,9 +133,9 @@ struct RenderArgs {
     method: Method,
     #[command(flatten)]
     common: CommonArgs,
-    /// Output PNG.
-    #[arg(long)]
-    out: PathBuf,
+    /// Output PNG (`-`: standard output); may be left out when --metrics is given.
+    #[arg(long, required_unless_present = "metrics")]
+    out: Option<PathBuf>,
     /// Also compute the exact reference and write the metrics JSON here.
     #[arg(long)]
     metrics: Option<PathBuf>,
@@ -632,7 +632,7 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
         }
     }
     let outputs = [
-        ("--out", Some(&args.out)),
+        ("--out", args.out.as_ref()),
         ("--metrics", args.metrics.as_ref()),
         ("--heatmap", args.heatmap.as_ref()),
         ("--interval-map", args.interval_map.as_ref()),
@@ -668,7 +668,9 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
         } else {
             None
         };
-        output::write_png(&args.out, settings.width, settings.height, &color)?;
+        if let Some(out) = &args.out {
+            output::write_png(out, settings.width, settings.height, &color)?;
+        }
         if let Some(path) = &args.heatmap {
             let rgba = heatmap::iteration_heatmap(&hits, &covered, args.heatmap_max)?;
             output::write_png(path, settings.width, settings.height, &rgba)?;
@@ -718,9 +720,15 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
             let json = serde_json::to_string_pretty(&report)?;
             output::write_atomic(path, json.as_bytes())?;
         }
-        print_timings(&timings);
+        // With `--out -` (or `--metrics -`) standard output carries the file: the
+        // summary goes to standard error instead.
+        let to_stdout = [&args.out, &args.metrics]
+            .iter()
+            .any(|p| p.as_deref() == Some(Path::new("-")));
+        let summary = timings_line(&timings);
+        let mut lines = vec![summary];
         if let Some(e) = error {
-            println!(
+            lines.push(format!(
                 "error: mean {:.3} texels, p99 {:.3}, max {:.3}, artifacts {:.3}%, PSNR {:.2} dB, non-finite {}",
                 e.mean_texels,
                 e.p99_texels,
@@ -728,18 +736,26 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
                 100.0 * e.artifact_fraction,
                 e.psnr_db,
                 e.nonfinite_pixels
-            );
+            ));
+        }
+        for line in lines {
+            if to_stdout {
+                eprintln!("{line}");
+            } else {
+                println!("{line}");
+            }
         }
     }
     finish(ctx)
 }
 
-fn print_timings(timings: &[(String, f64)]) {
+/// The per-pass times as one line.
+fn timings_line(timings: &[(String, f64)]) -> String {
     let parts: Vec<String> = timings
         .iter()
         .map(|(name, ms)| format!("{name} {ms:.3} ms"))
         .collect();
-    println!("GPU time (median): {}", parts.join(", "));
+    format!("GPU time (median): {}", parts.join(", "))
 }
 
 fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {

@@ -376,3 +376,43 @@ fn loader_notices_do_not_fail_commands_and_the_switch_is_checked() {
         );
     }
 }
+
+/// `--out -` writes the PNG to standard output (the summary goes to standard error), and
+/// `--metrics` alone needs no `--out`.
+#[test]
+fn out_to_stdout_and_metrics_without_an_image() {
+    let dir = scratch("stdout");
+    let base = |c: &mut Command| {
+        c.args(["render", "--heightmap"])
+            .arg(asset("rocks_depth.jpg"))
+            .args(["--convention", "depth", "--size", "32x32", "--frames", "1"]);
+    };
+    let mut c = dispmap();
+    base(&mut c);
+    let out = c.args(["--out", "-"]).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let png = image::load_from_memory(&out.stdout).expect("a PNG on standard output");
+    assert_eq!((png.width(), png.height()), (32, 32));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("GPU time"));
+    let json = dir.join("m.json");
+    let mut c = dispmap();
+    base(&mut c);
+    let out = c.arg("--metrics").arg(&json).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(std::fs::read(&json).unwrap().starts_with(b"{"));
+    let mut c = dispmap();
+    base(&mut c);
+    let out = c.output().unwrap();
+    assert!(
+        !out.status.success(),
+        "neither --out nor --metrics was accepted"
+    );
+}
