@@ -286,13 +286,16 @@ impl Renderer {
     /// Switches the method (and its parameters); the G-buffer and map stay. On error
     /// the renderer keeps its old method (as [`DisplacementPass::set_method`]).
     pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {
-        self.pass.set_method(method, params)?;
-        self.settings.method = method;
-        self.settings.params = params;
-        if self.pass.settings().method.needs().pyramid.is_none() && !self.settings.shadows.is_on() {
+        let result = self.pass.set_method(method, params);
+        // The pass is the state: it may have switched even on an error (its shadow
+        // stage's exception), so the settings follow it either way.
+        let pass = *self.pass.settings();
+        self.settings.method = pass.method;
+        self.settings.params = pass.params;
+        if pass.method.needs().pyramid.is_none() && !self.settings.shadows.is_on() {
             self.pyramid_ms = None;
         }
-        Ok(())
+        result
     }
 
     /// Switches self-shadowing (builds or drops the `shadow` pass and its image).
