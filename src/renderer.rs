@@ -346,17 +346,15 @@ impl Renderer {
         // SAFETY: `cmd` was just begun; the pool is alive with the range.
         unsafe { w.reset(ctx, cmd) };
 
-        let to_attachments = self.gbuffer.colors().map(|i| {
-            sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE)
-        });
-        let depth = &self.gbuffer.depth;
+        let to_attachments = self.gbuffer.barriers(
+            (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
+            (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
+        );
         // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
         // context's queue family) and is submitted and waited for below, while the
         // G-buffer lives; its previous frame was waited for, so the contents may be
-        // discarded; the images have `COLOR_ATTACHMENT` usage (`GBuffer::new`).
+        // discarded; the images have attachment usage (`GBuffer::new`).
         unsafe { sync::record(ctx, cmd, &to_attachments) };
-        // SAFETY: as above; the depth image has `DEPTH_STENCIL_ATTACHMENT` usage.
-        unsafe { sync::transition(ctx, cmd, depth, DISCARD, Access::DEPTH_ATTACHMENT_WRITE) };
         // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
         // above (the scope's contract). In the body (inside this block): the G-buffer is
         // in the attachment layouts (the barriers above); it, the pass and the mesh's
@@ -375,25 +373,10 @@ impl Renderer {
 
         // The pass's entry contract: G-buffer sampled by compute, hit buffer and colour
         // discarded in GENERAL.
-        let mut entry: Vec<_> = self
-            .gbuffer
-            .colors()
-            .iter()
-            .map(|i| {
-                sync::image_barrier(
-                    i.raw,
-                    i.range(),
-                    Access::COLOR_ATTACHMENT_WRITE,
-                    Access::COMPUTE_SAMPLED,
-                )
-            })
-            .collect();
-        entry.push(sync::image_barrier(
-            depth.raw,
-            depth.range(),
-            Access::DEPTH_ATTACHMENT_WRITE,
-            Access::COMPUTE_SAMPLED,
-        ));
+        let mut entry = self.gbuffer.barriers(
+            (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
+            (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
+        );
         for image in [&self.hit, &self.color] {
             entry.push(sync::image_barrier(
                 image.raw,

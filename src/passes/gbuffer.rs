@@ -23,6 +23,7 @@ use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::Image;
 use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
+use crate::gpu::sync::{self, Access};
 use crate::shaders;
 use ash::vk;
 
@@ -107,6 +108,28 @@ impl GBuffer {
     /// The colour attachments in binding order.
     pub fn colors(&self) -> [&Image; 3] {
         [&self.ray, &self.normal, &self.tangent]
+    }
+
+    /// One barrier per image: the colour attachments from `color.0` to `color.1`, the
+    /// depth from `depth.0` to `depth.1` (e.g. discarded -> attachment writes before the
+    /// G-buffer pass, attachment writes -> compute sampled reads after it).
+    pub fn barriers(
+        &self,
+        color: (Access, Access),
+        depth: (Access, Access),
+    ) -> Vec<vk::ImageMemoryBarrier2<'static>> {
+        let mut b: Vec<_> = self
+            .colors()
+            .iter()
+            .map(|i| sync::image_barrier(i.raw, i.range(), color.0, color.1))
+            .collect();
+        b.push(sync::image_barrier(
+            self.depth.raw,
+            self.depth.range(),
+            depth.0,
+            depth.1,
+        ));
+        b
     }
 
     /// Destroys the images.

@@ -170,20 +170,6 @@ pub unsafe fn record_gbuffer(
     g: &GBuffer,
     params: &GBufferParams,
 ) {
-    let barriers = |color: (Access, Access), depth: (Access, Access)| {
-        let mut b: Vec<_> = g
-            .colors()
-            .iter()
-            .map(|i| sync::image_barrier(i.raw, i.range(), color.0, color.1))
-            .collect();
-        b.push(sync::image_barrier(
-            g.depth.raw,
-            g.depth.range(),
-            depth.0,
-            depth.1,
-        ));
-        b
-    };
     // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
     // pass; the G-buffer is alive and its contents may be discarded; its images have
     // attachment usage (`GBuffer::new`).
@@ -191,7 +177,7 @@ pub unsafe fn record_gbuffer(
         sync::record(
             ctx,
             cmd,
-            &barriers(
+            &g.barriers(
                 (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
                 (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
             ),
@@ -204,7 +190,7 @@ pub unsafe fn record_gbuffer(
         sync::record(
             ctx,
             cmd,
-            &barriers(
+            &g.barriers(
                 (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
                 (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
             ),
