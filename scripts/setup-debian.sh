@@ -5,10 +5,11 @@
 #   vulkan-validationlayers VK_LAYER_KHRONOS_validation (tests run with it on)
 #   libshaderc-dev          shaderc for build.rs (pulls glslang-dev and spirv-tools,
 #                           whose static libraries build-support/shaderc-link links)
+#   xvfb                    an X server without a screen: the viewer's test (`dispmap view`)
 # As root it runs apt-get; otherwise it prints the exact command and fails.
 set -euo pipefail
 
-packages=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools)
+packages=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools xvfb)
 missing=()
 for p in "${packages[@]}"; do
     if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

@@ -180,6 +180,19 @@ pub struct Context {
 impl Context {
     /// Creates a standalone headless context (instance, device, queue, allocator).
     pub fn headless(options: &ContextOptions) -> Result<Self> {
+        Self::with_extensions(options, &[], &[])
+    }
+
+    /// [`Context::headless`] with more instance and device extensions enabled, e.g. a
+    /// window system's surface extensions and `VK_KHR_swapchain` for a viewer that
+    /// presents the frames. An instance extension the loader lacks, or a device extension
+    /// the chosen device lacks, is an error naming it; the device choice is the same as
+    /// [`Context::headless`]'s.
+    pub fn with_extensions(
+        options: &ContextOptions,
+        instance_extensions: &[&CStr],
+        device_extensions: &[&CStr],
+    ) -> Result<Self> {
         // SAFETY: loading the system Vulkan loader runs its initialisation code; it is the
         // documented way to get an entry and nothing else in this process races it.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))?;
@@ -198,7 +211,24 @@ impl Context {
                 VALIDATION_LAYER.to_string_lossy()
             )));
         }
-        let instance = create_instance(&entry, validation, has_debug_utils, &messages)?;
+        let absent: Vec<String> = instance_extensions
+            .iter()
+            .filter(|want| !instance_exts.iter().any(|e| e.as_c_str() == **want))
+            .map(|want| want.to_string_lossy().into_owned())
+            .collect();
+        if !absent.is_empty() {
+            return Err(Error::NoDevice(format!(
+                "the Vulkan loader lacks the instance extension(s) {}",
+                absent.join(", ")
+            )));
+        }
+        let instance = create_instance(
+            &entry,
+            validation,
+            has_debug_utils,
+            instance_extensions,
+            &messages,
+        )?;
         let messenger = if has_debug_utils {
             let loader = ash::ext::debug_utils::Instance::new(&entry, &instance);
             let info = messenger_info(&messages);
@@ -211,7 +241,7 @@ impl Context {
         } else {
             None
         };
-        let result = Self::create_device(&instance, options);
+        let result = Self::create_device(&instance, options, device_extensions);
         let (physical_device, device, queue_family_index, queue) = match result {
             Ok(v) => v,
             Err(e) => {
@@ -382,6 +412,7 @@ impl Context {
     fn create_device(
         instance: &ash::Instance,
         options: &ContextOptions,
+        extra_extensions: &[&CStr],
     ) -> Result<(vk::PhysicalDevice, ash::Device, u32, vk::Queue)> {
         // SAFETY: `instance` is a valid instance.
         let devices =
@@ -403,8 +434,27 @@ impl Context {
         let queue_info = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(queue_family_index)
             .queue_priorities(&priorities)];
+        // SAFETY: `physical_device` was enumerated from `instance`.
+        let available = unsafe { instance.enumerate_device_extension_properties(physical_device) }
+            .vk("vkEnumerateDeviceExtensionProperties")?;
+        let absent: Vec<String> = extra_extensions
+            .iter()
+            .filter(|want| {
+                !available
+                    .iter()
+                    .any(|e| e.extension_name_as_c_str().ok() == Some(**want))
+            })
+            .map(|want| want.to_string_lossy().into_owned())
+            .collect();
+        if !absent.is_empty() {
+            return Err(Error::Unsupported {
+                device: device_name(instance, physical_device),
+                what: absent.join(", "),
+            });
+        }
         let ext_names: Vec<_> = requirements::DEVICE_EXTENSIONS
             .iter()
+            .chain(extra_extensions)
             .map(|e| e.as_ptr())
             .collect();
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
@@ -593,6 +643,7 @@ fn create_instance(
     entry: &ash::Entry,
     validation: bool,
     debug_utils: bool,
+    extra_extensions: &[&CStr],
     messages: &Arc<MessageCounter>,
 ) -> Result<ash::Instance> {
     let app = vk::ApplicationInfo::default()
@@ -609,6 +660,7 @@ fn create_instance(
     if debug_utils {
         exts.push(ash::ext::debug_utils::NAME.as_ptr());
     }
+    exts.extend(extra_extensions.iter().map(|e| e.as_ptr()));
     let enables = [
         vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION,
         vk::ValidationFeatureEnableEXT::BEST_PRACTICES,

@@ -283,6 +283,75 @@ impl Renderer {
         &self.ctx
     }
 
+    /// Changes the frame size: a new G-buffer, hit buffer and colour image of `width` x
+    /// `height`, and the pass's [`DisplacementPass::resize`]; the map, method, shadows
+    /// and scene stay. Every frame of this renderer was waited for, so the old images
+    /// are destroyed here; a caller that recorded work of its own on
+    /// [`Renderer::color_image`] must have waited for it first. On error the renderer
+    /// keeps its old size.
+    pub fn resize(&mut self, width: u32, height: u32) -> Result<()> {
+        let settings = RenderSettings {
+            width,
+            height,
+            ..self.settings
+        };
+        settings.validate()?;
+        let extent = settings.extent();
+        if extent == self.settings.extent() {
+            return Ok(());
+        }
+        let c = &*self.ctx;
+        let gbuffer = Guard::new(c, GBuffer::new(c, extent)?);
+        let hit = Guard::new(
+            c,
+            Image::new(
+                c,
+                "hits",
+                HIT_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::STORAGE
+                    | vk::ImageUsageFlags::TRANSFER_SRC
+                    | vk::ImageUsageFlags::TRANSFER_DST,
+            )?,
+        );
+        let color = Guard::new(
+            c,
+            Image::new(
+                c,
+                "color",
+                COLOR_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?,
+        );
+        self.pass.resize(extent)?;
+        let mut old = (
+            std::mem::replace(&mut self.gbuffer, gbuffer.keep()),
+            (
+                std::mem::replace(&mut self.hit, hit.keep()),
+                std::mem::replace(&mut self.color, color.keep()),
+            ),
+        );
+        old.destroy(c);
+        self.settings = settings;
+        self.depth_written = false;
+        Ok(())
+    }
+
+    /// The colour image (`R8G8B8A8_UNORM` holding sRGB-encoded values, the frame size)
+    /// that [`Renderer::render`] shades into, for a caller that copies or blits it in a
+    /// submission of its own (a viewer presenting the frame). After `render` returns the
+    /// frame has completed and the image is in `GENERAL`, last written by a compute
+    /// storage write ([`Access::COMPUTE_STORAGE_WRITE`]); it has `TRANSFER_SRC` usage.
+    /// The caller places its barrier from that state, returns the image to it before
+    /// the renderer's next use (`render` discards it; the `read_*` helpers read it), and
+    /// waits for its submission before [`Renderer::resize`] or dropping the renderer.
+    pub fn color_image(&self) -> &Image {
+        &self.color
+    }
+
     /// Switches the method (and its parameters); the G-buffer and map stay. On error
     /// the renderer keeps its old method (as [`DisplacementPass::set_method`]).
     pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {

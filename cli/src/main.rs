@@ -19,6 +19,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod view;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "dispmap",
@@ -53,6 +55,10 @@ enum Command {
     /// measured against the exact reference; writes results.csv, report.md, Pareto plots,
     /// heat maps and a map-size sweep into --out.
     Bench(BenchArgs),
+    /// An interactive window on the renderer: every method in motion, split view, live
+    /// GPU times, the error overlay on demand; `--frames N` runs a scripted, headless
+    /// sequence and exits (see docs/viewer.md).
+    View(view::ViewArgs),
 }
 
 #[derive(Args, Debug)]
@@ -508,6 +514,12 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
         }
         Some(Command::Demo(args)) => demo(&options, &args),
         Some(Command::Bench(args)) => bench_command(&options, &args),
+        Some(Command::View(args)) => {
+            let sub = matches
+                .subcommand_matches("view")
+                .context("clap parsed `view` without its matches")?;
+            view::run(&options, &args, sub)
+        }
         None => {
             let args = DemoArgs::parse_defaults();
             demo(&options, &args)
@@ -564,18 +576,22 @@ fn info(options: &ContextOptions) -> Result<()> {
     finish(ctx)
 }
 
-/// The height map, settings and scene assets of `render`: from --scene (its values,
-/// overridden by the flags given) or from the flags alone.
+/// The height map, settings and scene assets of `render` (and `view`): from --scene (its
+/// values, overridden by the flags given) or from the flags alone.
 fn render_inputs(
-    args: &RenderArgs,
+    scene: Option<&Path>,
+    heightmap: Option<&Path>,
+    convention: Option<Convention>,
+    method: Method,
+    common: &CommonArgs,
     matches: &ArgMatches,
 ) -> Result<(HeightField, String, RenderSettings, SceneAssets)> {
     let method_given = matches.value_source("method") == Some(ValueSource::CommandLine);
-    let Some(scene_path) = &args.scene else {
-        let (Some(path), Some(convention)) = (&args.heightmap, args.convention) else {
+    let Some(scene_path) = scene else {
+        let (Some(path), Some(convention)) = (heightmap, convention) else {
             bail!("--heightmap and --convention are needed without --scene");
         };
-        let settings = args.common.settings(args.method);
+        let settings = common.settings(method);
         settings.validate()?;
         let field = HeightField::load(path, convention)?;
         return Ok((
@@ -587,14 +603,14 @@ fn render_inputs(
     };
     let file = dispmap_cli::scene_file::SceneFile::read(scene_path)?;
     let mut loaded = file.resolve(scene_path)?;
-    args.common.override_scene(
+    common.override_scene(
         &mut loaded.settings,
         &file,
-        method_given.then_some(args.method),
+        method_given.then_some(method),
         matches,
     );
     loaded.settings.validate()?;
-    let (field, label) = match (&args.heightmap, args.convention) {
+    let (field, label) = match (heightmap, convention) {
         (Some(path), Some(convention)) => (
             HeightField::load(path, convention)?,
             path.display().to_string(),
@@ -606,7 +622,14 @@ fn render_inputs(
 
 fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> Result<()> {
     args.common.check()?;
-    let (field, heightmap_label, settings, assets) = render_inputs(args, matches)?;
+    let (field, heightmap_label, settings, assets) = render_inputs(
+        args.scene.as_deref(),
+        args.heightmap.as_deref(),
+        args.convention,
+        args.method,
+        &args.common,
+        matches,
+    )?;
     let dig = settings.method.needs().dig_corners;
     if args.interval_map.is_some() && !dig {
         bail!(

@@ -1,0 +1,1212 @@
+//! `dispmap view`: an interactive window on the renderer, one more host of the same
+//! frame as `render` ([`Renderer::render`]), presented through a swapchain
+//! ([`present`]). Keys rather than a panel (docs/viewer.md says why), live GPU times in
+//! the window title, the error overlay computed on demand off the render thread, and a
+//! headless scripted mode (`--frames`, [`script`]) for tests and demos.
+
+mod present;
+mod script;
+
+use crate::{CommonArgs, finish, render_inputs};
+use anyhow::{Context as _, Result, bail};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args};
+use dispmap::context::{Context, ContextOptions};
+use dispmap::heightfield::{Convention, HeightField};
+use dispmap::method::Method;
+use dispmap::passes::PassName;
+use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
+use dispmap::renderer::{RenderSettings, Renderer, SceneAssets};
+use dispmap::scene::Camera;
+use dispmap_cli::heatmap;
+use dispmap_cli::measure::Measure as _;
+use dispmap_cli::metrics::{self, ARTIFACT_TEXELS, ErrorMetrics, HitTexel, MapGeometry};
+use dispmap_cli::reference::{Hit, Ray, Reference};
+use dispmap_cli::{bundled, output};
+use present::{DIVIDER_PX, DIVIDER_RGBA, Presenter, Source};
+use script::{Action, CameraPath, Script};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, mpsc};
+use std::time::{Duration, Instant};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, KeyEvent, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, ModifiersState, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+/// The interactive window's size when `--size` is not given.
+const DEFAULT_WINDOW: (u32, u32) = (960, 540);
+/// Lowest camera elevation the controls reach, degrees.
+const MIN_ELEVATION: f32 = 0.5;
+/// How often the live numbers are updated.
+const STATS_PERIOD: Duration = Duration::from_millis(500);
+/// Artifact pixels of the error overlay (more than one texel off).
+const ARTIFACT_RGBA: [u8; 4] = [255, 0, 0, 255];
+/// Miss pixels of the error overlay (exactly one of method and reference hits) and
+/// non-finite hits.
+const MISS_RGBA: [u8; 4] = [0, 255, 255, 255];
+/// How long a scripted resize may take before the run fails.
+const RESIZE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// `dispmap view`'s arguments: `render`'s inputs, plus the viewer's.
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// A scene file (as `render --scene`); flags given override its values.
+    #[arg(long, value_name = "FILE")]
+    scene: Option<PathBuf>,
+    /// Height map (PNG 8/16-bit, JPEG, OpenEXR) [default: the bundled rocks map].
+    #[arg(long, requires = "convention")]
+    heightmap: Option<PathBuf>,
+    /// How the file encodes heights: `height` (white = high) or `depth` (white = low).
+    #[arg(long, requires = "heightmap")]
+    convention: Option<Convention>,
+    /// Intersection method (of the left side in split view).
+    #[arg(long, default_value = "relief")]
+    method: Method,
+    /// Split view from the start: this method right of the divider.
+    #[arg(long, value_name = "METHOD")]
+    split: Option<Method>,
+    /// Start in the iteration heat-map view.
+    #[arg(long)]
+    heatmap: bool,
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Headless use: the camera of each frame, `orbit` (one turn about the vertical
+    /// axis over --frames) or a file of `ELEVATION AZIMUTH [HEIGHT]` lines, one a frame.
+    /// Only with --frames.
+    #[arg(long, value_name = "FILE|orbit", requires = "frames")]
+    camera_path: Option<String>,
+    /// Headless use: changes at given frames (`FRAME ACTION [ARG]` lines: method,
+    /// split, divider, resize, steps, depth-scale, shadows, lod, map, heatmap, error,
+    /// screenshot; see docs/viewer.md). Only with --frames.
+    #[arg(long, value_name = "FILE", requires = "frames")]
+    script: Option<PathBuf>,
+    /// Headless use: write the last frame, as presented, to this PNG. Only with
+    /// --frames.
+    #[arg(long, value_name = "FILE", requires = "frames")]
+    screenshot: Option<PathBuf>,
+}
+
+/// Runs `dispmap view`; `matches` are the subcommand's.
+pub fn run(options: &ContextOptions, args: &ViewArgs, matches: &ArgMatches) -> Result<()> {
+    let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
+    let headless = given("frames");
+    args.common.check()?;
+    // Everything about the input is checked before a window opens.
+    let (field, label, mut settings, assets) = if args.scene.is_some() || args.heightmap.is_some() {
+        render_inputs(
+            args.scene.as_deref(),
+            args.heightmap.as_deref(),
+            args.convention,
+            args.method,
+            &args.common,
+            matches,
+        )?
+    } else {
+        let settings = args.common.settings(args.method);
+        settings.validate()?;
+        let field = bundled::rocks()?;
+        (field, "rocks".to_owned(), settings, SceneAssets::default())
+    };
+    if !headless && !given("size") && args.scene.is_none() {
+        (settings.width, settings.height) = DEFAULT_WINDOW;
+    }
+    let camera_path = args
+        .camera_path
+        .as_deref()
+        .map(CameraPath::parse)
+        .transpose()?;
+    let script = args
+        .script
+        .as_deref()
+        .map(Script::read)
+        .transpose()?
+        .unwrap_or_default();
+    if let Some(path) = &args.screenshot {
+        output::check_writable(path).context("invalid --screenshot")?;
+    }
+    for (_, action) in &script.events {
+        if let Action::Screenshot(path) = action {
+            output::check_writable(path).context("invalid --script screenshot")?;
+        }
+    }
+    if let Some(right) = args.split {
+        let mut s = settings;
+        s.method = right;
+        s.params.steps = args.common.steps.unwrap_or(right.default_steps());
+        s.validate()?;
+    }
+    let headless = headless.then(|| Headless {
+        frames: args.common.frames,
+        camera_path,
+        script,
+        screenshot: args.screenshot.clone(),
+        pending_resize: None,
+        waiting_error: false,
+        applied: None,
+    });
+    let state = ViewState {
+        maps: vec![(label, Arc::new(field))],
+        map: 0,
+        assets,
+        settings,
+        steps: args.common.steps,
+        right: args.split,
+        divider: 0.5,
+        heatmap: args.heatmap,
+        home: settings.scene.camera,
+    };
+    let event_loop = EventLoop::new().context(
+        "cannot open a window: no display server (set DISPLAY or WAYLAND_DISPLAY, or run \
+         under Xvfb)",
+    )?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let mut app = App {
+        options: options.clone(),
+        state,
+        headless,
+        viewer: None,
+        error: None,
+        done: false,
+    };
+    event_loop
+        .run_app(&mut app)
+        .context("the window system's event loop failed")?;
+    let viewer = app.viewer.take();
+    let shutdown = viewer.map(Viewer::shutdown).transpose();
+    if let Some(e) = app.error {
+        return Err(e);
+    }
+    shutdown?;
+    if app.headless.is_some() && !app.done {
+        bail!("the window closed before the scripted frames ran");
+    }
+    Ok(())
+}
+
+/// What the keys change (and the script).
+struct ViewState {
+    /// Name and field of each map: the given one first, the bundled ones added when
+    /// switched to.
+    maps: Vec<(String, Arc<HeightField>)>,
+    map: usize,
+    assets: SceneAssets,
+    /// The left (or only) side's settings; the frame size follows the window.
+    settings: RenderSettings,
+    /// Steps chosen (`None`: each method's default).
+    steps: Option<u32>,
+    /// The split view's right method.
+    right: Option<Method>,
+    /// The divider, a fraction of the width.
+    divider: f32,
+    heatmap: bool,
+    /// The camera the reset key returns to.
+    home: Camera,
+}
+
+impl ViewState {
+    fn side(&self, method: Method) -> RenderSettings {
+        let mut s = self.settings;
+        s.method = method;
+        s.params.steps = self.steps.unwrap_or(method.default_steps());
+        s
+    }
+}
+
+/// The scripted run.
+struct Headless {
+    frames: u32,
+    camera_path: Option<CameraPath>,
+    script: Script,
+    screenshot: Option<PathBuf>,
+    /// A scripted resize not yet applied by the window system, and when it was asked.
+    pending_resize: Option<([u32; 2], Instant)>,
+    /// A scripted error overlay not yet shown.
+    waiting_error: bool,
+    /// The frame whose actions were applied (a frame that waits renders again).
+    applied: Option<u32>,
+}
+
+struct App {
+    options: ContextOptions,
+    state: ViewState,
+    headless: Option<Headless>,
+    viewer: Option<Viewer>,
+    error: Option<anyhow::Error>,
+    /// The scripted frames all ran.
+    done: bool,
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.viewer.is_some() {
+            return;
+        }
+        match Viewer::new(
+            event_loop,
+            &self.options,
+            &self.state,
+            self.headless.is_some(),
+        ) {
+            Ok(v) => self.viewer = Some(v),
+            Err(e) => {
+                self.error = Some(e);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(viewer) = self.viewer.as_mut() else {
+            return;
+        };
+        let result = match event {
+            WindowEvent::CloseRequested => {
+                event_loop.exit();
+                Ok(())
+            }
+            WindowEvent::RedrawRequested => {
+                match viewer.frame(&mut self.state, self.headless.as_mut()) {
+                    Ok(Flow::Continue) => Ok(()),
+                    Ok(Flow::Done) => {
+                        self.done = true;
+                        event_loop.exit();
+                        Ok(())
+                    }
+                    Err(e) => Err(e),
+                }
+            }
+            WindowEvent::ModifiersChanged(m) => {
+                viewer.modifiers = m.state();
+                Ok(())
+            }
+            WindowEvent::KeyboardInput { event, .. } if self.headless.is_none() => {
+                match viewer.key(&mut self.state, &event) {
+                    Ok(true) => {
+                        event_loop.exit();
+                        Ok(())
+                    }
+                    Ok(false) => Ok(()),
+                    Err(e) => Err(e),
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } if self.headless.is_none() => {
+                viewer.mouse_button(button, state == ElementState::Pressed);
+                Ok(())
+            }
+            WindowEvent::CursorMoved { position, .. } if self.headless.is_none() => {
+                viewer.cursor(&mut self.state, [position.x as f32, position.y as f32]);
+                Ok(())
+            }
+            WindowEvent::MouseWheel { delta, .. } if self.headless.is_none() => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                zoom(&mut self.state.settings.scene.camera, lines);
+                Ok(())
+            }
+            _ => Ok(()),
+        };
+        if let Err(e) = result {
+            self.error = Some(e);
+            event_loop.exit();
+        }
+    }
+
+    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
+        if let Some(v) = &self.viewer {
+            v.window.request_redraw();
+        }
+    }
+}
+
+enum Flow {
+    Continue,
+    Done,
+}
+
+/// The error overlay: computed for a frame, shown while the frame's inputs stay.
+struct Overlay {
+    /// The inputs it was computed for.
+    key: FrameKey,
+    /// Per side: which pixels are artifacts (1) or misses / non-finite (2).
+    marks: Vec<Vec<u8>>,
+}
+
+/// A background reference job.
+struct ErrorJob {
+    key: FrameKey,
+    done: Arc<AtomicUsize>,
+    total: usize,
+    rx: mpsc::Receiver<Vec<Option<Hit>>>,
+    rays: Vec<Option<Ray>>,
+    /// Per side: name, hits, map geometry.
+    sides: Vec<(String, Vec<HitTexel>, MapGeometry)>,
+}
+
+/// What a frame depends on: the overlay is dropped when any of it changes.
+#[derive(Clone, PartialEq)]
+struct FrameKey {
+    settings: Vec<RenderSettings>,
+    map: usize,
+}
+
+struct Viewer {
+    // Field order is drop order; `shutdown` destroys the GPU objects explicitly first.
+    presenter: Presenter,
+    left: Renderer,
+    right: Option<Renderer>,
+    ctx: Arc<Context>,
+    window: Arc<Window>,
+    modifiers: ModifiersState,
+    /// The cursor position and which buttons are held.
+    cursor: Option<[f32; 2]>,
+    orbiting: bool,
+    dragging_divider: bool,
+    frame_index: u32,
+    screenshot_next: Option<PathBuf>,
+    screenshots_taken: u32,
+    stats: Stats,
+    overlay: Option<Overlay>,
+    job: Option<ErrorJob>,
+    /// The map index the renderers were built for.
+    built_map: usize,
+    /// The window size the swapchain was last made for.
+    window_size: [u32; 2],
+    /// The error overlay was asked for: its reference starts after the next render.
+    error_requested: bool,
+}
+
+/// Live numbers, accumulated between updates.
+struct Stats {
+    since: Instant,
+    frames: u32,
+    /// Per pass: sum of milliseconds and count, in pass order.
+    passes: Vec<(PassName, f64, u32)>,
+    /// Wall milliseconds of `Renderer::render` (all sides) and of the whole frame.
+    render_wall: Vec<f64>,
+    frame_wall: Vec<f64>,
+    /// Every frame's wall times, for the headless summary.
+    all_render: Vec<f64>,
+    all_frame: Vec<f64>,
+    iterations: Option<f64>,
+}
+
+impl Stats {
+    fn new() -> Self {
+        Stats {
+            since: Instant::now(),
+            frames: 0,
+            passes: Vec::new(),
+            render_wall: Vec::new(),
+            frame_wall: Vec::new(),
+            all_render: Vec::new(),
+            all_frame: Vec::new(),
+            iterations: None,
+        }
+    }
+
+    fn add(&mut self, times: &[(PassName, f64)]) {
+        for &(name, ms) in times {
+            if name.is_one_off() {
+                continue;
+            }
+            match self.passes.iter_mut().find(|(n, _, _)| *n == name) {
+                Some(p) => {
+                    p.1 += ms;
+                    p.2 += 1;
+                }
+                None => self.passes.push((name, ms, 1)),
+            }
+        }
+    }
+}
+
+impl Viewer {
+    fn new(
+        event_loop: &ActiveEventLoop,
+        options: &ContextOptions,
+        state: &ViewState,
+        headless: bool,
+    ) -> Result<Self> {
+        let s = &state.settings;
+        let attributes = Window::default_attributes()
+            .with_title("dispmap view")
+            .with_inner_size(PhysicalSize::new(s.width, s.height))
+            .with_resizable(true);
+        let window = Arc::new(
+            event_loop
+                .create_window(attributes)
+                .context("cannot open a window")?,
+        );
+        let instance_exts = present::instance_extensions(&*window)?;
+        let ctx = Arc::new(Context::with_extensions(
+            options,
+            &instance_exts,
+            &[ash::khr::swapchain::NAME],
+        )?);
+        let size = window.inner_size();
+        let presenter = Presenter::new(&ctx, &*window, [size.width, size.height])?;
+        let extent = presenter.extent();
+        let mut settings = state.settings;
+        if extent.width > 0 && extent.height > 0 {
+            (settings.width, settings.height) = (extent.width, extent.height);
+        }
+        let field = &state.maps[state.map].1;
+        let build = |s: RenderSettings| Renderer::with_assets(&ctx, field, s, &state.assets);
+        let left = match build(settings) {
+            Ok(r) => r,
+            Err(e) => {
+                let mut presenter = presenter;
+                presenter.destroy(&ctx);
+                return Err(e.into());
+            }
+        };
+        let right = match state.right.map(|m| build(side_of(&settings, state, m))) {
+            Some(Err(e)) => {
+                let mut presenter = presenter;
+                presenter.destroy(&ctx);
+                drop(left);
+                return Err(e.into());
+            }
+            Some(Ok(r)) => Some(r),
+            None => None,
+        };
+        eprintln!(
+            "dispmap view: {} on {} ({}), {}x{}, {:?}{}",
+            state.maps[state.map].0,
+            ctx.info().name,
+            ctx.info().driver,
+            extent.width,
+            extent.height,
+            presenter.present_mode(),
+            if headless {
+                ""
+            } else {
+                "; keys: see docs/viewer.md (Esc quits)"
+            }
+        );
+        Ok(Viewer {
+            presenter,
+            left,
+            right,
+            ctx,
+            window,
+            modifiers: ModifiersState::empty(),
+            cursor: None,
+            orbiting: false,
+            dragging_divider: false,
+            frame_index: 0,
+            screenshot_next: None,
+            screenshots_taken: 0,
+            stats: Stats::new(),
+            overlay: None,
+            job: None,
+            built_map: state.map,
+            window_size: [size.width, size.height],
+            error_requested: false,
+        })
+    }
+
+    /// Waits for the device, destroys the swapchain and surface, drops the renderers,
+    /// then the context (failing on any validation message, as every command does).
+    fn shutdown(self) -> Result<()> {
+        let Viewer {
+            mut presenter,
+            left,
+            right,
+            ctx,
+            window,
+            ..
+        } = self;
+        presenter.destroy(&ctx);
+        drop(right);
+        drop(left);
+        let result = finish(ctx);
+        drop(window);
+        result
+    }
+
+    /// Brings the renderers in line with `state` (map, methods, settings, size); errors
+    /// of a change the user asked for are printed and the change undone where possible.
+    fn sync(&mut self, state: &mut ViewState, size: [u32; 2]) -> Result<()> {
+        let mut want = state.settings;
+        (want.width, want.height) = (size[0], size[1]);
+        if self.built_map != state.map {
+            // A new map: new renderers (the pass keeps its map for its lifetime here).
+            let field = state.maps[state.map].1.clone();
+            let left = Renderer::with_assets(&self.ctx, &field, want, &state.assets)?;
+            let right = state
+                .right
+                .map(|m| {
+                    Renderer::with_assets(
+                        &self.ctx,
+                        &field,
+                        side_of(&want, state, m),
+                        &state.assets,
+                    )
+                })
+                .transpose()?;
+            self.left = left;
+            self.right = right;
+            self.built_map = state.map;
+        }
+        apply(&mut self.left, &want)?;
+        match (state.right, self.right.as_mut()) {
+            (None, _) => self.right = None,
+            (Some(m), Some(r)) => apply(r, &side_of(&want, state, m))?,
+            (Some(m), None) => {
+                let field = state.maps[state.map].1.clone();
+                self.right = Some(Renderer::with_assets(
+                    &self.ctx,
+                    &field,
+                    side_of(&want, state, m),
+                    &state.assets,
+                )?);
+            }
+        }
+        Ok(())
+    }
+
+    fn frame_key(&self, state: &ViewState) -> FrameKey {
+        let mut settings = vec![*self.left.settings()];
+        if let Some(r) = &self.right {
+            settings.push(*r.settings());
+        }
+        FrameKey {
+            settings,
+            map: state.map,
+        }
+    }
+
+    fn frame(
+        &mut self,
+        state: &mut ViewState,
+        mut headless: Option<&mut Headless>,
+    ) -> Result<Flow> {
+        let frame_start = Instant::now();
+        // Scripted changes and the camera of this frame.
+        if let Some(h) = headless.as_deref_mut() {
+            if h.applied != Some(self.frame_index) {
+                h.applied = Some(self.frame_index);
+                let now: Vec<Action> = h
+                    .script
+                    .events
+                    .iter()
+                    .filter(|(f, _)| *f == self.frame_index)
+                    .map(|(_, a)| a.clone())
+                    .collect();
+                for action in now {
+                    self.scripted(state, h, action)?;
+                }
+            }
+            if let Some(path) = &h.camera_path {
+                let c = &mut state.settings.scene.camera;
+                match path {
+                    CameraPath::Orbit => {
+                        c.azimuth_deg = state.home.azimuth_deg
+                            + 360.0 * self.frame_index as f32 / h.frames as f32;
+                    }
+                    CameraPath::Points(points) => {
+                        let i = (self.frame_index as usize).min(points.len() - 1);
+                        c.elevation_deg = points[i].elevation;
+                        c.azimuth_deg = points[i].azimuth;
+                        if let Some(height) = points[..=i].iter().rev().find_map(|p| p.height) {
+                            c.height = height;
+                        }
+                    }
+                }
+            }
+            if let Some((size, asked)) = h.pending_resize {
+                let now = self.window.inner_size();
+                if [now.width, now.height] == size && {
+                    let e = self.presenter.extent();
+                    [e.width, e.height] == size
+                } {
+                    h.pending_resize = None;
+                } else if asked.elapsed() > RESIZE_TIMEOUT {
+                    bail!(
+                        "the window system did not resize the window to {}x{} within {} s",
+                        size[0],
+                        size[1],
+                        RESIZE_TIMEOUT.as_secs()
+                    );
+                }
+            }
+        }
+        // The swapchain follows the window.
+        let inner = self.window.inner_size();
+        let size = [inner.width, inner.height];
+        let e = self.presenter.extent();
+        if size != self.window_size || e.width == 0 || e.height == 0 {
+            self.window_size = size;
+            if !self.presenter.recreate(&self.ctx, size)? {
+                // Minimised: nothing to draw until it is shown again.
+                std::thread::sleep(Duration::from_millis(50));
+                return Ok(Flow::Continue);
+            }
+        }
+        let e = self.presenter.extent();
+        if let Err(err) = self.sync(state, [e.width, e.height]) {
+            if headless.is_some() {
+                return Err(err);
+            }
+            // An interactive change the renderer refused: say why and go back.
+            eprintln!("error: {err:#}");
+            state.settings = *self.left.settings();
+            (state.settings.width, state.settings.height) = (e.width, e.height);
+            state.right = self.right.as_ref().map(|r| r.settings().method);
+        }
+
+        let render_start = Instant::now();
+        let times = self.left.render()?;
+        self.stats.add(&times);
+        if let Some(r) = self.right.as_mut() {
+            let times = r.render()?;
+            self.stats.add(&times);
+        }
+        let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
+        if std::mem::take(&mut self.error_requested) {
+            self.start_error_job(state)?;
+        }
+
+        let key = self.frame_key(state);
+        if self.overlay.as_ref().is_some_and(|o| o.key != key) {
+            self.overlay = None;
+            eprintln!("error overlay: cleared (the frame changed)");
+        }
+        self.poll_job(&key, headless.as_deref_mut())?;
+        // A scripted run moves on once a resize reached the frame and an asked-for
+        // overlay is shown.
+        let advance = headless
+            .as_deref()
+            .is_none_or(|h| h.pending_resize.is_none() && !h.waiting_error);
+
+        // The frame: the renderer's image(s) as they are, or composed on the CPU.
+        let divider = self.divider_px(state);
+        let composed = if state.heatmap || self.overlay.is_some() {
+            Some(self.compose(state, divider)?)
+        } else {
+            None
+        };
+        let source = match &composed {
+            Some(rgba) => Source::Cpu {
+                rgba,
+                extent: self.left.settings().extent(),
+            },
+            None => Source::Gpu {
+                left: self.left.color_image(),
+                right: self.right.as_ref().map(|r| (r.color_image(), divider)),
+            },
+        };
+        let last = headless
+            .as_deref()
+            .is_some_and(|h| advance && self.frame_index + 1 >= h.frames);
+        let final_shot = if last {
+            headless.as_deref().and_then(|h| h.screenshot.clone())
+        } else {
+            None
+        };
+        let shot_path = final_shot.or_else(|| self.screenshot_next.take());
+        let presented = self
+            .presenter
+            .present(&self.ctx, source, shot_path.is_some(), size)?;
+        if !presented.shown {
+            if let Some(p) = shot_path {
+                self.screenshot_next = Some(p);
+            }
+            return Ok(Flow::Continue);
+        }
+        if let (Some(path), Some((extent, rgba))) = (&shot_path, &presented.screenshot) {
+            output::write_png(path, extent.width, extent.height, rgba)?;
+            eprintln!(
+                "screenshot: {} ({}x{})",
+                path.display(),
+                extent.width,
+                extent.height
+            );
+        }
+        let frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
+        self.stats.render_wall.push(render_ms);
+        self.stats.frame_wall.push(frame_ms);
+        self.stats.all_render.push(render_ms);
+        self.stats.all_frame.push(frame_ms);
+        self.stats.frames += 1;
+        if self.stats.since.elapsed() >= STATS_PERIOD {
+            self.report(state, headless.is_none())?;
+        }
+        if advance {
+            self.frame_index += 1;
+        }
+        if last {
+            self.summary();
+            return Ok(Flow::Done);
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// The divider's column in frame pixels.
+    fn divider_px(&self, state: &ViewState) -> u32 {
+        let w = self.left.settings().width;
+        ((state.divider * w as f32).round() as u32).min(w)
+    }
+
+    fn scripted(&mut self, state: &mut ViewState, h: &mut Headless, action: Action) -> Result<()> {
+        match action {
+            Action::Method(m) => state.settings.method = m,
+            Action::Split(m) => state.right = m,
+            Action::Divider(f) => state.divider = f,
+            Action::Resize(w, hgt) => {
+                let _ = self.window.request_inner_size(PhysicalSize::new(w, hgt));
+                h.pending_resize = Some(([w, hgt], Instant::now()));
+            }
+            Action::Steps(s) => state.steps = Some(s),
+            Action::DepthScale(d) => state.settings.scene.depth_scale = d,
+            Action::Shadows(mode) => state.settings.shadows.mode = mode,
+            Action::Lod(l) => state.settings.params.lod_threshold = l,
+            Action::Map(name) => switch_map(state, Some(&name))?,
+            Action::Heatmap(on) => state.heatmap = on,
+            Action::Error => {
+                h.waiting_error = true;
+                self.error_requested = true;
+            }
+            Action::Screenshot(path) => self.screenshot_next = Some(path),
+        }
+        state.settings.params.steps = state.steps.unwrap_or(state.settings.method.default_steps());
+        Ok(())
+    }
+
+    /// The frame composed on the CPU: each side's colour (or heat map), the overlay's
+    /// marks, the divider.
+    fn compose(&self, state: &ViewState, divider: u32) -> Result<Vec<u8>> {
+        let mut sides = Vec::new();
+        for (i, r) in std::iter::once(&self.left)
+            .chain(self.right.as_ref())
+            .enumerate()
+        {
+            let mut rgba = if state.heatmap {
+                let hits = r.read_hits()?;
+                let covered = heatmap::coverage(&hits, None);
+                heatmap::iteration_heatmap(&hits, &covered, None)?
+            } else {
+                r.read_color()?
+            };
+            if let Some(marks) = self.overlay.as_ref().and_then(|o| o.marks.get(i)) {
+                for (px, &m) in rgba.chunks_exact_mut(4).zip(marks) {
+                    match m {
+                        1 => px.copy_from_slice(&ARTIFACT_RGBA),
+                        2 => px.copy_from_slice(&MISS_RGBA),
+                        _ => {}
+                    }
+                }
+            }
+            sides.push(rgba);
+        }
+        let mut out = sides.swap_remove(0);
+        if let Some(right) = sides.first() {
+            let w = self.left.settings().width as usize;
+            let (d, d_end) = (
+                divider as usize,
+                (divider + DIVIDER_PX).min(w as u32) as usize,
+            );
+            for (row_out, row_right) in out.chunks_exact_mut(4 * w).zip(right.chunks_exact(4 * w)) {
+                for x in d..d_end {
+                    row_out[4 * x..4 * x + 4].copy_from_slice(&DIVIDER_RGBA);
+                }
+                row_out[4 * d_end..].copy_from_slice(&row_right[4 * d_end..]);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Starts the exact reference of the current frame in a background thread.
+    fn start_error_job(&mut self, state: &ViewState) -> Result<()> {
+        if self.job.is_some() {
+            eprintln!("error overlay: already computing");
+            return Ok(());
+        }
+        // The rays and hits of the last rendered frame (the current inputs).
+        let rays = self.left.read_rays()?;
+        let mut sides = vec![(
+            self.left.settings().method.name().to_owned(),
+            self.left.read_hits()?,
+            self.left.map_geometry(),
+        )];
+        if let Some(r) = &self.right {
+            sides.push((
+                r.settings().method.name().to_owned(),
+                r.read_hits()?,
+                r.map_geometry(),
+            ));
+        }
+        let field = state.maps[state.map].1.clone();
+        let addressing = self.left.settings().scene.addressing();
+        let done = Arc::new(AtomicUsize::new(0));
+        let (tx, rx) = mpsc::channel();
+        let total = rays.len();
+        let thread_rays = rays.clone();
+        let thread_done = done.clone();
+        std::thread::Builder::new()
+            .name("dispmap-reference".into())
+            .spawn(move || {
+                let reference = Reference::new(&field, addressing);
+                let mut hits = Vec::with_capacity(thread_rays.len());
+                for chunk in thread_rays.chunks(4096) {
+                    hits.extend(reference.trace(chunk));
+                    thread_done.fetch_add(chunk.len(), Ordering::Relaxed);
+                }
+                // The viewer may have quit meanwhile: nothing to tell then.
+                let _ = tx.send(hits);
+            })
+            .context("cannot start the reference thread")?;
+        eprintln!("error overlay: computing the exact reference of {total} pixels...");
+        self.job = Some(ErrorJob {
+            key: self.frame_key(state),
+            done,
+            total,
+            rx,
+            rays,
+            sides,
+        });
+        Ok(())
+    }
+
+    /// Picks up a finished reference: the overlay when the frame is still the same.
+    fn poll_job(&mut self, key: &FrameKey, headless: Option<&mut Headless>) -> Result<()> {
+        let Some(job) = &self.job else {
+            return Ok(());
+        };
+        let hits = match job.rx.try_recv() {
+            Ok(hits) => hits,
+            Err(mpsc::TryRecvError::Empty) => return Ok(()),
+            Err(mpsc::TryRecvError::Disconnected) => {
+                self.job = None;
+                bail!("the reference thread ended without a result");
+            }
+        };
+        let job = self.job.take().context("the job vanished")?;
+        if &job.key != key {
+            eprintln!(
+                "error overlay: the frame changed while the reference was computed; press C again"
+            );
+            if let Some(h) = headless {
+                h.waiting_error = false;
+            }
+            return Ok(());
+        }
+        let mut marks = Vec::new();
+        for (name, gpu, geometry) in &job.sides {
+            let e = metrics::hit_errors(gpu, &hits, &job.rays, *geometry);
+            print_error(name, &e);
+            marks.push(mark_pixels(gpu, &hits, &job.rays, *geometry));
+        }
+        self.overlay = Some(Overlay {
+            key: job.key,
+            marks,
+        });
+        if let Some(h) = headless {
+            h.waiting_error = false;
+        }
+        Ok(())
+    }
+
+    /// Updates the live numbers (window title, and standard error when interactive).
+    fn report(&mut self, state: &ViewState, print: bool) -> Result<()> {
+        let secs = self.stats.since.elapsed().as_secs_f64();
+        let fps = f64::from(self.stats.frames) / secs.max(1e-9);
+        let hits = self.left.read_hits()?;
+        let covered = heatmap::coverage(&hits, None);
+        let iterations = heatmap::iteration_stats(&hits, &covered).mean;
+        self.stats.iterations = Some(iterations);
+        let passes: Vec<String> = self
+            .stats
+            .passes
+            .iter()
+            .map(|(n, sum, count)| format!("{n} {:.2}", sum / f64::from((*count).max(1))))
+            .collect();
+        let frame_ms = dispmap::timing::median(&self.stats.frame_wall);
+        let s = self.left.settings();
+        let mut what = format!("{} {} steps", s.method.name(), s.params.steps);
+        if let Some(r) = &self.right {
+            what.push_str(&format!(
+                " | {} {} steps",
+                r.settings().method.name(),
+                r.settings().params.steps
+            ));
+        }
+        let progress = self.job.as_ref().map(|j| {
+            format!(
+                " | reference {:.0}%",
+                100.0 * j.done.load(Ordering::Relaxed) as f64 / j.total.max(1) as f64
+            )
+        });
+        let line = format!(
+            "{what} | GPU ms: {} | {:.1} iter/px | {:.1} fps, frame {:.1} ms | {}x{} {}{}",
+            passes.join(", "),
+            iterations,
+            fps,
+            frame_ms,
+            s.width,
+            s.height,
+            state.maps[state.map].0,
+            progress.unwrap_or_default()
+        );
+        self.window.set_title(&format!("dispmap view: {line}"));
+        if print {
+            eprintln!("{line}");
+        }
+        self.stats.since = Instant::now();
+        self.stats.frames = 0;
+        self.stats.passes.clear();
+        self.stats.render_wall.clear();
+        self.stats.frame_wall.clear();
+        Ok(())
+    }
+
+    /// The headless run's timing summary.
+    fn summary(&self) {
+        // The first frames build pipelines and upload the map: left out when there are
+        // enough frames.
+        let skip = if self.stats.all_frame.len() > 4 { 2 } else { 0 };
+        let render = dispmap::timing::median(&self.stats.all_render[skip..]);
+        let frame = dispmap::timing::median(&self.stats.all_frame[skip..]);
+        eprintln!(
+            "frames: {}, median wall ms per frame: render {:.2}, render + present {:.2} \
+             (first {skip} left out)",
+            self.stats.all_frame.len(),
+            render,
+            frame
+        );
+    }
+
+    fn key(&mut self, state: &mut ViewState, event: &KeyEvent) -> Result<bool> {
+        if event.state != ElementState::Pressed {
+            return Ok(false);
+        }
+        let PhysicalKey::Code(code) = event.physical_key else {
+            return Ok(false);
+        };
+        let shift = self.modifiers.shift_key();
+        let camera = &mut state.settings.scene.camera;
+        match code {
+            KeyCode::Escape => return Ok(true),
+            KeyCode::KeyW => zoom(camera, 1.0),
+            KeyCode::KeyS => zoom(camera, -1.0),
+            KeyCode::KeyA => camera.azimuth_deg -= 5.0,
+            KeyCode::KeyD => camera.azimuth_deg += 5.0,
+            KeyCode::KeyQ => tilt(camera, -if shift { 0.5 } else { 2.0 }),
+            KeyCode::KeyE => tilt(camera, if shift { 0.5 } else { 2.0 }),
+            KeyCode::KeyR => *camera = state.home,
+            KeyCode::KeyM => {
+                state.settings.method = cycle(state.settings.method, shift);
+                state.settings.params.steps =
+                    state.steps.unwrap_or(state.settings.method.default_steps());
+            }
+            KeyCode::KeyN => {
+                let from = state.right.unwrap_or(state.settings.method);
+                state.right = Some(cycle(from, shift));
+            }
+            KeyCode::KeyV => {
+                state.right = match state.right {
+                    Some(_) => None,
+                    None => Some(cycle(state.settings.method, false)),
+                }
+            }
+            KeyCode::BracketLeft => state.divider = (state.divider - 0.05).max(0.0),
+            KeyCode::BracketRight => state.divider = (state.divider + 0.05).min(1.0),
+            KeyCode::Equal | KeyCode::NumpadAdd | KeyCode::Minus | KeyCode::NumpadSubtract => {
+                let up = matches!(code, KeyCode::Equal | KeyCode::NumpadAdd);
+                let now = state.settings.params.steps.max(1);
+                let delta = (now / 8).max(1);
+                let steps = if up {
+                    now + delta
+                } else {
+                    now.saturating_sub(delta).max(1)
+                };
+                state.steps = Some(steps);
+                state.settings.params.steps = steps;
+            }
+            KeyCode::PageUp => state.settings.scene.depth_scale *= 1.25,
+            KeyCode::PageDown => state.settings.scene.depth_scale /= 1.25,
+            KeyCode::KeyH => {
+                state.settings.shadows = ShadowSettings {
+                    mode: match state.settings.shadows.mode {
+                        ShadowMode::Off => ShadowMode::Hard,
+                        ShadowMode::Hard => ShadowMode::Soft,
+                        ShadowMode::Soft => ShadowMode::Off,
+                    },
+                    ..state.settings.shadows
+                }
+            }
+            KeyCode::KeyL => {
+                const LEVELS: [Option<f32>; 5] =
+                    [None, Some(-1.0), Some(0.0), Some(1.0), Some(2.0)];
+                let i = LEVELS
+                    .iter()
+                    .position(|l| *l == state.settings.params.lod_threshold)
+                    .map_or(0, |i| (i + 1) % LEVELS.len());
+                state.settings.params.lod_threshold = LEVELS[i];
+            }
+            KeyCode::KeyT => switch_map(state, None)?,
+            KeyCode::KeyI => state.heatmap = !state.heatmap,
+            KeyCode::KeyC => self.error_requested = true,
+            KeyCode::KeyP | KeyCode::F12 => {
+                self.screenshots_taken += 1;
+                let path = next_screenshot_path(self.screenshots_taken);
+                self.screenshot_next = Some(path);
+            }
+            _ => return Ok(false),
+        }
+        Ok(false)
+    }
+
+    fn mouse_button(&mut self, button: MouseButton, pressed: bool) {
+        match button {
+            MouseButton::Left => self.orbiting = pressed,
+            MouseButton::Right => self.dragging_divider = pressed,
+            _ => {}
+        }
+    }
+
+    fn cursor(&mut self, state: &mut ViewState, at: [f32; 2]) {
+        if let Some(prev) = self.cursor {
+            let (dx, dy) = (at[0] - prev[0], at[1] - prev[1]);
+            if self.orbiting {
+                let c = &mut state.settings.scene.camera;
+                c.azimuth_deg -= dx * 0.3;
+                tilt(c, dy * 0.2);
+            }
+        }
+        if self.dragging_divider {
+            let w = self.window.inner_size().width.max(1) as f32;
+            state.divider = (at[0] / w).clamp(0.0, 1.0);
+        }
+        self.cursor = Some(at);
+    }
+}
+
+/// The settings of a side showing `method`, with the frame size of `want`.
+fn side_of(want: &RenderSettings, state: &ViewState, method: Method) -> RenderSettings {
+    let mut s = state.side(method);
+    (s.width, s.height) = (want.width, want.height);
+    s
+}
+
+/// Brings one renderer to `want` with the cheapest calls (size, method, shadows, scene).
+fn apply(r: &mut Renderer, want: &RenderSettings) -> Result<()> {
+    let have = *r.settings();
+    if (have.width, have.height) != (want.width, want.height) {
+        r.resize(want.width, want.height)?;
+    }
+    if (have.method, have.params) != (want.method, want.params) {
+        r.set_method(want.method, want.params)?;
+    }
+    if have.shadows != want.shadows {
+        r.set_shadows(want.shadows)?;
+    }
+    if have.scene != want.scene {
+        r.set_scene(want.scene)?;
+    }
+    Ok(())
+}
+
+/// The next (or, `back`, previous) method in [`Method::ALL`].
+fn cycle(m: Method, back: bool) -> Method {
+    let all = Method::ALL;
+    let i = all.iter().position(|x| *x == m).unwrap_or(0);
+    let n = all.len();
+    all[if back { (i + n - 1) % n } else { (i + 1) % n }]
+}
+
+/// Moves the eye toward (`lines > 0`) or away from the target.
+fn zoom(camera: &mut Camera, lines: f32) {
+    camera.height = (camera.height * 0.9f32.powf(lines)).clamp(0.01, 100.0);
+}
+
+/// Changes the elevation within `[MIN_ELEVATION, 90]` degrees.
+fn tilt(camera: &mut Camera, degrees: f32) {
+    camera.elevation_deg = (camera.elevation_deg + degrees).clamp(MIN_ELEVATION, 90.0);
+}
+
+/// Switches to the named bundled map, or (`None`) to the next map in turn: the given
+/// map first, then the bundled ones.
+fn switch_map(state: &mut ViewState, name: Option<&str>) -> Result<()> {
+    let target = match name {
+        Some(n) => n.to_owned(),
+        None => {
+            let given = state.maps[0].0.clone();
+            let mut order = vec![given.clone()];
+            order.extend(
+                bundled::NAMES
+                    .iter()
+                    .filter(|n| **n != given)
+                    .map(|n| (*n).to_owned()),
+            );
+            let current = &state.maps[state.map].0;
+            let i = order.iter().position(|o| o == current).unwrap_or(0);
+            order[(i + 1) % order.len()].clone()
+        }
+    };
+    if let Some(i) = state.maps.iter().position(|(n, _)| *n == target) {
+        state.map = i;
+        return Ok(());
+    }
+    let field = bundled::by_name(&target, "map")?;
+    state.maps.push((target, Arc::new(field)));
+    state.map = state.maps.len() - 1;
+    Ok(())
+}
+
+/// Per pixel: 0 fine (or no geometry), 1 an artifact (more than [`ARTIFACT_TEXELS`]
+/// off), 2 a miss (exactly one of method and reference hits) or a non-finite hit: the
+/// classes of [`metrics::hit_errors`].
+fn mark_pixels(
+    gpu: &[HitTexel],
+    reference: &[Option<Hit>],
+    rays: &[Option<Ray>],
+    geometry: MapGeometry,
+) -> Vec<u8> {
+    gpu.iter()
+        .zip(reference)
+        .zip(rays)
+        .map(|((t, r), ray)| {
+            if ray.is_none() {
+                return 0;
+            }
+            if !t.iter().all(|c| c.is_finite()) {
+                return 2;
+            }
+            match (t[2] >= 0.0, r) {
+                (true, Some(hit)) => {
+                    u8::from(metrics::hit_distance_texels(t, hit, geometry) > ARTIFACT_TEXELS)
+                }
+                (false, None) => 0,
+                _ => 2,
+            }
+        })
+        .collect()
+}
+
+fn print_error(name: &str, e: &ErrorMetrics) {
+    eprintln!(
+        "error overlay: {name}: mean {:.3} texels, p99 {:.3}, max {:.3}, artifacts {:.3}% \
+         (red: more than {ARTIFACT_TEXELS} texel off; cyan: misses), {} pixels, non-finite {}",
+        e.mean_texels,
+        e.p99_texels,
+        e.max_texels,
+        100.0 * e.artifact_fraction,
+        e.compared_pixels,
+        e.nonfinite_pixels
+    );
+}
+
+/// `dispmap-view-N.png` in the current folder, the first N not taken.
+fn next_screenshot_path(from: u32) -> PathBuf {
+    (from..)
+        .map(|n| PathBuf::from(format!("dispmap-view-{n}.png")))
+        .find(|p| !Path::new(p).exists())
+        .unwrap_or_else(|| PathBuf::from("dispmap-view.png"))
+}

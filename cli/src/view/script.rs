@@ -1,0 +1,289 @@
+//! The headless viewer's inputs: the camera path (`--camera-path FILE|orbit`) and the
+//! event script (`--script FILE`), both plain text.
+//!
+//! Camera path file: one frame per line, `ELEVATION_DEG AZIMUTH_DEG [HEIGHT]`
+//! (whitespace-separated; `#` starts a comment); frame `i` uses line `i`, the last line
+//! holds for later frames; a line without a height keeps the previous one.
+//!
+//! Script file: `FRAME ACTION [ARGUMENT]` per line, applied before frame `FRAME`
+//! (0-based) renders, in file order:
+//!
+//! | action | argument | effect |
+//! | --- | --- | --- |
+//! | `method` | a method name | the (left) method |
+//! | `split` | a method name, or `off` | the right side of the split view |
+//! | `divider` | a fraction in `[0, 1]` | the split view's divider position |
+//! | `resize` | `WIDTHxHEIGHT` | asks the window system for that size; later frames wait until it has it |
+//! | `steps` | N | the step count of every method shown |
+//! | `depth-scale` | a number | the displacement depth |
+//! | `shadows` | `off`, `hard`, `soft` | self-shadowing |
+//! | `lod` | `off` or L | the level-of-detail threshold |
+//! | `map` | `rocks`, `bricks`, `mountains` | a bundled map |
+//! | `heatmap` | `on`, `off` | the iteration heat map view |
+//! | `error` | | computes the error overlay; later frames wait until it is shown |
+//! | `screenshot` | a PNG path | writes that frame as presented |
+
+use anyhow::{Context as _, Result, bail};
+use dispmap::method::Method;
+use dispmap::passes::shadow::ShadowMode;
+use std::path::{Path, PathBuf};
+
+/// One camera of a path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathPoint {
+    /// Elevation in degrees.
+    pub elevation: f32,
+    /// Azimuth in degrees.
+    pub azimuth: f32,
+    /// Eye height, when the line gives one.
+    pub height: Option<f32>,
+}
+
+/// `--camera-path`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraPath {
+    /// One full turn about the vertical axis over the frames, from the start azimuth.
+    Orbit,
+    /// The file's cameras.
+    Points(Vec<PathPoint>),
+}
+
+impl CameraPath {
+    /// Parses `orbit` or reads the file.
+    pub fn parse(arg: &str) -> Result<Self> {
+        if arg == "orbit" {
+            return Ok(CameraPath::Orbit);
+        }
+        let path = Path::new(arg);
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("invalid --camera-path: cannot read {}", path.display()))?;
+        let mut points = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            let line = line.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let bad = |what: &str| {
+                anyhow::anyhow!(
+                    "invalid --camera-path: {}:{}: {what} (want ELEVATION AZIMUTH [HEIGHT])",
+                    path.display(),
+                    n + 1
+                )
+            };
+            let values: Vec<f32> = line
+                .split_whitespace()
+                .map(|v| {
+                    v.parse::<f32>()
+                        .map_err(|_| bad(&format!("'{v}' is not a number")))
+                })
+                .collect::<Result<_>>()?;
+            if !(2..=3).contains(&values.len()) {
+                return Err(bad(&format!("{} values", values.len())));
+            }
+            if values.iter().any(|v| !v.is_finite()) {
+                return Err(bad("a value is not finite"));
+            }
+            if !(0.5..=90.0).contains(&values[0]) {
+                return Err(bad(&format!(
+                    "elevation {} is outside [0.5, 90]",
+                    values[0]
+                )));
+            }
+            if let Some(&h) = values.get(2)
+                && !(h > 0.0)
+            {
+                return Err(bad(&format!("height {h} is not positive")));
+            }
+            points.push(PathPoint {
+                elevation: values[0],
+                azimuth: values[1],
+                height: values.get(2).copied(),
+            });
+        }
+        if points.is_empty() {
+            bail!("invalid --camera-path: {} has no camera", path.display());
+        }
+        Ok(CameraPath::Points(points))
+    }
+}
+
+/// One scripted change.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    /// The (left) method.
+    Method(Method),
+    /// The split view's right method, or off.
+    Split(Option<Method>),
+    /// The divider as a fraction of the width.
+    Divider(f32),
+    /// A window size.
+    Resize(u32, u32),
+    /// Steps of every method shown.
+    Steps(u32),
+    /// Displacement depth.
+    DepthScale(f32),
+    /// Self-shadowing.
+    Shadows(ShadowMode),
+    /// Level-of-detail threshold.
+    Lod(Option<f32>),
+    /// A bundled map by name.
+    Map(String),
+    /// The heat map view.
+    Heatmap(bool),
+    /// The error overlay.
+    Error,
+    /// A screenshot of the frame.
+    Screenshot(PathBuf),
+}
+
+/// A script: actions by frame, in file order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Script {
+    /// `(frame, action)`.
+    pub events: Vec<(u32, Action)>,
+}
+
+impl Script {
+    /// Reads and checks a script file (module docs); errors name the file and line.
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("invalid --script: cannot read {}", path.display()))?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses a script's text; `name` labels errors.
+    pub fn parse(text: &str, name: &str) -> Result<Self> {
+        let mut events = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            let line = line.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let bad = |what: String| anyhow::anyhow!("invalid --script: {name}:{}: {what}", n + 1);
+            let mut parts = line.split_whitespace();
+            let frame = parts.next().unwrap_or("");
+            let frame: u32 = frame
+                .parse()
+                .map_err(|_| bad(format!("'{frame}' is not a frame number")))?;
+            let action = parts.next().ok_or_else(|| bad("no action".into()))?;
+            let arg = parts.next();
+            if parts.next().is_some() {
+                return Err(bad("more than one argument".into()));
+            }
+            let need = |what: &str| arg.ok_or_else(|| bad(format!("`{action}` needs {what}")));
+            let number = |what: &str| -> Result<f32> {
+                let v = need(what)?;
+                v.parse::<f32>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| bad(format!("'{v}' is not a finite number")))
+            };
+            let switch = |v: &str| match v {
+                "on" => Ok(true),
+                "off" => Ok(false),
+                _ => Err(bad(format!("'{v}' is neither on nor off"))),
+            };
+            let method = |v: &str| {
+                v.parse::<Method>()
+                    .map_err(|e| bad(format!("unknown method '{v}': {e}")))
+            };
+            let action = match action {
+                "method" => Action::Method(method(need("a method")?)?),
+                "split" => match need("a method or off")? {
+                    "off" => Action::Split(None),
+                    v => Action::Split(Some(method(v)?)),
+                },
+                "divider" => {
+                    let f = number("a fraction")?;
+                    if !(0.0..=1.0).contains(&f) {
+                        return Err(bad(format!("divider {f} is outside [0, 1]")));
+                    }
+                    Action::Divider(f)
+                }
+                "resize" => {
+                    let v = need("WIDTHxHEIGHT")?;
+                    let (w, h) = crate::parse_size(v).map_err(bad)?;
+                    if w > 8192 || h > 8192 {
+                        return Err(bad(format!("{w}x{h} is larger than 8192 per side")));
+                    }
+                    Action::Resize(w, h)
+                }
+                "steps" => {
+                    let v = need("a step count")?;
+                    let s: u32 = v
+                        .parse()
+                        .ok()
+                        .filter(|s| *s > 0)
+                        .ok_or_else(|| bad(format!("'{v}' is not a positive integer")))?;
+                    Action::Steps(s)
+                }
+                "depth-scale" => Action::DepthScale(number("a depth")?),
+                "shadows" => {
+                    let v = need("off, hard or soft")?;
+                    Action::Shadows(
+                        v.parse::<ShadowMode>()
+                            .map_err(|e| bad(format!("'{v}': {e}")))?,
+                    )
+                }
+                "lod" => match need("off or a threshold")? {
+                    "off" => Action::Lod(None),
+                    _ => Action::Lod(Some(number("a threshold")?)),
+                },
+                "map" => {
+                    let v = need("a bundled map")?;
+                    if !crate::bundled::NAMES.contains(&v) {
+                        return Err(bad(format!(
+                            "unknown bundled map '{v}' (known: {})",
+                            crate::bundled::NAMES.join(", ")
+                        )));
+                    }
+                    Action::Map(v.to_owned())
+                }
+                "heatmap" => Action::Heatmap(switch(need("on or off")?)?),
+                "error" => Action::Error,
+                "screenshot" => Action::Screenshot(PathBuf::from(need("a PNG path")?)),
+                other => return Err(bad(format!("unknown action '{other}'"))),
+            };
+            match (&action, arg) {
+                (Action::Error, Some(_)) => return Err(bad("`error` takes no argument".into())),
+                _ => events.push((frame, action)),
+            }
+        }
+        Ok(Script { events })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_script_parses_and_bad_lines_name_their_line() {
+        let s = Script::parse(
+            "# comment\n0 method pom\n2 resize 96x64 # smaller\n3 split dig\n4 error\n",
+            "t",
+        )
+        .unwrap();
+        assert_eq!(
+            s.events,
+            vec![
+                (0, Action::Method(Method::Pom)),
+                (2, Action::Resize(96, 64)),
+                (3, Action::Split(Some(Method::Dig))),
+                (4, Action::Error),
+            ]
+        );
+        for (text, want) in [
+            ("x method pom", "t:1"),
+            ("\n1 method nope", "t:2"),
+            ("1 resize 0x4", "t:1"),
+            ("1 divider 2", "t:1"),
+            ("1 fly", "unknown action"),
+            ("1 steps", "needs"),
+            ("1 error now", "no argument"),
+        ] {
+            let e = Script::parse(text, "t").unwrap_err().to_string();
+            assert!(e.contains(want), "{text}: {e}");
+        }
+    }
+}

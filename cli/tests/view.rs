@@ -1,0 +1,179 @@
+//! `dispmap view` under Xvfb: a scripted run (a method switch, a resize, a camera path)
+//! on the machine's Vulkan device with validation on, whose last presented frame must
+//! equal `dispmap render`'s frame of the same camera and method bit for bit. Skipped,
+//! with a message saying why, where no X server can be started (no `Xvfb`: Debian's
+//! `xvfb` package, which scripts/setup-debian.sh installs).
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// An Xvfb server, killed when dropped.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts Xvfb on a free display number; `Err` says why it could not.
+fn start_xvfb() -> Result<Xvfb, String> {
+    // Display numbers from the process id, so parallel runs of this test pick different
+    // ones; a display whose lock file exists is taken.
+    let base = 100 + (std::process::id() % 400);
+    for n in base..base + 20 {
+        if Path::new(&format!("/tmp/.X{n}-lock")).exists() {
+            continue;
+        }
+        let display = format!(":{n}");
+        let child = Command::new("Xvfb")
+            .args([&display, "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(|e| format!("cannot run Xvfb ({e}); install the xvfb package"))?;
+        let mut xvfb = Xvfb { child, display };
+        let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(10) {
+            if let Ok(Some(_)) = xvfb.child.try_wait() {
+                break; // it exited: the display was taken after all, try the next one
+            }
+            if socket.exists() {
+                return Ok(xvfb);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = xvfb.child.kill();
+    }
+    Err("Xvfb did not start on any of 20 display numbers".into())
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dispmap-view-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn rocks() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/heightmaps/rocks_depth.jpg")
+}
+
+fn dispmap() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dispmap"));
+    c.env("DISPMAP_VALIDATION", "1");
+    c
+}
+
+/// Runs `cmd`, fails on an error exit or a validation message, returns standard error.
+fn run_checked(cmd: &mut Command, what: &str) -> String {
+    let out = cmd.output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{what} failed:\n{stderr}");
+    assert!(
+        !stderr.contains("Validation") && !stderr.contains("[vulkan"),
+        "{what}: validation messages:\n{stderr}"
+    );
+    stderr
+}
+
+#[test]
+fn scripted_viewer_presents_the_render_frame_bit_for_bit() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            eprintln!("SKIPPED scripted_viewer_presents_the_render_frame_bit_for_bit: {why}");
+            return;
+        }
+    };
+    let dir = scratch("scripted");
+    let (path, script, shot, reference) = (
+        dir.join("camera.txt"),
+        dir.join("script.txt"),
+        dir.join("view.png"),
+        dir.join("render.png"),
+    );
+    // The camera moves every frame and ends at a grazing 12 degrees.
+    std::fs::write(
+        &path,
+        "# elevation azimuth [height]\n30 0\n25 10 0.3\n20 20\n15 30\n12 40\n",
+    )
+    .unwrap();
+    // relief first, pom from frame 1, a smaller window from frame 2, then secant.
+    std::fs::write(&script, "1 method pom\n2 resize 112x72\n3 method secant\n").unwrap();
+    let stderr = run_checked(
+        dispmap()
+            .env("DISPLAY", &xvfb.display)
+            .env_remove("WAYLAND_DISPLAY")
+            .args([
+                "view", "--method", "relief", "--size", "128x80", "--frames", "6",
+            ])
+            .arg("--camera-path")
+            .arg(&path)
+            .arg("--script")
+            .arg(&script)
+            .arg("--screenshot")
+            .arg(&shot),
+        "dispmap view",
+    );
+    assert!(stderr.contains("screenshot:"), "{stderr}");
+    run_checked(
+        dispmap()
+            .args(["render", "--heightmap"])
+            .arg(rocks())
+            .args([
+                "--convention",
+                "depth",
+                "--method",
+                "secant",
+                "--size",
+                "112x72",
+            ])
+            .args([
+                "--camera-elevation",
+                "12",
+                "--camera-azimuth",
+                "40",
+                "--camera-height",
+                "0.3",
+                "--frames",
+                "1",
+            ])
+            .arg("--out")
+            .arg(&reference),
+        "dispmap render",
+    );
+    let view = image::open(&shot).unwrap().to_rgba8();
+    let render = image::open(&reference).unwrap().to_rgba8();
+    assert_eq!(
+        view.dimensions(),
+        (112, 72),
+        "the resize did not reach the frame"
+    );
+    assert_eq!(render.dimensions(), view.dimensions());
+    // The displaced region: pixels not of the sky colour (the top-left pixel is sky at
+    // this camera); it must be most of the frame for the comparison to mean anything.
+    let sky = *render.get_pixel(0, 0);
+    let displaced = render.pixels().filter(|p| **p != sky).count();
+    assert!(
+        displaced > (112 * 72) / 2,
+        "only {displaced} displaced pixels"
+    );
+    let differing: Vec<_> = view
+        .enumerate_pixels()
+        .filter(|(x, y, p)| *p != render.get_pixel(*x, *y))
+        .map(|(x, y, _)| (x, y))
+        .collect();
+    assert!(
+        differing.is_empty(),
+        "{} of {} pixels differ from `dispmap render`, first {:?}",
+        differing.len(),
+        112 * 72,
+        &differing[..differing.len().min(5)]
+    );
+}
