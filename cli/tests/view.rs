@@ -177,3 +177,113 @@ fn scripted_viewer_presents_the_render_frame_bit_for_bit() {
         &differing[..differing.len().min(5)]
     );
 }
+
+/// The error percentage the viewer printed for `method`.
+fn printed_artifacts(stderr: &str, method: &str) -> f64 {
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with(&format!("error overlay: {method}:")))
+        .unwrap_or_else(|| panic!("no error line for {method}:\n{stderr}"));
+    let after = line.split("artifacts ").nth(1).unwrap();
+    after.split('%').next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            eprintln!(
+                "SKIPPED split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts: {why}"
+            );
+            return;
+        }
+    };
+    let dir = scratch("split");
+    let (script, shot) = (dir.join("script.txt"), dir.join("view.png"));
+    std::fs::write(&script, "0 split dig-guarded\n0 divider 0.5\n1 error\n").unwrap();
+    let (w, h) = (128u32, 72u32);
+    let common = [
+        "--steps",
+        "16",
+        "--camera-elevation",
+        "8",
+        "--size",
+        "128x72",
+    ];
+    let stderr = run_checked(
+        dispmap()
+            .env("DISPLAY", &xvfb.display)
+            .env_remove("WAYLAND_DISPLAY")
+            .args(["view", "--method", "relief", "--frames", "3"])
+            .args(common)
+            .arg("--script")
+            .arg(&script)
+            .arg("--screenshot")
+            .arg(&shot),
+        "dispmap view",
+    );
+    let render = |method: &str| {
+        let (png, json) = (
+            dir.join(format!("{method}.png")),
+            dir.join(format!("{method}.json")),
+        );
+        run_checked(
+            dispmap()
+                .args(["render", "--heightmap"])
+                .arg(rocks())
+                .args(["--convention", "depth", "--method", method, "--frames", "1"])
+                .args(common)
+                .arg("--out")
+                .arg(&png)
+                .arg("--metrics")
+                .arg(&json),
+            "dispmap render",
+        );
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let artifacts = v["error"]["artifact_fraction"].as_f64().unwrap();
+        (image::open(&png).unwrap().to_rgba8(), artifacts)
+    };
+    let (relief, relief_artifacts) = render("relief");
+    let (dig, dig_artifacts) = render("dig-guarded");
+    // The overlay's measures are the metrics of `render --metrics` for the same frame.
+    for (method, want) in [("relief", relief_artifacts), ("dig-guarded", dig_artifacts)] {
+        let printed = printed_artifacts(&stderr, method);
+        assert!(
+            (printed - 100.0 * want).abs() < 0.0006,
+            "{method}: the viewer printed {printed}%, render --metrics {}%",
+            100.0 * want
+        );
+    }
+    assert!(
+        relief_artifacts > 0.0,
+        "relief at 16 steps and 8 degrees has artifacts"
+    );
+    let view = image::open(&shot).unwrap().to_rgba8();
+    assert_eq!(view.dimensions(), (w, h));
+    let divider = w / 2;
+    let (mut marked_left, mut marked_right) = (0, 0);
+    for (x, y, p) in view.enumerate_pixels() {
+        let mark = p.0 == [255, 0, 0, 255] || p.0 == [0, 255, 255, 255];
+        if x < divider {
+            if mark {
+                marked_left += 1;
+            } else {
+                assert_eq!(p, relief.get_pixel(x, y), "left side at ({x}, {y})");
+            }
+        } else if x < divider + 2 {
+            assert_eq!(p.0, [255, 255, 255, 255], "divider at ({x}, {y})");
+        } else if mark {
+            marked_right += 1;
+        } else {
+            assert_eq!(p, dig.get_pixel(x, y), "right side at ({x}, {y})");
+        }
+    }
+    assert!(marked_left > 0, "no artifact marked on relief's side");
+    if dig_artifacts == 0.0 {
+        assert_eq!(
+            marked_right, 0,
+            "marks on dig-guarded's side without artifacts"
+        );
+    }
+}

@@ -764,7 +764,11 @@ impl Presenter {
                 COLOR_FORMAT,
                 extent,
                 1,
-                vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::TRANSFER_SRC,
+                // SAMPLED only because `Image` always makes a view, which needs a
+                // usage that views allow; the image is only copied into and blitted from.
+                vk::ImageUsageFlags::TRANSFER_DST
+                    | vk::ImageUsageFlags::TRANSFER_SRC
+                    | vk::ImageUsageFlags::SAMPLED,
             )?);
         }
         let upload = self.upload.as_mut().context("no upload buffer")?;
