@@ -90,7 +90,7 @@ impl CameraPath {
                 )));
             }
             if let Some(&h) = values.get(2)
-                && !(h > 0.0)
+                && h <= 0.0
             {
                 return Err(bad(&format!("height {h} is not positive")));
             }
