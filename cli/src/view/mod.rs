@@ -384,8 +384,10 @@ struct Viewer {
 struct Stats {
     since: Instant,
     frames: u32,
-    /// Per pass: sum of milliseconds and count, in pass order.
-    passes: Vec<(PassName, f64, u32)>,
+    /// Per side (left, right) and pass: sum of milliseconds and count, in pass order.
+    passes: [Vec<(PassName, f64, u32)>; 2],
+    /// Updates since the numbers were last printed.
+    updates: u32,
     /// Wall milliseconds of `Renderer::render` (all sides) and of the whole frame.
     render_wall: Vec<f64>,
     frame_wall: Vec<f64>,
@@ -400,7 +402,8 @@ impl Stats {
         Stats {
             since: Instant::now(),
             frames: 0,
-            passes: Vec::new(),
+            passes: [Vec::new(), Vec::new()],
+            updates: 0,
             render_wall: Vec::new(),
             frame_wall: Vec::new(),
             all_render: Vec::new(),
@@ -409,17 +412,17 @@ impl Stats {
         }
     }
 
-    fn add(&mut self, times: &[(PassName, f64)]) {
+    fn add(&mut self, side: usize, times: &[(PassName, f64)]) {
         for &(name, ms) in times {
             if name.is_one_off() {
                 continue;
             }
-            match self.passes.iter_mut().find(|(n, _, _)| *n == name) {
+            match self.passes[side].iter_mut().find(|(n, _, _)| *n == name) {
                 Some(p) => {
                     p.1 += ms;
                     p.2 += 1;
                 }
-                None => self.passes.push((name, ms, 1)),
+                None => self.passes[side].push((name, ms, 1)),
             }
         }
     }
@@ -663,10 +666,10 @@ impl Viewer {
 
         let render_start = Instant::now();
         let times = self.left.render()?;
-        self.stats.add(&times);
+        self.stats.add(0, &times);
         if let Some(r) = self.right.as_mut() {
             let times = r.render()?;
-            self.stats.add(&times);
+            self.stats.add(1, &times);
         }
         let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
         if std::mem::take(&mut self.error_requested) {
@@ -921,12 +924,16 @@ impl Viewer {
         let covered = heatmap::coverage(&hits, None);
         let iterations = heatmap::iteration_stats(&hits, &covered).mean;
         self.stats.iterations = Some(iterations);
-        let passes: Vec<String> = self
-            .stats
-            .passes
-            .iter()
-            .map(|(n, sum, count)| format!("{n} {:.2}", sum / f64::from((*count).max(1))))
-            .collect();
+        let passes = |side: &[(PassName, f64, u32)]| {
+            side.iter()
+                .map(|(n, sum, count)| format!("{n} {:.2}", sum / f64::from((*count).max(1))))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut gpu = passes(&self.stats.passes[0]);
+        if self.right.is_some() {
+            gpu = format!("{gpu} / right: {}", passes(&self.stats.passes[1]));
+        }
         let frame_ms = dispmap::timing::median(&self.stats.frame_wall);
         let s = self.left.settings();
         let mut what = format!("{} {} steps", s.method.name(), s.params.steps);
@@ -944,8 +951,7 @@ impl Viewer {
             )
         });
         let line = format!(
-            "{what} | GPU ms: {} | {:.1} iter/px | {:.1} fps, frame {:.1} ms | {}x{} {}{}",
-            passes.join(", "),
+            "{what} | GPU ms: {gpu} | {:.1} iter/px | {:.1} fps, frame {:.1} ms | {}x{} {}{}",
             iterations,
             fps,
             frame_ms,
@@ -955,12 +961,14 @@ impl Viewer {
             progress.unwrap_or_default()
         );
         self.window.set_title(&format!("dispmap view: {line}"));
-        if print {
+        // The title has every update; standard error one in four (every 2 s).
+        if print && self.stats.updates % 4 == 0 {
             eprintln!("{line}");
         }
+        self.stats.updates += 1;
         self.stats.since = Instant::now();
         self.stats.frames = 0;
-        self.stats.passes.clear();
+        self.stats.passes = [Vec::new(), Vec::new()];
         self.stats.render_wall.clear();
         self.stats.frame_wall.clear();
         Ok(())
@@ -1042,8 +1050,7 @@ impl Viewer {
                 }
             }
             KeyCode::KeyL => {
-                const LEVELS: [Option<f32>; 5] =
-                    [None, Some(-1.0), Some(0.0), Some(1.0), Some(2.0)];
+                const LEVELS: [Option<f32>; 5] = [None, Some(0.0), Some(1.0), Some(2.0), Some(3.0)];
                 let i = LEVELS
                     .iter()
                     .position(|l| *l == state.settings.params.lod_threshold)
