@@ -394,6 +394,9 @@ struct Stats {
     /// Every frame's wall times, for the headless summary.
     all_render: Vec<f64>,
     all_frame: Vec<f64>,
+    /// Every frame's GPU milliseconds (the left side's passes, one-off passes left
+    /// out), for the headless summary.
+    all_gpu: Vec<f64>,
     iterations: Option<f64>,
 }
 
@@ -408,6 +411,7 @@ impl Stats {
             frame_wall: Vec::new(),
             all_render: Vec::new(),
             all_frame: Vec::new(),
+            all_gpu: Vec::new(),
             iterations: None,
         }
     }
@@ -667,6 +671,11 @@ impl Viewer {
         let render_start = Instant::now();
         let times = self.left.render()?;
         self.stats.add(0, &times);
+        let gpu_ms: f64 = times
+            .iter()
+            .filter(|(n, _)| !n.is_one_off())
+            .map(|(_, ms)| ms)
+            .sum();
         if let Some(r) = self.right.as_mut() {
             let times = r.render()?;
             self.stats.add(1, &times);
@@ -737,6 +746,7 @@ impl Viewer {
         self.stats.frame_wall.push(frame_ms);
         self.stats.all_render.push(render_ms);
         self.stats.all_frame.push(frame_ms);
+        self.stats.all_gpu.push(gpu_ms);
         self.stats.frames += 1;
         if self.stats.since.elapsed() >= STATS_PERIOD {
             self.report(state, headless.is_none())?;
@@ -981,12 +991,11 @@ impl Viewer {
         let skip = if self.stats.all_frame.len() > 4 { 2 } else { 0 };
         let render = dispmap::timing::median(&self.stats.all_render[skip..]);
         let frame = dispmap::timing::median(&self.stats.all_frame[skip..]);
+        let gpu = dispmap::timing::median(&self.stats.all_gpu[skip..]);
         eprintln!(
-            "frames: {}, median wall ms per frame: render {:.2}, render + present {:.2} \
-             (first {skip} left out)",
+            "frames: {}, median ms per frame: GPU (left side's passes) {gpu:.2}, wall: \
+             render {render:.2}, render + present {frame:.2} (first {skip} left out)",
             self.stats.all_frame.len(),
-            render,
-            frame
         );
     }
 
