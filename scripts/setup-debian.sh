@@ -6,10 +6,12 @@
 #   libshaderc-dev          shaderc for build.rs (pulls glslang-dev and spirv-tools,
 #                           whose static libraries build-support/shaderc-link links)
 #   xvfb                    an X server without a screen: the viewer's test (`dispmap view`)
+#   libxcursor1 libxi6 libxkbcommon-x11-0
+#                           what the viewer's window library (winit) loads at run time on X11
 # As root it runs apt-get; otherwise it prints the exact command and fails.
 set -euo pipefail
 
-packages=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools xvfb)
+packages=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools xvfb libxcursor1 libxi6 libxkbcommon-x11-0)
 missing=()
 for p in "${packages[@]}"; do
     if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
