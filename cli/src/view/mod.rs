@@ -378,6 +378,35 @@ struct Viewer {
     window_size: [u32; 2],
     /// The error overlay was asked for: its reference starts after the next render.
     error_requested: bool,
+    /// The last state the renderers accepted.
+    good: Option<Snapshot>,
+}
+
+/// What the keys change, as last accepted by the renderers.
+#[derive(Clone)]
+struct Snapshot {
+    settings: RenderSettings,
+    steps: Option<u32>,
+    right: Option<Method>,
+    map: usize,
+}
+
+impl Snapshot {
+    fn of(state: &ViewState) -> Self {
+        Snapshot {
+            settings: state.settings,
+            steps: state.steps,
+            right: state.right,
+            map: state.map,
+        }
+    }
+
+    fn restore(&self, state: &mut ViewState) {
+        state.settings = self.settings;
+        state.steps = self.steps;
+        state.right = self.right;
+        state.map = self.map;
+    }
 }
 
 /// Live numbers, accumulated between updates.
@@ -515,6 +544,7 @@ impl Viewer {
             built_map: state.map,
             window_size: [size.width, size.height],
             error_requested: false,
+            good: None,
         })
     }
 
@@ -661,12 +691,17 @@ impl Viewer {
             if headless.is_some() {
                 return Err(err);
             }
-            // An interactive change the renderer refused: say why and go back.
+            // An interactive change the renderer refused (e.g. a step count past the
+            // driver's loop budget): say why and go back to the last state that rendered.
             eprintln!("error: {err:#}");
-            state.settings = *self.left.settings();
-            (state.settings.width, state.settings.height) = (e.width, e.height);
-            state.right = self.right.as_ref().map(|r| r.settings().method);
+            let good = self
+                .good
+                .clone()
+                .context("no earlier state to go back to")?;
+            good.restore(state);
+            self.sync(state, [e.width, e.height])?;
         }
+        self.good = Some(Snapshot::of(state));
 
         let render_start = Instant::now();
         let times = self.left.render()?;
