@@ -13,7 +13,7 @@ use clap::parser::ValueSource;
 use clap::{ArgMatches, Args};
 use dispmap::context::{Context, ContextOptions};
 use dispmap::heightfield::{Convention, HeightField};
-use dispmap::method::Method;
+use dispmap::method::{MaxLevel, Method};
 use dispmap::passes::PassName;
 use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
 use dispmap::renderer::{RenderSettings, Renderer, SceneAssets};
@@ -981,7 +981,26 @@ impl Viewer {
         }
         let frame_ms = dispmap::timing::median(&self.stats.frame_wall);
         let s = self.left.settings();
-        let mut what = format!("{} {} steps", s.method.name(), s.params.steps);
+        let mut what = format!(
+            "{} {} steps (refine {}, min {}, segments {}, block {}, max level {}, lod {}, \
+             shadows {} x{}, depth {:.3})",
+            s.method.name(),
+            s.params.steps,
+            s.params.refine_steps,
+            s.params.min_steps,
+            s.params.segments,
+            s.params.block[0],
+            match s.params.max_level {
+                MaxLevel::Fixed(l) => l.to_string(),
+                MaxLevel::Auto => "auto".into(),
+            },
+            s.params
+                .lod_threshold
+                .map_or("off".into(), |l| l.to_string()),
+            s.shadows.mode.name(),
+            s.shadows.samples,
+            s.scene.depth_scale
+        );
         if let Some(r) = &self.right {
             what.push_str(&format!(
                 " | {} {} steps",
@@ -1100,6 +1119,55 @@ impl Viewer {
                     .position(|l| *l == state.settings.params.lod_threshold)
                     .map_or(0, |i| (i + 1) % LEVELS.len());
                 state.settings.params.lod_threshold = LEVELS[i];
+            }
+            KeyCode::KeyF => {
+                let p = &mut state.settings.params;
+                p.refine_steps = if shift {
+                    p.refine_steps.saturating_sub(1)
+                } else {
+                    p.refine_steps + 1
+                };
+            }
+            KeyCode::KeyO => {
+                let p = &mut state.settings.params;
+                p.min_steps = if shift {
+                    p.min_steps.saturating_sub(4).max(1)
+                } else {
+                    p.min_steps + 4
+                };
+            }
+            KeyCode::KeyJ => {
+                let p = &mut state.settings.params;
+                p.segments = if shift {
+                    p.segments.saturating_sub(1).max(1)
+                } else {
+                    p.segments + 1
+                };
+            }
+            KeyCode::KeyB => {
+                let p = &mut state.settings.params;
+                let side = match p.block[0] {
+                    2 => 4,
+                    4 => 8,
+                    _ => 2,
+                };
+                p.block = [side, side];
+            }
+            KeyCode::KeyK => {
+                let p = &mut state.settings.params;
+                p.max_level = match p.max_level {
+                    MaxLevel::Fixed(l) if l < 3 => MaxLevel::Fixed(l + 1),
+                    MaxLevel::Fixed(_) => MaxLevel::Auto,
+                    MaxLevel::Auto => MaxLevel::Fixed(0),
+                };
+            }
+            KeyCode::KeyG => {
+                let shadows = &mut state.settings.shadows;
+                shadows.samples = if shift {
+                    (shadows.samples / 2).max(1)
+                } else {
+                    shadows.samples.saturating_mul(2)
+                };
             }
             KeyCode::KeyT => switch_map(state, None)?,
             KeyCode::KeyI => state.heatmap = !state.heatmap,
