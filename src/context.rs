@@ -452,11 +452,13 @@ impl Context {
                 what: absent.join(", "),
             });
         }
-        let ext_names: Vec<_> = requirements::DEVICE_EXTENSIONS
-            .iter()
-            .chain(extra_extensions)
-            .map(|e| e.as_ptr())
-            .collect();
+        let mut ext_names: Vec<&CStr> = requirements::DEVICE_EXTENSIONS.to_vec();
+        for e in extra_extensions {
+            if !ext_names.contains(e) {
+                ext_names.push(e);
+            }
+        }
+        let ext_names: Vec<_> = ext_names.iter().map(|e| e.as_ptr()).collect();
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
             .synchronization2(true);
@@ -660,7 +662,11 @@ fn create_instance(
     if debug_utils {
         exts.push(ash::ext::debug_utils::NAME.as_ptr());
     }
-    exts.extend(extra_extensions.iter().map(|e| e.as_ptr()));
+    for e in extra_extensions {
+        if !(debug_utils && *e == ash::ext::debug_utils::NAME) {
+            exts.push(e.as_ptr());
+        }
+    }
     let enables = [
         vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION,
         vk::ValidationFeatureEnableEXT::BEST_PRACTICES,
