@@ -163,6 +163,24 @@ fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
         "nan-normal.toml",
         b"[material]\nnormal_map = \"nan-normal.exr\"\n",
     );
+    // glTF: a node that is its own child; a buffer outside the scene's folder.
+    write(
+        "self.gltf",
+        br#"{"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"nodes":[{"children":[0]}]}"#,
+    );
+    write("cycle.toml", b"geometry = \"mesh\"\nmesh = \"self.gltf\"\n");
+    write("outside.gltf", br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"../secret.bin"}],"scenes":[{"nodes":[]}]}"#);
+    write(
+        "outside.toml",
+        b"geometry = \"mesh\"\nmesh = \"outside.gltf\"\n",
+    );
+    // A read-only output file (kept as it is).
+    write("read-only.png", b"old");
+    std::fs::set_permissions(
+        dir.join("read-only.png"),
+        std::os::unix::fs::PermissionsExt::from_mode(0o444),
+    )
+    .unwrap();
     // Driver manifests: not JSON.
     write("bad-icd.json", b"{ not json");
     let out_dir = dir.parent().unwrap().join("out");
@@ -304,6 +322,9 @@ fn rows(f: &Fixtures) -> Vec<Row> {
         row("negative --frames",       &[("--frames", "-1")],                       &["--frames", "-1"]),
         row("negative --eps",          &[("--eps", "-1")],                          &["eps", "-1"]),
         row("negative --max-level",    &[("--max-level", "-1")],                    &["max-level", "-1"]),
+        row("glTF node cycle",         &[("--scene", &f.path("cycle.toml"))],       &["self.gltf", "node 0 is reached twice"]),
+        row("glTF buffer outside",     &[("--scene", &f.path("outside.toml"))],     &["outside.gltf", "points outside the file's folder"]),
+        row("read-only output file",   &[("--out", &f.path("read-only.png"))],      &["--out", "read-only.png", "is read-only"]),
         row("NaN in a normal map",     &[("--scene", &f.path("nan-normal.toml"))],  &["nan-normal.exr", "non-finite value NaN at pixel (1, 0)"]),
         // Devices.
         Row { env: no_driver, ..row("no Vulkan driver", &[], &["vkCreateInstance", "Vulkan driver"]) },
@@ -315,6 +336,8 @@ fn rows(f: &Fixtures) -> Vec<Row> {
     let icd: &'static str = Box::leak(f.path("bad-icd.json").into_boxed_str());
     let bad_icd: &'static [(&str, &str)] = Box::leak(Box::new([("VK_ICD_FILENAMES", icd), ("VK_DRIVER_FILES", icd)]));
     rows.push(Row { env: bad_icd, ..row("malformed driver manifest", &[], &["bad-icd.json", "VK_DRIVER_FILES", "valid JSON"]) });
+    // DISPMAP_VALIDATION neither on nor off: refused by name.
+    rows.push(Row { env: &[("DISPMAP_VALIDATION", "2")], ..row("DISPMAP_VALIDATION=2", &[], &["DISPMAP_VALIDATION", "2"]) });
     // Validation requested while the loader disables the layer: said so.
     rows.push(Row { env: &[("VK_LOADER_LAYERS_DISABLE", "VK_LAYER_KHRONOS_validation")], ..row("validation layer disabled", &[], &["VK_LOADER_LAYERS_DISABLE", "disables it"]) });
     // A later output failing (a full device) writes none of them: --out stays absent.
