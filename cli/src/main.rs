@@ -110,6 +110,11 @@ struct BenchArgs {
     /// when on, the `shadow` pass's time goes into results.csv (`shadow_ms`) and the report.
     #[arg(long, default_value = "off", value_name = "MODE")]
     shadows: ShadowMode,
+    /// Refuse a run whose estimated memory (the largest map or sweep size with the
+    /// frame, the reference and the heat maps) is above this (e.g. 8G) [default: the
+    /// memory available].
+    #[arg(long, value_name = "BYTES", value_parser = memory::parse_bytes)]
+    max_memory: Option<u64>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -1012,6 +1017,38 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
     };
     if maps.is_empty() && size_source.is_none() {
         bail!("invalid --maps: no map to benchmark (give --maps or --heightmap)");
+    }
+    // The largest map (or sweep size) with the frame, the reference and the heat maps.
+    let extras = memory::Extras {
+        reference: true,
+        heatmap: true,
+        depth: false,
+    };
+    let mut candidates: Vec<(memory::MapSize, String)> = maps
+        .iter()
+        .map(|m| (memory::MapSize::loaded(&m.field), m.name.clone()))
+        .collect();
+    if let Some(source) = &size_source {
+        let bytes = memory::MapSize::loaded(&source.field).texel_bytes;
+        for &side in &config.sizes {
+            let map = memory::MapSize {
+                size: [side, side],
+                texel_bytes: bytes,
+                load_bytes: 0,
+            };
+            candidates.push((map, format!("{} resampled to {side}x{side}", source.name)));
+        }
+    }
+    if let Some((estimate, name)) = candidates
+        .into_iter()
+        .map(|(map, name)| (memory::estimate(map, config.frame, extras), name))
+        .max_by_key(|(e, _)| e.bytes)
+    {
+        let what = format!(
+            "benchmarking {}x{} frames on {name} with the reference",
+            config.frame[0], config.frame[1]
+        );
+        memory::check(&estimate, args.max_memory, &what)?;
     }
     // The folder is created and filled only when every result is in (all files at once).
     output::check_folder_writable(&args.out).context("invalid --out")?;
