@@ -13,6 +13,7 @@ use std::io::Write;
 use std::os::unix::ffi::OsStrExt;
 use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicPtr, Ordering};
 
 /// What an output path names, with symlinks followed: where the bytes go and how.
 #[derive(Clone, Debug)]
@@ -256,6 +257,77 @@ fn parent_of(path: &Path) -> PathBuf {
     }
 }
 
+/// The temporary files of a commit in progress, for [`clean_up_on_signals`]'s handler:
+/// NUL-terminated paths, null where free. A path is never freed once registered (a
+/// handler on another thread may be reading it); each is a few dozen bytes per output.
+static TEMPORARIES: [AtomicPtr<libc::c_char>; MAX_TEMPORARIES] =
+    [const { AtomicPtr::new(std::ptr::null_mut()) }; MAX_TEMPORARIES];
+const MAX_TEMPORARIES: usize = 256;
+
+/// Registers `tmp` for removal by the signal handler; the slot, or `None` when all are
+/// taken (the file is then only removed on error, not on a signal).
+fn register_temporary(tmp: &Path) -> Option<usize> {
+    let c = std::ffi::CString::new(tmp.as_os_str().as_bytes()).ok()?;
+    let raw = c.into_raw();
+    for (i, slot) in TEMPORARIES.iter().enumerate() {
+        if slot
+            .compare_exchange(
+                std::ptr::null_mut(),
+                raw,
+                Ordering::SeqCst,
+                Ordering::SeqCst,
+            )
+            .is_ok()
+        {
+            return Some(i);
+        }
+    }
+    // SAFETY: `raw` came from `CString::into_raw` above and was published nowhere.
+    drop(unsafe { std::ffi::CString::from_raw(raw) });
+    None
+}
+
+/// Frees the slot of a temporary file renamed or removed (its path is leaked, see
+/// [`TEMPORARIES`]).
+fn unregister_temporary(slot: Option<usize>) {
+    if let Some(i) = slot {
+        TEMPORARIES[i].store(std::ptr::null_mut(), Ordering::SeqCst);
+    }
+}
+
+extern "C" fn remove_temporaries_and_die(signal: libc::c_int) {
+    for slot in &TEMPORARIES {
+        let path = slot.load(Ordering::SeqCst);
+        if !path.is_null() {
+            // SAFETY: a registered path is a NUL-terminated string that is never freed;
+            // unlink(2) is async-signal-safe.
+            unsafe {
+                libc::unlink(path);
+            }
+        }
+    }
+    // SAFETY: signal(2) and raise(3) are async-signal-safe; the default disposition
+    // ends the process by `signal`, as without this handler.
+    unsafe {
+        libc::signal(signal, libc::SIG_DFL);
+        libc::raise(signal);
+    }
+}
+
+/// Installs a handler for SIGINT, SIGTERM and SIGHUP that removes the temporary files of
+/// a commit in progress and then ends the process by the same signal (as it would have
+/// ended without the handler). Call once, early in `main`.
+pub fn clean_up_on_signals() {
+    let handler = remove_temporaries_and_die as extern "C" fn(libc::c_int);
+    for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        // SAFETY: the handler only reads atomics, calls unlink, signal and raise (all
+        // async-signal-safe) and touches no lock or allocation.
+        unsafe {
+            libc::signal(signal, handler as libc::sighandler_t);
+        }
+    }
+}
+
 /// The identity of a target, for the same-file check: the canonical folder and the name.
 fn identity(target: &Target) -> PathBuf {
     match target {
@@ -407,10 +479,11 @@ impl Outputs {
                 return Err(e);
             }
         }
-        let mut temps: Vec<(PathBuf, &Entry)> = Vec::new();
-        let cleanup = |temps: &[(PathBuf, &Entry)]| {
-            for (tmp, _) in temps {
+        let mut temps: Vec<(PathBuf, &Entry, Option<usize>)> = Vec::new();
+        let cleanup = |temps: &[(PathBuf, &Entry, Option<usize>)]| {
+            for (tmp, _, slot) in temps {
                 let _ = std::fs::remove_file(tmp);
+                unregister_temporary(*slot);
             }
             remove_folders(&created);
         };
@@ -424,8 +497,10 @@ impl Outputs {
                 .unwrap_or_else(|| "output".into());
             let tmp = parent_of(target).join(format!(".{name}.{}.tmp", std::process::id()));
             let bytes = entry.bytes.as_deref().unwrap_or_default();
+            // Registered before it exists, so a signal never misses it.
+            let slot = register_temporary(&tmp);
+            temps.push((tmp.clone(), entry, slot));
             let written = std::fs::File::create(&tmp).and_then(|mut file| {
-                temps.push((tmp.clone(), entry));
                 file.write_all(bytes)?;
                 if let Some(mode) = mode {
                     file.set_permissions(mode.clone())?;
@@ -457,7 +532,7 @@ impl Outputs {
                 });
             }
         }
-        for (i, (tmp, entry)) in temps.iter().enumerate() {
+        for (i, (tmp, entry, slot)) in temps.iter().enumerate() {
             let Target::Replace { path: target, .. } = &entry.target else {
                 continue;
             };
@@ -468,6 +543,7 @@ impl Outputs {
                     source,
                 });
             }
+            unregister_temporary(*slot);
         }
         Ok(())
     }

@@ -755,3 +755,55 @@ fn exact_methods_warn_beyond_the_guaranteed_depth_scale() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A run killed by SIGTERM while committing its outputs leaves no temporary file: the
+/// commit writes `--out`'s temporary file, then blocks opening a FIFO given as
+/// `--heatmap` (no reader), and is killed there.
+#[test]
+fn a_kill_during_the_commit_leaves_no_temporary_file() {
+    let dir = scratch("kill");
+    let out_dir = dir.join("out");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let fifo = dir.join("heat");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let mut child = render_args(&mut dispmap())
+        .arg("--out")
+        .arg(out_dir.join("o.png"))
+        .arg("--heatmap")
+        .arg(&fifo)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while names(&out_dir).is_empty() {
+        assert!(start.elapsed() < HANG, "no temporary file appeared");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before the commit"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let tmp = names(&out_dir);
+    assert!(
+        tmp[0].starts_with(".o.png.") && tmp[0].ends_with(".tmp"),
+        "{tmp:?}"
+    );
+    assert!(
+        Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let status = child.wait().unwrap();
+    assert!(status.code().is_none(), "not ended by the signal: {status}");
+    assert!(names(&out_dir).is_empty(), "left {:?}", names(&out_dir));
+    std::fs::remove_dir_all(&dir).ok();
+}
