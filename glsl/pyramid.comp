@@ -77,10 +77,22 @@ void main() {
     // level below's nodes 2 c0 .. 2 c0 + 3 (clamped to its last node).
     float r[16];
     if (pc.level == 0u) {
-        int first = pc.kind == PYRAMID_KIND_CELL ? 1 : 0;
-        for (int j = first; j < 4; ++j) {
-            for (int i = first; i < 4; ++i) {
-                r[j * 4 + i] = texel_height(c0 + ivec2(i - 1, j - 1));
+        // textureGather returns the 2x2 texels around a point with the sampler's
+        // addressing (the map's own: repeat or clamp to edge), which is what
+        // texel_height does by hand: 4 gathers read the 4x4 block (texels c0 - 1 ..
+        // c0 + 2) that 16 fetches would, without the per-texel wrap arithmetic. The
+        // point (o + 1) / size lies on the corner shared by texels o and o + 1, half a
+        // texel from any other choice, so rounding cannot move it. Components: x =
+        // (i0, j1), y = (i1, j1), z = (i1, j0), w = (i0, j0).
+        vec2 inv = 1.0 / vec2(textureSize(u_height, 0));
+        for (int b = 0; b < 2; ++b) {
+            for (int a = 0; a < 2; ++a) {
+                vec4 g = textureGather(u_height, vec2(c0 + ivec2(2 * a, 2 * b)) * inv, 0);
+                int k = 2 * b * 4 + 2 * a;
+                r[k] = g.w;
+                r[k + 1] = g.z;
+                r[k + 4] = g.x;
+                r[k + 5] = g.y;
             }
         }
     } else {

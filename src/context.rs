@@ -206,10 +206,20 @@ impl Context {
             .iter()
             .any(|e| e == ash::ext::debug_utils::NAME);
         if validation && !validation_layer_present(&entry)? {
-            return Err(Error::NoDevice(format!(
-                "{ENV_VALIDATION} is set but {} is not installed (apt-get install vulkan-validationlayers)",
-                VALIDATION_LAYER.to_string_lossy()
-            )));
+            let layer = VALIDATION_LAYER.to_string_lossy();
+            // The loader hides a disabled layer as if it were not installed: say which.
+            let disabled = std::env::var("VK_LOADER_LAYERS_DISABLE")
+                .ok()
+                .filter(|v| !v.is_empty());
+            return Err(Error::NoDevice(match disabled {
+                Some(v) => format!(
+                    "{ENV_VALIDATION} is set but {layer} is not available: \
+                     VK_LOADER_LAYERS_DISABLE={v} disables it (or it is not installed)"
+                ),
+                None => format!(
+                    "{ENV_VALIDATION} is set but {layer} is not installed (apt-get install vulkan-validationlayers)"
+                ),
+            }));
         }
         let absent: Vec<String> = instance_extensions
             .iter()
@@ -622,10 +632,31 @@ fn parse_switch(value: &str) -> Option<bool> {
     }
 }
 
+/// A loader-level call's error: names a driver manifest variable of the environment when
+/// the loader failed with `ERROR_OUT_OF_HOST_MEMORY` (how it reports a manifest it
+/// cannot parse).
+fn loader_error(call: &'static str, result: vk::Result) -> Error {
+    if result == vk::Result::ERROR_OUT_OF_HOST_MEMORY {
+        for variable in ["VK_DRIVER_FILES", "VK_ICD_FILENAMES"] {
+            if let Ok(value) = std::env::var(variable)
+                && !value.is_empty()
+            {
+                return Error::DriverManifest {
+                    call,
+                    result,
+                    variable,
+                    value,
+                };
+            }
+        }
+    }
+    Error::Vulkan { call, result }
+}
+
 fn enumerate_instance_extensions(entry: &ash::Entry) -> Result<Vec<CString>> {
     // SAFETY: plain query on a loaded entry.
     let props = unsafe { entry.enumerate_instance_extension_properties(None) }
-        .vk("vkEnumerateInstanceExtensionProperties")?;
+        .map_err(|r| loader_error("vkEnumerateInstanceExtensionProperties", r))?;
     Ok(props
         .iter()
         .filter_map(|p| p.extension_name_as_c_str().ok().map(CStr::to_owned))
@@ -635,7 +666,7 @@ fn enumerate_instance_extensions(entry: &ash::Entry) -> Result<Vec<CString>> {
 fn validation_layer_present(entry: &ash::Entry) -> Result<bool> {
     // SAFETY: plain query on a loaded entry.
     let layers = unsafe { entry.enumerate_instance_layer_properties() }
-        .vk("vkEnumerateInstanceLayerProperties")?;
+        .map_err(|r| loader_error("vkEnumerateInstanceLayerProperties", r))?;
     Ok(layers
         .iter()
         .any(|l| l.layer_name_as_c_str().ok() == Some(VALIDATION_LAYER)))
@@ -691,7 +722,7 @@ fn create_instance(
     }
     // SAFETY: every pointer in `info` outlives the call; the messenger's user data points
     // into `messages`, kept alive by the context.
-    unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")
+    unsafe { entry.create_instance(&info, None) }.map_err(|r| loader_error("vkCreateInstance", r))
 }
 
 fn best_practices_from_env() -> bool {

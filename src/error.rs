@@ -19,6 +19,22 @@ pub enum Error {
         "cannot load the Vulkan library: {0} (install libvulkan1 and a driver such as mesa-vulkan-drivers)"
     )]
     Loader(String),
+    /// A loader call failed while the environment names the driver manifests
+    /// (`VK_ICD_FILENAMES` / `VK_DRIVER_FILES`): the loader reports a manifest it cannot
+    /// parse as a failed host allocation, so the variable is named.
+    #[error(
+        "Vulkan call {call} failed: {result} (with {variable}={value}: the Vulkan loader fails this way on a driver manifest it cannot parse; check that the file is valid JSON naming an installed driver)"
+    )]
+    DriverManifest {
+        /// The entry point that failed.
+        call: &'static str,
+        /// The code it returned.
+        result: vk::Result,
+        /// `VK_ICD_FILENAMES` or `VK_DRIVER_FILES`.
+        variable: &'static str,
+        /// Its value.
+        value: String,
+    },
     /// No physical device matches the request or has what dispmap needs.
     #[error("no suitable Vulkan device: {0}")]
     NoDevice(String),

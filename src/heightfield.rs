@@ -71,20 +71,147 @@ pub struct HeightField {
     label: String,
 }
 
+/// The largest height-map file read (4 GiB): a bigger one is refused before reading.
+pub const MAX_FILE_BYTES: u64 = 1 << 32;
+
+/// What a height-map file's header says, read without decoding the image
+/// ([`HeightField::probe`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageHeader {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Bytes per pixel of the decoded image (e.g. 1 for 8-bit grey, 16 for RGBA f32).
+    pub decoded_bytes_per_pixel: u32,
+    /// Bytes per texel of the height field it becomes (1, 2 or 4).
+    pub texel_bytes: u32,
+    /// The file's size in bytes.
+    pub file_bytes: u64,
+}
+
+/// Opens `path` for reading if it is a regular file of at most [`MAX_FILE_BYTES`]: a
+/// device (`/dev/zero`), FIFO or folder cannot be size-checked and is refused.
+fn open_checked(path: &Path) -> Result<(std::fs::File, u64)> {
+    let io = |source| Error::Io {
+        path: path.to_owned(),
+        source,
+    };
+    // The kind is checked before opening: opening a FIFO for reading blocks until a
+    // writer comes.
+    let meta = std::fs::metadata(path).map_err(io)?;
+    let image_error = |message: String| Error::Image {
+        path: path.to_owned(),
+        message,
+    };
+    if !meta.is_file() {
+        return Err(image_error(if meta.is_dir() {
+            "is a folder, not an image file".into()
+        } else {
+            "is not a regular file (a device or pipe is not read: its size cannot be checked)"
+                .into()
+        }));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(image_error(format!(
+            "the file has {} bytes, more than the {} read at most",
+            meta.len(),
+            MAX_FILE_BYTES
+        )));
+    }
+    let file = std::fs::File::open(path).map_err(io)?;
+    Ok((file, meta.len()))
+}
+
+/// Reads a whole file after [`open_checked`]'s checks (a regular file of at most
+/// [`MAX_FILE_BYTES`]).
+pub(crate) fn read_checked(path: &Path) -> Result<Vec<u8>> {
+    let (file, len) = open_checked(path)?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(file, MAX_FILE_BYTES + 1),
+        &mut bytes,
+    )
+    .map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    Ok(bytes)
+}
+
 impl HeightField {
-    /// Loads PNG (8/16-bit), JPEG or OpenEXR; `convention` says how the file encodes heights.
-    pub fn load(path: &Path, convention: Convention) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+    /// Reads the header of a height-map file (size and pixel format) without decoding
+    /// it, after checking that it is a regular file of at most [`MAX_FILE_BYTES`]; lets
+    /// a caller bound a load's memory before it happens.
+    pub fn probe(path: &Path) -> Result<ImageHeader> {
+        let (file, file_bytes) = open_checked(path)?;
+        let image_error = |message: String| Error::Image {
             path: path.to_owned(),
-            source,
-        })?;
+            message,
+        };
+        let reader = image::ImageReader::new(std::io::BufReader::new(file))
+            .with_guessed_format()
+            .map_err(|e| image_error(e.to_string()))?;
+        let Some(format) = reader.format() else {
+            return Err(image_error("not a PNG, JPEG or OpenEXR image".into()));
+        };
+        let decoder = match reader.into_decoder() {
+            Ok(d) => d,
+            Err(e) if format == image::ImageFormat::OpenExr => {
+                // A single-channel file (read by `load` through exr): its header.
+                let meta = std::fs::File::open(path)
+                    .map(std::io::BufReader::new)
+                    .map_err(|source| Error::Io {
+                        path: path.to_owned(),
+                        source,
+                    })
+                    .and_then(|f| {
+                        exr::meta::MetaData::read_from_buffered(f, false)
+                            .map_err(|_| image_error(format!("cannot decode: {e}")))
+                    })?;
+                let size = meta
+                    .headers
+                    .first()
+                    .map(|h| h.layer_size)
+                    .ok_or_else(|| image_error(format!("cannot decode: {e}")))?;
+                return Ok(ImageHeader {
+                    width: u32::try_from(size.width()).unwrap_or(u32::MAX),
+                    height: u32::try_from(size.height()).unwrap_or(u32::MAX),
+                    decoded_bytes_per_pixel: 4,
+                    texel_bytes: 4,
+                    file_bytes,
+                });
+            }
+            Err(e) => return Err(image_error(format!("cannot decode: {e}"))),
+        };
+        let (width, height) = image::ImageDecoder::dimensions(&decoder);
+        let color = image::ImageDecoder::color_type(&decoder);
+        let texel_bytes = match color.bytes_per_pixel() / color.channel_count().max(1) {
+            1 => 1,
+            2 => 2,
+            _ => 4,
+        };
+        Ok(ImageHeader {
+            width,
+            height,
+            decoded_bytes_per_pixel: u32::from(color.bytes_per_pixel()),
+            texel_bytes,
+            file_bytes,
+        })
+    }
+
+    /// Loads PNG (8/16-bit), JPEG or OpenEXR; `convention` says how the file encodes heights.
+    /// Only a regular file of at most [`MAX_FILE_BYTES`] is read (see [`HeightField::probe`]);
+    /// an image whose decoded size exceeds the decoder's limit is refused with its size.
+    pub fn load(path: &Path, convention: Convention) -> Result<Self> {
+        let bytes = read_checked(path)?;
         if image::guess_format(&bytes).ok() == Some(image::ImageFormat::Jpeg) {
             jpeg_complete(&bytes).map_err(|message| Error::Image {
                 path: path.to_owned(),
                 message,
             })?;
         }
-        let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        let reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
             .with_guessed_format()
             .map_err(|e| Error::Image {
                 path: path.to_owned(),
@@ -96,9 +223,43 @@ impl HeightField {
                 message: "not a PNG, JPEG or OpenEXR image".into(),
             });
         }
-        let image = reader.decode().map_err(|e| Error::Image {
-            path: path.to_owned(),
-            message: format!("cannot decode: {e}"),
+        let is_exr = reader.format() == Some(image::ImageFormat::OpenExr);
+        let decoded = reader.decode();
+        if is_exr
+            && decoded.is_err()
+            && let Some((width, height, values)) = single_channel_exr(&bytes)
+        {
+            let label = path.display().to_string();
+            let invert = convention == Convention::Depth;
+            let heights = values
+                .into_iter()
+                .map(|v| if invert { 1.0 - v } else { v })
+                .collect();
+            return Self::from_heights(width, height, heights, &label).map_err(|e| match e {
+                Error::InvalidInput { message, .. } => Error::Image {
+                    path: path.to_owned(),
+                    message,
+                },
+                other => other,
+            });
+        }
+        let image = decoded.map_err(|e| {
+            let message = match (&e, Self::probe(path)) {
+                (image::ImageError::Limits(_), Ok(h)) => format!(
+                    "cannot decode: the header says {}x{} pixels of {} bytes ({:.1} MiB \
+                     decoded), above the decoder's memory limit ({e})",
+                    h.width,
+                    h.height,
+                    h.decoded_bytes_per_pixel,
+                    f64::from(h.width) * f64::from(h.height) * f64::from(h.decoded_bytes_per_pixel)
+                        / f64::from(1u32 << 20)
+                ),
+                _ => format!("cannot decode: {e}"),
+            };
+            Error::Image {
+                path: path.to_owned(),
+                message,
+            }
         })?;
         let label = path
             .file_name()
@@ -316,6 +477,39 @@ impl HeightField {
 /// would load as a valid map. Complete files end their last scan with the end-of-image
 /// marker `FF D9`; neither it nor a scan marker can occur inside entropy-coded data
 /// (`FF` is stuffed there), so "an `FF D9` after the last `FF DA`" is the test.
+/// The one channel of a single-channel OpenEXR file (`Y`, else `R`), which image's
+/// decoder refuses (it needs R, G and B): width, height and the values row by row;
+/// `None` when the file has neither channel or does not decode.
+fn single_channel_exr(bytes: &[u8]) -> Option<(u32, u32, Vec<f32>)> {
+    use exr::prelude::{ReadChannels as _, ReadLayers as _, ReadSpecificChannel as _};
+    for name in ["Y", "R"] {
+        let read = exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .specific_channels()
+            .required(name)
+            .collect_pixels(
+                |size: exr::prelude::Vec2<usize>, _| (size.width(), vec![0f32; size.area()]),
+                |(width, values): &mut (usize, Vec<f32>),
+                 at: exr::prelude::Vec2<usize>,
+                 (v,): (f32,)| values[at.y() * *width + at.x()] = v,
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .from_buffered(std::io::Cursor::new(bytes));
+        if let Ok(image) = read {
+            let size = image.layer_data.size;
+            let (_, values) = image.layer_data.channel_data.pixels;
+            let (w, h) = (
+                u32::try_from(size.width()).ok()?,
+                u32::try_from(size.height()).ok()?,
+            );
+            return Some((w, h, values));
+        }
+    }
+    None
+}
+
 fn jpeg_complete(bytes: &[u8]) -> std::result::Result<(), String> {
     let last = |marker: u8| bytes.windows(2).rposition(|w| w == [0xFF, marker]);
     match (last(0xDA), last(0xD9)) {
@@ -476,5 +670,46 @@ mod tests {
         let h = HeightField::from_heights(1, 1, vec![0.25], "t").unwrap();
         assert_eq!(h.texel(0, 0), 0.25);
         assert_eq!(h.format(), vk::Format::R32_SFLOAT);
+    }
+
+    /// Single-channel OpenEXR (`Y` or `R` only) loads exactly; a value outside [0, 1]
+    /// is named.
+    #[test]
+    fn single_channel_exr_loads() {
+        use exr::prelude::{Image, SpecificChannels, WritableImage as _};
+        let dir = std::env::temp_dir().join(format!("dispmap-exr1-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (name, scale) in [("Y", 1.0f32), ("R", 1.0), ("Y", 3.0)] {
+            let pixels = SpecificChannels::build()
+                .with_channel(name)
+                .with_pixel_fn(move |p| (scale * (p.0 + 3 * p.1) as f32 / 8.0,));
+            let path = dir.join(format!("{name}{scale}.exr"));
+            Image::from_channels((3, 2), pixels)
+                .write()
+                .to_file(&path)
+                .unwrap();
+            let header = HeightField::probe(&path).unwrap();
+            assert_eq!((header.width, header.height), (3, 2));
+            match HeightField::load(&path, Convention::Height) {
+                Ok(field) => {
+                    assert_eq!(scale, 1.0);
+                    assert_eq!(field.format(), vk::Format::R32_SFLOAT);
+                    assert_eq!(field.texel(2, 1), 5.0 / 8.0);
+                    let depth = HeightField::load(&path, Convention::Depth).unwrap();
+                    assert_eq!(depth.texel(2, 1), 3.0 / 8.0);
+                }
+                Err(e) => {
+                    assert_eq!(scale, 3.0, "{e}");
+                    let e = e.to_string();
+                    assert!(e.contains("Y3.exr") && e.contains("outside [0, 1]"), "{e}");
+                }
+            }
+        }
+        // Not a regular file: refused before reading.
+        let err = HeightField::load(&dir, Convention::Height)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("is a folder"), "{err}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

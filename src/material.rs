@@ -35,14 +35,31 @@ pub struct MaterialImages {
 }
 
 fn load_rgba(path: &Path) -> Result<RgbaImage> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let bytes = crate::heightfield::read_checked(path)?;
     let image = image::load_from_memory(&bytes).map_err(|e| Error::Image {
         path: path.to_owned(),
         message: format!("cannot decode: {e}"),
     })?;
+    // Float images (OpenEXR) would turn NaN into 0 silently in the 8-bit conversion.
+    let float = match &image {
+        image::DynamicImage::ImageRgb32F(i) => Some((i.as_raw(), 3)),
+        image::DynamicImage::ImageRgba32F(i) => Some((i.as_raw(), 4)),
+        _ => None,
+    };
+    if let Some((values, channels)) = float
+        && let Some(k) = values.iter().position(|v| !v.is_finite())
+    {
+        let pixel = k / channels;
+        return Err(Error::Image {
+            path: path.to_owned(),
+            message: format!(
+                "non-finite value {} at pixel ({}, {})",
+                values[k],
+                pixel % image.width() as usize,
+                pixel / image.width() as usize
+            ),
+        });
+    }
     if image.width() == 0 || image.height() == 0 {
         return Err(Error::Image {
             path: path.to_owned(),

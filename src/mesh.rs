@@ -294,6 +294,11 @@ impl Mesh {
         if radius.is_nan() || radius <= 0.0 {
             return Err(bad("has no extent"));
         }
+        if !radius.is_finite() {
+            return Err(bad(
+                "has coordinates whose extent overflows f32 (no usable triangle)",
+            ));
+        }
         let positions: Vec<Vec3> = positions.iter().map(|p| (*p - centre) / radius).collect();
 
         // Per-vertex accumulation of face normals, dP/du and dP/dv (area weighted).
@@ -318,6 +323,18 @@ impl Mesh {
                 dpdu[v] += fu * area;
                 dpdv[v] += fv * area;
             }
+        }
+        // A triangle is usable when its area is finite and above f32's resolution of the
+        // unit sphere the mesh was normalised into.
+        let usable = indices.chunks_exact(3).any(|tri| {
+            let [a, b, c] = [tri[0], tri[1], tri[2]].map(|i| positions[i as usize]);
+            let area = (b - a).cross(c - a).length();
+            area.is_finite() && area > f32::EPSILON * f32::EPSILON
+        });
+        if !usable {
+            return Err(bad(
+                "has no usable triangle: every one is degenerate (zero area)",
+            ));
         }
         let mut vertices = Vec::with_capacity(n);
         for k in 0..n {

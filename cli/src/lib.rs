@@ -13,6 +13,7 @@ pub mod bundled;
 pub mod contact_sheet;
 pub mod heatmap;
 pub mod measure;
+pub mod memory;
 pub mod mesh_file;
 pub mod metrics;
 pub mod output;

@@ -13,7 +13,7 @@ use dispmap_cli::heatmap::{self, CornerStats, IterationStats};
 use dispmap_cli::measure::Measure as _;
 use dispmap_cli::metrics::ErrorMetrics;
 use dispmap_cli::reference::Reference;
-use dispmap_cli::{bench, bundled, output};
+use dispmap_cli::{bench, bundled, memory, output};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -116,6 +116,11 @@ struct BenchArgs {
     /// when on, the `shadow` pass's time goes into results.csv (`shadow_ms`) and the report.
     #[arg(long, default_value = "off", value_name = "MODE")]
     shadows: ShadowMode,
+    /// Refuse a run whose estimated memory (the largest map or sweep size with the
+    /// frame, the reference and the heat maps) is above this (e.g. 8G) [default: the
+    /// memory available].
+    #[arg(long, value_name = "BYTES", value_parser = memory::parse_bytes)]
+    max_memory: Option<u64>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -180,26 +185,26 @@ struct DemoArgs {
 struct CommonArgs {
     /// The quality: linear steps over the full depth (linear, relief, dig's `iter`),
     /// pom's n_max, secant's samples per segment. Default: 15 for secant, 64 otherwise.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     steps: Option<u32>,
     /// pom: n_min, the sample count at a head-on view.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
     min_steps: u32,
     /// Binary-search steps after the linear march (relief, dig).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true)]
     refine_steps: u32,
     /// secant: split the ray into this many segments (the paper's multi-pass variant).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     segments: u32,
     /// dig: block size in pixels, N or WxH.
     #[arg(long, default_value = "4x4", value_parser = parse_block)]
     block: (u32, u32),
     /// dig: interval widening eps1 = eps2 (default 1/steps).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     eps: Option<f32>,
     /// pyramid: coarsest traversal level (0 = full detail) or `auto` (from the pixel's
     /// texel footprint).
-    #[arg(long, default_value = "0")]
+    #[arg(long, default_value = "0", allow_negative_numbers = true)]
     max_level: MaxLevel,
     /// Level of detail, every method (off by default): pixels whose texel footprint is at
     /// least 2^L texels take the bump result without tracing; between 2^(L-1) and 2^L
@@ -219,25 +224,30 @@ struct CommonArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     camera_azimuth: f32,
     /// Eye height above the plane in tiles (tiled plane only).
-    #[arg(long, default_value_t = 0.25)]
+    #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
     camera_height: f32,
     /// Vertical field of view, degrees.
-    #[arg(long, default_value_t = 45.0)]
+    #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
     fov: f32,
     /// Macro geometry: `plane` (tiled, repeat addressing), `quad` (one decal, clamp),
     /// `cube` (six decals), `sphere` or `torus` (tiled); a loaded `mesh` needs --scene.
     #[arg(long, default_value = "plane")]
     geometry: Geometry,
     /// Frames to render; timings are medians over them.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
     frames: u32,
+    /// Refuse a run whose estimated memory (from the map and frame size, before
+    /// anything large is allocated) is above this (e.g. 8G, 512M) [default: the memory
+    /// available].
+    #[arg(long, value_name = "BYTES", value_parser = memory::parse_bytes, allow_negative_numbers = true)]
+    max_memory: Option<u64>,
     /// Self-shadowing (Tatarchuk 2006, 3.2): `off`, `hard` (first occluder along the
     /// light ray: exact for exact, dig-guarded and pyramid, a linear march with --steps
     /// otherwise) or `soft` (the paper's penumbra estimate); timed as the `shadow` pass.
     #[arg(long, default_value = "off")]
     shadows: ShadowMode,
     /// Soft shadows: height samples along the light ray (the paper's 8).
-    #[arg(long, default_value_t = DEFAULT_SHADOW_SAMPLES, value_name = "N")]
+    #[arg(long, default_value_t = DEFAULT_SHADOW_SAMPLES, value_name = "N", allow_negative_numbers = true)]
     shadow_samples: u32,
 }
 
@@ -380,6 +390,15 @@ impl CommonArgs {
     }
 }
 
+/// The largest depth scale at which `exact`, `dig-guarded` and `pyramid` are measured to
+/// agree with the reference as the accuracy tests require (at most 0.04% of pixels more
+/// than a texel off on the mountains map at 1-60 degrees); above it a warning is printed.
+const EXACT_DEPTH_SCALE: f32 = 3.0;
+
+/// The warning of a measured frame with no compared pixel.
+const NO_PIXELS: &str = "no pixel of the frame shows the displaced surface (0 compared \
+                         pixels): the error metrics are null, not a perfect score";
+
 /// The metrics JSON of `render --metrics`.
 #[derive(Serialize)]
 struct MetricsReport<'a> {
@@ -400,6 +419,9 @@ struct MetricsReport<'a> {
     driver: &'a str,
     timings_ms: BTreeMap<String, f64>,
     error: ErrorSummary,
+    /// Set when the metrics mean nothing (no pixel compared).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    warning: Option<String>,
     nonfinite_pixels: u64,
     iterations: Iterations,
     /// DIG methods only: the corner pass's iterations.
@@ -407,13 +429,15 @@ struct MetricsReport<'a> {
     corner_pass: Option<CornerPass>,
 }
 
+/// The error against the reference; every measure `null` when no pixel was compared
+/// (the frame shows no geometry: nothing was measured, which is not a perfect score).
 #[derive(Serialize)]
 struct ErrorSummary {
-    mean_texels: f64,
-    p99_texels: f64,
-    max_texels: f64,
-    artifact_fraction: f64,
-    psnr_db: f64,
+    mean_texels: Option<f64>,
+    p99_texels: Option<f64>,
+    max_texels: Option<f64>,
+    artifact_fraction: Option<f64>,
+    psnr_db: Option<f64>,
     compared_pixels: u64,
 }
 
@@ -462,18 +486,28 @@ impl CornerPass {
 
 impl From<&ErrorMetrics> for ErrorSummary {
     fn from(e: &ErrorMetrics) -> Self {
+        let some = |v: f64| (e.compared_pixels > 0).then_some(v);
         ErrorSummary {
-            mean_texels: e.mean_texels,
-            p99_texels: e.p99_texels,
-            max_texels: e.max_texels,
-            artifact_fraction: e.artifact_fraction,
-            psnr_db: e.psnr_db,
+            mean_texels: some(e.mean_texels),
+            p99_texels: some(e.p99_texels),
+            max_texels: some(e.max_texels),
+            artifact_fraction: some(e.artifact_fraction),
+            psnr_db: some(e.psnr_db),
             compared_pixels: e.compared_pixels,
         }
     }
 }
 
 fn main() {
+    // A file size limit (`ulimit -f`) makes a write fail with EFBIG instead of killing the
+    // process with SIGXFSZ, so the temporary file of an output is removed, not left.
+    // SAFETY: setting a signal's disposition to SIG_IGN installs no handler code; it is
+    // done before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+    // SIGINT, SIGTERM, SIGHUP during a commit remove its temporary files first.
+    output::clean_up_on_signals();
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let matches = Cli::command().get_matches();
     let cli = match Cli::from_arg_matches(&matches) {
@@ -518,7 +552,7 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
             let sub = matches
                 .subcommand_matches("view")
                 .context("clap parsed `view` without its matches")?;
-            view::run(&options, &args, sub)
+            view::run(&options, args, sub)
         }
         None => {
             let args = DemoArgs::parse_defaults();
@@ -576,60 +610,127 @@ fn info(options: &ContextOptions) -> Result<()> {
     finish(ctx)
 }
 
-/// The height map, settings and scene assets of `render` (and `view`): from --scene (its
-/// values, overridden by the flags given) or from the flags alone.
+/// The height map, settings and scene assets of `render`: from --scene (its values,
+/// overridden by the flags given) or from the flags alone. What the command line
+/// overrides is not loaded (--heightmap: the scene's map; --geometry: its mesh); the
+/// run's memory is estimated and checked before the map is read (a file's header gives
+/// its size).
 fn render_inputs(
-    scene: Option<&Path>,
-    heightmap: Option<&Path>,
-    convention: Option<Convention>,
-    method: Method,
-    common: &CommonArgs,
+    args: &RenderArgs,
     matches: &ArgMatches,
 ) -> Result<(HeightField, String, RenderSettings, SceneAssets)> {
+    use dispmap_cli::scene_file::{MapSource, SceneFile};
     let method_given = matches.value_source("method") == Some(ValueSource::CommandLine);
-    let Some(scene_path) = scene else {
-        let (Some(path), Some(convention)) = (heightmap, convention) else {
-            bail!("--heightmap and --convention are needed without --scene");
+    let given_map = match (&args.heightmap, args.convention) {
+        (Some(path), Some(convention)) => Some(MapSource::File {
+            path: path.clone(),
+            convention,
+        }),
+        _ => None,
+    };
+    let (settings, source, scene) = match &args.scene {
+        None => {
+            let Some(source) = given_map else {
+                bail!("--heightmap and --convention are needed without --scene");
+            };
+            let settings = args.common.settings(args.method);
+            settings.validate()?;
+            (settings, source, None)
+        }
+        Some(scene_path) => {
+            let file = SceneFile::read(scene_path)?;
+            let mut settings = file.settings(scene_path)?;
+            args.common.override_scene(
+                &mut settings,
+                &file,
+                method_given.then_some(args.method),
+                matches,
+            );
+            settings.validate()?;
+            let source = given_map.unwrap_or_else(|| file.heightmap_source(scene_path));
+            (settings, source, Some((file, scene_path)))
+        }
+    };
+    let check_memory = |map: memory::MapSize| {
+        let frame = [settings.width, settings.height];
+        let what = format!(
+            "rendering {}x{} on the {}x{} map {}{}",
+            frame[0],
+            frame[1],
+            map.size[0],
+            map.size[1],
+            source.label(),
+            if args.metrics.is_some() {
+                " with the reference (--metrics)"
+            } else {
+                ""
+            }
+        );
+        let extras = memory::Extras {
+            reference: args.metrics.is_some(),
+            heatmap: args.heatmap.is_some() || args.interval_map.is_some(),
+            depth: args.depth_out.is_some(),
         };
-        let settings = common.settings(method);
-        settings.validate()?;
-        let field = HeightField::load(path, convention)?;
-        return Ok((
-            field,
-            path.display().to_string(),
-            settings,
-            SceneAssets::default(),
-        ));
+        let estimate = memory::estimate(map, frame, extras);
+        memory::check(&estimate, args.common.max_memory, &what)
     };
-    let file = dispmap_cli::scene_file::SceneFile::read(scene_path)?;
-    let mut loaded = file.resolve(scene_path)?;
-    common.override_scene(
-        &mut loaded.settings,
-        &file,
-        method_given.then_some(method),
-        matches,
-    );
-    loaded.settings.validate()?;
-    let (field, label) = match (heightmap, convention) {
-        (Some(path), Some(convention)) => (
-            HeightField::load(path, convention)?,
-            path.display().to_string(),
-        ),
-        _ => (loaded.field, loaded.heightmap),
+    if let MapSource::File { path, .. } = &source {
+        check_memory(memory::MapSize::from_header(&HeightField::probe(path)?))?;
+    }
+    let field = source.load()?;
+    if let MapSource::Bundled { .. } = &source {
+        check_memory(memory::MapSize::loaded(&field))?;
+    }
+    let assets = match scene {
+        Some((file, path)) => file.assets(path, settings.scene.geometry == Geometry::Mesh)?,
+        None => SceneAssets::default(),
     };
-    Ok((field, label, loaded.settings, loaded.assets))
+    Ok((field, source.label(), settings, assets))
 }
 
 fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> Result<()> {
     args.common.check()?;
-    let (field, heightmap_label, settings, assets) = render_inputs(
-        args.scene.as_deref(),
-        args.heightmap.as_deref(),
-        args.convention,
-        args.method,
-        &args.common,
-        matches,
-    )?;
+    // Every output is checked before any work (before the inputs are read), its bytes
+    // kept until all are made, and all are written together at the end (nothing is
+    // written if any fails).
+    let mut outputs = output::Outputs::new();
+    let checks = [
+        ("--out", args.out.as_ref(), output::Format::Png),
+        ("--metrics", args.metrics.as_ref(), output::Format::Json),
+        ("--heatmap", args.heatmap.as_ref(), output::Format::Png),
+        (
+            "--interval-map",
+            args.interval_map.as_ref(),
+            output::Format::Png,
+        ),
+        (
+            "--depth-out",
+            args.depth_out.as_ref(),
+            output::Format::Depth,
+        ),
+    ];
+    for (option, path, format) in checks {
+        if let Some(path) = path {
+            outputs
+                .check(option, path, format)
+                .with_context(|| format!("invalid {option}"))?;
+        }
+    }
+    let (field, heightmap_label, settings, assets) = render_inputs(args, matches)?;
+    if matches!(
+        settings.method,
+        Method::Exact | Method::DigGuarded | Method::Pyramid
+    ) && settings.scene.depth_scale > EXACT_DEPTH_SCALE
+    {
+        eprintln!(
+            "warning: --depth-scale {} is above {EXACT_DEPTH_SCALE}: {}'s agreement with the \
+             exact reference is not guaranteed there (f32 arithmetic along rays that cross \
+             millions of texels; measured on the mountains map, 1-60 degrees: up to 0.25% \
+             of pixels more than a texel off at 10, 0.7% at 100, 7.7% at 1000; \
+             docs/guarantees.md)",
+            settings.scene.depth_scale, settings.method
+        );
+    }
     let dig = settings.method.needs().dig_corners;
     if args.interval_map.is_some() && !dig {
         bail!(
@@ -642,29 +743,6 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
         && !(max.is_finite() && max > 0.0)
     {
         bail!("invalid --heatmap-max: {max} is not a positive finite number");
-    }
-    if let Some(path) = &args.depth_out {
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase());
-        if !matches!(ext.as_deref(), Some("exr" | "png")) {
-            bail!(
-                "invalid --depth-out: {} must end in .exr (32-bit float) or .png (16-bit)",
-                path.display()
-            );
-        }
-    }
-    let outputs = [
-        ("--out", args.out.as_ref()),
-        ("--metrics", args.metrics.as_ref()),
-        ("--heatmap", args.heatmap.as_ref()),
-        ("--interval-map", args.interval_map.as_ref()),
-        ("--depth-out", args.depth_out.as_ref()),
-    ];
-    for (option, path) in outputs {
-        if let Some(path) = path {
-            output::check_writable(path).with_context(|| format!("invalid {option}"))?;
-        }
     }
     let ctx = Arc::new(Context::headless(options)?);
     {
@@ -692,17 +770,20 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
             None
         };
         if let Some(out) = &args.out {
-            output::write_png(out, settings.width, settings.height, &color)?;
+            let png = output::png_bytes(out, settings.width, settings.height, &color)?;
+            outputs.stage(out, png)?;
         }
         if let Some(path) = &args.heatmap {
             let rgba = heatmap::iteration_heatmap(&hits, &covered, args.heatmap_max)?;
-            output::write_png(path, settings.width, settings.height, &rgba)?;
+            let png = output::png_bytes(path, settings.width, settings.height, &rgba)?;
+            outputs.stage(path, png)?;
         }
         if let Some(path) = &args.depth_out {
             let depth = renderer
                 .read_depth()?
                 .context("the renderer kept no corrected depth")?;
-            output::write_depth(path, settings.width, settings.height, &depth)?;
+            let bytes = output::depth_bytes(path, settings.width, settings.height, &depth)?;
+            outputs.stage(path, bytes)?;
         }
         if let Some(path) = &args.interval_map {
             let (grid, corners) = corners
@@ -715,7 +796,8 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
                 settings.params.block,
                 [settings.width, settings.height],
             )?;
-            output::write_png(path, settings.width, settings.height, &rgba)?;
+            let png = output::png_bytes(path, settings.width, settings.height, &rgba)?;
+            outputs.stage(path, png)?;
         }
         if let (Some(path), Some(error)) = (&args.metrics, error) {
             let report = MetricsReport {
@@ -734,6 +816,7 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
                 driver: &ctx.info().driver,
                 timings_ms: timings.iter().cloned().collect(),
                 error: (&error).into(),
+                warning: (error.compared_pixels == 0).then(|| NO_PIXELS.to_owned()),
                 nonfinite_pixels: error.nonfinite_pixels,
                 iterations: trace_iterations.into(),
                 corner_pass: corners
@@ -741,7 +824,7 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
                     .map(|(_, c)| CornerPass::new(heatmap::corner_stats(c), &trace_iterations)),
             };
             let json = serde_json::to_string_pretty(&report)?;
-            output::write_atomic(path, json.as_bytes())?;
+            outputs.stage(path, json.into_bytes())?;
         }
         // With `--out -` (or `--metrics -`) standard output carries the file: the
         // summary goes to standard error instead.
@@ -750,7 +833,9 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
             .any(|p| p.as_deref() == Some(Path::new("-")));
         let summary = timings_line(&timings);
         let mut lines = vec![summary];
-        if let Some(e) = error {
+        if let Some(e) = error.as_ref().filter(|e| e.compared_pixels == 0) {
+            eprintln!("warning: {NO_PIXELS} (non-finite {})", e.nonfinite_pixels);
+        } else if let Some(e) = error {
             lines.push(format!(
                 "error: mean {:.3} texels, p99 {:.3}, max {:.3}, artifacts {:.3}%, PSNR {:.2} dB, non-finite {}",
                 e.mean_texels,
@@ -769,7 +854,10 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
             }
         }
     }
-    finish(ctx)
+    // Validation clean, then every output at once.
+    finish(ctx)?;
+    outputs.commit()?;
+    Ok(())
 }
 
 /// The per-pass times as one line.
@@ -788,8 +876,25 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         args.common.settings(method).validate()?;
     }
     let field = bundled::rocks()?;
-    std::fs::create_dir_all(&args.out_dir)
-        .with_context(|| format!("cannot create {}", args.out_dir.display()))?;
+    let first = args.common.settings(Method::ALL[0]);
+    memory::check(
+        &memory::estimate(
+            memory::MapSize::loaded(&field),
+            [first.width, first.height],
+            memory::Extras {
+                reference: true,
+                ..memory::Extras::default()
+            },
+        ),
+        args.common.max_memory,
+        &format!(
+            "rendering {}x{} on the bundled rocks map with the reference",
+            first.width, first.height
+        ),
+    )?;
+    // The folder is checked now, created and filled at the end, all files together.
+    output::check_folder_writable(&args.out_dir).context("invalid --out-dir")?;
+    let mut outputs = output::Outputs::new();
     let ctx = Arc::new(Context::headless(options)?);
     println!(
         "dispmap: {} on {} ({}), {}x{}, camera elevation {} deg, steps {}, median of {} frames",
@@ -811,7 +916,8 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         let reference = Reference::new(&field, first.scene.addressing());
         let frame_ref = renderer.reference(&reference)?;
         let path = args.out_dir.join("reference.png");
-        output::write_png(&path, first.width, first.height, &frame_ref.color)?;
+        let png = output::png_bytes(&path, first.width, first.height, &frame_ref.color)?;
+        outputs.stage_in(&args.out_dir, "reference.png", png)?;
         let mut tiles = vec![dispmap_cli::contact_sheet::Tile {
             label: "reference (CPU, exact)".into(),
             rgba: frame_ref.color.clone(),
@@ -857,8 +963,14 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             if e.nonfinite_pixels > 0 {
                 bail!("{method}: {} non-finite hit texels", e.nonfinite_pixels);
             }
-            let path: &Path = &args.out_dir.join(format!("{}.png", method.name()));
-            output::write_png(path, settings.width, settings.height, &m.color)?;
+            let name = format!("{}.png", method.name());
+            let png = output::png_bytes(
+                &args.out_dir.join(&name),
+                settings.width,
+                settings.height,
+                &m.color,
+            )?;
+            outputs.stage_in(&args.out_dir, &name, png)?;
             tiles.push(dispmap_cli::contact_sheet::Tile {
                 label: format!(
                     "{}  {:.2}% artifacts",
@@ -869,19 +981,22 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             });
         }
         let sheet = dispmap_cli::contact_sheet::compose(&tiles, first.width, first.height, 5)?;
-        output::write_png(
+        let png = output::png_bytes(
             &args.out_dir.join("contact_sheet.png"),
             sheet.width,
             sheet.height,
             &sheet.rgba,
         )?;
+        outputs.stage_in(&args.out_dir, "contact_sheet.png", png)?;
         println!(
             "\nimages: {} (reference.png is the exact reference, shaded; contact_sheet.png \
              shows every method beside it)",
             args.out_dir.display()
         );
     }
-    finish(ctx)
+    finish(ctx)?;
+    outputs.commit()?;
+    Ok(())
 }
 
 fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
@@ -917,9 +1032,40 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
     if maps.is_empty() && size_source.is_none() {
         bail!("invalid --maps: no map to benchmark (give --maps or --heightmap)");
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("invalid --out: cannot create {}", args.out.display()))?;
-    output::check_writable(&args.out.join("report.md")).context("invalid --out")?;
+    // The largest map (or sweep size) with the frame, the reference and the heat maps.
+    let extras = memory::Extras {
+        reference: true,
+        heatmap: true,
+        depth: false,
+    };
+    let mut candidates: Vec<(memory::MapSize, String)> = maps
+        .iter()
+        .map(|m| (memory::MapSize::loaded(&m.field), m.name.clone()))
+        .collect();
+    if let Some(source) = &size_source {
+        let bytes = memory::MapSize::loaded(&source.field).texel_bytes;
+        for &side in &config.sizes {
+            let map = memory::MapSize {
+                size: [side, side],
+                texel_bytes: bytes,
+                load_bytes: 0,
+            };
+            candidates.push((map, format!("{} resampled to {side}x{side}", source.name)));
+        }
+    }
+    if let Some((estimate, name)) = candidates
+        .into_iter()
+        .map(|(map, name)| (memory::estimate(map, config.frame, extras), name))
+        .max_by_key(|(e, _)| e.bytes)
+    {
+        let what = format!(
+            "benchmarking {}x{} frames on {name} with the reference",
+            config.frame[0], config.frame[1]
+        );
+        memory::check(&estimate, args.max_memory, &what)?;
+    }
+    // The folder is created and filled only when every result is in (all files at once).
+    output::check_folder_writable(&args.out).context("invalid --out")?;
 
     let ctx = Arc::new(Context::headless(options)?);
     let bar = if args.quiet {
@@ -957,7 +1103,8 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
     bar.finish_and_clear();
     let results = results?;
     let command = command_line();
-    let written = bench::write_outputs(&args.out, &results, &command)?;
+    let outputs = bench::stage_outputs(&args.out, &results, &command)?;
+    let written = outputs.paths();
     print_bench_summary(&results);
     println!(
         "\nwrote {} files to {} in {:.0} s (report.md, results.csv, plots, heat maps)",
@@ -965,7 +1112,9 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         args.out.display(),
         results.wall.as_secs_f64()
     );
-    finish(ctx)
+    finish(ctx)?;
+    outputs.commit()?;
+    Ok(())
 }
 
 /// The command line as typed (arguments with spaces or quotes are single-quoted).

@@ -9,6 +9,12 @@ use std::path::Path;
 
 /// Loads a mesh file by its extension: `.obj`, `.gltf` or `.glb`.
 pub fn load(path: &Path) -> Result<Mesh> {
+    if path.is_dir() {
+        return Err(Error::invalid(
+            path.display().to_string(),
+            "is a folder, not a mesh file (.obj, .gltf or .glb)",
+        ));
+    }
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());

@@ -1,11 +1,22 @@
-//! Writing result files without ever leaving a partial one: everything is written to a
-//! temporary file next to the target and renamed over it only when complete.
+//! Writing result files without ever leaving a partial one. Every output of a run is
+//! checked before any work ([`Outputs::check`]: the folder exists and is writable, the
+//! file system is not read-only, the name is a file name and its extension matches the
+//! format written, no two outputs are the same file), its bytes are kept in memory until
+//! the run has produced all of them ([`Outputs::stage`]), and [`Outputs::commit`] writes
+//! them together: each regular file to a temporary file beside it, then, only when every
+//! one of them is complete and synced, devices are written through and the temporary
+//! files are renamed over their targets. A failure before the renames removes every
+//! temporary file and leaves every target as it was (or absent).
 
 use dispmap::error::{Error, Result};
 use std::io::Write;
+use std::os::unix::ffi::OsStrExt;
+use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicPtr, Ordering};
 
 /// What an output path names, with symlinks followed: where the bytes go and how.
+#[derive(Clone, Debug)]
 enum Target {
     /// A regular file (or nothing yet): written to a temporary file beside it and renamed
     /// over it, so a failed run leaves the old file (or none); `mode`: the permissions of
@@ -15,8 +26,22 @@ enum Target {
         mode: Option<std::fs::Permissions>,
     },
     /// Not a regular file (a device such as `/dev/null`, a FIFO, `/dev/stdout`): opened
-    /// and written through, never replaced.
-    WriteThrough(PathBuf),
+    /// and written through, never replaced. `device`: a character device (may be named
+    /// by two outputs, e.g. `/dev/null`).
+    WriteThrough { path: PathBuf, device: bool },
+}
+
+/// The format an output holds, for the extension check.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// A PNG image: `.png` or no extension.
+    Png,
+    /// JSON: `.json` or no extension.
+    Json,
+    /// A depth image: `.exr` (32-bit float) or `.png` (16-bit), required.
+    Depth,
+    /// Anything (the file's name fixes it, e.g. the benchmark's files).
+    Any,
 }
 
 fn io_error(path: &Path, kind: std::io::ErrorKind, message: impl Into<String>) -> Error {
@@ -26,11 +51,109 @@ fn io_error(path: &Path, kind: std::io::ErrorKind, message: impl Into<String>) -
     }
 }
 
+/// The lower-case extension of `path`, if any.
+fn extension(path: &Path) -> Option<String> {
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+}
+
+/// Refuses a name the format does not match (`out.jpg` for a PNG); `-` and names
+/// without an extension (`/dev/null`) take any format but a depth image's.
+fn check_extension(path: &Path, format: Format) -> Result<()> {
+    let ext = extension(path);
+    let err = |message: String| {
+        Err(Error::Image {
+            path: path.to_owned(),
+            message,
+        })
+    };
+    match (format, ext.as_deref()) {
+        (Format::Any, _)
+        | (Format::Png, None | Some("png"))
+        | (Format::Json, None | Some("json")) => Ok(()),
+        (Format::Depth, Some("exr" | "png")) => Ok(()),
+        (Format::Depth, _) if path == Path::new("-") || is_device(path) => Ok(()),
+        (Format::Depth, _) => err(
+            "unknown depth format: the name must end in .exr (32-bit float) or .png (16-bit)"
+                .into(),
+        ),
+        (Format::Png, Some(e)) => err(format!(
+            "the extension .{e} does not match the format written (PNG): use .png"
+        )),
+        (Format::Json, Some(e)) => err(format!(
+            "the extension .{e} does not match the format written (JSON): use .json"
+        )),
+    }
+}
+
+fn is_device(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| {
+        let t = m.file_type();
+        t.is_char_device() || t.is_block_device() || t.is_fifo() || t.is_socket()
+    })
+}
+
+/// Whether this process may write `path` (`access(2)` with `W_OK`, plus `X_OK` for a
+/// folder): permission, a read-only file system. The error names `what` and the cause.
+fn check_access(path: &Path, folder: bool, shown: &Path) -> Result<()> {
+    let c = std::ffi::CString::new(path.as_os_str().as_bytes()).map_err(|_| {
+        io_error(
+            shown,
+            std::io::ErrorKind::InvalidInput,
+            "the path contains a NUL byte",
+        )
+    })?;
+    let mode = if folder {
+        libc::W_OK | libc::X_OK
+    } else {
+        libc::W_OK
+    };
+    // SAFETY: `c` is a NUL-terminated string that outlives the call; access(2) only reads
+    // it and touches no memory of this process otherwise.
+    let rc = unsafe { libc::access(c.as_ptr(), mode) };
+    if rc == 0 {
+        return Ok(());
+    }
+    let e = std::io::Error::last_os_error();
+    let message = match e.raw_os_error() {
+        Some(libc::EROFS) => format!("{} is on a read-only file system", path.display()),
+        Some(libc::EACCES | libc::EPERM) if folder => {
+            format!(
+                "permission denied: cannot create files in folder {}",
+                path.display()
+            )
+        }
+        Some(libc::EACCES | libc::EPERM) => {
+            format!("permission denied: cannot write {}", path.display())
+        }
+        _ => format!("cannot write {}: {e}", path.display()),
+    };
+    Err(io_error(shown, e.kind(), message))
+}
+
 /// Where `path` leads (a symlink to its target) and how it is written; an error for a
-/// folder, a missing folder or a read-only file (which is not replaced).
+/// folder, a missing or unwritable folder, a read-only file (which is not replaced), a
+/// name that ends in `/` or names no file.
 fn target_of(path: &Path) -> Result<Target> {
     if path == Path::new("-") {
-        return Ok(Target::WriteThrough(PathBuf::from("/dev/stdout")));
+        return Ok(Target::WriteThrough {
+            path: PathBuf::from("/dev/stdout"),
+            device: false,
+        });
+    }
+    if path.as_os_str().as_bytes().ends_with(b"/") {
+        return Err(io_error(
+            path,
+            std::io::ErrorKind::InvalidInput,
+            "ends in '/' (a folder name), not a file name",
+        ));
+    }
+    if path.file_name().is_none() {
+        return Err(io_error(
+            path,
+            std::io::ErrorKind::InvalidInput,
+            "names no file",
+        ));
     }
     let resolved = match std::fs::symlink_metadata(path) {
         Ok(m) if m.file_type().is_symlink() => std::fs::canonicalize(path).unwrap_or_else(|_| {
@@ -63,7 +186,13 @@ fn target_of(path: &Path) -> Result<Target> {
                 mode: Some(m.permissions()),
             })
         }
-        Ok(_) => Ok(Target::WriteThrough(resolved)),
+        Ok(m) => {
+            check_access(&resolved, false, path)?;
+            Ok(Target::WriteThrough {
+                path: resolved,
+                device: m.file_type().is_char_device(),
+            })
+        }
         Err(_) => {
             check_folder(path, &resolved)?;
             Ok(Target::Replace {
@@ -74,6 +203,7 @@ fn target_of(path: &Path) -> Result<Target> {
     }
 }
 
+/// The folder of `resolved` exists and this process can create files in it.
 fn check_folder(path: &Path, resolved: &Path) -> Result<()> {
     let parent = parent_of(resolved);
     if !parent.is_dir() {
@@ -83,14 +213,41 @@ fn check_folder(path: &Path, resolved: &Path) -> Result<()> {
             format!("folder {} does not exist", parent.display()),
         ));
     }
-    Ok(())
+    check_access(&parent, true, path)
 }
 
-/// Checks, before any work, that `path` can take an output: its folder exists, it is not
-/// a folder and not a read-only file; `-` is standard output. A symlink is followed (its target is written,
-/// the link kept); a device or FIFO is written through (`/dev/null` discards).
+/// Checks, before any work, that `path` can take an output: its folder exists and is
+/// writable, it is not a folder and not a read-only file; `-` is standard output. A
+/// symlink is followed (its target is written, the link kept); a device or FIFO is
+/// written through (`/dev/null` discards).
 pub fn check_writable(path: &Path) -> Result<()> {
     target_of(path).map(|_| ())
+}
+
+/// Checks that `dir` can take the files of [`Outputs::stage_in`]: an existing writable
+/// folder, or a missing one whose nearest existing ancestor is a writable folder (it is
+/// created only when the outputs are committed).
+pub fn check_folder_writable(dir: &Path) -> Result<()> {
+    if dir.as_os_str().is_empty() {
+        return Ok(());
+    }
+    let mut existing = dir.to_owned();
+    loop {
+        match std::fs::metadata(&existing) {
+            Ok(m) if m.is_dir() => return check_access(&existing, true, dir),
+            Ok(_) => {
+                return Err(io_error(
+                    dir,
+                    std::io::ErrorKind::NotADirectory,
+                    format!("{} is not a folder", existing.display()),
+                ));
+            }
+            Err(_) => match existing.parent() {
+                Some(p) if !p.as_os_str().is_empty() => existing = p.to_owned(),
+                _ => return check_access(Path::new("."), true, dir),
+            },
+        }
+    }
 }
 
 fn parent_of(path: &Path) -> PathBuf {
@@ -100,52 +257,320 @@ fn parent_of(path: &Path) -> PathBuf {
     }
 }
 
-/// Writes `bytes` to `path`: a regular file (or a new one) through a temporary file in
-/// the same folder renamed over it (atomic: a failed or interrupted run leaves the old
-/// file or none, and the temporary file is removed on error), keeping the replaced
-/// file's permissions; a symlink's target the same way (the link stays); anything else
-/// (device, FIFO) by writing through it. Errors (e.g. `/dev/full`: no space left) name
-/// the path.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let io = |source| Error::Io {
-        path: path.to_owned(),
-        source,
-    };
-    match target_of(path)? {
-        Target::WriteThrough(target) => {
-            let mut file = std::fs::OpenOptions::new()
-                .write(true)
-                .open(&target)
-                .map_err(io)?;
-            file.write_all(bytes)
-                .and_then(|()| file.flush())
-                .map_err(io)
+/// The temporary files of a commit in progress, for [`clean_up_on_signals`]'s handler:
+/// NUL-terminated paths, null where free. A path is never freed once registered (a
+/// handler on another thread may be reading it); each is a few dozen bytes per output.
+static TEMPORARIES: [AtomicPtr<libc::c_char>; MAX_TEMPORARIES] =
+    [const { AtomicPtr::new(std::ptr::null_mut()) }; MAX_TEMPORARIES];
+const MAX_TEMPORARIES: usize = 256;
+
+/// Registers `tmp` for removal by the signal handler; the slot, or `None` when all are
+/// taken (the file is then only removed on error, not on a signal).
+fn register_temporary(tmp: &Path) -> Option<usize> {
+    let c = std::ffi::CString::new(tmp.as_os_str().as_bytes()).ok()?;
+    let raw = c.into_raw();
+    for (i, slot) in TEMPORARIES.iter().enumerate() {
+        if slot
+            .compare_exchange(
+                std::ptr::null_mut(),
+                raw,
+                Ordering::SeqCst,
+                Ordering::SeqCst,
+            )
+            .is_ok()
+        {
+            return Some(i);
         }
-        Target::Replace { path: target, mode } => {
-            let name = target
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "output".into());
-            let tmp = parent_of(&target).join(format!(".{name}.{}.tmp", std::process::id()));
-            let result = (|| {
-                let mut file = std::fs::File::create(&tmp)?;
-                file.write_all(bytes)?;
-                if let Some(mode) = mode {
-                    file.set_permissions(mode)?;
-                }
-                file.sync_all()?;
-                std::fs::rename(&tmp, &target)
-            })();
-            if result.is_err() {
-                let _ = std::fs::remove_file(&tmp);
+    }
+    // SAFETY: `raw` came from `CString::into_raw` above and was published nowhere.
+    drop(unsafe { std::ffi::CString::from_raw(raw) });
+    None
+}
+
+/// Frees the slot of a temporary file renamed or removed (its path is leaked, see
+/// [`TEMPORARIES`]).
+fn unregister_temporary(slot: Option<usize>) {
+    if let Some(i) = slot {
+        TEMPORARIES[i].store(std::ptr::null_mut(), Ordering::SeqCst);
+    }
+}
+
+extern "C" fn remove_temporaries_and_die(signal: libc::c_int) {
+    for slot in &TEMPORARIES {
+        let path = slot.load(Ordering::SeqCst);
+        if !path.is_null() {
+            // SAFETY: a registered path is a NUL-terminated string that is never freed;
+            // unlink(2) is async-signal-safe.
+            unsafe {
+                libc::unlink(path);
             }
-            result.map_err(io)
+        }
+    }
+    // SAFETY: signal(2) and raise(3) are async-signal-safe; the default disposition
+    // ends the process by `signal`, as without this handler.
+    unsafe {
+        libc::signal(signal, libc::SIG_DFL);
+        libc::raise(signal);
+    }
+}
+
+/// Installs a handler for SIGINT, SIGTERM and SIGHUP that removes the temporary files of
+/// a commit in progress and then ends the process by the same signal (as it would have
+/// ended without the handler). Call once, early in `main`.
+pub fn clean_up_on_signals() {
+    let handler = remove_temporaries_and_die as extern "C" fn(libc::c_int);
+    for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        // SAFETY: the handler only reads atomics, calls unlink, signal and raise (all
+        // async-signal-safe) and touches no lock or allocation.
+        unsafe {
+            libc::signal(signal, handler as libc::sighandler_t);
         }
     }
 }
 
-/// Encodes an RGBA8 image as PNG and writes it atomically.
-pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
+/// The identity of a target, for the same-file check: the canonical folder and the name.
+fn identity(target: &Target) -> PathBuf {
+    match target {
+        Target::Replace { path, .. } => {
+            let folder = std::fs::canonicalize(parent_of(path)).unwrap_or_else(|_| parent_of(path));
+            folder.join(path.file_name().unwrap_or_default())
+        }
+        Target::WriteThrough { path, .. } => {
+            std::fs::canonicalize(path).unwrap_or_else(|_| path.clone())
+        }
+    }
+}
+
+struct Entry {
+    /// What the user named it by (`--metrics`), for messages.
+    label: String,
+    /// As given.
+    path: PathBuf,
+    target: Target,
+    bytes: Option<Vec<u8>>,
+}
+
+/// The outputs of one run, checked before any work and committed together at its end
+/// (see the module's documentation).
+#[derive(Default)]
+pub struct Outputs {
+    entries: Vec<Entry>,
+    /// Folders [`Outputs::commit`] creates first (the benchmark's `--out`).
+    folders: Vec<PathBuf>,
+}
+
+impl Outputs {
+    /// No outputs yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Checks that `path` can take an output in `format` (see [`check_writable`]; the
+    /// extension must match the format) and is not the file of an output already
+    /// checked; `label` (e.g. `--out`) names it in errors.
+    pub fn check(&mut self, label: &str, path: &Path, format: Format) -> Result<()> {
+        self.add(label, path, format, None)
+    }
+
+    fn add(
+        &mut self,
+        label: &str,
+        path: &Path,
+        format: Format,
+        bytes: Option<Vec<u8>>,
+    ) -> Result<()> {
+        check_extension(path, format)?;
+        let target = target_of(path)?;
+        let id = identity(&target);
+        let shareable = |t: &Target, given: &Path| {
+            matches!(t, Target::WriteThrough { device: true, .. }) && given != Path::new("-")
+        };
+        if let Some(other) = self.entries.iter().find(|e| {
+            identity(&e.target) == id || (e.path == Path::new("-") && path == Path::new("-"))
+        }) && !(shareable(&target, path) && shareable(&other.target, &other.path))
+        {
+            return Err(io_error(
+                path,
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "is the same file as {} ({}): each output needs its own file",
+                    other.label,
+                    other.path.display()
+                ),
+            ));
+        }
+        self.entries.push(Entry {
+            label: label.to_owned(),
+            path: path.to_owned(),
+            target,
+            bytes,
+        });
+        Ok(())
+    }
+
+    /// Keeps `bytes` for the output checked as `path`, to be written by [`Outputs::commit`].
+    pub fn stage(&mut self, path: &Path, bytes: Vec<u8>) -> Result<()> {
+        let entry = self
+            .entries
+            .iter_mut()
+            .find(|e| e.path == path)
+            .ok_or_else(|| Error::Internal(format!("output {} was not checked", path.display())))?;
+        entry.bytes = Some(bytes);
+        Ok(())
+    }
+
+    /// Checks and keeps a file named `name` in the folder `dir`, which is created (with
+    /// its missing parents) when the outputs are committed.
+    pub fn stage_in(&mut self, dir: &Path, name: &str, bytes: Vec<u8>) -> Result<()> {
+        if !self.folders.iter().any(|d| d == dir) {
+            check_folder_writable(dir)?;
+            self.folders.push(dir.to_owned());
+        }
+        let path = dir.join(name);
+        if dir.is_dir() {
+            self.add(&path.display().to_string(), &path, Format::Any, Some(bytes))
+        } else {
+            // The folder is created at commit: the file is new.
+            self.entries.push(Entry {
+                label: path.display().to_string(),
+                path: path.clone(),
+                target: Target::Replace { path, mode: None },
+                bytes: Some(bytes),
+            });
+            Ok(())
+        }
+    }
+
+    /// The paths staged, in the order they were checked.
+    pub fn paths(&self) -> Vec<PathBuf> {
+        self.entries
+            .iter()
+            .filter(|e| e.bytes.is_some())
+            .map(|e| e.path.clone())
+            .collect()
+    }
+
+    /// Writes every staged output: first each regular file's bytes to a temporary file
+    /// beside it (synced), then devices written through, then the temporary files renamed
+    /// over their targets. Until the renames nothing is replaced: a failure (no space,
+    /// `EFBIG` under a file size limit) removes every temporary file, and folders this
+    /// call created, and leaves the targets as they were. Outputs checked but never
+    /// staged are not written.
+    pub fn commit(self) -> Result<()> {
+        let mut created = Vec::new();
+        for dir in &self.folders {
+            let mut missing = Vec::new();
+            let mut d = dir.as_path();
+            while !d.as_os_str().is_empty() && !d.exists() {
+                missing.push(d.to_owned());
+                d = match d.parent() {
+                    Some(p) => p,
+                    None => break,
+                };
+            }
+            let made = std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+                path: dir.clone(),
+                source,
+            });
+            missing.reverse();
+            created.extend(missing);
+            if let Err(e) = made {
+                remove_folders(&created);
+                return Err(e);
+            }
+        }
+        let mut temps: Vec<(PathBuf, &Entry, Option<usize>)> = Vec::new();
+        let cleanup = |temps: &[(PathBuf, &Entry, Option<usize>)]| {
+            for (tmp, _, slot) in temps {
+                let _ = std::fs::remove_file(tmp);
+                unregister_temporary(*slot);
+            }
+            remove_folders(&created);
+        };
+        for entry in self.entries.iter().filter(|e| e.bytes.is_some()) {
+            let Target::Replace { path: target, mode } = &entry.target else {
+                continue;
+            };
+            let name = target
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "output".into());
+            let tmp = parent_of(target).join(format!(".{name}.{}.tmp", std::process::id()));
+            let bytes = entry.bytes.as_deref().unwrap_or_default();
+            // Registered before it exists, so a signal never misses it.
+            let slot = register_temporary(&tmp);
+            temps.push((tmp.clone(), entry, slot));
+            let written = std::fs::File::create(&tmp).and_then(|mut file| {
+                file.write_all(bytes)?;
+                if let Some(mode) = mode {
+                    file.set_permissions(mode.clone())?;
+                }
+                file.sync_all()
+            });
+            if let Err(source) = written {
+                cleanup(&temps);
+                return Err(Error::Io {
+                    path: entry.path.clone(),
+                    source,
+                });
+            }
+        }
+        for entry in self.entries.iter().filter(|e| e.bytes.is_some()) {
+            let Target::WriteThrough { path: target, .. } = &entry.target else {
+                continue;
+            };
+            let bytes = entry.bytes.as_deref().unwrap_or_default();
+            let written = std::fs::OpenOptions::new()
+                .write(true)
+                .open(target)
+                .and_then(|mut file| file.write_all(bytes).and_then(|()| file.flush()));
+            if let Err(source) = written {
+                cleanup(&temps);
+                return Err(Error::Io {
+                    path: entry.path.clone(),
+                    source,
+                });
+            }
+        }
+        for (i, (tmp, entry, slot)) in temps.iter().enumerate() {
+            let Target::Replace { path: target, .. } = &entry.target else {
+                continue;
+            };
+            if let Err(source) = std::fs::rename(tmp, target) {
+                cleanup(&temps[i..]);
+                return Err(Error::Io {
+                    path: entry.path.clone(),
+                    source,
+                });
+            }
+            unregister_temporary(*slot);
+        }
+        Ok(())
+    }
+}
+
+/// Removes the folders in `created` (parents first in the list), innermost first, where
+/// they are empty.
+fn remove_folders(created: &[PathBuf]) {
+    for dir in created.iter().rev() {
+        let _ = std::fs::remove_dir(dir);
+    }
+}
+
+/// Writes `bytes` to `path` alone (an [`Outputs`] of one): a regular file (or a new one)
+/// through a temporary file in the same folder renamed over it (atomic: a failed or
+/// interrupted run leaves the old file or none, and the temporary file is removed on
+/// error), keeping the replaced file's permissions; a symlink's target the same way (the
+/// link stays); anything else (device, FIFO) by writing through it. Errors (e.g.
+/// `/dev/full`: no space left) name the path.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut outputs = Outputs::new();
+    outputs.add("output", path, Format::Any, Some(bytes.to_vec()))?;
+    outputs.commit()
+}
+
+/// Encodes an RGBA8 image as PNG; `path` names it in errors.
+pub fn png_bytes(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<Vec<u8>> {
     let mut encoded = Vec::new();
     image::write_buffer_with_format(
         &mut std::io::Cursor::new(&mut encoded),
@@ -159,31 +584,27 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
         path: path.to_owned(),
         message: format!("cannot encode PNG: {e}"),
     })?;
-    write_atomic(path, &encoded)
+    Ok(encoded)
 }
 
-/// Writes a depth image (one `f32` per pixel, row by row) atomically, encoded by the
-/// extension of `path`: `.exr`, OpenEXR with 32-bit float RGB channels all holding the
-/// exact value (image's EXR encoder has no single-channel mode); `.png`, 16-bit greyscale
-/// with `round(clamp(depth, 0, 1) * 65535)` (quantised). Any other extension is an error
-/// naming the path; nothing is written then.
-pub fn write_depth(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<()> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+/// Encodes an RGBA8 image as PNG and writes it atomically.
+pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
+    write_atomic(path, &png_bytes(path, width, height, rgba)?)
+}
+
+/// Encodes a depth image (one `f32` per pixel, row by row) by the extension of `path`:
+/// `.exr`, OpenEXR with 32-bit float RGB channels all holding the exact value (image's
+/// EXR encoder has no single-channel mode); `.png`, 16-bit greyscale with
+/// `round(clamp(depth, 0, 1) * 65535)` (quantised); a name without either (`-`, a
+/// device) as OpenEXR. Any other extension is an error naming the path.
+pub fn depth_bytes(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<Vec<u8>> {
+    let ext = extension(path);
     let err = |message: String| Error::Image {
         path: path.to_owned(),
         message,
     };
+    check_extension(path, Format::Depth)?;
     let (bytes, color, format) = match ext.as_deref() {
-        Some("exr") => {
-            let rgb: Vec<f32> = depth.iter().flat_map(|&d| [d, d, d]).collect();
-            (
-                bytemuck::cast_slice::<f32, u8>(&rgb).to_vec(),
-                image::ExtendedColorType::Rgb32F,
-                image::ImageFormat::OpenExr,
-            )
-        }
         Some("png") => {
             let grey: Vec<u16> = depth
                 .iter()
@@ -196,9 +617,12 @@ pub fn write_depth(path: &Path, width: u32, height: u32, depth: &[f32]) -> Resul
             )
         }
         _ => {
-            return Err(err(
-                "unknown depth format: use .exr (32-bit float) or .png (16-bit)".into(),
-            ));
+            let rgb: Vec<f32> = depth.iter().flat_map(|&d| [d, d, d]).collect();
+            (
+                bytemuck::cast_slice::<f32, u8>(&rgb).to_vec(),
+                image::ExtendedColorType::Rgb32F,
+                image::ImageFormat::OpenExr,
+            )
         }
     };
     let mut encoded = Vec::new();
@@ -211,7 +635,13 @@ pub fn write_depth(path: &Path, width: u32, height: u32, depth: &[f32]) -> Resul
         format,
     )
     .map_err(|e| err(format!("cannot encode the depth image: {e}")))?;
-    write_atomic(path, &encoded)
+    Ok(encoded)
+}
+
+/// Writes a depth image atomically, encoded as [`depth_bytes`] says; nothing is written
+/// for an unknown extension.
+pub fn write_depth(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<()> {
+    write_atomic(path, &depth_bytes(path, width, height, depth)?)
 }
 
 #[cfg(test)]
@@ -246,7 +676,10 @@ mod tests {
         // regression must fail here, not replace the machine's /dev/null as root.)
         for device in ["/dev/null", "/dev/full", "-"] {
             assert!(
-                matches!(target_of(Path::new(device)), Ok(Target::WriteThrough(_))),
+                matches!(
+                    target_of(Path::new(device)),
+                    Ok(Target::WriteThrough { .. })
+                ),
                 "{device} would be replaced"
             );
         }
@@ -304,5 +737,86 @@ mod tests {
         let bad = dir.join("d.tif");
         assert!(write_depth(&bad, 3, 2, &depth).is_err());
         assert!(!bad.exists());
+    }
+
+    /// A character device made by the test (`mknod`, as root): `/dev/full`'s numbers
+    /// (1, 7) in `dir`; `None` when not root or mknod fails.
+    fn full_device(dir: &Path) -> Option<PathBuf> {
+        let node = dir.join("full");
+        let _ = std::fs::remove_file(&node);
+        let ok = std::process::Command::new("mknod")
+            .arg(&node)
+            .args(["c", "1", "7"])
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        ok.then_some(node)
+    }
+
+    #[test]
+    fn outputs_are_checked_before_and_committed_together() {
+        let dir = std::env::temp_dir().join(format!("dispmap-output-plan-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let a = dir.join("a.png");
+        let b = dir.join("b.json");
+        // A name ending in '/', a wrong extension, the same file twice.
+        let mut o = Outputs::new();
+        let slash = format!("{}/", a.display());
+        let err = o
+            .check("--out", Path::new(&slash), Format::Png)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("ends in '/'"), "{err}");
+        let err = o
+            .check("--out", &dir.join("a.jpg"), Format::Png)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("a.jpg") && err.contains(".jpg does not match"),
+            "{err}"
+        );
+        let err = o
+            .check("--metrics", &dir.join("m.png"), Format::Json)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("(JSON)"), "{err}");
+        o.check("--out", &a, Format::Png).unwrap();
+        let err = o
+            .check("--heatmap", &dir.join(".").join("a.png"), Format::Png)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("same file as --out"), "{err}");
+        o.check("--metrics", &b, Format::Json).unwrap();
+        o.stage(&a, b"image".to_vec()).unwrap();
+        o.stage(&b, b"{}".to_vec()).unwrap();
+        o.commit().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"image");
+        assert_eq!(std::fs::read(&b).unwrap(), b"{}");
+        // One output failing at commit (a full device) leaves the others untouched.
+        if let Some(full) = full_device(&dir) {
+            let mut o = Outputs::new();
+            o.check("--out", &a, Format::Png).unwrap();
+            o.check("--metrics", &full, Format::Json).unwrap();
+            o.stage(&a, b"new".to_vec()).unwrap();
+            o.stage(&full, vec![0; 4096]).unwrap();
+            let err = o.commit().unwrap_err().to_string();
+            assert!(err.contains("full") && err.contains("space"), "{err}");
+            assert_eq!(std::fs::read(&a).unwrap(), b"image");
+            std::fs::remove_file(&full).unwrap();
+        }
+        // A folder staged into is created at commit only, and removed if the commit fails.
+        let mut o = Outputs::new();
+        let folder = dir.join("bench/inner");
+        o.stage_in(&folder, "report.md", b"r".to_vec()).unwrap();
+        assert!(!dir.join("bench").exists());
+        o.commit().unwrap();
+        assert_eq!(std::fs::read(folder.join("report.md")).unwrap(), b"r");
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

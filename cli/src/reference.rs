@@ -91,20 +91,24 @@ pub struct Hit {
 struct Level {
     /// Nodes per row.
     width: usize,
-    /// Node values, row by row.
-    max: Vec<f64>,
+    /// Node values, row by row (`f32`: each is one texel's value, which `f32` holds
+    /// exactly; widened to `f64` where read).
+    max: Vec<f32>,
 }
 
 /// Exact CPU intersection of rays with one height field under one addressing mode.
 ///
-/// Built once per (height field, addressing): holds an `f64` copy of the texels and the
-/// cell max pyramid described in the [module documentation](self).
+/// Built once per (height field, addressing): holds a copy of the texels and the cell max
+/// pyramid described in the [module documentation](self), both stored as `f32` (the
+/// height field's own precision, so every stored value is exact) and widened to `f64`
+/// where read: all arithmetic is `f64`, and the results are those of `f64` storage bit
+/// for bit, in about half its memory (see [`Reference::memory_bytes`]).
 #[derive(Clone)]
 pub struct Reference {
     /// Texels per row / column.
     size: [usize; 2],
     /// Texels, row by row.
-    texels: Vec<f64>,
+    texels: Vec<f32>,
     addressing: Addressing,
     /// Cells per tile and axis at level 0: `W, H` (repeat) or `W + 1, H + 1` (clamp).
     cells: [i64; 2],
@@ -129,12 +133,12 @@ impl std::fmt::Debug for Reference {
 }
 
 impl Reference {
-    /// Copies the texels of `field` to `f64` and builds the max pyramid.
+    /// Copies the texels of `field` and builds the max pyramid.
     pub fn new(field: &HeightField, addressing: Addressing) -> Self {
         let (w, h) = (field.width() as usize, field.height() as usize);
-        let texels: Vec<f64> = (0..field.height())
+        let texels: Vec<f32> = (0..field.height())
             .flat_map(|j| (0..field.width()).map(move |i| (i, j)))
-            .map(|(i, j)| f64::from(field.texel(i, j)))
+            .map(|(i, j)| field.texel(i, j))
             .collect();
         let (cells, first_cell) = match addressing {
             Addressing::Repeat => ([w as i64, h as i64], 0),
@@ -149,9 +153,24 @@ impl Reference {
             levels: Vec::new(),
             global_max: 0.0,
         };
-        reference.global_max = reference.texels.iter().copied().fold(0.0, f64::max);
+        reference.global_max = reference
+            .texels
+            .iter()
+            .map(|&t| f64::from(t))
+            .fold(0.0, f64::max);
         reference.build_pyramid();
         reference
+    }
+
+    /// The bytes a reference for a `width` x `height` map holds: the texels and the max
+    /// pyramid (level 0 has one node per cell, `(W + 1) (H + 1)` at most; each coarser
+    /// level a quarter of the one below, so 4/3 of level 0 in all, plus one node per
+    /// level for rounding up), 4 bytes each.
+    pub fn memory_bytes(width: u32, height: u32) -> u64 {
+        let (w, h) = (u64::from(width), u64::from(height));
+        let cells = (w + 1) * (h + 1);
+        let levels = 2 + u64::from(32 - width.max(height).leading_zeros());
+        4 * (w * h + cells * 4 / 3 + levels * (w + h + 2))
     }
 
     /// Level 0 = max of each cell's corners; each coarser level the max of its (up to)
@@ -163,7 +182,8 @@ impl Reference {
             for lx in 0..cw {
                 let (ci, cj) = (lx as i64 + self.first_cell, ly as i64 + self.first_cell);
                 let corners = self.corners(ci, cj);
-                max.push(corners.iter().copied().fold(f64::MIN, f64::max));
+                // The max of exact f32 values is one of them: exact in f32.
+                max.push(corners.iter().copied().fold(f64::MIN, f64::max) as f32);
             }
         }
         let mut levels = vec![Level { width: cw, max }];
@@ -174,7 +194,7 @@ impl Reference {
             let mut max = Vec::with_capacity(pw * ph);
             for py in 0..ph {
                 for px in 0..pw {
-                    let mut m = f64::MIN;
+                    let mut m = f32::MIN;
                     for y in (2 * py)..(2 * py + 2).min(h) {
                         for x in (2 * px)..(2 * px + 2).min(w) {
                             m = m.max(child.max[y * w + x]);
@@ -197,7 +217,7 @@ impl Reference {
             Addressing::Repeat => (i.rem_euclid(w), j.rem_euclid(h)),
             Addressing::Clamp => (i.clamp(0, w - 1), j.clamp(0, h - 1)),
         };
-        self.texels[j as usize * self.size[0] + i as usize]
+        f64::from(self.texels[j as usize * self.size[0] + i as usize])
     }
 
     /// Corner texels `[h00, h10, h01, h11]` of cell `(ci, cj)`.
@@ -371,7 +391,7 @@ impl Reference {
                 node[a] = n;
             }
             let lv = &self.levels[level];
-            let node_max = lv.max[node[1] * lv.width + node[0]];
+            let node_max = f64::from(lv.max[node[1] * lv.width + node[0]]);
 
             // Exit of the node along each axis.
             let mut exit = [f64::INFINITY; 2];

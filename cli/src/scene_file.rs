@@ -68,6 +68,7 @@ pub struct SceneFile {
     /// The OBJ file of `geometry = "mesh"`.
     pub mesh: Option<PathBuf>,
     /// Frame width and height.
+    #[serde(deserialize_with = "pair")]
     pub size: Option<[u32; 2]>,
     /// `[heightmap]`.
     pub heightmap: HeightmapKeys,
@@ -174,6 +175,7 @@ pub struct MethodKeys {
     /// secant's segments.
     pub segments: Option<u32>,
     /// dig's block.
+    #[serde(deserialize_with = "pair")]
     pub block: Option<[u32; 2]>,
     /// dig's eps.
     pub eps: Option<f32>,
@@ -197,6 +199,56 @@ pub struct LoadedScene {
     pub assets: SceneAssets,
     /// The height map's name (a bundled name or the file's path).
     pub heightmap: String,
+}
+
+/// A `[width, height]` key: exactly two numbers (serde's fixed-size arrays would let
+/// `[640, 360, 2]` through).
+fn pair<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Option<[u32; 2]>, D::Error> {
+    let values = Vec::<u32>::deserialize(d)?;
+    match values[..] {
+        [w, h] => Ok(Some([w, h])),
+        _ => Err(serde::de::Error::custom(format!(
+            "expected [width, height] (two numbers), found {} number(s): {values:?}",
+            values.len()
+        ))),
+    }
+}
+
+/// Where a scene's height map comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MapSource {
+    /// A file, in its convention.
+    File {
+        /// The file (relative paths resolved against the scene's folder).
+        path: PathBuf,
+        /// How it encodes heights.
+        convention: Convention,
+    },
+    /// A bundled map by name; `option` names the key in errors.
+    Bundled {
+        /// rocks, bricks or mountains.
+        name: String,
+        /// The key and file, for errors.
+        option: String,
+    },
+}
+
+impl MapSource {
+    /// Loads the map.
+    pub fn load(&self) -> Result<HeightField> {
+        match self {
+            MapSource::File { path, convention } => HeightField::load(path, *convention),
+            MapSource::Bundled { name, option } => bundled::by_name(name, option),
+        }
+    }
+
+    /// The map's name: the file's path or the bundled name.
+    pub fn label(&self) -> String {
+        match self {
+            MapSource::File { path, .. } => path.display().to_string(),
+            MapSource::Bundled { name, .. } => name.clone(),
+        }
+    }
 }
 
 /// Names the file in an error about one of its values.
@@ -321,31 +373,40 @@ impl SceneFile {
                 "a bundled map has its own convention; `convention` is for `path`",
             ));
         }
+        if h.path.is_some() && h.convention.is_none() {
+            return Err(Error::invalid(
+                format!("heightmap.convention in {}", path.display()),
+                "a map given by `path` needs `convention = \"height\"` (white = high) or \
+                 `\"depth\"` (white = deep), as --convention does on the command line",
+            ));
+        }
         Ok(settings)
     }
 
-    /// Resolves the scene: fills the defaults and loads the height map, mesh and maps
-    /// (paths relative to `path`'s folder).
-    pub fn resolve(&self, path: &Path) -> Result<LoadedScene> {
-        let settings = self.settings(path)?;
+    /// Where the scene's height map comes from (a path relative to `path`'s folder);
+    /// nothing is read.
+    pub fn heightmap_source(&self, path: &Path) -> MapSource {
         let dir = path.parent().unwrap_or(Path::new("."));
         let h = &self.heightmap;
-        let (field, heightmap) = match &h.path {
-            Some(p) => {
-                let file = dir.join(p);
-                let field = HeightField::load(&file, h.convention.unwrap_or(Convention::Height))?;
-                (field, file.display().to_string())
-            }
-            None => {
-                let name = h.bundled.as_deref().unwrap_or("rocks");
-                let field =
-                    bundled::by_name(name, &format!("heightmap.bundled in {}", path.display()))?;
-                (field, name.to_owned())
-            }
-        };
+        match &h.path {
+            Some(p) => MapSource::File {
+                path: dir.join(p),
+                convention: h.convention.unwrap_or(Convention::Height),
+            },
+            None => MapSource::Bundled {
+                name: h.bundled.clone().unwrap_or_else(|| "rocks".into()),
+                option: format!("heightmap.bundled in {}", path.display()),
+            },
+        }
+    }
+
+    /// Loads the scene's mesh (when `with_mesh`: a command line that overrides the
+    /// geometry does not need it) and material maps (paths relative to `path`'s folder).
+    pub fn assets(&self, path: &Path, with_mesh: bool) -> Result<SceneAssets> {
+        let dir = path.parent().unwrap_or(Path::new("."));
         let mesh = match &self.mesh {
-            Some(m) => Some(crate::mesh_file::load(&dir.join(m))?),
-            None => None,
+            Some(m) if with_mesh => Some(crate::mesh_file::load(&dir.join(m))?),
+            _ => None,
         };
         let green_up = self.material.normal_map_green.unwrap_or(GreenAxis::Up) == GreenAxis::Up;
         let material = MaterialImages {
@@ -358,12 +419,22 @@ impl SceneFile {
                 None => None,
             },
         };
+        Ok(SceneAssets { mesh, material })
+    }
+
+    /// Resolves the scene: fills the defaults and loads the height map, mesh and maps
+    /// (paths relative to `path`'s folder).
+    pub fn resolve(&self, path: &Path) -> Result<LoadedScene> {
+        let settings = self.settings(path)?;
+        let source = self.heightmap_source(path);
+        let field = source.load()?;
+        let assets = self.assets(path, true)?;
         Ok(LoadedScene {
             path: path.to_owned(),
             settings,
             field,
-            assets: SceneAssets { mesh, material },
-            heightmap,
+            assets,
+            heightmap: source.label(),
         })
     }
 }
@@ -430,6 +501,9 @@ mod tests {
                 "both",
             ),
             ("[method]\nname = \"fast\"\n", "fast"),
+            ("[heightmap]\npath = \"x.png\"\n", "heightmap.convention"),
+            ("size = [64, 36, 2]\n", "two numbers"),
+            ("[method]\nblock = [4]\n", "two numbers"),
         ] {
             let err = SceneFile::parse(text, path)
                 .and_then(|f| f.settings(path))

@@ -21,6 +21,9 @@ struct Row {
     options: Vec<(&'static str, String)>,
     env: &'static [(&'static str, &'static str)],
     expect: Vec<String>,
+    /// A command the run goes through (`setpriv` to run as another user, `sh -c` for a
+    /// file size limit); empty: none.
+    wrap: Vec<String>,
 }
 
 fn row(name: &'static str, options: &[(&'static str, &str)], expect: &[&str]) -> Row {
@@ -29,13 +32,40 @@ fn row(name: &'static str, options: &[(&'static str, &str)], expect: &[&str]) ->
         options: options.iter().map(|(k, v)| (*k, v.to_string())).collect(),
         env: &[],
         expect: expect.iter().map(|s| s.to_string()).collect(),
+        wrap: Vec::new(),
     }
+}
+
+/// Whether the tests run as root (device nodes and mounts are made then; permission
+/// rows run as `nobody` through setpriv).
+fn is_root() -> bool {
+    std::process::Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| o.stdout.trim_ascii() == b"0")
+}
+
+/// Makes a device node (`mknod NAME c MAJOR MINOR`) in the test's folder, as root only.
+fn mknod(path: &Path, major: u32, minor: u32) -> bool {
+    is_root()
+        && Command::new("mknod")
+            .arg(path)
+            .args(["c", &major.to_string(), &minor.to_string()])
+            .status()
+            .is_ok_and(|s| s.success())
 }
 
 /// The fixtures: files written into `dir` for the rows that need them.
 struct Fixtures {
     dir: PathBuf,
     max_dimension: u32,
+    /// The folder the run's outputs go to (must stay empty).
+    out_dir: PathBuf,
+    /// Device nodes made by the test (root only): `/dev/full`'s and `/dev/zero`'s.
+    full: Option<String>,
+    zero: Option<String>,
+    /// A read-only file system mounted by the test (root only).
+    read_only: Option<PathBuf>,
 }
 
 impl Fixtures {
@@ -88,9 +118,98 @@ fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
     // OpenEXR with a height outside [0, 1].
     let exr = image::Rgb32FImage::from_pixel(2, 2, image::Rgb([2.0, 2.0, 2.0]));
     exr.save(dir.join("too-high.exr")).unwrap();
+    // A PNG whose header claims 60000x60000 pixels (the data is one pixel's).
+    let mut lying = png(1, 1);
+    lying[16..20].copy_from_slice(&60000u32.to_be_bytes());
+    lying[20..24].copy_from_slice(&60000u32.to_be_bytes());
+    let crc = crc32(&lying[12..29]);
+    lying[29..33].copy_from_slice(&crc.to_be_bytes());
+    write("lying.png", &lying);
+    // A FIFO: no size to check (reading it would block or never end).
+    Command::new("mkfifo")
+        .arg(dir.join("fifo.png"))
+        .status()
+        .unwrap();
+    // Meshes with no usable triangle.
+    write(
+        "degenerate.obj",
+        b"v 0 0 0\nv 1 0 0\nv 2 0 0\nvt 0 0\nvt 1 0\nvt 1 1\nf 1/1 2/2 3/3\n",
+    );
+    write(
+        "overflow.obj",
+        b"v -3e38 0 0\nv 3e38 0 0\nv 0 3e38 0\nvt 0 0\nvt 1 0\nvt 1 1\nf 1/1 2/2 3/3\n",
+    );
+    write(
+        "degenerate.toml",
+        b"geometry = \"mesh\"\nmesh = \"degenerate.obj\"\n",
+    );
+    write(
+        "overflow.toml",
+        b"geometry = \"mesh\"\nmesh = \"overflow.obj\"\n",
+    );
+    std::fs::create_dir_all(dir.join("folder.obj")).unwrap();
+    write(
+        "folder-mesh.toml",
+        b"geometry = \"mesh\"\nmesh = \"folder.obj\"\n",
+    );
+    write("size3.toml", b"size = [64, 36, 2]\n");
+    write("map.png", &png(4, 4));
+    write("no-convention.toml", b"[heightmap]\npath = \"map.png\"\n");
+    // A normal map (float) with a NaN.
+    let mut nan = image::Rgb32FImage::from_pixel(2, 2, image::Rgb([0.5, 0.5, 1.0]));
+    nan.put_pixel(1, 0, image::Rgb([f32::NAN, 0.5, 1.0]));
+    nan.save(dir.join("nan-normal.exr")).unwrap();
+    write(
+        "nan-normal.toml",
+        b"[material]\nnormal_map = \"nan-normal.exr\"\n",
+    );
+    // glTF: a node that is its own child; a buffer outside the scene's folder.
+    write(
+        "self.gltf",
+        br#"{"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"nodes":[{"children":[0]}]}"#,
+    );
+    write("cycle.toml", b"geometry = \"mesh\"\nmesh = \"self.gltf\"\n");
+    write("outside.gltf", br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"../secret.bin"}],"scenes":[{"nodes":[]}]}"#);
+    write(
+        "outside.toml",
+        b"geometry = \"mesh\"\nmesh = \"outside.gltf\"\n",
+    );
+    // A read-only output file (kept as it is).
+    write("read-only.png", b"old");
+    std::fs::set_permissions(
+        dir.join("read-only.png"),
+        std::os::unix::fs::PermissionsExt::from_mode(0o444),
+    )
+    .unwrap();
+    // Driver manifests: not JSON.
+    write("bad-icd.json", b"{ not json");
+    let out_dir = dir.parent().unwrap().join("out");
+    let full = dir.join("full");
+    let zero = dir.join("zero");
+    let read_only = dir.join("read-only");
+    std::fs::create_dir_all(&read_only).unwrap();
+    let mounted = is_root()
+        && Command::new("mount")
+            .args(["-t", "tmpfs", "-o", "ro,size=64k", "dispmap-test"])
+            .arg(&read_only)
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
     Fixtures {
         dir: dir.to_owned(),
         max_dimension,
+        out_dir,
+        full: mknod(&full, 1, 7).then(|| full.to_str().unwrap().to_owned()),
+        zero: mknod(&zero, 1, 5).then(|| zero.to_str().unwrap().to_owned()),
+        read_only: mounted.then_some(read_only),
+    }
+}
+
+impl Drop for Fixtures {
+    fn drop(&mut self) {
+        if let Some(ro) = &self.read_only {
+            let _ = Command::new("umount").arg(ro).status();
+        }
     }
 }
 
@@ -132,7 +251,8 @@ fn crc32(bytes: &[u8]) -> u32 {
 fn rows(f: &Fixtures) -> Vec<Row> {
     let max = f.max_dimension;
     let no_driver: &[(&str, &str)] = &[("VK_ICD_FILENAMES", "/nonexistent/icd.json"), ("VK_DRIVER_FILES", "/nonexistent/icd.json")];
-    vec![
+    let out = |name: &str| f.out_dir.join(name).to_str().unwrap().to_owned();
+    let mut rows = vec![
         // Height-map files.
         row("missing file",            &[("--heightmap", "/no/such/map.png")],       &["/no/such/map.png", "No such file"]),
         row("not an image",            &[("--heightmap", &f.path("junk.png"))],      &["junk.png", "not a PNG, JPEG or OpenEXR image"]),
@@ -179,16 +299,102 @@ fn rows(f: &Fixtures) -> Vec<Row> {
         row("output is a folder",      &[("--out", f.dir.to_str().unwrap())],       &["--out", "is a folder"]),
         row("depth output not EXR/PNG", &[("--depth-out", &f.path("depth.bmp"))],  &["--depth-out", "depth.bmp", ".exr"]),
         row("metrics folder missing",  &[("--metrics", &f.path("missing-folder/m.json"))], &["--metrics", "missing-folder", "does not exist"]),
+        row("output name ends in /",   &[("--out", &format!("{}/", out("o.png")))], &["--out", "o.png/", "ends in '/'"]),
+        row("same output twice",       &[("--heatmap", &out("out.png"))],           &["--heatmap", "same file as --out"]),
+        row("same output via ./",      &[("--metrics", &format!("{}/./m", f.out_dir.display())), ("--heatmap", &format!("{}/m", f.out_dir.display()))], &["same file as --metrics"]),
+        row("--out extension not PNG", &[("--out", &out("o.jpg"))],                 &["--out", "o.jpg", ".jpg does not match the format written (PNG)"]),
+        row("--metrics extension not JSON", &[("--metrics", &out("m.png"))],        &["--metrics", "m.png", "(JSON)"]),
+        row("--heatmap extension not PNG", &[("--heatmap", &out("h.exr"))],         &["--heatmap", "h.exr", "(PNG)"]),
+        row("stdout twice",            &[("--out", "-"), ("--metrics", "-")],       &["--metrics", "same file as --out"]),
+        row("memory above --max-memory", &[("--size", "4096x4096"), ("--max-memory", "64M")], &["4096x4096", "needs about", "--max-memory"]),
+        row("bad --max-memory",        &[("--max-memory", "lots")],                 &["--max-memory", "lots"]),
+        row("lying PNG header",        &[("--heightmap", &f.path("lying.png")), ("--max-memory", "8G")], &["lying.png", "60000x60000", "needs about"]),
+        row("lying PNG header, no bound", &[("--heightmap", &f.path("lying.png")), ("--max-memory", "1T")], &["lying.png", "60000x60000"]),
+        row("height map is a FIFO",    &[("--heightmap", &f.path("fifo.png"))],     &["fifo.png", "not a regular file"]),
+        row("height map is a folder",  &[("--heightmap", f.dir.to_str().unwrap())], &["is a folder"]),
+        row("degenerate mesh",         &[("--scene", &f.path("degenerate.toml"))],  &["degenerate.obj", "no usable triangle"]),
+        row("mesh overflowing f32",    &[("--scene", &f.path("overflow.toml"))],    &["overflow.obj", "overflows f32"]),
+        row("mesh is a folder",        &[("--scene", &f.path("folder-mesh.toml"))], &["folder.obj", "is a folder"]),
+        row("scene size of 3 numbers", &[("--scene", &f.path("size3.toml"))],       &["size3.toml", "two numbers"]),
+        row("scene map without convention", &[("--scene", &f.path("no-convention.toml"))], &["no-convention.toml", "heightmap.convention"]),
+        row("negative --fov",          &[("--fov", "-1")],                          &["fov", "-1"]),
+        row("negative --camera-height", &[("--camera-height", "-1")],               &["camera-height", "-1"]),
+        row("negative --frames",       &[("--frames", "-1")],                       &["--frames", "-1"]),
+        row("negative --eps",          &[("--eps", "-1")],                          &["eps", "-1"]),
+        row("negative --max-level",    &[("--max-level", "-1")],                    &["max-level", "-1"]),
+        row("glTF node cycle",         &[("--scene", &f.path("cycle.toml"))],       &["self.gltf", "node 0 is reached twice"]),
+        row("glTF buffer outside",     &[("--scene", &f.path("outside.toml"))],     &["outside.gltf", "points outside the file's folder"]),
+        row("read-only output file",   &[("--out", &f.path("read-only.png"))],      &["--out", "read-only.png", "is read-only"]),
+        row("NaN in a normal map",     &[("--scene", &f.path("nan-normal.toml"))],  &["nan-normal.exr", "non-finite value NaN at pixel (1, 0)"]),
         // Devices.
         Row { env: no_driver, ..row("no Vulkan driver", &[], &["vkCreateInstance", "Vulkan driver"]) },
         row("no such device (name)",   &[("--device", "no-such-gpu")],              &["no-such-gpu", "no suitable Vulkan device"]),
         row("no such device (index)",  &[("--device", "7")],                        &["device index 7 out of range"]),
-    ]
+    ];
+    // A driver manifest that is not JSON: the variable is named (leaked so the row can
+    // borrow it for the test's life).
+    let icd: &'static str = Box::leak(f.path("bad-icd.json").into_boxed_str());
+    let bad_icd: &'static [(&str, &str)] = Box::leak(Box::new([("VK_ICD_FILENAMES", icd), ("VK_DRIVER_FILES", icd)]));
+    rows.push(Row { env: bad_icd, ..row("malformed driver manifest", &[], &["bad-icd.json", "VK_DRIVER_FILES", "valid JSON"]) });
+    // DISPMAP_VALIDATION neither on nor off: refused by name.
+    rows.push(Row { env: &[("DISPMAP_VALIDATION", "2")], ..row("DISPMAP_VALIDATION=2", &[], &["DISPMAP_VALIDATION", "2"]) });
+    // Validation requested while the loader disables the layer: said so.
+    rows.push(Row { env: &[("VK_LOADER_LAYERS_DISABLE", "VK_LAYER_KHRONOS_validation")], ..row("validation layer disabled", &[], &["VK_LOADER_LAYERS_DISABLE", "disables it"]) });
+    // A later output failing (a full device) writes none of them: --out stays absent.
+    if let Some(full) = &f.full {
+        rows.push(row("metrics on a full device", &[("--metrics", full)], &["full", "No space left"]));
+        rows.push(row("heatmap on a full device", &[("--heatmap", full)], &["full", "No space left"]));
+    }
+    if let Some(zero) = &f.zero {
+        rows.push(row("height map is /dev/zero's node", &[("--heightmap", zero)], &["zero", "not a regular file"]));
+    }
+    if let Some(ro) = &f.read_only {
+        let path = ro.join("o.png");
+        rows.push(Row {
+            options: vec![("--heatmap", path.to_str().unwrap().to_owned())],
+            ..row("output on a read-only file system", &[], &["--heatmap", "read-only file system"])
+        });
+    }
+    // A folder this user cannot write (as root: the run drops to nobody, for whom the
+    // test's folders are read-only; otherwise a folder made read-only).
+    let locked = f.dir.join("locked");
+    std::fs::create_dir_all(&locked).unwrap();
+    let locked_out = locked.join("o.png").to_str().unwrap().to_owned();
+    let nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "--"];
+    // As root: only where nobody can run the binary (a checkout under a private home
+    // folder cannot be).
+    let nobody_runs = || {
+        Command::new(nobody[0])
+            .args(&nobody[1..])
+            .arg(env!("CARGO_BIN_EXE_dispmap"))
+            .arg("--version")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if is_root() && nobody_runs() {
+        rows.push(Row {
+            wrap: nobody.iter().map(|s| s.to_string()).collect(),
+            ..row("output folder not writable", &[("--out", &locked_out)], &["--out", "permission denied", "locked"])
+        });
+    } else if !is_root() {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o555)).unwrap();
+        rows.push(row("output folder not writable", &[("--out", &locked_out)], &["--out", "permission denied", "locked"]));
+    }
+    // A file size limit: the write fails with EFBIG (SIGXFSZ is ignored), the temporary
+    // file is removed and nothing is left.
+    rows.push(Row {
+        wrap: vec!["sh".into(), "-c".into(), "ulimit -f 1 && exec \"$@\"".into(), "sh".into()],
+        ..row("file size limit (SIGXFSZ)", &[("--size", "128x128")], &["out.png", "File too large"])
+    });
+    rows
 }
 
 /// Runs `dispmap render` with the valid defaults overridden by `row` and returns the
-/// exit status's success and stderr; fails on a hang.
-fn run(row: &Row, out: &Path) -> (bool, String) {
+/// exit code (`None`: killed by a signal) and stderr; fails on a hang.
+fn run(row: &Row, out: &Path) -> (Option<i32>, String) {
     let rocks = common::repo_root().join("assets/heightmaps/rocks_depth.jpg");
     let mut options: Vec<(&str, String)> = vec![
         ("--heightmap", rocks.to_str().unwrap().to_owned()),
@@ -207,7 +413,14 @@ fn run(row: &Row, out: &Path) -> (bool, String) {
             options.push((k, v.clone()));
         }
     }
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_dispmap"));
+    let mut cmd = match row.wrap.split_first() {
+        Some((program, args)) => {
+            let mut c = Command::new(program);
+            c.args(args).arg(env!("CARGO_BIN_EXE_dispmap"));
+            c
+        }
+        None => Command::new(env!("CARGO_BIN_EXE_dispmap")),
+    };
     cmd.env("DISPMAP_VALIDATION", "1")
         .env_remove("DISPMAP_DEVICE")
         .stdout(Stdio::null())
@@ -237,7 +450,7 @@ fn run(row: &Row, out: &Path) -> (bool, String) {
     };
     let mut stderr = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
-    (status.success(), stderr)
+    (status.code(), stderr)
 }
 
 #[test]
@@ -257,7 +470,7 @@ fn every_bad_input_is_named_and_leaves_nothing() {
     let out = out_dir.join("out.png");
     let mut failures = Vec::new();
     for row in rows(&f) {
-        let (success, stderr) = run(&row, &out);
+        let (code, stderr) = run(&row, &out);
         let last = stderr
             .lines()
             .rev()
@@ -265,8 +478,9 @@ fn every_bad_input_is_named_and_leaves_nothing() {
             .unwrap_or("");
         eprintln!("{:<32} {last}", row.name);
         let mut problems = Vec::new();
-        if success {
-            problems.push("exited with success".to_owned());
+        // 1: a run's error; 2: clap's usage error. Never success, never a signal.
+        if !matches!(code, Some(1 | 2)) {
+            problems.push(format!("exit code {code:?}, not 1 or 2"));
         }
         if stderr.contains("panicked") {
             problems.push("panicked".to_owned());
@@ -290,6 +504,7 @@ fn every_bad_input_is_named_and_leaves_nothing() {
             failures.push(format!("{}: {}\n{stderr}", row.name, problems.join("; ")));
         }
     }
+    drop(f);
     std::fs::remove_dir_all(&root).ok();
     assert!(
         failures.is_empty(),
@@ -305,14 +520,290 @@ fn the_defaults_render() {
     let dir = std::env::temp_dir().join(format!("dispmap-bad-input-ok-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("out.png");
-    let ok = Row {
-        name: "valid",
-        options: Vec::new(),
-        env: &[],
-        expect: Vec::new(),
-    };
-    let (success, stderr) = run(&ok, &out);
-    assert!(success, "{stderr}");
+    let ok = row("valid", &[], &[]);
+    let (code, stderr) = run(&ok, &out);
+    assert_eq!(code, Some(0), "{stderr}");
     assert!(out.exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The dispmap binary under validation.
+fn dispmap() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dispmap"));
+    c.env("DISPMAP_VALIDATION", "1")
+        .env_remove("DISPMAP_DEVICE")
+        .stdin(Stdio::null());
+    c
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dispmap-bad-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// A render of the rocks map at 16x16, one frame.
+fn render_args(c: &mut Command) -> &mut Command {
+    c.arg("render")
+        .arg("--heightmap")
+        .arg(common::repo_root().join("assets/heightmaps/rocks_depth.jpg"))
+        .args(["--convention", "depth", "--size", "16x16", "--frames", "1"])
+}
+
+/// Outputs are committed together: when a later one fails (a full device), an earlier
+/// one's old file is neither replaced nor joined by a temporary file; when all succeed,
+/// every one is replaced, keeping its permissions. Root only (the device node is made
+/// with mknod in the test's folder).
+#[test]
+fn a_failing_output_replaces_no_other() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch("commit");
+    let full = dir.join("full");
+    let png = dir.join("old.png");
+    let json = dir.join("old.json");
+    std::fs::write(&png, b"old image").unwrap();
+    std::fs::set_permissions(&png, std::fs::Permissions::from_mode(0o640)).unwrap();
+    std::fs::write(&json, b"old metrics").unwrap();
+    if mknod(&full, 1, 7) {
+        let out = render_args(&mut dispmap())
+            .arg("--out")
+            .arg(&png)
+            .arg("--metrics")
+            .arg(&json)
+            .arg("--heatmap")
+            .arg(&full)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("--heatmap") || stderr.contains("full"),
+            "{stderr}"
+        );
+        assert!(stderr.contains("No space left"), "{stderr}");
+        assert_eq!(std::fs::read(&png).unwrap(), b"old image");
+        assert_eq!(std::fs::read(&json).unwrap(), b"old metrics");
+        std::fs::remove_file(&full).unwrap();
+        assert_eq!(names(&dir), ["old.json", "old.png"]);
+    } else {
+        eprintln!("not root: the full-device half is skipped");
+    }
+    let out = render_args(&mut dispmap())
+        .arg("--out")
+        .arg(&png)
+        .arg("--metrics")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(image::open(&png).is_ok());
+    assert!(std::fs::read(&json).unwrap().starts_with(b"{"));
+    let mode = std::fs::metadata(&png).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o640);
+    assert_eq!(names(&dir), ["old.json", "old.png"]);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `bench` creates and fills its folder only at the end, all files at once: a run that
+/// fails while writing them (a file size limit: EFBIG, as SIGXFSZ is ignored) leaves no
+/// folder and no temporary file.
+#[test]
+fn bench_leaves_no_partial_folder() {
+    let dir = scratch("bench");
+    let out_dir = dir.join("bench-out");
+    let out = Command::new("sh")
+        .args(["-c", "ulimit -f 8 && exec \"$@\"", "sh"])
+        .arg(env!("CARGO_BIN_EXE_dispmap"))
+        .env("DISPMAP_VALIDATION", "1")
+        .args(["bench", "--quiet", "--out"])
+        .arg(&out_dir)
+        .args([
+            "--size", "16x16", "--frames", "1", "--repeat", "1", "--steps", "8",
+        ])
+        .args(["--methods", "bump", "--maps", "rocks", "--sizes", "none"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("File too large"), "{stderr}");
+    assert!(!out_dir.exists(), "left {:?}", names(&out_dir));
+    assert!(names(&dir).is_empty(), "left {:?}", names(&dir));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// What the command line overrides is not loaded: a scene whose own map or mesh is
+/// missing renders with --heightmap or --geometry instead.
+#[test]
+fn overrides_do_not_load_what_they_override() {
+    let dir = scratch("override");
+    let scene = dir.join("s.toml");
+    std::fs::write(
+        &scene,
+        "geometry = \"mesh\"\nmesh = \"missing.obj\"\n[heightmap]\npath = \"missing.png\"\nconvention = \"height\"\n",
+    )
+    .unwrap();
+    let png = dir.join("o.png");
+    let out = render_args(&mut dispmap())
+        .arg("--scene")
+        .arg(&scene)
+        .args(["--geometry", "plane", "--out"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(image::open(&png).is_ok());
+    // Without the overrides the scene's missing files are named.
+    let out = dispmap()
+        .args(["render", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.join("p.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("missing.png"), "{stderr}");
+    assert!(!dir.join("p.png").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A frame with no pixel of the displaced surface (a mesh whose one triangle faces away
+/// from the camera) is measured as nothing: a warning, `compared_pixels: 0` and `null`
+/// metrics, not PSNR 100 and 0% artifacts.
+#[test]
+fn an_empty_frame_has_null_metrics_and_a_warning() {
+    let dir = scratch("empty");
+    // One triangle facing down (-y), seen from above: culled.
+    std::fs::write(
+        dir.join("down.obj"),
+        "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0.5 1\nf 1/1 2/2 3/3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("s.toml"),
+        "geometry = \"mesh\"\nmesh = \"down.obj\"\nsize = [16, 16]\n",
+    )
+    .unwrap();
+    let json = dir.join("m.json");
+    let out = dispmap()
+        .args(["render", "--frames", "1", "--scene"])
+        .arg(dir.join("s.toml"))
+        .arg("--metrics")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("warning: no pixel"), "{stderr}");
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(m["error"]["compared_pixels"], 0, "{m}");
+    for key in [
+        "mean_texels",
+        "p99_texels",
+        "max_texels",
+        "artifact_fraction",
+        "psnr_db",
+    ] {
+        assert!(m["error"][key].is_null(), "{key}: {m}");
+    }
+    assert!(
+        m["warning"]
+            .as_str()
+            .unwrap()
+            .contains("not a perfect score"),
+        "{m}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Above the depth scale where the exact methods are measured to agree with the
+/// reference (3), `render` warns, naming the depth scale and the method; at 3 it does not.
+#[test]
+fn exact_methods_warn_beyond_the_guaranteed_depth_scale() {
+    let dir = scratch("depth-scale");
+    for (scale, warns) in [("3", false), ("10", true)] {
+        let png = dir.join(format!("{scale}.png"));
+        let out = render_args(&mut dispmap())
+            .args(["--method", "exact", "--depth-scale", scale, "--out"])
+            .arg(&png)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert_eq!(
+            stderr.contains("warning: --depth-scale 10 is above 3: exact's agreement"),
+            warns,
+            "{stderr}"
+        );
+        assert!(png.exists());
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A run killed by SIGTERM while committing its outputs leaves no temporary file: the
+/// commit writes `--out`'s temporary file, then blocks opening a FIFO given as
+/// `--heatmap` (no reader), and is killed there.
+#[test]
+fn a_kill_during_the_commit_leaves_no_temporary_file() {
+    let dir = scratch("kill");
+    let out_dir = dir.join("out");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let fifo = dir.join("heat");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let mut child = render_args(&mut dispmap())
+        .arg("--out")
+        .arg(out_dir.join("o.png"))
+        .arg("--heatmap")
+        .arg(&fifo)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while names(&out_dir).is_empty() {
+        assert!(start.elapsed() < HANG, "no temporary file appeared");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before the commit"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let tmp = names(&out_dir);
+    assert!(
+        tmp[0].starts_with(".o.png.") && tmp[0].ends_with(".tmp"),
+        "{tmp:?}"
+    );
+    assert!(
+        Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let status = child.wait().unwrap();
+    assert!(status.code().is_none(), "not ended by the signal: {status}");
+    assert!(names(&out_dir).is_empty(), "left {:?}", names(&out_dir));
     std::fs::remove_dir_all(&dir).ok();
 }

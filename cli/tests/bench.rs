@@ -223,7 +223,11 @@ fn cli_bench_writes_every_output() {
 #[test]
 fn cli_bench_rejects_bad_options_by_name() {
     let dir = scratch("bad");
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 11] = [
+        (
+            &["--size", "4096x4096", "--max-memory", "64M"],
+            "--max-memory",
+        ),
         (&["--methods", "pom,magic"], "--methods"),
         (&["--methods", ""], "--methods"),
         (&["--steps", "0"], "--steps"),

@@ -162,6 +162,12 @@ bool leave_node(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_ex
     return false;
 }
 
+// The finest level whose nodes are at least `cells` cells wide (a restart level).
+int level_for_span(float cells) {
+    int top = int(pc.pyramid_levels) - 1;
+    return clamp(int(ceil(log2(max(cells, 1.0)))), 0, top);
+}
+
 // The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h) with
 // the part of the height field the ray crosses: for clamp addressing, a ray that starts
 // outside the decal enters it further on (the self-shadowing pass's light rays, which
@@ -199,7 +205,12 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
         int c = cell_at(origin[a] + t * dir[a], dir[a]);
         cell[a] = pc.addressing == ADDRESSING_CLAMP ? clamp(c, -1, n_cells[a] - 1) : c;
     }
-    int level = clamp(start_level, 0, top);
+    // No higher than the finest level whose nodes span the ray's remaining travel: a
+    // node wider than that is entered only to descend (every level bounds its cells, so
+    // any start level finds the same first hit; the steps from the root down to here
+    // were 3 to 12 of every pixel's).
+    float travel = max(abs(dir.x), abs(dir.y)) * (t_end - t);
+    int level = min(clamp(start_level, 0, top), level_for_span(travel));
     // Each skip moves a cell index by >= 1 along the ray and follows at most `top`
     // descents: the cap is only reached through a bug (then: no hit), or at
     // TRAVERSAL_CAP (frame.glsl), within the loop budget of a lavapipe invocation.
@@ -276,12 +287,6 @@ float pyramid_first_hit_from(Ray ray, float t_start, float t_stop, int start_lev
 // pyramid_first_hit_from starting at the root.
 float pyramid_first_hit(Ray ray, float t_start, float t_stop, inout uint iterations) {
     return pyramid_first_hit_from(ray, t_start, t_stop, int(pc.pyramid_levels) - 1, iterations);
-}
-
-// The finest level whose nodes are at least `cells` cells wide (a restart level).
-int level_for_span(float cells) {
-    int top = int(pc.pyramid_levels) - 1;
-    return clamp(int(ceil(log2(max(cells, 1.0)))), 0, top);
 }
 
 #endif

@@ -60,6 +60,7 @@ pub use report::{CurvePoint, TimeToError, time_to_reach};
 use crate::heatmap;
 use crate::measure::{Compared, FrameReference, Measure as _};
 use crate::metrics::{self, ErrorMetrics};
+use crate::output::Outputs;
 use crate::reference::Reference;
 use dispmap::context::Context;
 use dispmap::error::{Error, Result};
@@ -1257,37 +1258,44 @@ pub fn lockstep_iterations(
     mean_of(max.values().map(|&m| f64::from(m)))
 }
 
-/// Writes every output of `results` into `dir` (created if missing), each file
-/// atomically: `results.csv`, `report.md`, `pareto_<map>.png` per map, `sizes.png` (if
-/// the map-size sweep ran) and the heat and interval maps. `command` is the command line
-/// quoted in the report. Returns the paths written.
-pub fn write_outputs(dir: &Path, results: &BenchResults, command: &str) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|source| Error::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
-    let mut written = Vec::new();
-    let csv_path = dir.join("results.csv");
-    crate::output::write_atomic(&csv_path, &report::csv_bytes(&results.rows)?)?;
-    written.push(csv_path);
+/// The benchmark's files (results.csv, the Pareto and map-size plots, heat maps,
+/// report.md), encoded and checked for the folder `dir`, to be written together by
+/// [`crate::output::Outputs::commit`] (which creates `dir`).
+pub fn stage_outputs(dir: &Path, results: &BenchResults, command: &str) -> Result<Outputs> {
+    let mut out = Outputs::new();
+    out.stage_in(dir, "results.csv", report::csv_bytes(&results.rows)?)?;
     for map in &results.maps {
-        let path = dir.join(report::pareto_file(&map.name));
-        plot::pareto(&path, &map.name, &results.rows)?;
-        written.push(path);
+        let name = report::pareto_file(&map.name);
+        let png = plot::pareto(&dir.join(&name), &map.name, &results.rows)?;
+        out.stage_in(dir, &name, png)?;
     }
     if results.rows.iter().any(|r| r.sweep == Sweep::MapSize) {
-        let path = dir.join(report::SIZES_PLOT);
-        plot::sizes(&path, &results.rows)?;
-        written.push(path);
+        let png = plot::sizes(&dir.join(report::SIZES_PLOT), &results.rows)?;
+        out.stage_in(dir, report::SIZES_PLOT, png)?;
     }
     for image in &results.images {
-        let path = dir.join(&image.file_name);
-        crate::output::write_png(&path, image.width, image.height, &image.rgba)?;
-        written.push(path);
+        let png = crate::output::png_bytes(
+            &dir.join(&image.file_name),
+            image.width,
+            image.height,
+            &image.rgba,
+        )?;
+        out.stage_in(dir, &image.file_name, png)?;
     }
-    let md_path = dir.join("report.md");
-    crate::output::write_atomic(&md_path, report::markdown(results, command).as_bytes())?;
-    written.push(md_path);
+    out.stage_in(
+        dir,
+        "report.md",
+        report::markdown(results, command).into_bytes(),
+    )?;
+    Ok(out)
+}
+
+/// Writes the benchmark's files into `dir` (created if missing), all together: a
+/// failure leaves none of them (see [`stage_outputs`]); returns their paths.
+pub fn write_outputs(dir: &Path, results: &BenchResults, command: &str) -> Result<Vec<PathBuf>> {
+    let out = stage_outputs(dir, results, command)?;
+    let written = out.paths();
+    out.commit()?;
     Ok(written)
 }
 

@@ -1,5 +1,5 @@
 //! The benchmark's plots, drawn with `plotters` into an RGB buffer and written as PNG
-//! (RGB, best compression) through [`crate::output::write_atomic`]. Text uses the
+//! (RGB, best compression) as bytes for [`crate::output::Outputs`]. Text uses the
 //! bundled DejaVu Sans subset (`assets/fonts`, registered with plotters' `ab_glyph`
 //! backend), so no system font is needed.
 //!
@@ -59,12 +59,12 @@ pub fn method_color(method: Method) -> RGBColor {
     }
 }
 
-/// Draws into an RGB buffer with `draw` and writes it to `path` as PNG.
+/// Draws into an RGB buffer with `draw` and encodes it as PNG (`path` names it in errors).
 fn render_png(
     path: &Path,
     (w, h): (u32, u32),
     draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> std::result::Result<(), String>,
-) -> Result<()> {
+) -> Result<Vec<u8>> {
     register_font()?;
     let mut rgb = vec![0u8; w as usize * h as usize * 3];
     {
@@ -91,7 +91,7 @@ fn render_png(
             message: format!("cannot encode PNG: {e}"),
         },
     )?;
-    crate::output::write_atomic(path, &png)
+    Ok(png)
 }
 
 /// Lower and upper bound for a log axis over `values` (positive ones, at least `floor`;
@@ -271,10 +271,10 @@ pub const ZOOM_METHODS: [Method; 5] = [
     Method::Dig,
 ];
 
-/// Writes the Pareto plot of `map` (methods sweep rows) to `path`: top, every method
+/// The Pareto plot of `map` (methods sweep rows) as PNG (`path` names it in errors): top, every method
 /// (log-log); bottom, the marching methods ([`ZOOM_METHODS`]) with a linear time axis
 /// and every point labelled with its steps.
-pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<()> {
+pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<Vec<u8>> {
     let curves: Vec<(Method, Vec<&RunRow>)> = Method::ALL
         .iter()
         .map(|&m| (m, curve_rows(rows, map, m)))
@@ -319,9 +319,9 @@ pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<()> {
     })
 }
 
-/// Writes the map-size plot (map-size sweep rows) to `path`: method time per frame
+/// The map-size plot (map-size sweep rows) as PNG (`path` names it in errors): method time per frame
 /// (log), the same relative to the smallest map, and the pyramid's one build (log).
-pub fn sizes(path: &Path, rows: &[RunRow]) -> Result<()> {
+pub fn sizes(path: &Path, rows: &[RunRow]) -> Result<Vec<u8>> {
     let rows: Vec<&RunRow> = rows.iter().filter(|r| r.sweep == Sweep::MapSize).collect();
     let mut sides: Vec<u32> = rows.iter().map(|r| r.map_width).collect();
     sides.sort_unstable();

@@ -7,7 +7,7 @@
 mod present;
 mod script;
 
-use crate::{CommonArgs, finish, render_inputs};
+use crate::{CommonArgs, RenderArgs, finish, render_inputs};
 use anyhow::{Context as _, Result, bail};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args};
@@ -90,41 +90,57 @@ pub struct ViewArgs {
 }
 
 /// Runs `dispmap view`; `matches` are the subcommand's.
-pub fn run(options: &ContextOptions, args: &ViewArgs, matches: &ArgMatches) -> Result<()> {
+pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Result<()> {
     let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
     let headless = given("frames");
-    args.common.check()?;
-    // Everything about the input is checked before a window opens.
-    let (field, label, mut settings, assets) = if args.scene.is_some() || args.heightmap.is_some() {
-        render_inputs(
-            args.scene.as_deref(),
-            args.heightmap.as_deref(),
-            args.convention,
-            args.method,
-            &args.common,
-            matches,
-        )?
-    } else {
-        let settings = args.common.settings(args.method);
-        settings.validate()?;
-        let field = bundled::rocks()?;
-        (field, "rocks".to_owned(), settings, SceneAssets::default())
+    let ViewArgs {
+        scene,
+        heightmap,
+        convention,
+        method,
+        split,
+        heatmap: start_heatmap,
+        common,
+        camera_path,
+        script,
+        screenshot,
+    } = args;
+    // `render`'s inputs, read by `render`'s code (with its memory check).
+    let inputs = RenderArgs {
+        scene,
+        heightmap,
+        convention,
+        method,
+        common,
+        out: None,
+        metrics: None,
+        heatmap: None,
+        heatmap_max: None,
+        interval_map: None,
+        depth_out: None,
     };
-    if !headless && !given("size") && args.scene.is_none() {
+    let common = &inputs.common;
+    common.check()?;
+    // Everything about the input is checked before a window opens.
+    let (field, label, mut settings, assets) =
+        if inputs.scene.is_some() || inputs.heightmap.is_some() {
+            render_inputs(&inputs, matches)?
+        } else {
+            let settings = common.settings(method);
+            settings.validate()?;
+            let field = bundled::rocks()?;
+            (field, "rocks".to_owned(), settings, SceneAssets::default())
+        };
+    if !headless && !given("size") && inputs.scene.is_none() {
         (settings.width, settings.height) = DEFAULT_WINDOW;
     }
-    let camera_path = args
-        .camera_path
-        .as_deref()
-        .map(CameraPath::parse)
-        .transpose()?;
-    let script = args
-        .script
+    let camera_path = camera_path.as_deref().map(CameraPath::parse).transpose()?;
+    let script = script
         .as_deref()
         .map(Script::read)
         .transpose()?
         .unwrap_or_default();
-    if let Some(path) = &args.screenshot {
+    if let Some(path) = &screenshot {
         output::check_writable(path).context("invalid --screenshot")?;
     }
     for (_, action) in &script.events {
@@ -132,17 +148,17 @@ pub fn run(options: &ContextOptions, args: &ViewArgs, matches: &ArgMatches) -> R
             output::check_writable(path).context("invalid --script screenshot")?;
         }
     }
-    if let Some(right) = args.split {
+    if let Some(right) = split {
         let mut s = settings;
         s.method = right;
-        s.params.steps = args.common.steps.unwrap_or(right.default_steps());
+        s.params.steps = common.steps.unwrap_or(right.default_steps());
         s.validate()?;
     }
     let headless = headless.then(|| Headless {
-        frames: args.common.frames,
+        frames: common.frames,
         camera_path,
         script,
-        screenshot: args.screenshot.clone(),
+        screenshot: screenshot.clone(),
         pending_resize: None,
         waiting_error: false,
         applied: None,
@@ -152,10 +168,10 @@ pub fn run(options: &ContextOptions, args: &ViewArgs, matches: &ArgMatches) -> R
         map: 0,
         assets,
         settings,
-        steps: args.common.steps,
-        right: args.split,
+        steps: common.steps,
+        right: split,
         divider: 0.5,
-        heatmap: args.heatmap,
+        heatmap: start_heatmap,
         home: settings.scene.camera,
     };
     let event_loop = EventLoop::new().context(
