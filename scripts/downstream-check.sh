@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 12: a crate outside this repository that depends on dispmap by path must build
+# A crate outside this repository that depends on dispmap by path must build
 # (dispmap's build script links shaderc through its build-dependencies, with no
 # .cargo/config.toml) and render. This copies the template scripts/downstream/ to a fresh
 # folder outside the checkout, points it at this checkout, checks that no cargo config

@@ -1,12 +1,102 @@
 //! dispmap: per-pixel displacement mapping with Vulkan compute shaders, measured speed
 //! against error.
 //!
-//! This is the core crate an engine depends on: the Vulkan compute passes, their one
-//! orchestrator [`embed::DisplacementPass`] (recorded into a host's command buffer) and the
-//! standalone [`Renderer`], the first host of that pass (its own G-buffer, one-shot
-//! submission and read-back). The exact CPU reference, the error metrics, the benchmark,
-//! scene files, mesh loaders and the `dispmap` command-line tool live in the `dispmap-cli`
-//! crate of the same repository (`cli/`), which an engine does not need.
+//! Given a height map and a G-buffer (each pixel's tangent-space view ray), dispmap finds
+//! the first intersection of every ray with the height field by one of its methods
+//! ([`Method`]: from bump mapping, steep parallax and relief mapping to DIG, the
+//! max-height pyramid and an exact traversal), and shades, shadows and depth-corrects
+//! the result. Everything runs as Vulkan compute passes that
+//! record into a command buffer they are given.
+//!
+//! This is the core crate an engine depends on: the passes, their one orchestrator
+//! [`embed::DisplacementPass`] (recorded into a host's command buffer) and the standalone
+//! [`Renderer`], the first host of that pass (its own G-buffer, one-shot submission and
+//! read-back). The exact CPU reference, the error metrics, the benchmark, scene files,
+//! mesh loaders and the `dispmap` command-line tool live in the `dispmap-cli` crate of the
+//! same repository (`cli/`), which an engine does not need.
+//!
+//! # Rendering a frame on its own
+//!
+//! [`Renderer`] creates its G-buffer, records the pass, submits and reads back:
+//!
+//! ```no_run
+//! use dispmap::{Context, ContextOptions, Convention, HeightField, Method, MethodParams};
+//! use dispmap::{RenderSettings, Renderer, Scene};
+//! use std::{path::Path, sync::Arc};
+//!
+//! # fn main() -> dispmap::Result<()> {
+//! let field = HeightField::load(Path::new("rocks_depth.jpg"), Convention::Depth)?;
+//! let ctx = Arc::new(Context::headless(&ContextOptions::default())?);
+//! let settings = RenderSettings {
+//!     width: 320,
+//!     height: 180,
+//!     method: Method::Relief,
+//!     params: MethodParams::default(),
+//!     scene: Scene::default(), // the tiled plane, camera 30 degrees above it
+//!     shadows: Default::default(),
+//! };
+//! let mut renderer = Renderer::new(&ctx, &field, settings)?;
+//! let times = renderer.render()?; // per-pass GPU milliseconds
+//! let rgba = renderer.read_color()?; // 320 x 180 RGBA8, sRGB
+//! let hits = renderer.read_hits()?; // (u, v, height, iterations) per pixel
+//! # let _ = (times, rgba, hits);
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! # Embedding the pass in an engine
+//!
+//! A host that owns its instance, device, queue and allocator enables what
+//! [`embed::requirements`] lists, wraps its handles in a [`Context`], builds one
+//! [`embed::DisplacementPass`] and records it each frame after its own G-buffer pass
+//! (layouts, barriers and the frames-in-flight contract: the [`embed`] module docs;
+//! `examples/host_engine.rs` is a complete engine):
+//!
+//! ```no_run
+//! use ash::vk;
+//! use dispmap::context::HostHandles;
+//! use dispmap::embed::{self, DisplacementPass, FrameInputs, PassSettings, Timestamps};
+//! use dispmap::passes::gbuffer::GBufferViews;
+//! use dispmap::{Addressing, Context, HeightField, Method, MethodParams};
+//! use std::sync::Arc;
+//!
+//! /// One frame of a host whose device was created with `embed::requirements()` enabled;
+//! /// `cmd` is recording, the G-buffer and hit buffer are in the documented layouts.
+//! fn frame(
+//!     handles: HostHandles,
+//!     field: &HeightField,
+//!     cmd: vk::CommandBuffer,
+//!     gbuffer: GBufferViews,
+//!     hit: vk::ImageView,
+//! ) -> dispmap::Result<()> {
+//!     // 1. The device has what the pass needs (an error naming what is missing).
+//!     // SAFETY: the host's physical device was enumerated from its live instance.
+//!     unsafe { embed::check_physical_device(&handles.instance, handles.physical_device)? };
+//!     // 2. dispmap's view of the host's handles.
+//!     // SAFETY: the handles are alive and the device has the requirements enabled.
+//!     let ctx = Arc::new(unsafe { Context::from_handles(handles, false)? });
+//!     // 3. Pipelines, the height texture (uploaded by the first record), per-slot state.
+//!     let mut pass = DisplacementPass::new(ctx, field, PassSettings {
+//!         method: Method::Relief,
+//!         params: MethodParams::default(),
+//!         depth_scale: 0.1,
+//!         addressing: Addressing::Repeat,
+//!         extent: gbuffer.extent,
+//!         frames_in_flight: 2,
+//!     })?;
+//!     // 4. Each frame: record into the host's command buffer (the host submits it).
+//!     let inputs = FrameInputs { frame_slot: 0, gbuffer, hit, shade: None };
+//!     // SAFETY: `cmd`, the views and the slot follow `record`'s documented contract.
+//!     let recorded = unsafe { pass.record(cmd, &inputs, Timestamps::Owned)? };
+//!     // ... the host's barriers, vkQueueSubmit2, its fence; then per-pass times:
+//!     let times = pass.timings(0)?;
+//!     # let _ = (recorded, times);
+//!     // 5. After the device is idle.
+//!     // SAFETY: no frame recorded with the pass is still executing.
+//!     unsafe { pass.destroy() };
+//!     Ok(())
+//! }
+//! ```
 //!
 //! A frame is a pass graph: `gbuffer` (raster) -> `[upload]` -> `[pyramid]` ->
 //! `[dig_corners]` -> `trace` (the method, writing the hit buffer) -> `[shadow]` -> `shade`

@@ -446,7 +446,7 @@ mod tests {
             eps,
             ..MethodParams::default()
         };
-        // The case: 2000 x 64 samples, each pixel cut off at 65,535.
+        // The secant case: 2000 x 64 samples, each pixel cut off at 65,535.
         let err = Method::Secant
             .check_loop_limit(&p(2000, 64, None), LOOP_LIMIT)
             .unwrap_err()

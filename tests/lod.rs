@@ -1,7 +1,7 @@
 //! Level of detail (Tatarchuk 2006; `MethodParams::lod_threshold`, `--lod-threshold`):
 //! on a far, minified tiled plane LOD cuts the trace cost of relief, pom and dig at an
-//! error cost measured against the exact reference (README "Level of detail and depth"
-//! lists the numbers), every pixel follows the documented rule (bump beyond the
+//! error cost measured against the exact reference (docs/methods.md lists the numbers),
+//! every pixel follows the documented rule (bump beyond the
 //! threshold, the method's own hit below the band, the blend in it, a decal's misses
 //! kept in the band), and a magnified close-up is bit-identical with LOD on and off.
 //! Validation on throughout.
@@ -110,7 +110,7 @@ struct Row {
     regions: [usize; 3],
 }
 
-/// Measured bounds (the measured value plus a small margin; README lists the values).
+/// Measured bounds (the measured value plus a small margin; docs/methods.md lists the values).
 /// Iterations: LOD-on mean over LOD-off mean (measured 0.517 relief, 0.468 pom, 0.463
 /// dig).
 const MAX_ITERATION_RATIO: f64 = 0.55;

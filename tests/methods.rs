@@ -1,7 +1,7 @@
 //! Issue 3's numbers: every method on the shared rocks, bricks and mountains maps, on
 //! 256x144 frames of the tiled plane at camera elevations of 30, 5 and 1 degrees, measured
 //! against the exact CPU reference with validation on. Each test prints its table (run
-//! with `--nocapture` to see it); README.md lists the measured values.
+//! with `--nocapture` to see it); docs/methods.md lists the measured values.
 
 mod common;
 
@@ -157,7 +157,7 @@ const METHODS: [(Method, u32); 7] = [
 ];
 
 /// Bounds each test holds. Where the issue's target is not reached the bound is the
-/// measured value (rounded up) and README.md says so; see `check`.
+/// measured value (rounded up) and docs/methods.md says so; see `check`.
 struct Bounds {
     /// `exact`: artifact fraction (issue: 0; a float-precision tangency, which
     /// `unexplained` recognises, would be the only allowed exception).

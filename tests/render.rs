@@ -69,7 +69,7 @@ fn measure(
 /// point) and 3.3% with exact f32 bilinear: the misses are grazing rays near the
 /// horizon (|P| of several tiles, so one of 256 steps spans many texels) and thin
 /// peaks skipped between samples, which is linear search's known failure. The bound
-/// below is what this implementation reaches, not the target (see the README).
+/// below is what this implementation reaches, not the target (see docs/methods.md).
 #[test]
 fn relief_is_close_and_linear_is_measurably_worse() {
     let rocks = asset_map("rocks_depth.jpg", Convention::Depth);

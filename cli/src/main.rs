@@ -129,7 +129,7 @@ struct BenchArgs {
 #[derive(Args, Debug)]
 struct RenderArgs {
     /// A scene file (TOML: height map, material, geometry, camera, light, method, frame
-    /// size; see README "Scenes"). Flags given on the command line override its values.
+    /// size; see docs/scenes.md). Flags given on the command line override its values.
     #[arg(long, value_name = "FILE")]
     scene: Option<PathBuf>,
     /// Height map (PNG 8/16-bit, JPEG, OpenEXR); needed unless --scene.

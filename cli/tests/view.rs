@@ -5,54 +5,11 @@
 //! `xvfb` package, which scripts/setup-debian.sh installs).
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
 
-/// An Xvfb server, killed when dropped.
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// Starts Xvfb on a free display number; `Err` says why it could not.
-fn start_xvfb() -> Result<Xvfb, String> {
-    // Display numbers from the process id, so parallel runs of this test pick different
-    // ones; a display whose lock file exists is taken.
-    let base = 100 + (std::process::id() % 400);
-    for n in base..base + 20 {
-        if Path::new(&format!("/tmp/.X{n}-lock")).exists() {
-            continue;
-        }
-        let display = format!(":{n}");
-        let child = Command::new("Xvfb")
-            .args([&display, "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .map_err(|e| format!("cannot run Xvfb ({e}); install the xvfb package"))?;
-        let mut xvfb = Xvfb { child, display };
-        let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(10) {
-            if let Ok(Some(_)) = xvfb.child.try_wait() {
-                break; // it exited: the display was taken after all, try the next one
-            }
-            if socket.exists() {
-                return Ok(xvfb);
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = xvfb.child.kill();
-    }
-    Err("Xvfb did not start on any of 20 display numbers".into())
-}
+#[path = "support/xvfb.rs"]
+mod xvfb;
+use xvfb::start_xvfb;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dispmap-view-{}-{name}", std::process::id()));

@@ -1,4 +1,4 @@
-//! A crate outside dispmap's repository, depending on it by path (issue 12): it must
+//! A crate outside dispmap's repository, depending on it by path: it must
 //! build with no `.cargo/config.toml`, then render one small frame with the validation
 //! layer on. Exits non-zero on any validation message or any non-finite hit texel.
 //!
