@@ -109,13 +109,18 @@ bool cone_advance(inout ConeRay r, inout float t, out float t_exit, out vec2 exi
         t_exit = cone_cell_exit(r, t, exit);
         float e;
         vec2 cone = cone_entry(r, t, e);
-        float h = 1.0 - t;
-        if (h <= cone.x + SKIP_MARGIN) {
+        // The band starts at t_band (h = M + margin). The test and the robust step use
+        // the same rounded value, so a step that ends at t_band is in the band (comparing
+        // h = 1 - t with M + margin instead could round the other way and leave the ray
+        // one ulp above the band with a step of zero, forever).
+        float t_band = 1.0 - cone.x - SKIP_MARGIN;
+        if (t >= t_band) {
             return true;
         }
+        float h = 1.0 - t;
         float w = cone.y;
         float s = max(w * (h - cone.x - SKIP_MARGIN) - e, 0.0) / (w + r.len) * (1.0 - CONE_SHRINK);
-        float t_next = max(t + s, min(t_exit, 1.0 - cone.x - SKIP_MARGIN));
+        float t_next = max(t + s, min(t_exit, t_band));
         if (t_next >= r.t_end) {
             t_above = t;
             t = r.t_end;
