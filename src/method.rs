@@ -140,8 +140,9 @@ impl Method {
     /// loop) and the traversal methods (`pyramid`, `exact`; `dig-guarded`'s traversal),
     /// whose traversal caps its own steps (`glsl/common/pyramid.glsl`, `TRAVERSAL_CAP`)
     /// below [`LOOP_LIMIT`]; `dig-guarded`'s corner pass is bounded like `dig`'s. The
-    /// cone methods' march (cone steps, band samples, leaf tests) stops at
-    /// [`TRAVERSAL_CAP`] steps too, declared here with `cone`'s bisection.
+    /// cone methods' march (cone steps, band samples, leaf tests) stops after
+    /// [`CONE_BUDGET`] steps and hands over to the pyramid traversal ([`TRAVERSAL_CAP`]
+    /// steps), declared here with `cone`'s bisection.
     ///
     /// DIG's march below its interval keeps the interval's step `len / I_L`, where the
     /// interval is at least `eps` long and `I_L <= 4 max(ceil(len steps), 1)`: the step
@@ -153,9 +154,9 @@ impl Method {
         let march = steps + 1;
         match self {
             Method::Bump | Method::Pyramid | Method::Exact => None,
-            // The march and its bands share the traversal cap; then the bisection.
+            // The march and its bands, the pyramid traversal after them, the bisection.
             Method::Cone | Method::ConeExact => {
-                Some(TRAVERSAL_CAP + if self == Method::Cone { refine } else { 0 })
+                Some(CONE_BUDGET + TRAVERSAL_CAP + if self == Method::Cone { refine } else { 0 })
             }
             Method::DigGuarded => Some(march),
             Method::Linear => Some(march),
@@ -283,6 +284,10 @@ pub const LOOP_LIMIT: u32 = 65_535;
 /// The steps a traversal may take per invocation (`TRAVERSAL_CAP` in
 /// `glsl/common/frame.glsl`): the cone methods' march is cut there (no hit).
 pub const TRAVERSAL_CAP: u64 = 16384;
+
+/// The cone steps a cone method's ray takes before it hands over to the pyramid
+/// traversal (`CONE_BUDGET` in `glsl/common/cone.glsl`).
+pub const CONE_BUDGET: u64 = 4096;
 
 /// Largest DIG block side in pixels.
 pub const MAX_BLOCK: u32 = 64;

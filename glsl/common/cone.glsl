@@ -20,6 +20,13 @@ layout(set = 0, binding = 8) uniform sampler2D u_cone;
 // inside the surface it bounds.
 const float CONE_SHRINK = 1.0 / 65536.0;
 
+// The cone steps a ray may take before it hands over to the pyramid traversal
+// (pyramid_first_hit_from, from the point it reached): a cone step covers at least one
+// cell, so a ray crossing more cells than this (a huge depth scale at a grazing angle:
+// millions of texels) would otherwise end at the traversal cap without its hit. The
+// pyramid skips such open space by whole nodes. Method::loop_bound declares the sum.
+const float CONE_BUDGET = 4096.0;
+
 // The ray's march state.
 struct ConeRay {
     vec2 origin;

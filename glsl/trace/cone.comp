@@ -25,7 +25,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     float dt = 1.0 / float(max(pc.steps, 1u));
     float t = 0.0, t_above = 0.0;
     float step = 0.0;
-    float cap = TRAVERSAL_CAP;
+    float cap = CONE_BUDGET;
     bool below = false;
     while (step < cap) {
         float t_exit;
@@ -54,7 +54,13 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         step += 1.0;
     }
     if (!below) {
-        if (t >= 1.0 && step < cap) {
+        // Out of cone steps before the ray's end: the exact pyramid traversal from the
+        // point reached (above the surface), as cone-exact does.
+        if (step >= cap && t < r.t_end) {
+            float th = pyramid_first_hit_from(ray, t, 1.0, int(pc.pyramid_levels) - 1, iterations);
+            return th < 0.0 ? miss(ray, iterations) : hit_at(ray, 1.0 - th, iterations);
+        }
+        if (t >= 1.0) {
             return hit_at(ray, 0.0, iterations);
         }
         return miss(ray, iterations);

@@ -18,7 +18,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     float t = 0.0, t_above = 0.0;
     float step = 0.0;
     // Each step leaves a cell or reaches its band, and each band test leaves the cell.
-    float cap = TRAVERSAL_CAP;
+    float cap = CONE_BUDGET;
     while (step < cap) {
         float t_exit;
         vec2 exit;
@@ -37,9 +37,15 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         t = t_exit;
         step += 1.0;
     }
+    // Out of cone steps before the ray's end: the exact pyramid traversal from the point
+    // reached (above the surface; no crossing before it).
+    if (step >= cap && t < r.t_end) {
+        float th = pyramid_first_hit_from(ray, t, 1.0, int(pc.pyramid_levels) - 1, iterations);
+        return th < 0.0 ? miss(ray, iterations) : hit_at(ray, 1.0 - th, iterations);
+    }
     // The ray's end: at t = 1 (h = 0 <= H) it always hits; a clamp-addressed ray that
-    // leaves the decal (or a march cut at the cap) has no hit.
-    if (t >= 1.0 && step < cap) {
+    // leaves the decal has no hit.
+    if (t >= 1.0) {
         return hit_at(ray, 0.0, iterations);
     }
     return miss(ray, iterations);
