@@ -82,6 +82,18 @@ pub struct PyramidParams {
     pub pad: [u32; 3],
 }
 
+/// `ConeParams` in `glsl/cone.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ConeParams {
+    /// The map's size in texels (= cells).
+    pub map_size: [u32; 2],
+    /// Levels of the cell pyramid.
+    pub levels: u32,
+    /// `ADDRESSING_*`.
+    pub addressing: u32,
+}
+
 /// `CornerParams` in `glsl/dig_corners.comp`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -379,6 +391,20 @@ mod tests {
                 ("pad", offset_of!(PyramidParams, pad)),
             ],
             size_of::<PyramidParams>(),
+        );
+    }
+
+    #[test]
+    fn cone_params_layout() {
+        check(
+            &shaders::CONE_COMP,
+            "ConeParams",
+            &[
+                ("map_size", offset_of!(ConeParams, map_size)),
+                ("levels", offset_of!(ConeParams, levels)),
+                ("addressing", offset_of!(ConeParams, addressing)),
+            ],
+            size_of::<ConeParams>(),
         );
     }
 

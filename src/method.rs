@@ -35,6 +35,13 @@ pub enum Method {
     /// Conservative cell-max pyramid traversal with the exact ray/bilinear-patch
     /// intersection in the leaf (beyond the papers; after Tevs et al. 2008).
     Exact,
+    /// Robust cone step mapping (Dummer 2006; Bán, Valasek, Bálint & Vad 2024): cone
+    /// steps over the conservative cone map of the bilinear surface with the robust
+    /// minimum step, a sampled band below each cell's maximum, then a binary search.
+    Cone,
+    /// Robust cone steps until the ray may meet its cell's bilinear patch, then `exact`'s
+    /// ray/patch solve (beyond the papers).
+    ConeExact,
 }
 
 /// What the finest level of a max-height pyramid bounds.
@@ -56,6 +63,8 @@ pub struct Needs {
     pub pyramid: Option<PyramidKind>,
     /// The DIG corner grid (`dig_corners` pass).
     pub dig_corners: bool,
+    /// The cone map (`cone` pass, built from the cell pyramid).
+    pub cone: bool,
 }
 
 impl Method {
@@ -70,6 +79,8 @@ impl Method {
         Method::DigGuarded,
         Method::Pyramid,
         Method::Exact,
+        Method::Cone,
+        Method::ConeExact,
     ];
 
     /// CLI name.
@@ -84,6 +95,8 @@ impl Method {
             Method::DigGuarded => "dig-guarded",
             Method::Pyramid => "pyramid",
             Method::Exact => "exact",
+            Method::Cone => "cone",
+            Method::ConeExact => "cone-exact",
         }
     }
 
@@ -99,6 +112,8 @@ impl Method {
             Method::DigGuarded => "depth interval grids + pyramid guard (beyond the papers)",
             Method::Pyramid => "pyramidal displacement mapping (Oh, Ki & Lee 2006)",
             Method::Exact => "maximum-mipmap traversal + exact bilinear patch (beyond the papers)",
+            Method::Cone => "robust cone step mapping (Dummer 2006; Bán et al. 2024)",
+            Method::ConeExact => "robust cone steps + exact bilinear patch (beyond the papers)",
         }
     }
 
@@ -114,6 +129,8 @@ impl Method {
             Method::DigGuarded => shaders::TRACE_DIG_GUARDED_COMP,
             Method::Pyramid => shaders::TRACE_PYRAMID_COMP,
             Method::Exact => shaders::TRACE_EXACT_COMP,
+            Method::Cone => shaders::TRACE_CONE_COMP,
+            Method::ConeExact => shaders::TRACE_CONE_EXACT_COMP,
         }
     }
 
@@ -122,7 +139,10 @@ impl Method {
     /// the DIG methods, the corner pass per corner (the larger). `None` for `bump` (no
     /// loop) and the traversal methods (`pyramid`, `exact`; `dig-guarded`'s traversal),
     /// whose traversal caps its own steps (`glsl/common/pyramid.glsl`, `TRAVERSAL_CAP`)
-    /// below [`LOOP_LIMIT`]; `dig-guarded`'s corner pass is bounded like `dig`'s.
+    /// below [`LOOP_LIMIT`]; `dig-guarded`'s corner pass is bounded like `dig`'s. The
+    /// cone methods' march (cone steps, band samples, leaf tests) stops after
+    /// [`CONE_BUDGET`] steps and hands over to the pyramid traversal ([`TRAVERSAL_CAP`]
+    /// steps), declared here with `cone`'s bisection.
     ///
     /// DIG's march below its interval keeps the interval's step `len / I_L`, where the
     /// interval is at least `eps` long and `I_L <= 4 max(ceil(len steps), 1)`: the step
@@ -134,6 +154,10 @@ impl Method {
         let march = steps + 1;
         match self {
             Method::Bump | Method::Pyramid | Method::Exact => None,
+            // The march and its bands, the pyramid traversal after them, the bisection.
+            Method::Cone | Method::ConeExact => {
+                Some(CONE_BUDGET + TRAVERSAL_CAP + if self == Method::Cone { refine } else { 0 })
+            }
             Method::DigGuarded => Some(march),
             Method::Linear => Some(march),
             Method::Relief => Some(march + refine),
@@ -192,18 +216,25 @@ impl Method {
             Method::Dig => Needs {
                 pyramid: None,
                 dig_corners: true,
+                cone: false,
             },
             Method::DigGuarded => Needs {
                 pyramid: Some(PyramidKind::Cell),
                 dig_corners: true,
+                cone: false,
             },
             Method::Pyramid => Needs {
                 pyramid: Some(PyramidKind::Footprint),
-                dig_corners: false,
+                ..Needs::default()
             },
             Method::Exact => Needs {
                 pyramid: Some(PyramidKind::Cell),
+                ..Needs::default()
+            },
+            Method::Cone | Method::ConeExact => Needs {
+                pyramid: Some(PyramidKind::Cell),
                 dig_corners: false,
+                cone: true,
             },
             _ => Needs::default(),
         }
@@ -249,6 +280,14 @@ pub const MAX_STEPS: u32 = 1 << 16;
 /// Loop iterations lavapipe (Mesa's llvmpipe) lets one shader invocation run, all of
 /// its loops together; past them it ends the invocation silently.
 pub const LOOP_LIMIT: u32 = 65_535;
+
+/// The steps a traversal may take per invocation (`TRAVERSAL_CAP` in
+/// `glsl/common/frame.glsl`): the cone methods' march is cut there (no hit).
+pub const TRAVERSAL_CAP: u64 = 16384;
+
+/// The cone steps a cone method's ray takes before it hands over to the pyramid
+/// traversal (`CONE_BUDGET` in `glsl/common/cone.glsl`).
+pub const CONE_BUDGET: u64 = 4096;
 
 /// Largest DIG block side in pixels.
 pub const MAX_BLOCK: u32 = 64;

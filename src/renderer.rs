@@ -550,6 +550,15 @@ impl Renderer {
             .transpose()
     }
 
+    /// The cone map, `(M, w)` per cell row by row (see [`crate::passes::cone`]); `None`
+    /// unless the method uses one and a frame has built it.
+    pub fn read_cone_map(&self) -> Result<Option<Vec<[f32; 2]>>> {
+        self.pass
+            .cone_map()
+            .map(|c| c.read(&self.ctx, &self.shot))
+            .transpose()
+    }
+
     /// The corrected-depth image (`R32_SFLOAT`, reverse-Z clip depth of each pixel's hit,
     /// 0 without one; see [`crate::passes::hit_depth`]) once a frame has been rendered
     /// with the output on. It is in `GENERAL`, last written by a compute-shader storage

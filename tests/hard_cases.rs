@@ -21,11 +21,12 @@
 //!   hits; no geometry is a miss). On a clamp-addressed decal `bump` hits wherever there
 //!   is geometry, and the fixed-step searches may miss a hit a step skipped before the
 //!   ray left the decal (an artifact, like any skipped feature);
-//! * `exact`, `dig-guarded`: every pixel agrees with the reference within one texel, or
+//! * `exact`, `dig-guarded`, `cone-exact`: every pixel agrees with the reference within one texel, or
 //!   the disagreement is a float-precision tangency (`common::unexplained` with
 //!   `TANGENCY`, as in tests/methods.rs); `pyramid`: the same with its documented skim
 //!   depth (`PYRAMID_SKIM`);
-//! * `linear`, `relief`, `pom`, `secant`, `dig` (fixed-step searches): never a hit in open
+//! * `linear`, `relief`, `pom`, `secant`, `dig`, `cone` (fixed-step searches; `cone`'s
+//!   within each cell's band): never a hit in open
 //!   air: within one linear step after the reported hit the ray reaches the surface, up
 //!   to the hardware filter's precision (`FILTER_TOLERANCE`). They may report a *later*
 //!   hit (a feature thinner than a step skipped): counted as artifacts and printed;
@@ -369,10 +370,12 @@ fn camera_params(edit: fn(&mut GBufferParams), depth_scale: f32) -> GBufferParam
 /// method is checked otherwise).
 fn step(method: Method, p: &MethodParams) -> Option<f64> {
     let n = match method {
-        Method::Linear | Method::Relief | Method::Dig => p.steps,
+        Method::Linear | Method::Relief | Method::Dig | Method::Cone => p.steps,
         Method::Pom => p.min_steps.min(p.steps),
         Method::Secant => p.steps * p.segments,
-        Method::Bump | Method::Pyramid | Method::Exact | Method::DigGuarded => return None,
+        Method::Bump | Method::Pyramid | Method::Exact | Method::DigGuarded | Method::ConeExact => {
+            return None;
+        }
     };
     Some(1.0 / f64::from(n.max(1)))
 }
@@ -461,7 +464,7 @@ fn check_method(method: Method, params: &MethodParams, f: &Frame, hits: &[[f32; 
         }
     }
     let skim = match method {
-        Method::Exact | Method::DigGuarded => Some(TANGENCY),
+        Method::Exact | Method::DigGuarded | Method::ConeExact => Some(TANGENCY),
         Method::Pyramid => Some(PYRAMID_SKIM),
         _ => None,
     };
@@ -532,8 +535,10 @@ fn check_extra(
                     .filter(|&&i| on_spike(hits[i][2]))
                     .count();
                 o.spike_found = Some(found);
-                if matches!(o.method, Method::Exact | Method::DigGuarded)
-                    && found != spike_pixels.len()
+                if matches!(
+                    o.method,
+                    Method::Exact | Method::DigGuarded | Method::ConeExact
+                ) && found != spike_pixels.len()
                 {
                     o.failures.push(format!(
                         "found the spike on {found} of {} pixels",

@@ -64,7 +64,7 @@ const PYRAMID_SKIM: f64 = 1.8e-3;
 /// The tolerance `unexplained` applies to `method`'s hits.
 fn skim_tolerance(method: Method) -> Option<f64> {
     match method {
-        Method::Exact | Method::DigGuarded => Some(TANGENCY),
+        Method::Exact | Method::DigGuarded | Method::ConeExact => Some(TANGENCY),
         Method::Pyramid => Some(PYRAMID_SKIM),
         _ => None,
     }
@@ -146,8 +146,10 @@ fn find(runs: &[Run], method: Method, elevation: f32) -> &Run {
 }
 
 /// The methods and quality settings of issue 3.
-const METHODS: [(Method, u32); 7] = [
+const METHODS: [(Method, u32); 9] = [
     (Method::Exact, 1),
+    (Method::ConeExact, 1),
+    (Method::Cone, 64),
     (Method::Pyramid, 1),
     (Method::Relief, 150),
     (Method::Dig, 150),
@@ -181,7 +183,12 @@ fn check(runs: &[Run], bounds: &Bounds) {
         let exact = find(runs, Method::Exact, elevation);
         // Exact agrees with the reference to float precision on every pixel; the
         // pyramid method misses only shallow skims.
-        for method in [Method::Exact, Method::DigGuarded, Method::Pyramid] {
+        for method in [
+            Method::Exact,
+            Method::ConeExact,
+            Method::DigGuarded,
+            Method::Pyramid,
+        ] {
             let run = find(runs, method, elevation);
             assert_eq!(run.unexplained, Some(0), "{method} at {elevation}");
         }
@@ -191,6 +198,17 @@ fn check(runs: &[Run], bounds: &Bounds) {
             exact.error.artifact_fraction
         );
         assert!(exact.error.p99_texels <= 0.05, "exact p99 at {elevation}");
+        // The exact cone method meets exact's bar: no artifact, p99 <= 0.05 texel.
+        let cone_exact = find(runs, Method::ConeExact, elevation);
+        assert_eq!(
+            cone_exact.error.artifact_fraction, 0.0,
+            "cone-exact at {elevation}"
+        );
+        assert!(
+            cone_exact.error.p99_texels <= 0.05,
+            "cone-exact p99 at {elevation}: {}",
+            cone_exact.error.p99_texels
+        );
 
         let pyramid = find(runs, Method::Pyramid, elevation);
         assert!(
@@ -403,8 +421,8 @@ fn decal_silhouettes_for_every_method() {
             let m = renderer.measure(&frame_ref, 1).unwrap();
             eprintln!("decal {method}: {:?}", m.error);
             assert_eq!(m.error.nonfinite_pixels, 0, "{method}");
-            if method == Method::Exact {
-                assert_eq!(m.error.artifact_fraction, 0.0);
+            if matches!(method, Method::Exact | Method::ConeExact) {
+                assert_eq!(m.error.artifact_fraction, 0.0, "{method}");
             }
         }
     }

@@ -141,6 +141,7 @@ use crate::gpu::{Buffer, HeightTexture, Image};
 use crate::heightfield::{Addressing, HeightField};
 use crate::material::{MaterialImages, MaterialStaging, MaterialTextures};
 use crate::method::{Method, MethodParams, Needs, PyramidKind};
+use crate::passes::cone::{ConeMap, ConePass};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::hit_depth::HitDepthPass;
@@ -290,6 +291,10 @@ pub struct DisplacementPass {
     pending_material: Option<MaterialStaging>,
     pyramid: Option<Pyramid>,
     pyramid_built: bool,
+    /// The cone-map pipeline and the map (cone methods).
+    cone_pass: Option<ConePass>,
+    cone: Option<ConeMap>,
+    cone_built: bool,
     /// One grid per frame slot (empty unless the method is a DIG).
     corners: Vec<CornerGrid>,
     query_pool: Option<vk::QueryPool>,
@@ -442,6 +447,14 @@ impl DisplacementPass {
                 .map(|kind| Pyramid::new(c, field_size(field), kind, settings.addressing))
                 .transpose()?,
         );
+        let cone_pass = Guard::new(c, needs.cone.then(|| ConePass::new(c)).transpose()?);
+        let cone = Guard::new(
+            c,
+            needs
+                .cone
+                .then(|| ConeMap::new(c, field_size(field), settings.addressing))
+                .transpose()?,
+        );
         let corner_pass = Guard::new(
             c,
             needs
@@ -467,6 +480,9 @@ impl DisplacementPass {
             pending_material: None,
             pyramid: pyramid.keep(),
             pyramid_built: false,
+            cone_pass: cone_pass.keep(),
+            cone: cone.keep(),
+            cone_built: false,
             corners,
             query_pool: None,
             slot_scopes: vec![Vec::new(); settings.frames_in_flight as usize],
@@ -493,7 +509,9 @@ impl DisplacementPass {
     /// or the mip chain added or dropped with level of detail) or (for the pyramid
     /// methods) rebuilds the pyramid.
     pub fn rebuild_pending(&self) -> bool {
-        self.pending_fill.is_some() || (self.pyramid.is_some() && !self.pyramid_built)
+        self.pending_fill.is_some()
+            || (self.pyramid.is_some() && !self.pyramid_built)
+            || (self.cone.is_some() && !self.cone_built)
     }
 
     /// Per-pass milliseconds of the last frame recorded in `frame_slot` with
@@ -531,6 +549,13 @@ impl DisplacementPass {
             .pyramid
             .map(|kind| Pyramid::new(&ctx, field_size(field), kind, self.settings.addressing))
             .transpose()?;
+        let pyramid = Guard::new(&ctx, pyramid);
+        let cone = self
+            .needs
+            .cone
+            .then(|| ConeMap::new(&ctx, field_size(field), self.settings.addressing))
+            .transpose()?;
+        let pyramid = pyramid.keep();
         self.retired
             .retire(std::mem::replace(&mut self.height, height.keep()));
         match self.pending_fill.replace(Fill::Upload(staging.keep())) {
@@ -544,6 +569,10 @@ impl DisplacementPass {
             self.retired.retire(old);
         }
         self.pyramid_built = false;
+        if let Some(old) = std::mem::replace(&mut self.cone, cone) {
+            self.retired.retire(old);
+        }
+        self.cone_built = false;
         // A cell pyramid of the shadow stage's own is of the old map: rebuilt (the old
         // one is retired with its stage).
         let own = self
@@ -677,6 +706,18 @@ impl DisplacementPass {
                 .map(|kind| Pyramid::new(c, self.height.size(), kind, self.settings.addressing))
                 .transpose()?,
         );
+        let cone_pass = Guard::new(
+            c,
+            (needs.cone && self.cone_pass.is_none())
+                .then(|| ConePass::new(c))
+                .transpose()?,
+        );
+        let cone = Guard::new(
+            c,
+            (needs.cone && self.cone.is_none())
+                .then(|| ConeMap::new(c, self.height.size(), self.settings.addressing))
+                .transpose()?,
+        );
         let corner_pass = Guard::new(
             c,
             (needs.dig_corners && self.corner_pass.is_none())
@@ -718,6 +759,18 @@ impl DisplacementPass {
             self.retired.retire(self.pyramid.take());
             self.retired.retire(self.pyramid_pass.take());
             self.pyramid_built = false;
+        }
+        if let Some(pass) = cone_pass.keep() {
+            self.cone_pass = Some(pass);
+        }
+        if let Some(cone) = cone.keep() {
+            self.cone = Some(cone);
+            self.cone_built = false;
+        }
+        if !needs.cone {
+            self.retired.retire(self.cone.take());
+            self.retired.retire(self.cone_pass.take());
+            self.cone_built = false;
         }
         if let Some(pass) = corner_pass.keep() {
             self.corner_pass = Some(pass);
@@ -841,6 +894,11 @@ impl DisplacementPass {
         self.pyramid.as_ref().filter(|_| self.pyramid_built)
     }
 
+    /// The cone map once a record has built it (`None` for methods without one).
+    pub fn cone_map(&self) -> Option<&ConeMap> {
+        self.cone.as_ref().filter(|_| self.cone_built)
+    }
+
     /// The size of the height map in texels.
     pub fn map_size(&self) -> [u32; 2] {
         self.height.size()
@@ -920,9 +978,11 @@ impl DisplacementPass {
         self.pending_material.destroy(ctx);
         self.material.destroy(ctx);
         self.corners.destroy(ctx);
+        self.cone.destroy(ctx);
         self.pyramid.destroy(ctx);
         self.height.destroy(ctx);
         self.corner_pass.destroy(ctx);
+        self.cone_pass.destroy(ctx);
         self.pyramid_pass.destroy(ctx);
         self.shade.destroy(ctx);
         self.trace.destroy(ctx);

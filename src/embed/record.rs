@@ -1,4 +1,4 @@
-//! Recording a frame: `[upload] -> [pyramid] -> [dig_corners] -> trace -> [shadow] ->
+//! Recording a frame: `[upload] -> [pyramid] -> [cone] -> [dig_corners] -> trace -> [shadow] ->
 //! [shade] -> [hit_depth]`. Each stage is one method that places its own barriers next
 //! to its dispatch, from the state the stage before it left (the module docs' table).
 
@@ -320,25 +320,55 @@ impl DisplacementPass {
             Some(s) if !s.own_built => s.own_pyramid.as_ref().map(|(pass, p)| (pass, p)),
             _ => None,
         };
-        if method_pyramid.is_none() && shadow_pyramid.is_none() {
-            return;
+        if method_pyramid.is_some() || shadow_pyramid.is_some() {
+            // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+            // queries reset by `begin`). In the body (inside this block): the height texture
+            // is sampled-readable (filled in the upload scope above or by an earlier frame);
+            // a pyramid is built only while unbuilt, so no frame has read it; the pass and
+            // pyramids live until they are retired after the frames that use them.
+            unsafe {
+                w.scope(&ctx, cmd, PassName::Pyramid, |cmd| {
+                    for (pass, pyramid) in method_pyramid.into_iter().chain(shadow_pyramid) {
+                        pass.record(&ctx, cmd, &self.height, pyramid);
+                    }
+                })
+            };
         }
-        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body (inside this block): the height texture
-        // is sampled-readable (filled in the upload scope above or by an earlier frame);
-        // a pyramid is built only while unbuilt, so no frame has read it; the pass and
-        // pyramids live until they are retired after the frames that use them.
-        unsafe {
-            w.scope(&ctx, cmd, PassName::Pyramid, |cmd| {
-                for (pass, pyramid) in method_pyramid.into_iter().chain(shadow_pyramid) {
-                    pass.record(&ctx, cmd, &self.height, pyramid);
-                }
-            })
-        };
         self.pyramid_built = self.pyramid.is_some();
         if let Some(s) = &mut self.shadow {
             s.own_built = s.own_pyramid.is_some();
         }
+        // SAFETY: `record`'s contract, as above.
+        unsafe { self.record_cone(w, cmd) };
+    }
+
+    /// The `cone` scope (cone methods): the cone map from the (built) cell pyramid, when
+    /// unbuilt.
+    ///
+    /// # Safety
+    /// As [`DisplacementPass::record`].
+    unsafe fn record_cone(&mut self, w: &mut ScopeWriter, cmd: vk::CommandBuffer) {
+        let (Some(pass), Some(cone), Some(pyramid), false) = (
+            &self.cone_pass,
+            &self.cone,
+            self.pyramid.as_ref().filter(|_| self.pyramid_built),
+            self.cone_built,
+        ) else {
+            return;
+        };
+        let ctx = &*self.ctx;
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body: the height texture and the pyramid are
+        // sampled-readable (their fill and build, recorded before this in the same command
+        // buffer or by an earlier frame); the cone map is built only while unbuilt, so no
+        // frame has read it; the pass, pyramid and map live until they are retired after
+        // the frames that use them.
+        unsafe {
+            w.scope(ctx, cmd, PassName::Cone, |cmd| {
+                pass.record(ctx, cmd, &self.height, pyramid, cone);
+            })
+        };
+        self.cone_built = true;
     }
 
     /// The DIG corner pass (DIG methods only): the slot's grid discarded -> storage
@@ -433,6 +463,7 @@ impl DisplacementPass {
                         hit,
                         pyramid: self.pyramid.as_ref(),
                         corners: self.corners.get(inputs.frame_slot as usize),
+                        cone: self.cone.as_ref(),
                     },
                     &self.settings.params,
                     self.settings.depth_scale,

@@ -176,6 +176,8 @@ destroy_by_method!(
     crate::material::MaterialStaging,
     crate::mesh::MeshBuffers,
     crate::passes::depth_resolve::DepthResolvePass,
+    crate::passes::cone::ConeMap,
+    crate::passes::cone::ConePass,
     crate::passes::dig::CornerGrid,
     crate::passes::dig::DigCornerPass,
     crate::passes::gbuffer::GBuffer,

@@ -7,6 +7,7 @@
 //! compute passes (`src/embed/record.rs`, one method per stage), and its host (an engine,
 //! or [`crate::renderer::Renderer`]) the G-buffer's and the entry barriers.
 
+pub mod cone;
 pub mod depth_resolve;
 pub mod dig;
 pub mod gbuffer;
@@ -52,6 +53,9 @@ pub enum PassName {
     /// The min-reduce chain of the pyramid methods (and of hard shadows' cell pyramid).
     /// One-off: built once per height map.
     Pyramid,
+    /// The cone map of the cone-stepping methods (built from the pyramid). One-off:
+    /// built once per height map.
+    Cone,
     /// The DIG corner pass.
     DigCorners,
     /// The intersection method, writing the hit buffer.
@@ -66,10 +70,11 @@ pub enum PassName {
 
 impl PassName {
     /// Every pass, in recording order.
-    pub const ALL: [PassName; 8] = [
+    pub const ALL: [PassName; 9] = [
         PassName::GBuffer,
         PassName::Upload,
         PassName::Pyramid,
+        PassName::Cone,
         PassName::DigCorners,
         PassName::Trace,
         PassName::Shadow,
@@ -78,12 +83,13 @@ impl PassName {
     ];
 
     /// The name in reports, metrics files and debug labels (`gbuffer`, `upload`,
-    /// `pyramid`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`).
+    /// `pyramid`, `cone`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`).
     pub fn as_str(self) -> &'static str {
         match self {
             PassName::GBuffer => "gbuffer",
             PassName::Upload => "upload",
             PassName::Pyramid => "pyramid",
+            PassName::Cone => "cone",
             PassName::DigCorners => "dig_corners",
             PassName::Trace => "trace",
             PassName::Shadow => "shadow",
@@ -95,7 +101,7 @@ impl PassName {
     /// Whether the pass runs once after a change (a new map or method) rather than
     /// every frame: such times are reported apart from the per-frame total.
     pub fn is_one_off(self) -> bool {
-        matches!(self, PassName::Upload | PassName::Pyramid)
+        matches!(self, PassName::Upload | PassName::Pyramid | PassName::Cone)
     }
 }
 

@@ -181,7 +181,8 @@ impl ShadowSettings {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ShadowTrace {
     /// Exact "any hit" traversal of the cell-max pyramid (`glsl/shadow.comp`'s
-    /// `PYRAMID` variant): hard shadows of `exact`, `dig-guarded` and `pyramid`.
+    /// `PYRAMID` variant): hard shadows of `exact`, `dig-guarded`, `pyramid` and the
+    /// cone methods (whose cone map is built from the same cell pyramid).
     Pyramid,
     /// Samples of the hardware-filtered height field: the linear march of the marching
     /// methods' hard shadows and the soft estimate of every method.
@@ -412,7 +413,14 @@ mod tests {
     fn the_query_follows_the_method_family() {
         use ShadowTrace::*;
         for &m in Method::ALL {
-            let pyramid = matches!(m, Method::Exact | Method::DigGuarded | Method::Pyramid);
+            let pyramid = matches!(
+                m,
+                Method::Exact
+                    | Method::DigGuarded
+                    | Method::Pyramid
+                    | Method::Cone
+                    | Method::ConeExact
+            );
             let hard = ShadowTrace::for_method(ShadowMode::Hard, m);
             assert_eq!(hard, if pyramid { Pyramid } else { Sampled }, "{m}");
             assert_eq!(ShadowTrace::for_method(ShadowMode::Soft, m), Sampled, "{m}");

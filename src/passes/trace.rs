@@ -11,8 +11,9 @@
 //! | 4 | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 5 | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 6 | G-buffer `normal` (`w`: surface id; the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 8 | cone map (`cone`, `cone-exact`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //!
-//! A method's pipeline declares bindings 4 and 5 only when its [`Needs`] name them.
+//! A method's pipeline declares bindings 4, 5 and 8 only when its [`Needs`] name them.
 //!
 //! Each pixel's hit is `(u, v, height, iterations)`; `height < 0` means no hit.
 
@@ -23,6 +24,7 @@ use crate::error::Result;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
+use crate::passes::cone::ConeMap;
 use crate::passes::dig::CornerGrid;
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::pyramid::Pyramid;
@@ -41,6 +43,7 @@ const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
 const PYRAMID_BINDING: u32 = 4;
 const CORNERS_BINDING: u32 = 5;
 const NORMAL_BINDING: u32 = 6;
+const CONE_BINDING: u32 = 8;
 
 /// The bindings of a method with `needs`.
 fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
@@ -56,6 +59,9 @@ fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
     }
     if needs.dig_corners {
         b.push((CORNERS_BINDING, SAMPLED));
+    }
+    if needs.cone {
+        b.push((CONE_BINDING, SAMPLED));
     }
     b
 }
@@ -74,6 +80,8 @@ pub struct TraceInputs<'a> {
     /// The DIG corner grid, for `dig` methods (written by this frame's corner pass,
     /// `SHADER_READ_ONLY_OPTIMAL`).
     pub corners: Option<&'a CornerGrid>,
+    /// The cone map, for the cone methods (built, `SHADER_READ_ONLY_OPTIMAL`).
+    pub cone: Option<&'a ConeMap>,
 }
 
 /// The trace pass of one method.
@@ -111,7 +119,7 @@ impl TracePass {
     ///   module's table; `inputs.hit` and the G-buffer are of the frame's size, the
     ///   corner grid (if any) was made for it.
     /// * When the command buffer executes, the images are in the layouts of the module's
-    ///   table: the G-buffer, `height`, the pyramid and the corner grid in
+    ///   table: the G-buffer, `height`, the pyramid, the corner grid and the cone map in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
     ///   reads; the hit buffer in `GENERAL`, earlier accesses ordered before
     ///   compute-shader storage writes (the caller's barriers).
@@ -131,6 +139,7 @@ impl TracePass {
             hit,
             pyramid,
             corners,
+            cone,
         } = inputs;
         let needs = self.method.needs();
         let missing = |what: &str| {
@@ -147,6 +156,11 @@ impl TracePass {
         let corners = match (needs.dig_corners, corners) {
             (true, Some(c)) => Some(c),
             (true, None) => return Err(missing("the DIG corner grid")),
+            (false, _) => None,
+        };
+        let cone = match (needs.cone, cone) {
+            (true, Some(c)) => Some(c),
+            (true, None) => return Err(missing("the cone map")),
             (false, _) => None,
         };
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
@@ -173,6 +187,10 @@ impl TracePass {
         }
         if let Some(g) = &grid {
             writes.push(image_write(CORNERS_BINDING, SAMPLED, g));
+        }
+        let cones = cone.map(|c| [c.descriptor()]);
+        if let Some(c) = &cones {
+            writes.push(image_write(CONE_BINDING, SAMPLED, c));
         }
         let extent = hit.extent;
         let (max_level, mut flags) = match params.max_level {

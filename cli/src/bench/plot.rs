@@ -56,6 +56,8 @@ pub fn method_color(method: Method) -> RGBColor {
         Method::DigGuarded => RGBColor(227, 119, 194),
         Method::Pyramid => RGBColor(44, 160, 44),
         Method::Exact => RGBColor(0, 0, 0),
+        Method::Cone => RGBColor(188, 189, 34),
+        Method::ConeExact => RGBColor(23, 190, 207),
     }
 }
 

@@ -1,0 +1,164 @@
+#version 460
+// cone: the conservative cone map of the bilinear surface, one invocation per cell (see
+// src/passes/cone.rs for the definition and the proof sketch; docs/cones.md for the
+// choices). Texel space as in glsl/common/pyramid.glsl: cell (i, j) = [i, i + 1] x
+// [j, j + 1] between texel centres, its maximum M = the cell pyramid's level 0.
+//
+// Output (rg32f): (M, w). w is the cone ratio (texels of horizontal distance per unit of
+// height): every point q of the surface satisfies H(q) <= M + dist(q, C) / w, dist the
+// Euclidean distance in texels from q to the cell's square C. A ray above M anywhere over
+// C can therefore advance by w (h - M) / (w + |d|) (|d| its horizontal texels per unit
+// of height) without meeting the surface.
+//
+// Every other cell D gives an upper bound on w; w is their minimum (and CONE_RATIO_MAX):
+//   * cells within WINDOW cells (brute force on their 4 corner texels): the bilinear patch
+//     is linear along each axis, so on D, at a distance g + f (f in [0, 1]) from C along
+//     an axis, H <= (1 - f) N + f F (N, F the maxima of D's near and far edges), and the
+//     distance to C is at least g + f: the bound holds at f = 0 and 1, hence everywhere
+//     (both sides are linear in f). The axis that allows the larger w is used; for a
+//     diagonal neighbour (sharing one corner, <= M) also sqrt(2) max(other corners - M).
+//   * beyond the window: the max pyramid (Valasek & Ban 2022): at each level L >= 1 the 8
+//     neighbours of the node holding C, each bounded by its node maximum at the larger
+//     of its gap to C and WINDOW (every cell outside the window is at least WINDOW cells
+//     away along one axis). The levels' 3x3 blocks nest and the root's covers the map;
+//     with repeat addressing the tiles beyond the root's 3x3 copies are at least
+//     min(W, H) texels away (bounded by the global maximum).
+// Clamp addressing: cells -1 and W - 1 (half inside the decal; their corners are the
+// clamped edge texels) are surface like any other; cells beyond them are never reached.
+#include "frame.glsl"
+
+layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
+
+layout(set = 0, binding = 0) uniform sampler2D u_height;
+layout(set = 0, binding = 1) uniform sampler2D u_pyramid;
+layout(set = 0, binding = 2, rg32f) uniform writeonly image2D u_cone;
+
+layout(push_constant) uniform ConeParams {
+    uvec2 map_size;  // texels = cells per axis
+    uint levels;     // levels of the cell pyramid
+    uint addressing; // ADDRESSING_*
+} pc;
+
+#include "texels.glsl"
+
+// Cells per side of the brute-force window around a cell (its half width).
+#define WINDOW 4
+#define SIDE (2 * WINDOW + 2)
+// The widest cone stored: a flat neighbourhood gives no bound.
+const float CONE_RATIO_MAX = 65536.0;
+
+// g / v for v > 0, else no bound.
+float ratio(float g, float v) {
+    return v > 0.0 ? g / v : CONE_RATIO_MAX;
+}
+
+// One axis of a window cell at offset `o` (|o| >= 1): near- and far-edge maxima above M.
+float axis_bound(int o, float near_max, float far_max) {
+    float g = float(abs(o) - 1);
+    return min(ratio(g, near_max), ratio(g + 1.0, far_max));
+}
+
+// The level-`level` node `k` of an axis of `n` cells (`nl` nodes): its cell range
+// [lo, hi) in the unbounded cell coordinates around tile 0; false when it does not exist
+// (clamp addressing, outside the map).
+bool node_cells(int k, int n, int nl, int level, out int kk, out int lo, out int hi) {
+    int shift = 0;
+    kk = k;
+    if (pc.addressing == ADDRESSING_REPEAT) {
+        if (k < 0) {
+            kk = k + nl;
+            shift = -n;
+        } else if (k >= nl) {
+            kk = k - nl;
+            shift = n;
+        }
+    } else if (k < 0 || k >= nl) {
+        return false;
+    }
+    lo = (kk << level) + shift;
+    hi = min((kk + 1) << level, n) + shift;
+    if (pc.addressing == ADDRESSING_CLAMP && kk == 0) {
+        lo = -1;
+    }
+    return true;
+}
+
+void main() {
+    ivec2 c = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 n = ivec2(pc.map_size);
+    if (any(greaterThanEqual(c, n))) {
+        return;
+    }
+    float m = texelFetch(u_pyramid, c, 0).r;
+    float w = CONE_RATIO_MAX;
+
+    // The window's corner texels, rows c.y - WINDOW .. c.y + WINDOW + 1.
+    float t[SIDE * SIDE];
+    for (int j = 0; j < SIDE; ++j) {
+        for (int i = 0; i < SIDE; ++i) {
+            t[j * SIDE + i] = texel_height(c + ivec2(i - WINDOW, j - WINDOW)) - m;
+        }
+    }
+    for (int dj = -WINDOW; dj <= WINDOW; ++dj) {
+        for (int di = -WINDOW; di <= WINDOW; ++di) {
+            ivec2 d = c + ivec2(di, dj);
+            if ((di == 0 && dj == 0)
+                || (pc.addressing == ADDRESSING_CLAMP && (any(lessThan(d, ivec2(-1))) || any(greaterThan(d, n - 1))))) {
+                continue;
+            }
+            int k = (dj + WINDOW) * SIDE + di + WINDOW;
+            // Corners above M (local x, y in {0, 1}).
+            float a00 = t[k], a10 = t[k + 1], a01 = t[k + SIDE], a11 = t[k + SIDE + 1];
+            float top = max(max(a00, a10), max(a01, a11));
+            if (top <= 0.0) {
+                continue;
+            }
+            vec2 gap = vec2(max(abs(di) - 1, 0), max(abs(dj) - 1, 0));
+            float bound = ratio(length(gap), top);
+            if (di != 0) {
+                float lower = max(a00, a01), upper = max(a10, a11);
+                bound = max(bound, di > 0 ? axis_bound(di, lower, upper) : axis_bound(di, upper, lower));
+            }
+            if (dj != 0) {
+                float lower = max(a00, a10), upper = max(a01, a11);
+                bound = max(bound, dj > 0 ? axis_bound(dj, lower, upper) : axis_bound(dj, upper, lower));
+            }
+            if (abs(di) == 1 && abs(dj) == 1) {
+                // The shared corner is one of C's (<= M), so `top` is the maximum of
+                // the other three: H - M <= (fx + fy) top <= sqrt(2) |f| top.
+                bound = max(bound, ratio(1.0, sqrt(2.0) * top));
+            }
+            w = min(w, bound);
+        }
+    }
+
+    // Beyond the window: the pyramid's neighbour rings.
+    int top_level = int(pc.levels) - 1;
+    for (int level = 1; level <= top_level; ++level) {
+        ivec2 a = c >> level;
+        ivec2 nl = (n + (1 << level) - 1) >> level;
+        for (int oy = -1; oy <= 1; ++oy) {
+            for (int ox = -1; ox <= 1; ++ox) {
+                if (ox == 0 && oy == 0) {
+                    continue;
+                }
+                ivec2 kk, lo, hi;
+                if (!node_cells(a.x + ox, n.x, nl.x, level, kk.x, lo.x, hi.x)
+                    || !node_cells(a.y + oy, n.y, nl.y, level, kk.y, lo.y, hi.y)) {
+                    continue;
+                }
+                float rise = texelFetch(u_pyramid, kk, level).r - m;
+                if (rise <= 0.0) {
+                    continue;
+                }
+                vec2 gap = vec2(max(max(lo - (c + 1), c - hi), ivec2(0)));
+                w = min(w, ratio(max(length(gap), float(WINDOW)), rise));
+            }
+        }
+    }
+    if (pc.addressing == ADDRESSING_REPEAT) {
+        float rise = texelFetch(u_pyramid, ivec2(0), top_level).r - m;
+        w = min(w, ratio(max(float(min(n.x, n.y)), float(WINDOW)), rise));
+    }
+    imageStore(u_cone, c, vec4(m, w, 0.0, 0.0));
+}

@@ -1,0 +1,205 @@
+//! The cone map of the cone-stepping methods (`src/passes/cone.rs`) against a brute-force
+//! CPU generator: on small maps (a one-texel spike, a step edge, odd and degenerate sizes,
+//! both addressings) no GPU cone is wider than the cone the brute force measures on a
+//! dense sampling of the bilinear surface (which is itself at least as wide as the true
+//! cone), and each test prints how much narrower the GPU cones are.
+
+mod common;
+
+use common::{finish, validated_context};
+use dispmap::heightfield::{Addressing, HeightField};
+use dispmap::method::{Method, MethodParams};
+use dispmap::passes::PassName;
+use dispmap::passes::cone::CONE_RATIO_MAX;
+use dispmap::passes::pyramid::{PyramidKind, cpu_build};
+use dispmap::renderer::{RenderSettings, Renderer};
+use dispmap::scene::{Geometry, Scene};
+
+/// Samples per texel along each axis of the brute force (texel corners and edges
+/// included: the bilinear maximum of a cell is at a corner).
+const SAMPLES: i64 = 8;
+
+/// The bilinear surface of `field` at texel-space point `(x, y)` (texel centres at
+/// integers) with `addressing`, in f64.
+fn surface(field: &HeightField, addressing: Addressing, x: f64, y: f64) -> f64 {
+    let (w, h) = (i64::from(field.width()), i64::from(field.height()));
+    let at = |i: i64, j: i64| {
+        let (i, j) = match addressing {
+            Addressing::Repeat => (i.rem_euclid(w), j.rem_euclid(h)),
+            Addressing::Clamp => (i.clamp(0, w - 1), j.clamp(0, h - 1)),
+        };
+        f64::from(field.texel(i as u32, j as u32))
+    };
+    let (i, j) = (x.floor(), y.floor());
+    let (fx, fy) = (x - i, y - j);
+    let (i, j) = (i as i64, j as i64);
+    let top = at(i, j) + (at(i + 1, j) - at(i, j)) * fx;
+    let bottom = at(i, j + 1) + (at(i + 1, j + 1) - at(i, j + 1)) * fx;
+    top + (bottom - top) * fy
+}
+
+/// The brute-force cone of cell `(ci, cj)` with maximum `m`: the smallest
+/// `dist(q, cell) / (H(q) - m)` over the sampled surface points `q` above `m` (repeat:
+/// the 3x3 tiles around the map; clamp: the decal), capped like the GPU's.
+fn brute_cone(field: &HeightField, addressing: Addressing, ci: i64, cj: i64, m: f64) -> f64 {
+    let (w, h) = (i64::from(field.width()), i64::from(field.height()));
+    let (x_range, y_range) = match addressing {
+        // Texel-space [-W - 0.5, 2W - 0.5) etc. in steps of 1 / SAMPLES.
+        Addressing::Repeat => (
+            (-w * SAMPLES - SAMPLES / 2, 2 * w * SAMPLES - SAMPLES / 2),
+            (-h * SAMPLES - SAMPLES / 2, 2 * h * SAMPLES - SAMPLES / 2),
+        ),
+        Addressing::Clamp => (
+            (-SAMPLES / 2, w * SAMPLES - SAMPLES / 2),
+            (-SAMPLES / 2, h * SAMPLES - SAMPLES / 2),
+        ),
+    };
+    let mut best = f64::from(CONE_RATIO_MAX);
+    for sy in y_range.0..=y_range.1 {
+        let y = sy as f64 / SAMPLES as f64;
+        let dy = (cj as f64 - y).max(y - (cj + 1) as f64).max(0.0);
+        for sx in x_range.0..=x_range.1 {
+            let x = sx as f64 / SAMPLES as f64;
+            let rise = surface(field, addressing, x, y) - m;
+            if rise <= 0.0 {
+                continue;
+            }
+            let dx = (ci as f64 - x).max(x - (ci + 1) as f64).max(0.0);
+            best = best.min(dx.hypot(dy) / rise);
+        }
+    }
+    best
+}
+
+/// Builds the GPU cone map of `field` with `addressing` (through a `cone` renderer, as
+/// the methods do) and compares it with the brute force; returns the mean ratio GPU /
+/// brute force over the cells whose brute-force cone is finite (below the cap).
+fn check_map(
+    ctx: &std::sync::Arc<dispmap::context::Context>,
+    field: &HeightField,
+    addressing: Addressing,
+) -> f64 {
+    let geometry = match addressing {
+        Addressing::Repeat => Geometry::TiledPlane,
+        Addressing::Clamp => Geometry::Quad,
+    };
+    let settings = RenderSettings {
+        shadows: Default::default(),
+        width: 16,
+        height: 16,
+        method: Method::Cone,
+        params: MethodParams::for_method(Method::Cone),
+        scene: Scene {
+            geometry,
+            ..Scene::default()
+        },
+    };
+    let mut renderer = Renderer::new(ctx, field, settings).unwrap();
+    assert!(renderer.read_cone_map().unwrap().is_none(), "built lazily");
+    let times = renderer.render().unwrap();
+    assert!(
+        times.iter().any(|(n, _)| *n == PassName::Cone),
+        "timed as `cone`"
+    );
+    let gpu = renderer.read_cone_map().unwrap().expect("built");
+    // Built once: the next frame neither runs nor times it.
+    let times = renderer.render().unwrap();
+    assert!(times.iter().all(|(n, _)| *n != PassName::Cone));
+    drop(renderer);
+
+    let (w, h) = (field.width() as usize, field.height() as usize);
+    assert_eq!(gpu.len(), w * h);
+    let cells = &cpu_build(field, addressing, PyramidKind::Cell)[0];
+    let (mut ratios, mut worst, mut capped) = (Vec::new(), (f64::INFINITY, 0, 0), 0);
+    for j in 0..h {
+        for i in 0..w {
+            let [m, cone] = gpu[j * w + i];
+            assert!(
+                m.is_finite() && cone.is_finite() && cone >= 0.0,
+                "cell ({i}, {j}): {m} {cone}"
+            );
+            assert_eq!(
+                m,
+                cells[j * w + i],
+                "cell ({i}, {j}): the maximum is the cell pyramid's"
+            );
+            let brute = brute_cone(field, addressing, i as i64, j as i64, f64::from(m));
+            // f32 rounding of the GPU's bound: a relative 1e-5 (the trace shortens every
+            // step by 1.5e-5, `CONE_SHRINK`).
+            assert!(
+                f64::from(cone) <= brute * (1.0 + 1e-5),
+                "{} {addressing:?} cell ({i}, {j}): GPU cone {cone} wider than the brute force {brute}",
+                field.label()
+            );
+            if brute < f64::from(CONE_RATIO_MAX) {
+                let r = f64::from(cone) / brute;
+                if r < worst.0 {
+                    worst = (r, i, j);
+                }
+                ratios.push(r);
+            } else {
+                capped += 1;
+            }
+        }
+    }
+    let mean = if ratios.is_empty() {
+        1.0
+    } else {
+        ratios.iter().sum::<f64>() / ratios.len() as f64
+    };
+    eprintln!(
+        "{:<12} {:>3}x{:<3} {:<6?} GPU / brute-force cone: mean {:.3}, min {:.3} at ({}, {}); {} of {} cells unbounded (flat)",
+        field.label(),
+        w,
+        h,
+        addressing,
+        mean,
+        if ratios.is_empty() { 1.0 } else { worst.0 },
+        worst.1,
+        worst.2,
+        capped,
+        w * h
+    );
+    mean
+}
+
+fn maps() -> Vec<HeightField> {
+    let spike = {
+        let mut values = vec![0.1f32; 121];
+        values[5 * 11 + 5] = 0.9;
+        HeightField::from_heights(11, 11, values, "spike").unwrap()
+    };
+    let step = HeightField::from_heights(
+        12,
+        6,
+        (0..72)
+            .map(|k| if k % 12 < 6 { 0.2 } else { 0.8 })
+            .collect(),
+        "step edge",
+    )
+    .unwrap();
+    let slope = HeightField::from_fn(16, 3, "slope", |u, _| 0.1 + 0.8 * u).unwrap();
+    let bumps = HeightField::from_fn(23, 13, "bumps", |u, v| {
+        0.5 + 0.45 * (u * 19.0).sin() * (v * 11.0 + u * 5.0).cos()
+    })
+    .unwrap();
+    let one = HeightField::from_heights(1, 1, vec![0.4], "1x1").unwrap();
+    let row =
+        HeightField::from_heights(7, 1, vec![0.1, 0.9, 0.3, 0.3, 0.5, 0.0, 1.0], "7x1").unwrap();
+    let column = HeightField::from_heights(1, 5, vec![0.2, 0.7, 0.1, 0.0, 0.6], "1x5").unwrap();
+    vec![spike, step, slope, bumps, one, row, column]
+}
+
+/// Conservative on every map and both addressings, and tight where the papers' cone is
+/// known: a constant slope's cone is its inverse slope.
+#[test]
+fn gpu_cones_are_never_wider_than_the_brute_force() {
+    let ctx = validated_context();
+    for field in maps() {
+        for addressing in [Addressing::Repeat, Addressing::Clamp] {
+            let mean = check_map(&ctx, &field, addressing);
+            assert!(mean > 0.0 && mean <= 1.0 + 1e-5);
+        }
+    }
+    finish(ctx);
+}
