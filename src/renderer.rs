@@ -194,31 +194,7 @@ impl Renderer {
                 GBUFFER_QUERIES + MAX_QUERIES,
             )?),
         );
-        let gbuffer = Guard::new(c, GBuffer::new(c, extent)?);
-        let hit = Guard::new(
-            c,
-            Image::new(
-                c,
-                "hits",
-                HIT_FORMAT,
-                extent,
-                1,
-                vk::ImageUsageFlags::STORAGE
-                    | vk::ImageUsageFlags::TRANSFER_SRC
-                    | vk::ImageUsageFlags::TRANSFER_DST,
-            )?,
-        );
-        let color = Guard::new(
-            c,
-            Image::new(
-                c,
-                "color",
-                COLOR_FORMAT,
-                extent,
-                1,
-                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-            )?,
-        );
+        let (gbuffer, hit, color) = frame_images(c, extent)?;
         let gbuffer_pass = Guard::new(
             c,
             if mesh.is_some() {
@@ -301,31 +277,7 @@ impl Renderer {
             return Ok(());
         }
         let c = &*self.ctx;
-        let gbuffer = Guard::new(c, GBuffer::new(c, extent)?);
-        let hit = Guard::new(
-            c,
-            Image::new(
-                c,
-                "hits",
-                HIT_FORMAT,
-                extent,
-                1,
-                vk::ImageUsageFlags::STORAGE
-                    | vk::ImageUsageFlags::TRANSFER_SRC
-                    | vk::ImageUsageFlags::TRANSFER_DST,
-            )?,
-        );
-        let color = Guard::new(
-            c,
-            Image::new(
-                c,
-                "color",
-                COLOR_FORMAT,
-                extent,
-                1,
-                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-            )?,
-        );
+        let (gbuffer, hit, color) = frame_images(c, extent)?;
         self.pass.resize(extent)?;
         let mut old = (
             std::mem::replace(&mut self.gbuffer, gbuffer.keep()),
@@ -747,4 +699,38 @@ impl Drop for Renderer {
         self.timestamps.destroy(ctx);
         self.shot.destroy(ctx);
     }
+}
+
+/// The images sized by the frame: the G-buffer, the hit image and the colour image, each
+/// guarded until the caller keeps it (creation and `resize`).
+fn frame_images(
+    c: &Context,
+    extent: vk::Extent2D,
+) -> Result<(Guard<'_, GBuffer>, Guard<'_, Image>, Guard<'_, Image>)> {
+    let gbuffer = Guard::new(c, GBuffer::new(c, extent)?);
+    let hit = Guard::new(
+        c,
+        Image::new(
+            c,
+            "hits",
+            HIT_FORMAT,
+            extent,
+            1,
+            vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::TRANSFER_SRC
+                | vk::ImageUsageFlags::TRANSFER_DST,
+        )?,
+    );
+    let color = Guard::new(
+        c,
+        Image::new(
+            c,
+            "color",
+            COLOR_FORMAT,
+            extent,
+            1,
+            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+        )?,
+    );
+    Ok((gbuffer, hit, color))
 }
