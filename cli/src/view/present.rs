@@ -187,34 +187,24 @@ impl Presenter {
                     formats.iter().map(|f| f.format).collect::<Vec<_>>()
                 )
             })?;
-        // SAFETY: plain query of a physical device of this instance.
-        let props = unsafe {
-            ctx.instance()
-                .get_physical_device_format_properties(ctx.physical_device(), format)
+        // The blit from the renderer's colour image into the swapchain image.
+        let require = |format: vk::Format, feature: vk::FormatFeatureFlags, role: &str| {
+            // SAFETY: plain query of a physical device of this instance.
+            let props = unsafe {
+                ctx.instance()
+                    .get_physical_device_format_properties(ctx.physical_device(), format)
+            };
+            if props.optimal_tiling_features.contains(feature) {
+                Ok(())
+            } else {
+                Err(anyhow::anyhow!(
+                    "device {}: {format:?} cannot be a blit {role}",
+                    ctx.info().name
+                ))
+            }
         };
-        if !props
-            .optimal_tiling_features
-            .contains(vk::FormatFeatureFlags::BLIT_DST)
-        {
-            bail!(
-                "device {}: {format:?} cannot be a blit destination",
-                ctx.info().name
-            );
-        }
-        // SAFETY: as above.
-        let color = unsafe {
-            ctx.instance()
-                .get_physical_device_format_properties(ctx.physical_device(), COLOR_FORMAT)
-        };
-        if !color
-            .optimal_tiling_features
-            .contains(vk::FormatFeatureFlags::BLIT_SRC)
-        {
-            bail!(
-                "device {}: {COLOR_FORMAT:?} cannot be a blit source",
-                ctx.info().name
-            );
-        }
+        require(format, vk::FormatFeatureFlags::BLIT_DST, "destination")?;
+        require(COLOR_FORMAT, vk::FormatFeatureFlags::BLIT_SRC, "source")?;
         self.format = format;
         // SAFETY: as above.
         let modes = unsafe {
