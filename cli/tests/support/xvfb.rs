@@ -1,9 +1,10 @@
 //! An Xvfb server for the tests that open a window (`view`, `doc_commands`).
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
+use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::sync::mpsc;
+use std::time::Duration;
 
 /// An Xvfb server, killed when dropped.
 pub struct Xvfb {
@@ -19,35 +20,48 @@ impl Drop for Xvfb {
     }
 }
 
-/// Starts Xvfb on a free display number; `Err` says why it could not.
+/// Starts Xvfb on a display number the server picks itself; `Err` says why it could not.
+///
+/// The server chooses the number (`-displayfd`: it takes the first display whose lock
+/// file it can create, atomically) and writes it to its standard output once clients can
+/// connect. Choosing the number here instead raced: two tests of one process started
+/// servers on the same number, the second server exited, and its test used (and lost,
+/// when the first test ended) the first test's server.
 pub fn start_xvfb() -> Result<Xvfb, String> {
-    // Display numbers from the process id, so parallel runs of this test pick different
-    // ones; a display whose lock file exists is taken.
-    let base = 100 + (std::process::id() % 400);
-    for n in base..base + 20 {
-        if Path::new(&format!("/tmp/.X{n}-lock")).exists() {
-            continue;
+    let mut child = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "640x480x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .map_err(|e| format!("cannot run Xvfb ({e}); install the xvfb package"))?;
+    let stdout = child.stdout.take().expect("stdout is piped");
+    let (send, receive) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let read = BufReader::new(stdout).read_line(&mut line);
+        let _ = send.send(read.map(|_| line));
+    });
+    let mut xvfb = Xvfb {
+        child,
+        display: String::new(),
+    };
+    match receive.recv_timeout(Duration::from_secs(20)) {
+        Ok(Ok(line)) if line.trim().parse::<u32>().is_ok() => {
+            xvfb.display = format!(":{}", line.trim());
+            Ok(xvfb)
         }
-        let display = format!(":{n}");
-        let child = Command::new("Xvfb")
-            .args([&display, "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .map_err(|e| format!("cannot run Xvfb ({e}); install the xvfb package"))?;
-        let mut xvfb = Xvfb { child, display };
-        let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(10) {
-            if let Ok(Some(_)) = xvfb.child.try_wait() {
-                break; // it exited: the display was taken after all, try the next one
-            }
-            if socket.exists() {
-                return Ok(xvfb);
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = xvfb.child.kill();
+        Ok(Ok(line)) if line.is_empty() => Err("Xvfb exited without opening a display".into()),
+        Ok(Ok(line)) => Err(format!("Xvfb printed {line:?}, not a display number")),
+        Ok(Err(e)) => Err(format!("reading Xvfb's display number: {e}")),
+        Err(_) => Err("Xvfb did not open a display within 20 s".into()),
     }
-    Err("Xvfb did not start on any of 20 display numbers".into())
 }
