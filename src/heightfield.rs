@@ -510,12 +510,43 @@ fn single_channel_exr(bytes: &[u8]) -> Option<(u32, u32, Vec<f32>)> {
     None
 }
 
+/// Refuses a JPEG that ends early: without an end-of-image marker after its last scan,
+/// or with one appended to data that was cut (the case image's lenient decoder accepts,
+/// filling what is missing with grey or leaving a scan half applied).
+///
+/// The second case is found with zune-jpeg (the decoder image uses) in strict mode: the
+/// file is decoded as it is and with 32 bytes of one bits inserted before its final
+/// end-of-image marker. A complete last scan ends before the marker, so the inserted
+/// bits are never read and both decodes agree; a cut scan reads on into them (they are
+/// not a valid Huffman code, or decode to other values), so the second decode fails or
+/// differs. A file the strict decoder refuses as it is gets no verdict here: the
+/// caller's decode accepts or names it.
 fn jpeg_complete(bytes: &[u8]) -> std::result::Result<(), String> {
     let last = |marker: u8| bytes.windows(2).rposition(|w| w == [0xFF, marker]);
-    match (last(0xDA), last(0xD9)) {
-        (Some(scan), Some(end)) if end > scan => Ok(()),
-        (None, _) => Err("truncated JPEG: no image data (no start-of-scan marker)".into()),
-        _ => Err("truncated JPEG: the data ends before the end-of-image marker".into()),
+    let end = match (last(0xDA), last(0xD9)) {
+        (Some(scan), Some(end)) if end > scan => end,
+        (None, _) => return Err("truncated JPEG: no image data (no start-of-scan marker)".into()),
+        _ => return Err("truncated JPEG: the data ends before the end-of-image marker".into()),
+    };
+    let decode = |data: &[u8]| {
+        use zune_jpeg::zune_core::{bytestream::ZCursor, colorspace::ColorSpace};
+        let options = zune_jpeg::zune_core::options::DecoderOptions::default()
+            .jpeg_set_out_colorspace(ColorSpace::Luma)
+            .set_strict_mode(true);
+        zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(data), options).decode()
+    };
+    let Ok(plain) = decode(bytes) else {
+        return Ok(());
+    };
+    // 0xFF 0x00 is a stuffed 0xFF data byte: eight one bits.
+    let ones = [0xFF, 0x00].repeat(32);
+    match decode(&[&bytes[..end], &ones, &bytes[end..]].concat()) {
+        Ok(probed) if probed == plain => Ok(()),
+        _ => Err(
+            "truncated JPEG: the image data ends early (an end-of-image marker \
+                  follows data that was cut)"
+                .into(),
+        ),
     }
 }
 
@@ -711,5 +742,35 @@ mod tests {
             .to_string();
         assert!(err.contains("is a folder"), "{err}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_cut_jpeg_is_refused_even_with_an_end_marker_appended() {
+        // A baseline (sequential) JPEG, as most encoders write; the bundled maps are
+        // progressive.
+        let gradient = image::GrayImage::from_fn(96, 80, |x, y| image::Luma([(x * 2 + y) as u8]));
+        let mut baseline = Vec::new();
+        image::DynamicImage::ImageLuma8(gradient)
+            .write_with_encoder(image::codecs::jpeg::JpegEncoder::new_with_quality(
+                &mut baseline,
+                90,
+            ))
+            .unwrap();
+        let rocks = std::fs::read(asset("rocks_depth.jpg")).unwrap();
+        for (name, whole) in [("baseline", &baseline), ("progressive", &rocks)] {
+            HeightField::decode(whole, Convention::Height, name).unwrap();
+            for cut in [whole.len() * 3 / 10, whole.len() * 6 / 10, whole.len() - 8] {
+                let cut = [&whole[..cut], &[0xFF, 0xD9][..]].concat();
+                let err = HeightField::decode(&cut, Convention::Height, name)
+                    .unwrap_err()
+                    .to_string();
+                assert!(
+                    err.contains(name) && err.contains("data that was cut"),
+                    "{name} cut at {} of {}: {err}",
+                    cut.len() - 2,
+                    whole.len()
+                );
+            }
+        }
     }
 }

@@ -97,6 +97,11 @@ fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
     write("truncated.png", &mountains[..mountains.len() / 2]);
     let rocks = asset("rocks_depth.jpg");
     write("truncated.jpg", &rocks[..rocks.len() / 2]);
+    // Cut, then given back an end-of-image marker (image's decoder loads it grey-filled).
+    write(
+        "reterminated.jpg",
+        &[&rocks[..rocks.len() / 2], &[0xFF, 0xD9][..]].concat(),
+    );
     // A PNG header claiming a 0x4 image (the encoder refuses to write one).
     let mut zero = png(1, 4);
     zero[16..20].copy_from_slice(&0u32.to_be_bytes());
@@ -259,6 +264,7 @@ fn rows(f: &Fixtures) -> Vec<Row> {
         row("empty file",              &[("--heightmap", &f.path("empty.png"))],     &["empty.png", "not a PNG, JPEG or OpenEXR image"]),
         row("truncated PNG",           &[("--heightmap", &f.path("truncated.png"))], &["truncated.png", "cannot decode"]),
         row("truncated JPEG",          &[("--heightmap", &f.path("truncated.jpg"))], &["truncated.jpg", "truncated JPEG"]),
+        row("truncated JPEG, end marker appended", &[("--heightmap", &f.path("reterminated.jpg"))], &["reterminated.jpg", "truncated JPEG", "data that was cut"]),
         row("zero-sized image",        &[("--heightmap", &f.path("zero.png"))],      &["zero.png", "dimensions"]),
         row("larger than maxImageDimension2D", &[("--heightmap", &f.path("too-wide.png"))], &["too-wide.png", &format!("{}x1", max + 1), "maxImageDimension2D"]),
         row("unsupported format (BMP)", &[("--heightmap", &f.path("map.bmp"))],     &["map.bmp", "Bmp is not supported"]),
