@@ -125,8 +125,8 @@ pub struct Renderer {
     pass: DisplacementPass,
     /// Whether a frame has written the corrected depth since it was turned on.
     depth_written: bool,
-    /// GPU milliseconds of the last pyramid build.
-    pyramid_ms: Option<f64>,
+    /// GPU milliseconds of the last build of each one-off map (pyramid, cone map).
+    builds: Vec<(PassName, f64)>,
 }
 
 /// What a scene brings besides the height field and the settings: a loaded mesh (for
@@ -240,7 +240,7 @@ impl Renderer {
             mesh: mesh.keep(),
             pass,
             depth_written: false,
-            pyramid_ms: None,
+            builds: Vec::new(),
         })
     }
 
@@ -314,7 +314,10 @@ impl Renderer {
         self.settings.method = pass.method;
         self.settings.params = pass.params;
         if pass.method.needs().pyramid.is_none() && !self.settings.shadows.is_on() {
-            self.pyramid_ms = None;
+            self.builds.retain(|(name, _)| *name != PassName::Pyramid);
+        }
+        if !pass.method.needs().cone {
+            self.builds.retain(|(name, _)| *name != PassName::Cone);
         }
         result
     }
@@ -431,8 +434,11 @@ impl Renderer {
         let scopes: Vec<_> = w.scopes.iter().chain(&frame.timestamps).copied().collect();
         // SAFETY: the pool is alive and the frame completed (waited for above).
         let times = unsafe { read_timestamps(ctx, &scopes)? };
-        if let Some(&(_, ms)) = times.iter().find(|(n, _)| *n == PassName::Pyramid) {
-            self.pyramid_ms = Some(ms);
+        for &(name, ms) in &times {
+            if matches!(name, PassName::Pyramid | PassName::Cone) {
+                self.builds.retain(|(n, _)| *n != name);
+                self.builds.push((name, ms));
+            }
         }
         Ok(times)
     }
@@ -440,7 +446,16 @@ impl Renderer {
     /// The GPU milliseconds of the last pyramid build (the method's, or hard shadows'
     /// cell pyramid), while the renderer has one.
     pub fn pyramid_ms(&self) -> Option<f64> {
-        self.pyramid_ms
+        self.build_ms(PassName::Pyramid)
+    }
+
+    /// The GPU milliseconds of the last build of a one-off map, [`PassName::Pyramid`] or
+    /// [`PassName::Cone`], while the renderer has it (`None` for other passes).
+    pub fn build_ms(&self, pass: PassName) -> Option<f64> {
+        self.builds
+            .iter()
+            .find(|(n, _)| *n == pass)
+            .map(|&(_, ms)| ms)
     }
 
     /// The frame's camera and what `shade` lights it with.

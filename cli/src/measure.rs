@@ -90,8 +90,10 @@ impl Measure for Renderer {
             }
         }
         let mut out: Vec<(String, f64)> = Vec::new();
-        if let Some(ms) = self.pyramid_ms() {
-            out.push((PassName::Pyramid.to_string(), ms));
+        for name in [PassName::Pyramid, PassName::Cone] {
+            if let Some(ms) = self.build_ms(name) {
+                out.push((name.to_string(), ms));
+            }
         }
         out.extend(
             samples

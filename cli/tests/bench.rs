@@ -67,7 +67,7 @@ fn library_sweep_writes_every_output() {
         steps: vec![32, 16],
         methods: vec![Method::Dig, Method::Relief],
         sizes: vec![64, 32],
-        size_methods: vec![Method::Pyramid, Method::Pom],
+        size_methods: vec![Method::Pyramid, Method::ConeExact, Method::Pom],
         size_steps: 16,
         ..BenchConfig::default()
     };
@@ -89,7 +89,7 @@ fn library_sweep_writes_every_output() {
     let (done, total) = *events.last().unwrap();
     assert_eq!(done, total);
 
-    // Lists are put in order; 2 methods x 2 settings, then 2 sizes x 2 methods.
+    // Lists are put in order; 2 methods x 2 settings, then 2 sizes x 3 methods.
     assert_eq!(results.config.steps, [16, 32]);
     assert_eq!(results.config.sizes, [32, 64]);
     let main: Vec<_> = results
@@ -103,7 +103,7 @@ fn library_sweep_writes_every_output() {
         .filter(|r| r.sweep == Sweep::MapSize)
         .collect();
     assert_eq!(main.len(), 4);
-    assert_eq!(sizes.len(), 4);
+    assert_eq!(sizes.len(), 6);
     for r in &results.rows {
         assert!(r.trace_ms > 0.0 && r.method_ms >= r.trace_ms, "{r:?}");
         assert!(r.total_ms >= r.method_ms, "{r:?}");
@@ -114,10 +114,20 @@ fn library_sweep_writes_every_output() {
         let dig = r.method == "dig";
         assert_eq!(r.dig_corners_ms.is_some(), dig, "{r:?}");
         assert_eq!(r.corner_iterations.is_some(), dig, "{r:?}");
-        assert_eq!(r.pyramid_build_ms.is_some(), r.method == "pyramid", "{r:?}");
+        let needs = r.method().unwrap().needs();
+        assert_eq!(
+            r.pyramid_build_ms.is_some(),
+            needs.pyramid.is_some(),
+            "{r:?}"
+        );
+        assert_eq!(
+            r.cone_build_ms.is_some(),
+            r.method.starts_with("cone"),
+            "{r:?}"
+        );
     }
     let side: Vec<u32> = sizes.iter().map(|r| r.map_width).collect();
-    assert_eq!(side, [32, 32, 64, 64]);
+    assert_eq!(side, [32, 32, 32, 64, 64, 64]);
 
     let dir = scratch("lib");
     let written = bench::write_outputs(&dir, &results, "dispmap bench (test)").unwrap();
@@ -191,7 +201,7 @@ fn cli_bench_writes_every_output() {
     assert!(out.status.success(), "{stderr}");
     assert!(!stderr.contains("Validation"), "{stderr}");
     let rows = read_csv(&dir.join("results.csv"));
-    // bump once, pom twice; 2 sizes x (pyramid, exact, dig, pom).
+    // bump once, pom twice; 2 sizes x (pyramid, exact, cone-exact, dig, pom).
     let methods: Vec<(&str, Option<u32>)> = rows
         .iter()
         .filter(|r| r.sweep == Sweep::Methods)
@@ -201,7 +211,10 @@ fn cli_bench_writes_every_output() {
         methods,
         [("bump", None), ("pom", Some(8)), ("pom", Some(16))]
     );
-    assert_eq!(rows.iter().filter(|r| r.sweep == Sweep::MapSize).count(), 8);
+    assert_eq!(
+        rows.iter().filter(|r| r.sweep == Sweep::MapSize).count(),
+        10
+    );
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("## rocks") && md.contains("## Map-size sweep"));
     assert!(

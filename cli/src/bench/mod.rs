@@ -20,8 +20,9 @@
 //!   4x4 blocks; every binary search has 5 steps. Methods without a step count
 //!   (`bump`, `pyramid`, `exact`) run once per map (their `steps` is empty).
 //! * **Time.** One renderer per method and map, each with one untimed warm-up frame (the
-//!   first use of its pipelines; it also builds the pyramid, whose one build is reported
-//!   as `pyramid_build_ms`). Then the runs are interleaved frame by frame: frame 0 of
+//!   first use of its pipelines; it also builds the pyramid and the cone map, whose one
+//!   builds are reported as `pyramid_build_ms` and `cone_build_ms`, each the fastest of
+//!   `R` renderers' builds). Then the runs are interleaved frame by frame: frame 0 of
 //!   every (method, setting), then frame 1, and so on, so that load from other processes
 //!   spreads over all methods instead of skewing the ones that ran while it lasted; the
 //!   whole pass over the `K` frames is repeated `R` times (`--repeat`). Every pass's time
@@ -43,9 +44,9 @@
 //!   frames); for the DIG methods `corner_iterations` adds the corner pass's fetches per
 //!   covered pixel.
 //! * **Map-size sweep.** One map (rocks by default) resampled to each `--sizes` side
-//!   (Catmull-Rom, keeping the map's precision), and `pyramid`, `exact`, `dig` and
-//!   `pom` run at one setting (`size_steps`) with the same frames, the pyramid build
-//!   reported apart from the trace.
+//!   (Catmull-Rom, keeping the map's precision), and `pyramid`, `exact`, `cone-exact`,
+//!   `dig` and `pom` run at one setting (`size_steps`) with the same frames, the pyramid
+//!   and cone-map builds reported apart from the trace.
 //!
 //! [`run`] does the sweep and returns [`BenchResults`]; [`write_outputs`] writes
 //! `results.csv`, `report.md`, `pareto_<map>.png`, `sizes.png` and the heat maps.
@@ -89,7 +90,13 @@ pub const DEFAULT_STEPS: [u32; 10] = [10, 15, 20, 25, 35, 50, 75, 100, 125, 150]
 pub const DEFAULT_SIZES: [u32; 4] = [256, 512, 1024, 2048];
 
 /// Methods timed in the map-size sweep.
-pub const SIZE_METHODS: [Method; 4] = [Method::Pyramid, Method::Exact, Method::Dig, Method::Pom];
+pub const SIZE_METHODS: [Method; 5] = [
+    Method::Pyramid,
+    Method::Exact,
+    Method::ConeExact,
+    Method::Dig,
+    Method::Pom,
+];
 
 /// The setting of the map-size sweep.
 pub const DEFAULT_SIZE_STEPS: u32 = 100;
@@ -553,6 +560,9 @@ pub struct RunRow {
     /// (`dispmap::passes::pyramid::cpu_build`, the minimum of 3 builds), the yardstick
     /// of the GPU build.
     pub cpu_pyramid_build_ms: Option<f64>,
+    /// The cone map's build (once per map; the fastest of `repeat` builds), cone
+    /// methods only. It follows the pyramid build, which it reads.
+    pub cone_build_ms: Option<f64>,
     /// DIG corner pass, DIG methods only.
     pub dig_corners_ms: Option<f64>,
     /// Trace pass.
@@ -683,6 +693,34 @@ pub const NO_STEPS_WEIGHT: u64 = 100;
 
 /// Progress weight of one reference frame (CPU intersection).
 pub const REFERENCE_WEIGHT: u64 = 150;
+
+/// The one-off builds of a renderer's maps, GPU milliseconds.
+#[derive(Clone, Copy, Debug, Default)]
+struct Builds {
+    pyramid: Option<f64>,
+    cone: Option<f64>,
+}
+
+impl Builds {
+    fn of(renderer: &Renderer) -> Self {
+        Builds {
+            pyramid: renderer.build_ms(PassName::Pyramid),
+            cone: renderer.build_ms(PassName::Cone),
+        }
+    }
+
+    /// Each build's faster time.
+    fn min(self, other: Self) -> Self {
+        let min = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        Builds {
+            pyramid: min(self.pyramid, other.pyramid),
+            cone: min(self.cone, other.cone),
+        }
+    }
+}
 
 /// The fastest of 3 single-threaded CPU builds of `field`'s pyramid of `kind`, ms.
 fn cpu_pyramid_ms(
@@ -1010,7 +1048,7 @@ impl<'a> MapSweep<'a> {
         let config = self.config;
         // One renderer per method; each gets one untimed warm-up frame (first use of its
         // pipelines; it builds the pyramid, whose time is kept).
-        let mut renderers: Vec<(Method, Renderer, Option<f64>)> = Vec::new();
+        let mut renderers: Vec<(Method, Renderer, Builds)> = Vec::new();
         for run in runs {
             if renderers.iter().any(|(m, _, _)| *m == run.method) {
                 continue;
@@ -1019,19 +1057,17 @@ impl<'a> MapSweep<'a> {
             settings.params = protocol_params(run.steps);
             let mut renderer = Renderer::new(self.ctx, self.field, settings)?;
             renderer.render()?;
-            let mut pyramid = renderer.pyramid_ms();
-            // The build runs once per renderer: `repeat` renderers give `repeat` builds,
+            let mut builds = Builds::of(&renderer);
+            // The builds run once per renderer: `repeat` renderers give `repeat` builds,
             // of which the fastest is kept (the same statistic as every other time).
-            if pyramid.is_some() {
+            if builds.pyramid.is_some() || builds.cone.is_some() {
                 for _ in 1..config.repeat {
                     let mut again = Renderer::new(self.ctx, self.field, settings)?;
                     again.render()?;
-                    if let (Some(a), Some(b)) = (pyramid, again.pyramid_ms()) {
-                        pyramid = Some(a.min(b));
-                    }
+                    builds = builds.min(Builds::of(&again));
                 }
             }
-            renderers.push((run.method, renderer, pyramid));
+            renderers.push((run.method, renderer, builds));
         }
         let mut acc: Vec<RunAccumulator> = runs.iter().map(|_| RunAccumulator::default()).collect();
         let mut images = Vec::new();
@@ -1077,11 +1113,11 @@ impl<'a> MapSweep<'a> {
             .iter()
             .zip(&acc)
             .map(|(run, acc)| {
-                let pyramid = renderers
+                let builds = renderers
                     .iter()
                     .find(|(m, _, _)| *m == run.method)
-                    .and_then(|r| r.2);
-                self.row(run, acc, pyramid)
+                    .map_or_else(Builds::default, |r| r.2);
+                self.row(run, acc, builds)
             })
             .collect();
         Ok((rows, images))
@@ -1129,7 +1165,7 @@ impl<'a> MapSweep<'a> {
         }
     }
 
-    fn row(&self, run: &RunSpec, acc: &RunAccumulator, pyramid_ms: Option<f64>) -> RunRow {
+    fn row(&self, run: &RunSpec, acc: &RunAccumulator, builds: Builds) -> RunRow {
         let config = self.config;
         let (method_ms, method_median_ms, method_lo_ms, method_hi_ms) = acc.method_stats();
         RunRow {
@@ -1146,10 +1182,15 @@ impl<'a> MapSweep<'a> {
             error_frames: acc.errors.len() as u32,
             frame_set: config.frame_set(),
             gbuffer_ms: acc.min_of(PassName::GBuffer).unwrap_or(0.0),
-            pyramid_build_ms: run.method.needs().pyramid.and(pyramid_ms),
+            pyramid_build_ms: run.method.needs().pyramid.and(builds.pyramid),
             cpu_pyramid_build_ms: match (self.sweep, run.method.needs().pyramid) {
                 (Sweep::MapSize, Some(kind)) => Some(cpu_pyramid_ms(self.field, config, kind)),
                 _ => None,
+            },
+            cone_build_ms: if run.method.needs().cone {
+                builds.cone
+            } else {
+                None
             },
             dig_corners_ms: acc.min_of(PassName::DigCorners),
             trace_ms: acc.min_of(PassName::Trace).unwrap_or(0.0),

@@ -322,7 +322,8 @@ pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<Vec<u8>> {
 }
 
 /// The map-size plot (map-size sweep rows) as PNG (`path` names it in errors): method time per frame
-/// (log), the same relative to the smallest map, and the pyramid's one build (log).
+/// (log), the same relative to the smallest map, and the one-off builds (log): the
+/// pyramid, plus the cone map for a cone method.
 pub fn sizes(path: &Path, rows: &[RunRow]) -> Result<Vec<u8>> {
     let rows: Vec<&RunRow> = rows.iter().filter(|r| r.sweep == Sweep::MapSize).collect();
     let mut sides: Vec<u32> = rows.iter().map(|r| r.map_width).collect();
@@ -362,7 +363,11 @@ pub fn sizes(path: &Path, rows: &[RunRow]) -> Result<Vec<u8>> {
             .collect::<Vec<_>>()
     };
     let method_ms: fn(&RunRow) -> Option<f64> = |r| Some(r.method_ms);
-    let build_ms: fn(&RunRow) -> Option<f64> = |r| r.pyramid_build_ms;
+    // A cone method's one-off cost is its pyramid and its cone map.
+    let build_ms: fn(&RunRow) -> Option<f64> = |r| {
+        r.pyramid_build_ms
+            .map(|p| p + r.cone_build_ms.unwrap_or(0.0))
+    };
     // Legends where the lines are not: under the (flat) time curves, above the rising
     // ratio and build curves.
     let panels = [
@@ -381,7 +386,7 @@ pub fn sizes(path: &Path, rows: &[RunRow]) -> Result<Vec<u8>> {
             SeriesLabelPosition::UpperLeft,
         ),
         (
-            "pyramid build (once per map)",
+            "pyramid (+ cone map) build, once per map",
             "build time (ms, log)",
             series(build_ms, false),
             true,

@@ -50,7 +50,7 @@ pub fn csv_bytes(rows: &[RunRow]) -> Result<Vec<u8>> {
 }
 
 /// The columns of `results.csv`, in order.
-pub const CSV_HEADER: [&str; 36] = [
+pub const CSV_HEADER: [&str; 37] = [
     "sweep",
     "map",
     "map_width",
@@ -66,6 +66,7 @@ pub const CSV_HEADER: [&str; 36] = [
     "gbuffer_ms",
     "pyramid_build_ms",
     "cpu_pyramid_build_ms",
+    "cone_build_ms",
     "dig_corners_ms",
     "trace_ms",
     "shade_ms",
@@ -429,8 +430,8 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
          the method time: a ratio whose two sides' spreads overlap is within noise. **method** \
          = `dig_corners` + `trace` (what the speed-ups compare, all from the minimum), \
          **frame** = the whole frame \
-         (G-buffer, corner pass, trace, shade; without the one-off pyramid build, listed as \
-         **pyr. build**). Errors are means over the error frames against the exact CPU \
+         (G-buffer, corner pass, trace, shade; without the one-off pyramid and cone-map builds, listed as \
+         **pyr. build** and **cone build**). Errors are means over the error frames against the exact CPU \
          reference: **artifacts** = covered pixels more than one texel off, **mean tx** = mean \
          hit distance in texels. **iters** = the trace pass's iterations per pixel (mean, p99); \
          **SIMD-8** / **warp-32** = the mean over 8x1 / 8x4 pixel groups of the group's largest \
@@ -471,20 +472,21 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
         .map(|r| r.method_ms);
     let _ = writeln!(
         s,
-        "| method | steps | pyr. build | corners | trace | method | spread | method med. | frame | x bump | iters mean | iters p99 | SIMD-8 | warp-32 | corner it./px | artifacts | mean tx | p99 tx | PSNR dB |"
+        "| method | steps | pyr. build | cone build | corners | trace | method | spread | method med. | frame | x bump | iters mean | iters p99 | SIMD-8 | warp-32 | corner it./px | artifacts | mean tx | p99 tx | PSNR dB |"
     );
     let _ = writeln!(
         s,
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for &method in &c.methods {
         for r in curve_rows(rows, name, method) {
             let _ = writeln!(
                 s,
-                "| `{}` | {} | {} | {} | {:.2} | {:.2} | {:.2}-{:.2} | {:.2} | {:.2} | {} | {:.1} | {:.0} | {:.1} | {:.1} | {} | {:.3}% | {:.3} | {:.3} | {:.2} |",
+                "| `{}` | {} | {} | {} | {} | {:.2} | {:.2} | {:.2}-{:.2} | {:.2} | {:.2} | {} | {:.1} | {:.0} | {:.1} | {:.1} | {} | {:.3}% | {:.3} | {:.3} | {:.2} |",
                 r.method,
                 steps_cell(r),
                 opt_ms(r.pyramid_build_ms),
+                opt_ms(r.cone_build_ms),
                 opt_ms(r.dig_corners_ms),
                 r.trace_ms,
                 r.method_ms,
@@ -700,7 +702,8 @@ fn size_section(s: &mut String, results: &BenchResults) {
         "\n## Map-size sweep\n\n`{}` resampled (Catmull-Rom, {}) to each size; the methods \
          at iter = {} (where they have a step count), the same frames. **build** = the \
          pyramid's one GPU build per map (not in the per-frame time); **CPU build** = the \
-         same pyramid built by one CPU thread (`cpu_build`, fastest of 3), the yardstick.\n",
+         same pyramid built by one CPU thread (`cpu_build`, fastest of 3), the yardstick; \
+         **cone build** = the cone map's one GPU build (after the pyramid, which it reads).\n",
         source.label, source.format, c.size_steps
     );
     let mut header = "| map size |".to_owned();
@@ -709,6 +712,10 @@ fn size_section(s: &mut String, results: &BenchResults) {
         if m.needs().pyramid.is_some() {
             let _ = write!(header, " `{m}` build | `{m}` CPU build |");
             rule.push_str("---:|---:|");
+        }
+        if m.needs().cone {
+            let _ = write!(header, " `{m}` cone build |");
+            rule.push_str("---:|");
         }
         let _ = write!(header, " `{m}` method | `{m}` artifacts |");
         rule.push_str("---:|---:|");
@@ -727,6 +734,9 @@ fn size_section(s: &mut String, results: &BenchResults) {
                     opt_ms(r.and_then(|r| r.pyramid_build_ms)),
                     opt_ms(r.and_then(|r| r.cpu_pyramid_build_ms))
                 );
+            }
+            if m.needs().cone {
+                let _ = write!(line, " {} |", opt_ms(r.and_then(|r| r.cone_build_ms)));
             }
             match r {
                 Some(r) => {
@@ -825,6 +835,7 @@ mod tests {
             gbuffer_ms: 0.5,
             pyramid_build_ms: None,
             cpu_pyramid_build_ms: None,
+            cone_build_ms: None,
             dig_corners_ms: (method == "dig").then_some(0.25),
             trace_ms: method_ms,
             shade_ms: 0.75,
@@ -863,7 +874,7 @@ mod tests {
         assert_eq!(
             lines.next().unwrap(),
             "methods,rocks,1024,1024,pom,75,64,36,2,1,1,azimuth (f+0.5)*180deg for f<2; error frames 0,\
-             0.5,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0"
+             0.5,,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0"
         );
         let bump = lines.next().unwrap();
         assert!(
