@@ -33,10 +33,14 @@ struct ConeRay {
     vec2 dir;
     float len;    // |dir|: horizontal texels per unit of t
     float t_end;  // 1, or where a clamp-addressed ray leaves the decal
+    float t_start; // where the march starts: the map's maximum height (nothing above it)
     ivec2 cell;   // the cell holding the ray at t
 };
 
-// Starts the march at t = 0; false when a clamp-addressed ray starts outside the decal.
+// Starts the march where the ray comes down to the map's global maximum (the pyramid's
+// root; as the pyramid traversal does): above it there is no surface, and cone steps
+// through that open space would cost a fetch each. False when a clamp-addressed ray
+// starts outside the decal.
 bool cone_start(Ray ray, out ConeRay r) {
     texel_ray(ray, r.origin, r.dir);
     r.len = length(r.dir);
@@ -57,8 +61,10 @@ bool cone_start(Ray ray, out ConeRay r) {
         }
         r.t_end = max(r.t_end, 0.0);
     }
+    float global_max = texelFetch(u_pyramid, ivec2(0), int(pc.pyramid_levels) - 1).r;
+    r.t_start = min(max(1.0 - global_max, 0.0), r.t_end);
     for (int a = 0; a < 2; ++a) {
-        int c = cell_at(r.origin[a], r.dir[a]);
+        int c = cell_at(r.origin[a] + r.t_start * r.dir[a], r.dir[a]);
         r.cell[a] = pc.addressing == ADDRESSING_CLAMP ? clamp(c, -1, n[a] - 1) : c;
     }
     return true;

@@ -23,7 +23,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         return miss(ray, iterations);
     }
     float dt = 1.0 / float(max(pc.steps, 1u));
-    float t = 0.0, t_above = 0.0;
+    float t = r.t_start, t_above = r.t_start;
     float step = 0.0;
     float cap = CONE_BUDGET;
     bool below = false;

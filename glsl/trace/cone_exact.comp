@@ -15,7 +15,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     if (!cone_start(ray, r)) {
         return miss(ray, iterations);
     }
-    float t = 0.0, t_above = 0.0;
+    float t = r.t_start, t_above = r.t_start;
     float step = 0.0;
     // Each step leaves a cell or reaches its band, and each band test leaves the cell.
     float cap = CONE_BUDGET;
