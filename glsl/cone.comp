@@ -83,9 +83,44 @@ bool node_cells(int k, int n, int nl, int level, out int kk, out int lo, out int
     return true;
 }
 
+// The pyramid levels whose nodes hold the whole workgroup (2^level >= LOCAL_SIZE, and
+// the workgroup's cells are aligned to LOCAL_SIZE): the neighbour nodes of such a level
+// are the same for every invocation, so their ranges and maxima are found once per
+// workgroup (8 per level; levels SHARED_LEVEL .. 15 cover any map of up to 32768 cells).
+#define SHARED_LEVEL 3
+#define RING_SLOTS (8 * (16 - SHARED_LEVEL))
+// The 8 neighbours, in the order of the per-invocation loop (rows -1, 0, 1).
+const ivec2 RING[8] = ivec2[](ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1), ivec2(-1, 0),
+                              ivec2(1, 0), ivec2(-1, 1), ivec2(0, 1), ivec2(1, 1));
+shared ivec4 s_ring_cells[RING_SLOTS]; // lo.x, lo.y, hi.x, hi.y
+shared float s_ring_max[RING_SLOTS];   // the node maximum; -1 where no node exists
+
 void main() {
     ivec2 c = ivec2(gl_GlobalInvocationID.xy);
     ivec2 n = ivec2(pc.map_size);
+    int top_level = int(pc.levels) - 1;
+    {
+        ivec2 group = ivec2(gl_WorkGroupID.xy) * LOCAL_SIZE;
+        for (int slot = int(gl_LocalInvocationIndex); slot < RING_SLOTS; slot += LOCAL_SIZE * LOCAL_SIZE) {
+            int level = SHARED_LEVEL + (slot >> 3);
+            ivec2 off = RING[slot & 7];
+            float node_max = -1.0;
+            ivec4 cells = ivec4(0);
+            if (level <= top_level) {
+                ivec2 a = group >> level;
+                ivec2 nl = (n + (1 << level) - 1) >> level;
+                ivec2 kk, lo, hi;
+                if (node_cells(a.x + off.x, n.x, nl.x, level, kk.x, lo.x, hi.x)
+                    && node_cells(a.y + off.y, n.y, nl.y, level, kk.y, lo.y, hi.y)) {
+                    node_max = texelFetch(u_pyramid, kk, level).r;
+                    cells = ivec4(lo, hi);
+                }
+            }
+            s_ring_cells[slot] = cells;
+            s_ring_max[slot] = node_max;
+        }
+    }
+    barrier();
     if (any(greaterThanEqual(c, n))) {
         return;
     }
@@ -132,9 +167,9 @@ void main() {
         }
     }
 
-    // Beyond the window: the pyramid's neighbour rings.
-    int top_level = int(pc.levels) - 1;
-    for (int level = 1; level <= top_level; ++level) {
+    // Beyond the window: the pyramid's neighbour rings, levels below SHARED_LEVEL per
+    // invocation, the others from the workgroup's table.
+    for (int level = 1; level <= min(top_level, SHARED_LEVEL - 1); ++level) {
         ivec2 a = c >> level;
         ivec2 nl = (n + (1 << level) - 1) >> level;
         for (int oy = -1; oy <= 1; ++oy) {
@@ -155,6 +190,17 @@ void main() {
                 w = min(w, ratio(max(length(gap), float(WINDOW)), rise));
             }
         }
+    }
+    int shared_slots = 8 * max(top_level - SHARED_LEVEL + 1, 0);
+    for (int slot = 0; slot < shared_slots; ++slot) {
+        // Heights are >= 0, so a missing node (-1) never rises above m.
+        float rise = s_ring_max[slot] - m;
+        if (rise <= 0.0) {
+            continue;
+        }
+        ivec4 cells = s_ring_cells[slot];
+        vec2 gap = vec2(max(max(cells.xy - (c + 1), c - cells.zw), ivec2(0)));
+        w = min(w, ratio(max(length(gap), float(WINDOW)), rise));
     }
     if (pc.addressing == ADDRESSING_REPEAT) {
         float rise = texelFetch(u_pyramid, ivec2(0), top_level).r - m;
