@@ -108,10 +108,11 @@ vec2 local_at(vec2 origin, vec2 dir, float t, ivec2 cell) {
 
 // The first t in [t_in, t_out] where the ray meets the bilinear patch of `cell`, or -1.
 float cell_hit(ivec2 cell, vec2 origin, vec2 dir, float t_in, float t_out) {
-    float h00 = texel_height(cell);
-    float h10 = texel_height(cell + ivec2(1, 0));
-    float h01 = texel_height(cell + ivec2(0, 1));
-    float h11 = texel_height(cell + ivec2(1, 1));
+    vec4 g = cell_texels(cell);
+    float h00 = g.w;
+    float h10 = g.z;
+    float h01 = g.x;
+    float h11 = g.y;
     vec2 f = local_at(origin, dir, t_in, cell);
     float a = h10 - h00;
     float b = h01 - h00;

@@ -28,16 +28,34 @@ float texel_height(ivec2 p) {
     return texelFetch(u_height, p, 0).r;
 }
 
+// The 4 texels at the corners of cell c (texels c, c + (1, 0), c + (0, 1), c + (1, 1)),
+// wrapped or clamped as texel_height does, by one textureGather with the map's own
+// sampler (whose addressing is the map's) instead of 4 fetches with the addressing by
+// hand. The cell is first brought into the map (wrapped; or clamped to -1 .. size - 1,
+// which clamps to the same texels), so the gather point, the corner the 4 texels share at
+// (c + 1) / size, is within a texel of [0, 1]: half a texel from any other choice of
+// texels, which rounding cannot cross. Components: x = (c.x, c.y + 1), y = (c.x + 1,
+// c.y + 1), z = (c.x + 1, c.y), w = (c.x, c.y).
+vec4 cell_texels(ivec2 c) {
+    ivec2 size = textureSize(u_height, 0);
+    if (pc.addressing == ADDRESSING_REPEAT) {
+        c = ivec2(wrap_index(c.x, size.x), wrap_index(c.y, size.y));
+    } else {
+        c = clamp(c, ivec2(-1), size - 1);
+    }
+    return textureGather(u_height, vec2(c + 1) / vec2(size), 0);
+}
+
 // The bilinear height at uv (texel centres at (i + 0.5) / size), nested-lerp form.
 float height_exact(vec2 uv) {
     vec2 x = uv * vec2(textureSize(u_height, 0)) - 0.5;
     vec2 cf = floor(x);
     vec2 f = x - cf;
-    ivec2 c = ivec2(cf);
-    float h00 = texel_height(c);
-    float h10 = texel_height(c + ivec2(1, 0));
-    float h01 = texel_height(c + ivec2(0, 1));
-    float h11 = texel_height(c + ivec2(1, 1));
+    vec4 g = cell_texels(ivec2(cf));
+    float h00 = g.w;
+    float h10 = g.z;
+    float h01 = g.x;
+    float h11 = g.y;
     float top = h00 + (h10 - h00) * f.x;
     float bottom = h01 + (h11 - h01) * f.x;
     return top + (bottom - top) * f.y;
