@@ -1,6 +1,6 @@
 #version 460
 // pyramid: the max-height pyramid (the papers' min-displacement pyramid; heights here, so
-// the reduction is a max), two levels per dispatch. See src/passes/pyramid.rs.
+// the reduction is a max), up to three levels per dispatch. See src/passes/pyramid.rs.
 //
 // Level 0 (from the height map, texels.glsl's texel_height: wrapped or clamped):
 //   PYRAMID_KIND_FOOTPRINT: texel (i, j) bounds the bilinear surface over the texel's own
@@ -14,12 +14,16 @@
 //   exist in the level below (odd sizes: the last node covers one child column/row), so
 //   node n of level L covers the cells [n 2^L, min((n + 1) 2^L, size)) of each axis.
 //
-// One dispatch writes level `level` and, when `next_size` is not 0, level `level + 1`:
-// each invocation computes the (up to) 2x2 nodes of `level` under one node of
-// `level + 1`, stores them and their max. The 2x2 nodes share their reads: at level 0
-// one block of 3x3 texels (cell) or 4x4 (footprint) instead of 4 x 4 or 4 x 9, above it
-// one block of 4x4 nodes of the level below. Half the dispatches and barriers, and
-// fewer reads, for the same values (every max and mean in the same operation order).
+// One dispatch writes level `level` and, when `next_size` / `next2_size` are not 0,
+// levels `level + 1` and `level + 2`: each invocation computes the (up to) S x S nodes of
+// `level` under one node of the dispatch's top level (S = 1, 2, 4), stores them, then
+// the S/2 x S/2 nodes above them and their max. The block's nodes share their reads: at
+// level 0 3x3 gathers (6x6 texels) for 4x4 nodes instead of 16 x 4 (cell) or 16 x 9
+// (footprint) texels, above it one block of 8x8 nodes of the level below. A third of
+// the dispatches and barriers, and fewer reads, for the same values (every max and mean
+// in the same operation order; a node that does not exist is -1, below every height, so
+// the maxima above it take the existing children only). The loops' bounds are run-time
+// values (no unrolled 8x8 blocks for the compiler).
 // `precise` keeps the means in the exact operation order the CPU build uses
 // (src/passes/pyramid.rs: cpu_build), so the two agree bit for bit.
 #include "frame.glsl"
@@ -30,6 +34,7 @@ layout(set = 0, binding = 0) uniform sampler2D u_height;
 layout(set = 0, binding = 1, r32f) uniform readonly image2D u_src;
 layout(set = 0, binding = 2, r32f) uniform writeonly image2D u_dst;
 layout(set = 0, binding = 3, r32f) uniform writeonly image2D u_next;
+layout(set = 0, binding = 4, r32f) uniform writeonly image2D u_next2;
 
 layout(push_constant) uniform PyramidParams {
     uvec2 src_size;   // logical size of the level below `level` (level 0: the map)
@@ -38,7 +43,8 @@ layout(push_constant) uniform PyramidParams {
     uint level;       // the (first) level written
     uint kind;        // PYRAMID_KIND_*
     uint addressing;  // ADDRESSING_*
-    uint pad[3];
+    uint pad;
+    uvec2 next2_size; // logical size of `level + 2`, written too; (0, 0): not this dispatch
 } pc;
 
 #include "texels.glsl"
@@ -66,72 +72,98 @@ float footprint_max(float t[9]) {
 
 void main() {
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
-    bool pair = pc.next_size.x > 0u;
-    if (any(greaterThanEqual(uvec2(q), pair ? pc.next_size : pc.dst_size))) {
+    // Levels written by this dispatch: 1, 2 or 3; each invocation writes an S x S block
+    // of `level` (S = 1, 2, 4), the S/2 x S/2 nodes above it and the one node above those.
+    int count = pc.next2_size.x > 0u ? 3 : (pc.next_size.x > 0u ? 2 : 1);
+    uvec2 grid = count == 3 ? pc.next2_size : (count == 2 ? pc.next_size : pc.dst_size);
+    if (any(greaterThanEqual(uvec2(q), grid))) {
         return;
     }
-    int span = pair ? 2 : 1;
+    int span = 1 << (count - 1);
     ivec2 c0 = q * span;
     ivec2 dst_last = ivec2(pc.dst_size) - 1;
-    // The block's reads: level 0: texels c0 - 1 .. c0 + 2 (index 0 .. 3); above: the
-    // level below's nodes 2 c0 .. 2 c0 + 3 (clamped to its last node).
-    float r[16];
+    // The block's reads, rows of 8: level 0: texels c0 - 1 .. c0 + 2 gathers - 2 (index
+    // 0 ..); above: the level below's nodes 2 c0 .. 2 c0 + 2 span - 1 (clamped to its
+    // last node).
+    float r[64];
     if (pc.level == 0u) {
         // textureGather returns the 2x2 texels around a point with the sampler's
         // addressing (the map's own: repeat or clamp to edge), which is what
-        // texel_height does by hand: 4 gathers read the 4x4 block (texels c0 - 1 ..
-        // c0 + 2) that 16 fetches would, without the per-texel wrap arithmetic. The
-        // point (o + 1) / size lies on the corner shared by texels o and o + 1, half a
-        // texel from any other choice, so rounding cannot move it. Components: x =
-        // (i0, j1), y = (i1, j1), z = (i1, j0), w = (i0, j0).
+        // texel_height does by hand: gathers read the block of texels c0 - 1 .. that
+        // fetches would, without the per-texel wrap arithmetic. The point (o + 1) / size
+        // lies on the corner shared by texels o and o + 1, half a texel from any other
+        // choice, so rounding cannot move it. Components: x = (i0, j1), y = (i1, j1),
+        // z = (i1, j0), w = (i0, j0).
         vec2 inv = 1.0 / vec2(textureSize(u_height, 0));
-        for (int b = 0; b < 2; ++b) {
-            for (int a = 0; a < 2; ++a) {
+        int gathers = max(2, span / 2 + 1);
+        for (int b = 0; b < gathers; ++b) {
+            for (int a = 0; a < gathers; ++a) {
                 vec4 g = textureGather(u_height, vec2(c0 + ivec2(2 * a, 2 * b)) * inv, 0);
-                int k = 2 * b * 4 + 2 * a;
+                int k = 2 * b * 8 + 2 * a;
                 r[k] = g.w;
                 r[k + 1] = g.z;
-                r[k + 4] = g.x;
-                r[k + 5] = g.y;
+                r[k + 8] = g.x;
+                r[k + 9] = g.y;
             }
         }
     } else {
         ivec2 src_last = ivec2(pc.src_size) - 1;
-        for (int j = 0; j < 4; ++j) {
-            for (int i = 0; i < 4; ++i) {
-                r[j * 4 + i] = imageLoad(u_src, min(2 * c0 + ivec2(i, j), src_last)).r;
+        for (int j = 0; j < 2 * span; ++j) {
+            for (int i = 0; i < 2 * span; ++i) {
+                r[j * 8 + i] = imageLoad(u_src, min(2 * c0 + ivec2(i, j), src_last)).r;
             }
         }
     }
-    float next;
+    // The block's nodes of `level`, rows of 4; -1 (below every height) where a node
+    // does not exist, so the maxima above take the existing children only.
+    float nodes[16];
     for (int dy = 0; dy < span; ++dy) {
         for (int dx = 0; dx < span; ++dx) {
             ivec2 c = c0 + ivec2(dx, dy);
-            if (any(greaterThan(c, dst_last))) {
-                continue;
-            }
-            float m;
-            if (pc.level == 0u && pc.kind == PYRAMID_KIND_CELL) {
-                int k = (dy + 1) * 4 + dx + 1;
-                m = max(max(r[k], r[k + 1]), max(r[k + 4], r[k + 5]));
-            } else if (pc.level == 0u) {
-                float t[9];
-                for (int j = 0; j < 3; ++j) {
-                    for (int i = 0; i < 3; ++i) {
-                        t[j * 3 + i] = r[(dy + j) * 4 + dx + i];
+            float m = -1.0;
+            if (all(lessThanEqual(c, dst_last))) {
+                if (pc.level == 0u && pc.kind == PYRAMID_KIND_CELL) {
+                    int k = (dy + 1) * 8 + dx + 1;
+                    m = max(max(r[k], r[k + 1]), max(r[k + 8], r[k + 9]));
+                } else if (pc.level == 0u) {
+                    float t[9];
+                    for (int j = 0; j < 3; ++j) {
+                        for (int i = 0; i < 3; ++i) {
+                            t[j * 3 + i] = r[(dy + j) * 8 + dx + i];
+                        }
                     }
+                    m = footprint_max(t);
+                } else {
+                    // Children 2c .. 2c + 1 (clamped): rows 2 dy, 2 dy + 1 of the block.
+                    int k = 2 * dy * 8 + 2 * dx;
+                    m = max(max(r[k], r[k + 1]), max(r[k + 8], r[k + 9]));
                 }
-                m = footprint_max(t);
-            } else {
-                // Children 2c .. 2c + 1 (clamped): rows 2 dy, 2 dy + 1 of the block.
-                int k = 2 * dy * 4 + 2 * dx;
-                m = max(max(r[k], r[k + 1]), max(r[k + 4], r[k + 5]));
+                imageStore(u_dst, c, vec4(m));
             }
-            imageStore(u_dst, c, vec4(m));
-            next = (dx == 0 && dy == 0) ? m : max(next, m);
+            nodes[dy * 4 + dx] = m;
         }
     }
-    if (pair) {
-        imageStore(u_next, q, vec4(next));
+    if (count == 1) {
+        return;
+    }
+    // Level + 1: the S/2 x S/2 nodes over the block.
+    int half_span = span / 2;
+    ivec2 next_last = ivec2(pc.next_size) - 1;
+    float above[4];
+    for (int ey = 0; ey < half_span; ++ey) {
+        for (int ex = 0; ex < half_span; ++ex) {
+            int k = 2 * ey * 4 + 2 * ex;
+            float m = max(max(nodes[k], nodes[k + 1]), max(nodes[k + 4], nodes[k + 5]));
+            ivec2 c = q * half_span + ivec2(ex, ey);
+            if (all(lessThanEqual(c, next_last))) {
+                imageStore(u_next, c, vec4(m));
+            } else {
+                m = -1.0;
+            }
+            above[ey * 2 + ex] = m;
+        }
+    }
+    if (count == 3) {
+        imageStore(u_next2, q, vec4(max(max(above[0], above[1]), max(above[2], above[3]))));
     }
 }

@@ -78,8 +78,11 @@ pub struct PyramidParams {
     pub kind: u32,
     /// `ADDRESSING_*`.
     pub addressing: u32,
-    /// Padding (the size a multiple of 16 bytes).
-    pub pad: [u32; 3],
+    /// Padding (`next2_size`'s 8-byte alignment).
+    pub pad: u32,
+    /// Logical size of level `level + 2`, written by the same dispatch; `[0, 0]` when
+    /// the dispatch writes fewer levels.
+    pub next2_size: [u32; 2],
 }
 
 /// `ConeParams` in `glsl/cone.comp`.
@@ -389,6 +392,7 @@ mod tests {
                 ("kind", offset_of!(PyramidParams, kind)),
                 ("addressing", offset_of!(PyramidParams, addressing)),
                 ("pad", offset_of!(PyramidParams, pad)),
+                ("next2_size", offset_of!(PyramidParams, next2_size)),
             ],
             size_of::<PyramidParams>(),
         );

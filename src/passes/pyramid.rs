@@ -1,7 +1,7 @@
 //! The `pyramid` pass: the max-height pyramid (Oh, Ki & Lee's minimum-displacement
 //! pyramid; Tevs et al.'s maximum mipmap), built on the GPU by a chain of compute
-//! dispatches, each writing two levels (a level and the one above it, from shared reads
-//! of the level below), reducing with `max` (`glsl/pyramid.comp`).
+//! dispatches, each writing up to three levels (a level and the two above it, from
+//! shared reads of the level below), reducing with `max` (`glsl/pyramid.comp`).
 //!
 //! # Levels and sizes
 //!
@@ -40,11 +40,12 @@ use ash::vk;
 /// Format of the pyramid.
 pub const PYRAMID_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
 
-const BINDINGS: [(u32, vk::DescriptorType); 4] = [
+const BINDINGS: [(u32, vk::DescriptorType); 5] = [
     (0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     (1, vk::DescriptorType::STORAGE_IMAGE),
     (2, vk::DescriptorType::STORAGE_IMAGE),
     (3, vk::DescriptorType::STORAGE_IMAGE),
+    (4, vk::DescriptorType::STORAGE_IMAGE),
 ];
 
 /// `PYRAMID_KIND_*` in `glsl/pyramid.comp`.
@@ -276,20 +277,22 @@ impl PyramidPass {
                     )
                 };
             }
-            // Two levels per dispatch where there is a level above this one.
-            let pair = level + 1 < levels;
+            // Up to three levels per dispatch, as many as there are from this one.
+            let count = (levels - level).min(3);
             // Level 0 reads the height map only; its `src` binding (statically used by
             // the shader, not read on that path) names level 0 itself, so no later
-            // dispatch's write follows an unsynchronised read. A single-level dispatch
-            // binds its own level as `next` (not written on that path).
+            // dispatch's write follows an unsynchronised read. A dispatch of fewer
+            // levels binds its own level as `next` / `next2` (not written on that path).
             let src = storage(level.saturating_sub(1));
             let dst = storage(level);
-            let next = storage(if pair { level + 1 } else { level });
+            let next = storage(if count >= 2 { level + 1 } else { level });
+            let next2 = storage(if count == 3 { level + 2 } else { level });
             let writes = [
                 image_write(BINDINGS[0].0, BINDINGS[0].1, &heights),
                 image_write(BINDINGS[1].0, BINDINGS[1].1, &src),
                 image_write(BINDINGS[2].0, BINDINGS[2].1, &dst),
                 image_write(BINDINGS[3].0, BINDINGS[3].1, &next),
+                image_write(BINDINGS[4].0, BINDINGS[4].1, &next2),
             ];
             let src_size = if level == 0 {
                 pyramid.size
@@ -297,11 +300,15 @@ impl PyramidPass {
                 level_size(pyramid.size, level - 1)
             };
             let dst_size = level_size(pyramid.size, level);
-            let next_size = if pair {
-                level_size(pyramid.size, level + 1)
-            } else {
-                [0, 0]
+            let size_if = |written: bool, l: u32| {
+                if written {
+                    level_size(pyramid.size, l)
+                } else {
+                    [0, 0]
+                }
             };
+            let next_size = size_if(count >= 2, level + 1);
+            let next2_size = size_if(count == 3, level + 2);
             let push = PyramidParams {
                 src_size,
                 dst_size,
@@ -309,9 +316,10 @@ impl PyramidPass {
                 level,
                 kind: kind_code(pyramid.kind),
                 addressing,
-                pad: [0; 3],
+                pad: 0,
+                next2_size,
             };
-            let grid = if pair { next_size } else { dst_size };
+            let grid = [next2_size, next_size, dst_size][3 - count as usize];
             // SAFETY: this function's # Safety contract: `cmd` is recording outside a
             // render pass; the writes match `BINDINGS` (the pipeline's set 0) and name
             // the live height texture (sampled-readable) and pyramid levels in `GENERAL`
@@ -327,7 +335,7 @@ impl PyramidPass {
                     grid[1],
                 )
             };
-            level += if pair { 2 } else { 1 };
+            level += count;
         }
         // SAFETY: this function's # Safety contract (`cmd` recording outside a render
         // pass, the pyramid alive); every level is in `GENERAL` (the first transition).
