@@ -416,9 +416,15 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     let _ = writeln!(
         s,
         "- settings (`iter`, linear steps over the full depth, the same for every method): {}; \
-         DIG eps1 = eps2 = 1/iter, 4x4 blocks; 5 binary steps; `bump`, `pyramid`, `exact` have \
-         no step count and run once per map",
-        steps.join(", ")
+         DIG eps1 = eps2 = 1/iter, 4x4 blocks; 5 binary steps; {} have no step count and run \
+         once per map",
+        steps.join(", "),
+        Method::ALL
+            .iter()
+            .filter(|&&m| !super::has_steps(m))
+            .map(|m| format!("`{m}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     let _ = writeln!(
         s,
