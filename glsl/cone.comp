@@ -25,6 +25,15 @@
 //     min(W, H) texels away (bounded by the global maximum).
 // Clamp addressing: cells -1 and W - 1 (half inside the decal; their corners are the
 // clamped edge texels) are surface like any other; cells beyond them are never reached.
+//
+// RELAXED (the relaxed cone map of `relaxed-cone`): a window cell D whose bilinear patch
+// never falls along any direction a ray leaving C can cross it in ("monotone outward":
+// per axis, D's edges non-decreasing away from C, or equal where D is in C's column or
+// row, which rays cross either way) gives no bound. Everything else is bounded as above.
+// A ray that starts over C above M and steps to the cone's boundary then crosses the
+// surface at most once (src/passes/cone.rs has the argument), so one height test at the
+// step's end tells whether the step passed a hit.
+// dispmap-variant: RELAXED
 #include "frame.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
@@ -32,6 +41,15 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(set = 0, binding = 0) uniform sampler2D u_height;
 layout(set = 0, binding = 1) uniform sampler2D u_pyramid;
 layout(set = 0, binding = 2, rg32f) uniform writeonly image2D u_cone;
+#ifdef RELAXED
+// The falls pyramids (PYRAMID_KIND_FALLS in glsl/pyramid.comp), quadrants (+x, +y),
+// (-x, +y), (+x, -y), (-x, -y): per node the highest cell corner whose patch falls going
+// that way (0 where none does).
+layout(set = 0, binding = 3) uniform sampler2D u_falls_pp;
+layout(set = 0, binding = 4) uniform sampler2D u_falls_np;
+layout(set = 0, binding = 5) uniform sampler2D u_falls_pn;
+layout(set = 0, binding = 6) uniform sampler2D u_falls_nn;
+#endif
 
 layout(push_constant) uniform ConeParams {
     uvec2 map_size;  // texels = cells per axis
@@ -50,6 +68,50 @@ const float CONE_RATIO_MAX = 65536.0;
 // g / v for v > 0, else no bound.
 float ratio(float g, float v) {
     return v > 0.0 ? g / v : CONE_RATIO_MAX;
+}
+
+#ifdef RELAXED
+// Whether a window cell at offset (di, dj) from C with corners a00..a11 (x, y local) is
+// monotone outward: along x, non-decreasing away from C (equal when di == 0: rays cross
+// it both ways); along y the same.
+bool monotone_outward(int di, int dj, float a00, float a10, float a01, float a11) {
+    bool x_ok = di > 0 ? (a00 <= a10 && a01 <= a11)
+              : di < 0 ? (a10 <= a00 && a11 <= a01)
+                       : (a00 == a10 && a01 == a11);
+    bool y_ok = dj > 0 ? (a00 <= a01 && a10 <= a11)
+              : dj < 0 ? (a01 <= a00 && a11 <= a10)
+                       : (a00 == a01 && a10 == a11);
+    return x_ok && y_ok;
+}
+#endif
+
+// The bound of the pyramid node `kk` of `level`, at offset `off` (ring position) from the
+// node holding C: its maximum, or (RELAXED) the maximum of the cells in it that fall
+// along some direction a ray from C can cross them in (the quadrants of off's signs,
+// both ways along an axis where off is 0).
+float node_bound(ivec2 kk, int level, ivec2 off) {
+#ifdef RELAXED
+    float v = 0.0;
+    if (off.y >= 0) {
+        if (off.x >= 0) {
+            v = max(v, texelFetch(u_falls_pp, kk, level).r);
+        }
+        if (off.x <= 0) {
+            v = max(v, texelFetch(u_falls_np, kk, level).r);
+        }
+    }
+    if (off.y <= 0) {
+        if (off.x >= 0) {
+            v = max(v, texelFetch(u_falls_pn, kk, level).r);
+        }
+        if (off.x <= 0) {
+            v = max(v, texelFetch(u_falls_nn, kk, level).r);
+        }
+    }
+    return v;
+#else
+    return texelFetch(u_pyramid, kk, level).r;
+#endif
 }
 
 // One axis of a window cell at offset `o` (|o| >= 1): near- and far-edge maxima above M.
@@ -112,7 +174,7 @@ void main() {
                 ivec2 kk, lo, hi;
                 if (node_cells(a.x + off.x, n.x, nl.x, level, kk.x, lo.x, hi.x)
                     && node_cells(a.y + off.y, n.y, nl.y, level, kk.y, lo.y, hi.y)) {
-                    node_max = texelFetch(u_pyramid, kk, level).r;
+                    node_max = node_bound(kk, level, off);
                     cells = ivec4(lo, hi);
                 }
             }
@@ -148,6 +210,11 @@ void main() {
             if (top <= 0.0) {
                 continue;
             }
+#ifdef RELAXED
+            if (monotone_outward(di, dj, a00, a10, a01, a11)) {
+                continue;
+            }
+#endif
             vec2 gap = vec2(max(abs(di) - 1, 0), max(abs(dj) - 1, 0));
             float bound = ratio(length(gap), top);
             if (di != 0) {
@@ -182,7 +249,7 @@ void main() {
                     || !node_cells(a.y + oy, n.y, nl.y, level, kk.y, lo.y, hi.y)) {
                     continue;
                 }
-                float rise = texelFetch(u_pyramid, kk, level).r - m;
+                float rise = node_bound(kk, level, ivec2(ox, oy)) - m;
                 if (rise <= 0.0) {
                     continue;
                 }
@@ -203,7 +270,7 @@ void main() {
         w = min(w, ratio(max(length(gap), float(WINDOW)), rise));
     }
     if (pc.addressing == ADDRESSING_REPEAT) {
-        float rise = texelFetch(u_pyramid, ivec2(0), top_level).r - m;
+        float rise = node_bound(ivec2(0), top_level, ivec2(0)) - m;
         w = min(w, ratio(max(float(min(n.x, n.y)), float(WINDOW)), rise));
     }
     imageStore(u_cone, c, vec4(m, w, 0.0, 0.0));

@@ -10,6 +10,10 @@
 //     (mean of 2 texels) and the 4 footprint corners (mean of 4 texels).
 //   PYRAMID_KIND_CELL: cell (i, j) (between texel centres (i, j) and (i + 1, j + 1)) is
 //     bounded by the max of its 4 corner texels: the bilinear patch's exact maximum.
+//   PYRAMID_KIND_FALLS + q (q = neg_x + 2 neg_y; the relaxed cone map's input): cell
+//     (i, j)'s corner maximum where its bilinear patch falls along quadrant q's direction
+//     (x: +1, or -1 when neg_x; y likewise), i.e. an edge decreases along x or y in that
+//     direction; 0 (no rise above any cell) where it does not.
 // Level L > 0: node (i, j) = max of the children (2i + a, 2j + b), a, b in {0, 1}, that
 //   exist in the level below (odd sizes: the last node covers one child column/row), so
 //   node n of level L covers the cells [n 2^L, min((n + 1) 2^L, size)) of each axis.
@@ -51,6 +55,7 @@ layout(push_constant) uniform PyramidParams {
 
 #define PYRAMID_KIND_FOOTPRINT 0u
 #define PYRAMID_KIND_CELL 1u
+#define PYRAMID_KIND_FALLS 2u
 
 // The footprint bound from the 3x3 texels around a texel (t[4] the texel itself).
 float footprint_max(float t[9]) {
@@ -125,6 +130,13 @@ void main() {
                 if (pc.level == 0u && pc.kind == PYRAMID_KIND_CELL) {
                     int k = (dy + 1) * 8 + dx + 1;
                     m = max(max(r[k], r[k + 1]), max(r[k + 8], r[k + 9]));
+                } else if (pc.level == 0u && pc.kind >= PYRAMID_KIND_FALLS) {
+                    int k = (dy + 1) * 8 + dx + 1;
+                    float a00 = r[k], a10 = r[k + 1], a01 = r[k + 8], a11 = r[k + 9];
+                    uint q = pc.kind - PYRAMID_KIND_FALLS;
+                    bool falls_x = (q & 1u) != 0u ? (a10 > a00 || a11 > a01) : (a00 > a10 || a01 > a11);
+                    bool falls_y = (q & 2u) != 0u ? (a01 > a00 || a11 > a10) : (a00 > a01 || a10 > a11);
+                    m = falls_x || falls_y ? max(max(a00, a10), max(a01, a11)) : 0.0;
                 } else if (pc.level == 0u) {
                     float t[9];
                     for (int j = 0; j < 3; ++j) {

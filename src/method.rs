@@ -42,6 +42,21 @@ pub enum Method {
     /// Robust cone steps until the ray may meet its cell's bilinear patch, then `exact`'s
     /// ray/patch solve (beyond the papers).
     ConeExact,
+    /// Relaxed cone stepping (Policarpo & Oliveira 2007) over a relaxed cone map of the
+    /// bilinear surface generated with Bán et al.'s falling-edge correction: a step may
+    /// end inside the surface, having crossed it at most once; the height at its end
+    /// tells, then a binary search over the step.
+    RelaxedCone,
+}
+
+/// Which cone map a cone method steps over (see [`crate::passes::cone`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ConeKind {
+    /// No surface point rises into the cone (`cone`, `cone-exact`).
+    Conservative,
+    /// The surface may rise into the cone only where a ray stepping through it crosses
+    /// the surface at most once (`relaxed-cone`).
+    Relaxed,
 }
 
 /// What the finest level of a max-height pyramid bounds.
@@ -54,6 +69,40 @@ pub enum PyramidKind {
     /// Level 0 texel `(i, j)` bounds the bilinear *cell* between texel centres `(i, j)`
     /// and `(i + 1, j + 1)`: the max of its 4 corner texels (exact traversal).
     Cell,
+    /// Level 0 texel `(i, j)` is the max of cell `(i, j)`'s 4 corner texels where the
+    /// cell's bilinear patch *falls* along the quadrant direction (x: `+1`, or `-1` with
+    /// `neg_x`; y likewise: some edge decreases along x or y going that way), else 0. The
+    /// relaxed cone map's bound beyond its window ([`crate::passes::cone`]); built for
+    /// its generation only.
+    Falls {
+        /// The quadrant's x direction is `-1`.
+        neg_x: bool,
+        /// The quadrant's y direction is `-1`.
+        neg_y: bool,
+    },
+}
+
+impl PyramidKind {
+    /// The four [`PyramidKind::Falls`] quadrants, `(+x, +y)`, `(-x, +y)`, `(+x, -y)`,
+    /// `(-x, -y)` (the order of the relaxed cone generation's bindings).
+    pub const FALLS: [PyramidKind; 4] = [
+        PyramidKind::Falls {
+            neg_x: false,
+            neg_y: false,
+        },
+        PyramidKind::Falls {
+            neg_x: true,
+            neg_y: false,
+        },
+        PyramidKind::Falls {
+            neg_x: false,
+            neg_y: true,
+        },
+        PyramidKind::Falls {
+            neg_x: true,
+            neg_y: true,
+        },
+    ];
 }
 
 /// Pre-passes and resources a method needs beyond the G-buffer and the height map.
@@ -63,8 +112,8 @@ pub struct Needs {
     pub pyramid: Option<PyramidKind>,
     /// The DIG corner grid (`dig_corners` pass).
     pub dig_corners: bool,
-    /// The cone map (`cone` pass, built from the cell pyramid).
-    pub cone: bool,
+    /// The cone map (`cone` pass, built from the cell pyramid) and its kind.
+    pub cone: Option<ConeKind>,
 }
 
 impl Method {
@@ -81,6 +130,7 @@ impl Method {
         Method::Exact,
         Method::Cone,
         Method::ConeExact,
+        Method::RelaxedCone,
     ];
 
     /// CLI name.
@@ -97,6 +147,7 @@ impl Method {
             Method::Exact => "exact",
             Method::Cone => "cone",
             Method::ConeExact => "cone-exact",
+            Method::RelaxedCone => "relaxed-cone",
         }
     }
 
@@ -114,6 +165,9 @@ impl Method {
             Method::Exact => "maximum-mipmap traversal + exact bilinear patch (beyond the papers)",
             Method::Cone => "robust cone step mapping (Dummer 2006; Bán et al. 2024)",
             Method::ConeExact => "robust cone steps + exact bilinear patch (beyond the papers)",
+            Method::RelaxedCone => {
+                "relaxed cone stepping (Policarpo & Oliveira 2007; Bán et al. 2024)"
+            }
         }
     }
 
@@ -131,6 +185,7 @@ impl Method {
             Method::Exact => shaders::TRACE_EXACT_COMP,
             Method::Cone => shaders::TRACE_CONE_COMP,
             Method::ConeExact => shaders::TRACE_CONE_EXACT_COMP,
+            Method::RelaxedCone => shaders::TRACE_CONE_COMP_RELAXED,
         }
     }
 
@@ -155,9 +210,8 @@ impl Method {
         match self {
             Method::Bump | Method::Pyramid | Method::Exact => None,
             // The march and its bands, the pyramid traversal after them, the bisection.
-            Method::Cone | Method::ConeExact => {
-                Some(CONE_BUDGET + TRAVERSAL_CAP + if self == Method::Cone { refine } else { 0 })
-            }
+            Method::Cone | Method::RelaxedCone => Some(CONE_BUDGET + TRAVERSAL_CAP + refine),
+            Method::ConeExact => Some(CONE_BUDGET + TRAVERSAL_CAP),
             Method::DigGuarded => Some(march),
             Method::Linear => Some(march),
             Method::Relief => Some(march + refine),
@@ -216,12 +270,12 @@ impl Method {
             Method::Dig => Needs {
                 pyramid: None,
                 dig_corners: true,
-                cone: false,
+                cone: None,
             },
             Method::DigGuarded => Needs {
                 pyramid: Some(PyramidKind::Cell),
                 dig_corners: true,
-                cone: false,
+                cone: None,
             },
             Method::Pyramid => Needs {
                 pyramid: Some(PyramidKind::Footprint),
@@ -234,7 +288,12 @@ impl Method {
             Method::Cone | Method::ConeExact => Needs {
                 pyramid: Some(PyramidKind::Cell),
                 dig_corners: false,
-                cone: true,
+                cone: Some(ConeKind::Conservative),
+            },
+            Method::RelaxedCone => Needs {
+                pyramid: Some(PyramidKind::Cell),
+                dig_corners: false,
+                cone: Some(ConeKind::Relaxed),
             },
             _ => Needs::default(),
         }

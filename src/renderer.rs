@@ -316,7 +316,7 @@ impl Renderer {
         if pass.method.needs().pyramid.is_none() && !self.settings.shadows.is_on() {
             self.builds.retain(|(name, _)| *name != PassName::Pyramid);
         }
-        if !pass.method.needs().cone {
+        if pass.method.needs().cone.is_none() {
             self.builds.retain(|(name, _)| *name != PassName::Cone);
         }
         result

@@ -337,7 +337,7 @@ fn set_method_with_frames_in_flight_matches_standalone_for_each_method() {
     // record (what the switch had to build: a pyramid only when its kind changed, grids
     // only when absent or of another block size).
     #[allow(clippy::type_complexity)]
-    let steps: [(Method, MethodParams, &[&str], &[&str]); 6] = [
+    let steps: [(Method, MethodParams, &[&str], &[&str]); 9] = [
         (
             Method::Relief,
             MethodParams::for_method(Method::Relief),
@@ -366,6 +366,26 @@ fn set_method_with_frames_in_flight_matches_standalone_for_each_method() {
             Method::Pyramid,
             MethodParams::for_method(Method::Pyramid),
             &["pyramid", "trace"],
+            &["trace"],
+        ),
+        // The cone maps follow their kind: a relaxed map replaces the conservative one
+        // and back (the cell pyramid stays).
+        (
+            Method::Cone,
+            MethodParams::for_method(Method::Cone),
+            &["pyramid", "cone", "trace"],
+            &["trace"],
+        ),
+        (
+            Method::RelaxedCone,
+            MethodParams::for_method(Method::RelaxedCone),
+            &["cone", "trace"],
+            &["trace"],
+        ),
+        (
+            Method::ConeExact,
+            MethodParams::for_method(Method::ConeExact),
+            &["cone", "trace"],
             &["trace"],
         ),
         (Method::Relief, relief16, &["trace"], &["trace"]),

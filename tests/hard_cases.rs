@@ -25,8 +25,9 @@
 //!   the disagreement is a float-precision tangency (`common::unexplained` with
 //!   `TANGENCY`, as in tests/methods.rs); `pyramid`: the same with its documented skim
 //!   depth (`PYRAMID_SKIM`);
-//! * `linear`, `relief`, `pom`, `secant`, `dig`, `cone` (fixed-step searches; `cone`'s
-//!   within each cell's band): never a hit in open
+//! * `linear`, `relief`, `pom`, `secant`, `dig`, `cone`, `relaxed-cone` (fixed-step
+//!   searches; the cone methods' within each cell's band, `relaxed-cone`'s bisection over
+//!   a whole relaxed step too): never a hit in open
 //!   air: within one linear step after the reported hit the ray reaches the surface, up
 //!   to the hardware filter's precision (`FILTER_TOLERANCE`). They may report a *later*
 //!   hit (a feature thinner than a step skipped): counted as artifacts and printed;
@@ -370,7 +371,9 @@ fn camera_params(edit: fn(&mut GBufferParams), depth_scale: f32) -> GBufferParam
 /// method is checked otherwise).
 fn step(method: Method, p: &MethodParams) -> Option<f64> {
     let n = match method {
-        Method::Linear | Method::Relief | Method::Dig | Method::Cone => p.steps,
+        Method::Linear | Method::Relief | Method::Dig | Method::Cone | Method::RelaxedCone => {
+            p.steps
+        }
         Method::Pom => p.min_steps.min(p.steps),
         Method::Secant => p.steps * p.segments,
         Method::Bump | Method::Pyramid | Method::Exact | Method::DigGuarded | Method::ConeExact => {

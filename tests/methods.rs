@@ -146,10 +146,11 @@ fn find(runs: &[Run], method: Method, elevation: f32) -> &Run {
 }
 
 /// The methods and quality settings of issue 3.
-const METHODS: [(Method, u32); 9] = [
+const METHODS: [(Method, u32); 10] = [
     (Method::Exact, 1),
     (Method::ConeExact, 1),
     (Method::Cone, 64),
+    (Method::RelaxedCone, 64),
     (Method::Pyramid, 1),
     (Method::Relief, 150),
     (Method::Dig, 150),

@@ -10,6 +10,10 @@
 //     (Dummer 2006) and the robust minimum step (Ban et al. 2024): to the cell's exit or
 //     to the height M, whichever comes first (the surface over the cell is below M);
 //   * at or below M ("in the band"): the caller's leaf test over [t, cell exit].
+// With CONE_RELAXED (the relaxed cone map) a cone step longer than the robust minimum
+// step may end inside the surface, having crossed it at most once: the height at its end
+// is tested, and on or below the surface the march returns as if in the band, with
+// `t_above` the step's start (the caller's first band sample finds the ray below).
 #ifndef DISPMAP_CONE_GLSL
 #define DISPMAP_CONE_GLSL
 
@@ -99,6 +103,12 @@ vec2 cone_entry(ConeRay r, float t, out float e) {
     return texelFetch(u_cone, look, 0).rg;
 }
 
+// The exact bilinear height at the ray's point t (texel reads, f32).
+float cone_height(ConeRay r, float t) {
+    vec2 x = r.origin + t * r.dir;
+    return height_exact((x + 0.5) / vec2(pc.map_size));
+}
+
 // Moves the ray to t_next > t: across the exit face(s) when t_next is the cell's exit,
 // else into the cell holding it (never behind the current one, whatever the rounding).
 void cone_move(inout ConeRay r, vec2 exit, float t_exit, float t_next) {
@@ -134,6 +144,16 @@ bool cone_advance(inout ConeRay r, inout float t, out float t_exit, out vec2 exi
         float w = cone.y;
         float s = max(w * (h - cone.x - SKIP_MARGIN) - e, 0.0) / (w + r.len) * (1.0 - CONE_SHRINK);
         float t_next = max(t + s, min(t_exit, t_band));
+#ifdef CONE_RELAXED
+        if (t + s > min(t_exit, t_band)) {
+            float t_probe = min(t_next, r.t_end);
+            if (cone_height(r, t_probe) >= 1.0 - t_probe) {
+                t_above = t;
+                t = t_probe;
+                return true;
+            }
+        }
+#endif
         if (t_next >= r.t_end) {
             t_above = t;
             t = r.t_end;

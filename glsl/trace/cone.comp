@@ -6,15 +6,18 @@
 // first sample on or below the surface ends the march and `refine_steps` bisections
 // between it and the last point above refine the hit. Thin features inside a cell's band
 // can be stepped over (the error the marchers have); the cones themselves never skip.
+//
+// RELAXED (`relaxed-cone`, relaxed cone stepping after Policarpo & Oliveira 2007, over
+// the relaxed cone map of glsl/cone.comp): a cone step may end inside the surface, having
+// crossed it once; the height at the step's end tells, and the bisection then runs over
+// the whole step.
+// dispmap-variant: RELAXED
 #include "trace.glsl"
 #include "pyramid.glsl"
+#ifdef RELAXED
+#define CONE_RELAXED 1
+#endif
 #include "cone.glsl"
-
-// The exact bilinear height at the ray's point t (texel reads, f32).
-float ray_height(ConeRay r, float t) {
-    vec2 x = r.origin + t * r.dir;
-    return height_exact((x + 0.5) / vec2(pc.map_size));
-}
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
     uint iterations = 0u;
@@ -36,7 +39,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         // The band: samples from t to the cell's exit.
         for (; step < cap; step += 1.0) {
             iterations += 1u;
-            if (ray_height(r, t) >= 1.0 - t) {
+            if (cone_height(r, t) >= 1.0 - t) {
                 below = true;
                 break;
             }
@@ -70,7 +73,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     for (uint i = 0u; i < pc.refine_steps; ++i) {
         float mid = 0.5 * (lo + hi);
         iterations += 1u;
-        if (ray_height(r, mid) >= 1.0 - mid) {
+        if (cone_height(r, mid) >= 1.0 - mid) {
             hi = mid;
         } else {
             lo = mid;

@@ -447,12 +447,15 @@ impl DisplacementPass {
                 .map(|kind| Pyramid::new(c, field_size(field), kind, settings.addressing))
                 .transpose()?,
         );
-        let cone_pass = Guard::new(c, needs.cone.then(|| ConePass::new(c)).transpose()?);
+        let cone_pass = Guard::new(
+            c,
+            needs.cone.map(|kind| ConePass::new(c, kind)).transpose()?,
+        );
         let cone = Guard::new(
             c,
             needs
                 .cone
-                .then(|| ConeMap::new(c, field_size(field), settings.addressing))
+                .map(|kind| ConeMap::new(c, field_size(field), settings.addressing, kind))
                 .transpose()?,
         );
         let corner_pass = Guard::new(
@@ -553,7 +556,7 @@ impl DisplacementPass {
         let cone = self
             .needs
             .cone
-            .then(|| ConeMap::new(&ctx, field_size(field), self.settings.addressing))
+            .map(|kind| ConeMap::new(&ctx, field_size(field), self.settings.addressing, kind))
             .transpose()?;
         let pyramid = pyramid.keep();
         self.retired
@@ -706,16 +709,21 @@ impl DisplacementPass {
                 .map(|kind| Pyramid::new(c, self.height.size(), kind, self.settings.addressing))
                 .transpose()?,
         );
+        // A cone map of the other kind is replaced (and rebuilt), as a pyramid is.
         let cone_pass = Guard::new(
             c,
-            (needs.cone && self.cone_pass.is_none())
-                .then(|| ConePass::new(c))
+            needs
+                .cone
+                .filter(|&kind| self.cone_pass.as_ref().is_none_or(|p| p.kind != kind))
+                .map(|kind| ConePass::new(c, kind))
                 .transpose()?,
         );
         let cone = Guard::new(
             c,
-            (needs.cone && self.cone.is_none())
-                .then(|| ConeMap::new(c, self.height.size(), self.settings.addressing))
+            needs
+                .cone
+                .filter(|&kind| self.cone.as_ref().is_none_or(|m| m.kind != kind))
+                .map(|kind| ConeMap::new(c, self.height.size(), self.settings.addressing, kind))
                 .transpose()?,
         );
         let corner_pass = Guard::new(
@@ -761,13 +769,13 @@ impl DisplacementPass {
             self.pyramid_built = false;
         }
         if let Some(pass) = cone_pass.keep() {
-            self.cone_pass = Some(pass);
+            self.retired.retire(self.cone_pass.replace(pass));
         }
         if let Some(cone) = cone.keep() {
-            self.cone = Some(cone);
+            self.retired.retire(self.cone.replace(cone));
             self.cone_built = false;
         }
-        if !needs.cone {
+        if needs.cone.is_none() {
             self.retired.retire(self.cone.take());
             self.retired.retire(self.cone_pass.take());
             self.cone_built = false;

@@ -369,6 +369,14 @@ impl DisplacementPass {
             })
         };
         self.cone_built = true;
+        // What only the build read (a relaxed map's falls pyramids) goes once this
+        // command buffer's frame has executed.
+        if let Some(cone) = &mut self.cone {
+            let scratch = cone.take_scratch();
+            if !scratch.is_empty() {
+                self.retired.retire(scratch);
+            }
+        }
     }
 
     /// The DIG corner pass (DIG methods only): the slot's grid discarded -> storage

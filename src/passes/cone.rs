@@ -1,6 +1,6 @@
-//! The `cone` pass: the conservative cone map of the bilinear surface, built on the GPU
-//! from the height map and the cell max pyramid (`glsl/cone.comp`) for the cone-stepping
-//! methods (`cone`, `cone-exact`).
+//! The `cone` pass: the conservative or relaxed cone map of the bilinear surface, built on
+//! the GPU from the height map and the cell max pyramid (`glsl/cone.comp`) for the
+//! cone-stepping methods (`cone`, `cone-exact`: conservative; `relaxed-cone`: relaxed).
 //!
 //! # The map
 //!
@@ -24,7 +24,33 @@
 //! along each axis: exact for a constant slope), everything beyond from the max pyramid's
 //! neighbour rings (the quick generation of Valasek & Bán, EG 2022), each bounded by
 //! its node maximum at a distance of at least `R`. Every bound is conservative; the
-//! shader's header has the argument. Repeat addressing wraps the neighbourhood (the tiles
+//! shader's header has the argument.
+//!
+//! # The relaxed map
+//!
+//! [`ConeKind::Relaxed`] (relaxed cone stepping, Policarpo & Oliveira 2007, with the
+//! falling-edge correction of Bán et al. 2024 adapted to the cell apex): a window cell
+//! `D` that is *monotone outward* gives no bound: per axis, `D`'s bilinear patch does not
+//! fall going away from `C` (both edges non-decreasing in that direction), or is constant
+//! along the axis where `D` is in `C`'s column or row (rays cross those cells either way).
+//! Every other cell bounds the cone as in the conservative map (the window cells by their
+//! corners, the rest by the pyramid), so a relaxed cone is never narrower than the
+//! conservative one of the same cell.
+//!
+//! What the trace relies on: a ray that starts over `C` above `M` and steps to the cone's
+//! boundary (as the conservative step does) crosses the surface **at most once**. The
+//! segment stays inside the cone (the ray's height is linear along it, the cone's height
+//! `M + dist / w` convex, and both ends are on or inside the cone), so it can only be
+//! under the surface in cells whose surface may rise into the cone: the monotone-outward
+//! cells (the conservative bounds keep every other cell below the cone, `C`'s own patch is
+//! at most `M`). A ray leaving `C` moves away from it along both axes, so across a
+//! monotone-outward patch the surface height along the ray never decreases while the ray
+//! descends: once under the surface, the ray stays under it to the next cell, whose shared
+//! edge then rises above the cone, so that cell is monotone outward too (any other cell's
+//! surface is below the cone). Hence one height test at the step's end decides whether the
+//! step crossed the surface, and a binary search over the step converges to that one
+//! crossing. Clamp addressing's half cells `-1` and `W - 1` are constant along the clamped
+//! axis, so the rule holds for them whichever way a ray crosses them. Repeat addressing wraps the neighbourhood (the tiles
 //! beyond the root's neighbours are bounded by the global maximum); clamp addressing
 //! includes the half cells at the decal's border and nothing beyond it.
 //!
@@ -43,8 +69,8 @@ use crate::gpu::pipeline::{image_write, storage_view};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
 use crate::heightfield::Addressing;
-use crate::method::PyramidKind;
-use crate::passes::pyramid::Pyramid;
+use crate::method::{ConeKind, PyramidKind};
+use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::shaders;
 use ash::vk;
 
@@ -64,6 +90,18 @@ const BINDINGS: [(u32, vk::DescriptorType); 3] = [
     (2, vk::DescriptorType::STORAGE_IMAGE),
 ];
 
+/// The relaxed generation's bindings: the above, then the four falls pyramids
+/// ([`PyramidKind::FALLS`] order).
+const RELAXED_BINDINGS: [(u32, vk::DescriptorType); 7] = [
+    BINDINGS[0],
+    BINDINGS[1],
+    BINDINGS[2],
+    (3, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    (4, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    (5, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    (6, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+];
+
 /// The cone map of one height map.
 pub struct ConeMap {
     /// The `W x H` image (`CONE_FORMAT`).
@@ -73,18 +111,34 @@ pub struct ConeMap {
     pub size: [u32; 2],
     /// The addressing the map was built for.
     pub addressing: Addressing,
+    /// Conservative or relaxed.
+    pub kind: ConeKind,
+    /// The relaxed map's generation input: the four [`PyramidKind::FALLS`] pyramids of
+    /// the map (empty for a conservative map, and once [`ConeMap::take_scratch`] took
+    /// them after the build).
+    falls: Vec<Pyramid>,
 }
 
 impl ConeMap {
-    /// Allocates the cone map of a `size` height map (contents undefined until built).
-    pub fn new(ctx: &Context, size: [u32; 2], addressing: Addressing) -> Result<Self> {
+    /// Allocates the `kind` cone map of a `size` height map (contents undefined until
+    /// built).
+    pub fn new(
+        ctx: &Context,
+        size: [u32; 2],
+        addressing: Addressing,
+        kind: ConeKind,
+    ) -> Result<Self> {
         let extent = vk::Extent2D {
             width: size[0].max(1),
             height: size[1].max(1),
         };
+        let name = match kind {
+            ConeKind::Conservative => "cone_map",
+            ConeKind::Relaxed => "relaxed_cone_map",
+        };
         let mut image = Image::new(
             ctx,
-            "cone_map",
+            name,
             CONE_FORMAT,
             extent,
             1,
@@ -94,7 +148,7 @@ impl ConeMap {
         )?;
         let sampler = match crate::passes::sampler(
             ctx,
-            "cone_map.sampler",
+            &format!("{name}.sampler"),
             vk::Filter::NEAREST,
             vk::SamplerAddressMode::CLAMP_TO_EDGE,
         ) {
@@ -104,12 +158,32 @@ impl ConeMap {
                 return Err(e);
             }
         };
-        Ok(ConeMap {
+        let mut map = ConeMap {
             image,
             sampler,
             size,
             addressing,
-        })
+            kind,
+            falls: Vec::new(),
+        };
+        if kind == ConeKind::Relaxed {
+            for falls in PyramidKind::FALLS {
+                match Pyramid::new(ctx, size, falls, addressing) {
+                    Ok(p) => map.falls.push(p),
+                    Err(e) => {
+                        map.destroy(ctx);
+                        return Err(e);
+                    }
+                }
+            }
+        }
+        Ok(map)
+    }
+
+    /// Takes what only the build reads (the relaxed map's four falls pyramids, about 21
+    /// bytes per texel), for the caller to destroy once the build has executed.
+    pub fn take_scratch(&mut self) -> Vec<Pyramid> {
+        std::mem::take(&mut self.falls)
     }
 
     /// Descriptor for the trace pass (`texelFetch(u_cone, cell, 0)`).
@@ -129,8 +203,11 @@ impl ConeMap {
         Ok(texels.to_vec())
     }
 
-    /// Destroys the sampler and image. The GPU must be done with them.
+    /// Destroys the sampler, image and scratch. The GPU must be done with them.
     pub fn destroy(&mut self, ctx: &Context) {
+        for mut falls in self.falls.drain(..) {
+            falls.destroy(ctx);
+        }
         if self.sampler != vk::Sampler::null() {
             // SAFETY: caller guarantees no pending use.
             unsafe { ctx.device().destroy_sampler(self.sampler, None) };
@@ -140,26 +217,52 @@ impl ConeMap {
     }
 }
 
-/// The cone generation pipeline.
+/// The cone generation pipeline of one [`ConeKind`].
 pub struct ConePass {
     pipeline: ComputePipeline,
+    /// The relaxed generation's falls pyramids' build.
+    falls_pass: Option<PyramidPass>,
+    /// The kind of map it builds.
+    pub kind: ConeKind,
 }
 
 impl ConePass {
-    /// Builds the pipeline.
-    pub fn new(ctx: &Context) -> Result<Self> {
+    /// Builds the pipeline for `kind` maps.
+    pub fn new(ctx: &Context, kind: ConeKind) -> Result<Self> {
+        let (name, shader, bindings): (_, _, &[_]) = match kind {
+            ConeKind::Conservative => ("cone", &shaders::CONE_COMP, &BINDINGS),
+            ConeKind::Relaxed => (
+                "relaxed_cone",
+                &shaders::CONE_COMP_RELAXED,
+                &RELAXED_BINDINGS,
+            ),
+        };
+        let mut pipeline = ComputePipeline::new(
+            ctx,
+            name,
+            shader,
+            bindings,
+            std::mem::size_of::<ConeParams>() as u32,
+        )?;
+        let falls_pass = match kind {
+            ConeKind::Conservative => None,
+            ConeKind::Relaxed => match PyramidPass::new(ctx) {
+                Ok(p) => Some(p),
+                Err(e) => {
+                    pipeline.destroy(ctx);
+                    return Err(e);
+                }
+            },
+        };
         Ok(ConePass {
-            pipeline: ComputePipeline::new(
-                ctx,
-                "cone",
-                &shaders::CONE_COMP,
-                &BINDINGS,
-                std::mem::size_of::<ConeParams>() as u32,
-            )?,
+            pipeline,
+            falls_pass,
+            kind,
         })
     }
 
-    /// Records the generation (see the module docs for the layouts on entry and exit).
+    /// Records the generation (see the module docs for the layouts on entry and exit); a
+    /// relaxed map's falls pyramids are built first (their contents discarded).
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
@@ -167,7 +270,9 @@ impl ConePass {
     /// * When the command buffer executes, `height` and `pyramid` (a
     ///   [`PyramidKind::Cell`] pyramid of the same map, built) are in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
-    ///   reads, and no access of `cone`'s image is pending (its contents are discarded).
+    ///   reads, and no access of `cone`'s image (nor of its scratch pyramids) is pending
+    ///   (their contents are discarded). A relaxed map still holds its scratch (see
+    ///   [`ConeMap::take_scratch`]).
     /// * `height`, `pyramid`, `cone` and this pass stay alive until the command buffer
     ///   has executed.
     pub unsafe fn record(
@@ -179,6 +284,17 @@ impl ConePass {
         cone: &ConeMap,
     ) {
         debug_assert_eq!(pyramid.kind, PyramidKind::Cell);
+        debug_assert_eq!(cone.kind, self.kind);
+        if let Some(falls_pass) = &self.falls_pass {
+            debug_assert_eq!(cone.falls.len(), 4, "the relaxed map's scratch was taken");
+            for falls in &cone.falls {
+                // SAFETY: this function's # Safety contract: `cmd` is recording outside a
+                // render pass; the height texture is sampled-readable; the falls
+                // pyramids are the cone map's own, alive, and no access of them is
+                // pending.
+                unsafe { falls_pass.record(ctx, cmd, height, falls) };
+            }
+        }
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the cone map is alive and its contents may be discarded.
         unsafe {
@@ -193,11 +309,18 @@ impl ConePass {
         let heights = [height.descriptor()];
         let pyramids = [pyramid.descriptor()];
         let out = storage_view(cone.image.view);
-        let writes = [
+        let falls: Vec<[vk::DescriptorImageInfo; 1]> =
+            cone.falls.iter().map(|p| [p.descriptor()]).collect();
+        let mut writes = vec![
             image_write(BINDINGS[0].0, BINDINGS[0].1, &heights),
             image_write(BINDINGS[1].0, BINDINGS[1].1, &pyramids),
             image_write(BINDINGS[2].0, BINDINGS[2].1, &out),
         ];
+        if self.falls_pass.is_some() {
+            for ((binding, ty), info) in RELAXED_BINDINGS[3..].iter().zip(&falls) {
+                writes.push(image_write(*binding, *ty, info));
+            }
+        }
         let push = ConeParams {
             map_size: cone.size,
             levels: pyramid.levels(),
@@ -207,9 +330,10 @@ impl ConePass {
             },
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the writes match `BINDINGS` (the pipeline's set 0) and name the live
-        // height texture and pyramid (sampled-readable) and the cone map in `GENERAL`
-        // (the transition above); the push constants are the `ConeParams` the layout was
+        // pass; the writes match the pipeline's set 0 (`BINDINGS`, or `RELAXED_BINDINGS`
+        // for the relaxed pass) and name the live height texture, pyramid and (relaxed)
+        // falls pyramids (sampled-readable: their builds above leave them so) and the
+        // cone map in `GENERAL` (the transition above); the push constants are the `ConeParams` the layout was
         // built with; the pipeline lives as long as this pass.
         unsafe {
             self.pipeline.dispatch(
@@ -233,8 +357,11 @@ impl ConePass {
         };
     }
 
-    /// Destroys the pipeline.
+    /// Destroys the pipelines.
     pub fn destroy(&mut self, ctx: &Context) {
         self.pipeline.destroy(ctx);
+        if let Some(mut p) = self.falls_pass.take() {
+            p.destroy(ctx);
+        }
     }
 }

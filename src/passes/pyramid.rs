@@ -53,6 +53,7 @@ fn kind_code(kind: PyramidKind) -> u32 {
     match kind {
         PyramidKind::Footprint => 0,
         PyramidKind::Cell => 1,
+        PyramidKind::Falls { neg_x, neg_y } => 2 + u32::from(neg_x) + 2 * u32::from(neg_y),
     }
 }
 
@@ -104,6 +105,12 @@ impl Pyramid {
         let name = match kind {
             PyramidKind::Footprint => "pyramid[footprint]",
             PyramidKind::Cell => "pyramid[cell]",
+            PyramidKind::Falls { neg_x, neg_y } => match (neg_x, neg_y) {
+                (false, false) => "pyramid[falls+x+y]",
+                (true, false) => "pyramid[falls-x+y]",
+                (false, true) => "pyramid[falls+x-y]",
+                (true, true) => "pyramid[falls-x-y]",
+            },
         };
         let image = Image::new(
             ctx,
@@ -386,6 +393,24 @@ pub fn cpu_build(field: &HeightField, addressing: Addressing, kind: PyramidKind)
             let t = |di: usize, dj: usize| heights[rows[dj] + cols[di]];
             level0.push(match kind {
                 PyramidKind::Cell => t(1, 1).max(t(2, 1)).max(t(1, 2).max(t(2, 2))),
+                PyramidKind::Falls { neg_x, neg_y } => {
+                    let (a00, a10, a01, a11) = (t(1, 1), t(2, 1), t(1, 2), t(2, 2));
+                    let falls_x = if neg_x {
+                        a10 > a00 || a11 > a01
+                    } else {
+                        a00 > a10 || a01 > a11
+                    };
+                    let falls_y = if neg_y {
+                        a01 > a00 || a11 > a10
+                    } else {
+                        a00 > a01 || a10 > a11
+                    };
+                    if falls_x || falls_y {
+                        a00.max(a10).max(a01.max(a11))
+                    } else {
+                        0.0
+                    }
+                }
                 PyramidKind::Footprint => {
                     let edges = [
                         (t(0, 1) + t(1, 1)) * 0.5,

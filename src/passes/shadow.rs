@@ -420,6 +420,7 @@ mod tests {
                     | Method::Pyramid
                     | Method::Cone
                     | Method::ConeExact
+                    | Method::RelaxedCone
             );
             let hard = ShadowTrace::for_method(ShadowMode::Hard, m);
             assert_eq!(hard, if pyramid { Pyramid } else { Sampled }, "{m}");

@@ -11,7 +11,7 @@
 //! | 4 | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 5 | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 6 | G-buffer `normal` (`w`: surface id; the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 8 | cone map (`cone`, `cone-exact`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 8 | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //!
 //! A method's pipeline declares bindings 4, 5 and 8 only when its [`Needs`] name them.
 //!
@@ -60,7 +60,7 @@ fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
     if needs.dig_corners {
         b.push((CORNERS_BINDING, SAMPLED));
     }
-    if needs.cone {
+    if needs.cone.is_some() {
         b.push((CONE_BINDING, SAMPLED));
     }
     b
@@ -158,7 +158,7 @@ impl TracePass {
             (true, None) => return Err(missing("the DIG corner grid")),
             (false, _) => None,
         };
-        let cone = match (needs.cone, cone) {
+        let cone = match (needs.cone.is_some(), cone) {
             (true, Some(c)) => Some(c),
             (true, None) => return Err(missing("the cone map")),
             (false, _) => None,

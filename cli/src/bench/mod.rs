@@ -1187,7 +1187,7 @@ impl<'a> MapSweep<'a> {
                 (Sweep::MapSize, Some(kind)) => Some(cpu_pyramid_ms(self.field, config, kind)),
                 _ => None,
             },
-            cone_build_ms: if run.method.needs().cone {
+            cone_build_ms: if run.method.needs().cone.is_some() {
                 builds.cone
             } else {
                 None

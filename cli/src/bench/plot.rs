@@ -58,6 +58,7 @@ pub fn method_color(method: Method) -> RGBColor {
         Method::Exact => RGBColor(0, 0, 0),
         Method::Cone => RGBColor(188, 189, 34),
         Method::ConeExact => RGBColor(23, 190, 207),
+        Method::RelaxedCone => RGBColor(140, 86, 75),
     }
 }
 

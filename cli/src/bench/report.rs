@@ -719,7 +719,7 @@ fn size_section(s: &mut String, results: &BenchResults) {
             let _ = write!(header, " `{m}` build | `{m}` CPU build |");
             rule.push_str("---:|---:|");
         }
-        if m.needs().cone {
+        if m.needs().cone.is_some() {
             let _ = write!(header, " `{m}` cone build |");
             rule.push_str("---:|");
         }
@@ -741,7 +741,7 @@ fn size_section(s: &mut String, results: &BenchResults) {
                     opt_ms(r.and_then(|r| r.cpu_pyramid_build_ms))
                 );
             }
-            if m.needs().cone {
+            if m.needs().cone.is_some() {
                 let _ = write!(line, " {} |", opt_ms(r.and_then(|r| r.cone_build_ms)));
             }
             match r {
