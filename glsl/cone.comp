@@ -26,10 +26,13 @@
 // Clamp addressing: cells -1 and W - 1 (half inside the decal; their corners are the
 // clamped edge texels) are surface like any other; cells beyond them are never reached.
 //
-// RELAXED (the relaxed cone map of `relaxed-cone`): a window cell D whose bilinear patch
-// never falls along any direction a ray leaving C can cross it in ("monotone outward":
-// per axis, D's edges non-decreasing away from C, or equal where D is in C's column or
-// row, which rays cross either way) gives no bound. Everything else is bounded as above.
+// RELAXED (the relaxed cone map of `relaxed-cone`; (M, w_relaxed), w_relaxed negated
+// where it is wider than the conservative w, so that the trace tests the surface only
+// there): a window cell D whose bilinear patch never falls along any direction a ray
+// leaving C can cross it in ("monotone outward": per axis, D's edges non-decreasing away
+// from C, or equal where D is in C's column or row, which rays cross either way) gives no
+// bound; beyond the window the falls pyramids replace the max pyramid (node_falls).
+// Everything else is bounded as above.
 // A ray that starts over C above M and steps to the cone's boundary then crosses the
 // surface at most once (src/passes/cone.rs has the argument), so one height test at the
 // step's end tells whether the step passed a hit.
@@ -85,12 +88,12 @@ bool monotone_outward(int di, int dj, float a00, float a10, float a01, float a11
 }
 #endif
 
-// The bound of the pyramid node `kk` of `level`, at offset `off` (ring position) from the
-// node holding C: its maximum, or (RELAXED) the maximum of the cells in it that fall
-// along some direction a ray from C can cross them in (the quadrants of off's signs,
-// both ways along an axis where off is 0).
-float node_bound(ivec2 kk, int level, ivec2 off) {
 #ifdef RELAXED
+// The relaxed bound of the pyramid node `kk` of `level`, at offset `off` (ring position)
+// from the node holding C: the maximum of the cells in it that fall along some direction
+// a ray from C can cross them in (the quadrants of off's signs, both ways along an axis
+// where off is 0).
+float node_falls(ivec2 kk, int level, ivec2 off) {
     float v = 0.0;
     if (off.y >= 0) {
         if (off.x >= 0) {
@@ -109,10 +112,8 @@ float node_bound(ivec2 kk, int level, ivec2 off) {
         }
     }
     return v;
-#else
-    return texelFetch(u_pyramid, kk, level).r;
-#endif
 }
+#endif
 
 // One axis of a window cell at offset `o` (|o| >= 1): near- and far-edge maxima above M.
 float axis_bound(int o, float near_max, float far_max) {
@@ -156,6 +157,9 @@ const ivec2 RING[8] = ivec2[](ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1), ivec2(-
                               ivec2(1, 0), ivec2(-1, 1), ivec2(0, 1), ivec2(1, 1));
 shared ivec4 s_ring_cells[RING_SLOTS]; // lo.x, lo.y, hi.x, hi.y
 shared float s_ring_max[RING_SLOTS];   // the node maximum; -1 where no node exists
+#ifdef RELAXED
+shared float s_ring_falls[RING_SLOTS]; // node_falls; -1 where no node exists
+#endif
 
 void main() {
     ivec2 c = ivec2(gl_GlobalInvocationID.xy);
@@ -167,6 +171,7 @@ void main() {
             int level = SHARED_LEVEL + (slot >> 3);
             ivec2 off = RING[slot & 7];
             float node_max = -1.0;
+            float falls = -1.0;
             ivec4 cells = ivec4(0);
             if (level <= top_level) {
                 ivec2 a = group >> level;
@@ -174,12 +179,18 @@ void main() {
                 ivec2 kk, lo, hi;
                 if (node_cells(a.x + off.x, n.x, nl.x, level, kk.x, lo.x, hi.x)
                     && node_cells(a.y + off.y, n.y, nl.y, level, kk.y, lo.y, hi.y)) {
-                    node_max = node_bound(kk, level, off);
+                    node_max = texelFetch(u_pyramid, kk, level).r;
+#ifdef RELAXED
+                    falls = node_falls(kk, level, off);
+#endif
                     cells = ivec4(lo, hi);
                 }
             }
             s_ring_cells[slot] = cells;
             s_ring_max[slot] = node_max;
+#ifdef RELAXED
+            s_ring_falls[slot] = falls;
+#endif
         }
     }
     barrier();
@@ -188,6 +199,9 @@ void main() {
     }
     float m = texelFetch(u_pyramid, c, 0).r;
     float w = CONE_RATIO_MAX;
+#ifdef RELAXED
+    float w_relaxed = CONE_RATIO_MAX;
+#endif
 
     // The window's corner texels, rows c.y - WINDOW .. c.y + WINDOW + 1.
     float t[SIDE * SIDE];
@@ -210,11 +224,6 @@ void main() {
             if (top <= 0.0) {
                 continue;
             }
-#ifdef RELAXED
-            if (monotone_outward(di, dj, a00, a10, a01, a11)) {
-                continue;
-            }
-#endif
             vec2 gap = vec2(max(abs(di) - 1, 0), max(abs(dj) - 1, 0));
             float bound = ratio(length(gap), top);
             if (di != 0) {
@@ -231,6 +240,11 @@ void main() {
                 bound = max(bound, ratio(1.0, sqrt(2.0) * top));
             }
             w = min(w, bound);
+#ifdef RELAXED
+            if (!monotone_outward(di, dj, a00, a10, a01, a11)) {
+                w_relaxed = min(w_relaxed, bound);
+            }
+#endif
         }
     }
 
@@ -249,12 +263,17 @@ void main() {
                     || !node_cells(a.y + oy, n.y, nl.y, level, kk.y, lo.y, hi.y)) {
                     continue;
                 }
-                float rise = node_bound(kk, level, ivec2(ox, oy)) - m;
+                // A node's falls never exceed its maximum: nothing to bound either way.
+                float rise = texelFetch(u_pyramid, kk, level).r - m;
                 if (rise <= 0.0) {
                     continue;
                 }
                 vec2 gap = vec2(max(max(lo - (c + 1), c - hi), ivec2(0)));
-                w = min(w, ratio(max(length(gap), float(WINDOW)), rise));
+                float dist = max(length(gap), float(WINDOW));
+                w = min(w, ratio(dist, rise));
+#ifdef RELAXED
+                w_relaxed = min(w_relaxed, ratio(dist, node_falls(kk, level, ivec2(ox, oy)) - m));
+#endif
             }
         }
     }
@@ -267,11 +286,25 @@ void main() {
         }
         ivec4 cells = s_ring_cells[slot];
         vec2 gap = vec2(max(max(cells.xy - (c + 1), c - cells.zw), ivec2(0)));
-        w = min(w, ratio(max(length(gap), float(WINDOW)), rise));
+        float dist = max(length(gap), float(WINDOW));
+        w = min(w, ratio(dist, rise));
+#ifdef RELAXED
+        w_relaxed = min(w_relaxed, ratio(dist, s_ring_falls[slot] - m));
+#endif
     }
     if (pc.addressing == ADDRESSING_REPEAT) {
-        float rise = node_bound(ivec2(0), top_level, ivec2(0)) - m;
-        w = min(w, ratio(max(float(min(n.x, n.y)), float(WINDOW)), rise));
+        float rise = texelFetch(u_pyramid, ivec2(0), top_level).r - m;
+        float dist = max(float(min(n.x, n.y)), float(WINDOW));
+        w = min(w, ratio(dist, rise));
+#ifdef RELAXED
+        w_relaxed = min(w_relaxed, ratio(dist, node_falls(ivec2(0), top_level, ivec2(0)) - m));
+#endif
     }
+#ifdef RELAXED
+    // Negative where the relaxed cone is wider than the conservative one: only there may
+    // a step end inside the surface (the trace tests it there only).
+    imageStore(u_cone, c, vec4(m, w_relaxed > w ? -w_relaxed : w_relaxed, 0.0, 0.0));
+#else
     imageStore(u_cone, c, vec4(m, w, 0.0, 0.0));
+#endif
 }

@@ -17,7 +17,8 @@
 #ifndef DISPMAP_CONE_GLSL
 #define DISPMAP_CONE_GLSL
 
-// The cone map: rg32f (M, w) per cell, nearest texel fetches.
+// The cone map: rg32f (M, w) per cell (relaxed: w negated where it is wider than the
+// conservative ratio), nearest texel fetches.
 layout(set = 0, binding = 8) uniform sampler2D u_cone;
 
 // The cone step is shortened by this fraction: f32 rounding of the step must never end it
@@ -141,11 +142,13 @@ bool cone_advance(inout ConeRay r, inout float t, out float t_exit, out vec2 exi
             return true;
         }
         float h = 1.0 - t;
-        float w = cone.y;
+        float w = abs(cone.y);
         float s = max(w * (h - cone.x - SKIP_MARGIN) - e, 0.0) / (w + r.len) * (1.0 - CONE_SHRINK);
         float t_next = max(t + s, min(t_exit, t_band));
 #ifdef CONE_RELAXED
-        if (t + s > min(t_exit, t_band)) {
+        // The relaxed map negates the ratio where it is wider than the conservative
+        // one; elsewhere the step is conservative and crossed nothing.
+        if (cone.y < 0.0 && t + s > min(t_exit, t_band)) {
             float t_probe = min(t_next, r.t_end);
             if (cone_height(r, t_probe) >= 1.0 - t_probe) {
                 t_above = t;

@@ -74,7 +74,9 @@ use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::shaders;
 use ash::vk;
 
-/// Format of the cone map: `(M, w)` per cell.
+/// Format of the cone map: `(M, w)` per cell. The relaxed map stores `-w` where its cone
+/// is wider than the conservative one (where a step may end inside the surface, so the
+/// trace tests the surface there only).
 pub const CONE_FORMAT: vk::Format = vk::Format::R32G32_SFLOAT;
 
 /// Half width, in cells, of the neighbourhood `glsl/cone.comp` bounds cell by cell
@@ -195,8 +197,9 @@ impl ConeMap {
         }
     }
 
-    /// Reads the map back, row by row: `(M, w)` per cell. It must be built and idle in
-    /// `SHADER_READ_ONLY_OPTIMAL`.
+    /// Reads the map back, row by row: `(M, w)` per cell as stored (the relaxed map's
+    /// `w` negative where it is wider than the conservative ratio). It must be built and
+    /// idle in `SHADER_READ_ONLY_OPTIMAL`.
     pub fn read(&self, ctx: &Context, shot: &OneShot) -> Result<Vec<[f32; 2]>> {
         let bytes = read_image_level(ctx, shot, &self.image, 0, Access::COMPUTE_SAMPLED)?;
         let texels: &[[f32; 2]] = bytemuck::cast_slice(&bytes);
