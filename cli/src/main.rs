@@ -670,6 +670,10 @@ fn render_inputs(
             reference: args.metrics.is_some(),
             heatmap: args.heatmap.is_some() || args.interval_map.is_some(),
             depth: args.depth_out.is_some(),
+            maps: memory::MethodMaps::of(
+                settings.method,
+                settings.shadows.mode == ShadowMode::Hard,
+            ),
         };
         let estimate = memory::estimate(map, frame, extras);
         memory::check(&estimate, args.common.max_memory, &what)
@@ -883,6 +887,8 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             [first.width, first.height],
             memory::Extras {
                 reference: true,
+                // One method at a time, the previous one's maps retired: at most all.
+                maps: memory::MethodMaps::together(Method::ALL),
                 ..memory::Extras::default()
             },
         ),
@@ -1033,14 +1039,20 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         bail!("invalid --maps: no map to benchmark (give --maps or --heightmap)");
     }
     // The largest map (or sweep size) with the frame, the reference and the heat maps.
+    // One renderer per method is alive at once (runs interleaved frame by frame).
     let extras = memory::Extras {
         reference: true,
         heatmap: true,
         depth: false,
+        maps: memory::MethodMaps::together(&config.methods),
     };
-    let mut candidates: Vec<(memory::MapSize, String)> = maps
+    let sweep_extras = memory::Extras {
+        maps: memory::MethodMaps::together(&config.size_methods),
+        ..extras
+    };
+    let mut candidates: Vec<(memory::MapSize, String, memory::Extras)> = maps
         .iter()
-        .map(|m| (memory::MapSize::loaded(&m.field), m.name.clone()))
+        .map(|m| (memory::MapSize::loaded(&m.field), m.name.clone(), extras))
         .collect();
     if let Some(source) = &size_source {
         let bytes = memory::MapSize::loaded(&source.field).texel_bytes;
@@ -1050,12 +1062,16 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
                 texel_bytes: bytes,
                 load_bytes: 0,
             };
-            candidates.push((map, format!("{} resampled to {side}x{side}", source.name)));
+            candidates.push((
+                map,
+                format!("{} resampled to {side}x{side}", source.name),
+                sweep_extras,
+            ));
         }
     }
     if let Some((estimate, name)) = candidates
         .into_iter()
-        .map(|(map, name)| (memory::estimate(map, config.frame, extras), name))
+        .map(|(map, name, extras)| (memory::estimate(map, config.frame, extras), name))
         .max_by_key(|(e, _)| e.bytes)
     {
         let what = format!(

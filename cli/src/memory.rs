@@ -14,6 +14,7 @@
 use crate::reference::Reference;
 use dispmap::error::{Error, Result};
 use dispmap::heightfield::ImageHeader;
+use dispmap::method::{ConeKind, Method, PyramidKind};
 
 /// Bytes of the process before any map or frame (Vulkan instance and device, lavapipe,
 /// the binary): measured 90-100 MiB with a 2048x2048 map and a 64x64 frame, rounded up.
@@ -35,7 +36,8 @@ const DEPTH_BYTES_PER_PIXEL: u64 = 32;
 /// and the compared values: measured 105.
 const REFERENCE_BYTES_PER_PIXEL: u64 = 120;
 
-/// What a run keeps per pixel beyond the frame itself.
+/// What a run keeps per pixel beyond the frame itself, and the one-off maps its methods
+/// build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Extras {
     /// The exact reference (`--metrics`, the demo).
@@ -44,6 +46,63 @@ pub struct Extras {
     pub heatmap: bool,
     /// `--depth-out`.
     pub depth: bool,
+    /// The methods' pyramids and cone maps alive at the peak.
+    pub maps: MethodMaps,
+}
+
+/// The one-off per-map images of the methods of a run alive at once: max pyramids
+/// (`R32_SFLOAT`, each level padded to a power of two), cone maps (`R32G32_SFLOAT`) and
+/// a relaxed cone map's build scratch (four more pyramids). Measured on a 2048² map,
+/// 64x64 frame (peak resident memory over `relief`'s): `exact` +19.6 MB (its pyramid:
+/// 22.4 MB computed), `cone` +73.8 MB (pyramid and cone map 55.9 MB, the rest the cone
+/// build's pipeline compile), `relaxed-cone` +162.4 MB (145.4 MB computed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MethodMaps {
+    /// Max pyramids.
+    pub pyramids: u32,
+    /// Cone maps.
+    pub cone_maps: u32,
+    /// Relaxed cone maps being built (their scratch).
+    pub relaxed_builds: u32,
+}
+
+impl MethodMaps {
+    /// What `method` builds; `shadows`: hard self-shadowing, which builds a cell pyramid
+    /// of its own when the method has none.
+    pub fn of(method: Method, shadows: bool) -> Self {
+        let needs = method.needs();
+        let own_shadow_pyramid = shadows && needs.pyramid != Some(PyramidKind::Cell);
+        MethodMaps {
+            pyramids: u32::from(needs.pyramid.is_some()) + u32::from(own_shadow_pyramid),
+            cone_maps: u32::from(needs.cone.is_some()),
+            relaxed_builds: u32::from(needs.cone == Some(ConeKind::Relaxed)),
+        }
+    }
+
+    /// The maps of `methods` alive together (the benchmark keeps one renderer per method).
+    pub fn together(methods: &[Method]) -> Self {
+        methods.iter().fold(MethodMaps::default(), |sum, &m| {
+            let one = MethodMaps::of(m, false);
+            MethodMaps {
+                pyramids: sum.pyramids + one.pyramids,
+                cone_maps: sum.cone_maps + one.cone_maps,
+                relaxed_builds: sum.relaxed_builds + one.relaxed_builds,
+            }
+        })
+    }
+
+    /// Their bytes on a `size` map.
+    pub fn bytes(&self, size: [u32; 2]) -> u64 {
+        let (w, h) = (size[0].max(1), size[1].max(1));
+        let (pw, ph) = (w.next_power_of_two(), h.next_power_of_two());
+        let levels = 32 - pw.max(ph).leading_zeros();
+        let pyramid: u64 = (0..levels)
+            .map(|l| u64::from((pw >> l).max(1)) * u64::from((ph >> l).max(1)) * 4)
+            .sum();
+        let cone = u64::from(w) * u64::from(h) * 8;
+        u64::from(self.pyramids + 4 * self.relaxed_builds) * pyramid
+            + u64::from(self.cone_maps) * cone
+    }
 }
 
 /// A run's estimated peak memory, with its parts for the message.
@@ -99,6 +158,7 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
     let pixels = u64::from(frame[0]) * u64::from(frame[1]);
     let field = texels * u64::from(map.texel_bytes);
     let gpu = texels * (GPU_BYTES_PER_TEXEL_BYTE * u64::from(map.texel_bytes) + 1);
+    let method_maps = extras.maps.bytes(map.size);
     let per_pixel = FRAME_BYTES_PER_PIXEL
         + if extras.heatmap {
             HEATMAP_BYTES_PER_PIXEL
@@ -120,7 +180,7 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
         (0, 0)
     };
     let load_peak = map.load_bytes + field;
-    let render_peak = field + gpu + frame_bytes + ref_map + ref_frame;
+    let render_peak = field + gpu + method_maps + frame_bytes + ref_map + ref_frame;
     let mut parts = vec![("process", BASE_BYTES)];
     if load_peak > render_peak {
         parts.push(("map file and decoding", map.load_bytes));
@@ -128,6 +188,9 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
     } else {
         parts.push(("height field", field));
         parts.push(("GPU copy of the map", gpu));
+        if method_maps > 0 {
+            parts.push(("pyramids and cone maps", method_maps));
+        }
         parts.push(("frame", frame_bytes));
         if extras.reference {
             parts.push(("reference texels and pyramid", ref_map));
@@ -281,5 +344,51 @@ mod tests {
             "{err}"
         );
         assert!(check(&small, Some(u64::MAX), "x").is_ok());
+    }
+
+    #[test]
+    fn method_maps_follow_what_the_method_builds() {
+        let size = [2048, 2048];
+        let pyramid = MethodMaps::of(Method::Exact, false).bytes(size);
+        // 4 bytes per node over the padded chain: 4 (4^12 - 1) / 3 for 2048².
+        assert_eq!(pyramid, 4 * ((1u64 << 24) - 1) / 3);
+        assert_eq!(MethodMaps::of(Method::Relief, false).bytes(size), 0);
+        assert_eq!(MethodMaps::of(Method::Relief, true).bytes(size), pyramid);
+        assert_eq!(MethodMaps::of(Method::Exact, true).bytes(size), pyramid);
+        let cone = MethodMaps::of(Method::Cone, false).bytes(size);
+        assert_eq!(cone, pyramid + 8 * 2048 * 2048);
+        let relaxed = MethodMaps::of(Method::RelaxedCone, false).bytes(size);
+        assert_eq!(relaxed, cone + 4 * pyramid);
+        // A 1025-wide map pads its pyramid to 2048.
+        assert!(MethodMaps::of(Method::Exact, false).bytes([1025, 1]) > 4 * 2048);
+        assert_eq!(
+            MethodMaps::together(&[Method::Exact, Method::ConeExact, Method::Pom]),
+            MethodMaps {
+                pyramids: 2,
+                cone_maps: 1,
+                relaxed_builds: 0
+            }
+        );
+        let map = MapSize {
+            size,
+            texel_bytes: 1,
+            load_bytes: 0,
+        };
+        let with = |maps| Extras {
+            maps,
+            ..Extras::default()
+        };
+        let plain = estimate(map, [64, 64], with(MethodMaps::default()));
+        let r = estimate(
+            map,
+            [64, 64],
+            with(MethodMaps::of(Method::RelaxedCone, false)),
+        );
+        assert_eq!(r.bytes - plain.bytes, relaxed);
+        assert!(
+            r.parts
+                .iter()
+                .any(|(name, _)| *name == "pyramids and cone maps")
+        );
     }
 }
