@@ -63,7 +63,7 @@
 
 use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, ConeParams};
 use crate::context::Context;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::commands::read_image_level;
 use crate::gpu::pipeline::{image_write, storage_view};
 use crate::gpu::sync::{self, Access};
@@ -74,7 +74,8 @@ use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::shaders;
 use ash::vk;
 
-/// Format of the cone map: `(M, w)` per cell. The relaxed map stores `-w` where its cone
+/// Format of the cone map: `(M, w)` per cell (storage support is checked when a map is
+/// created: it is not mandatory in Vulkan). The relaxed map stores `-w` where its cone
 /// is wider than the conservative one (where a step may end inside the surface, so the
 /// trace tests the surface there only).
 pub const CONE_FORMAT: vk::Format = vk::Format::R32G32_SFLOAT;
@@ -134,6 +135,21 @@ impl ConeMap {
             width: size[0].max(1),
             height: size[1].max(1),
         };
+        // `R32G32_SFLOAT` storage is not mandatory in Vulkan (the "extended" storage
+        // formats): the cone methods need it, the other methods do not, so it is checked
+        // here rather than in the device requirements.
+        let needed = vk::FormatFeatureFlags::STORAGE_IMAGE | vk::FormatFeatureFlags::SAMPLED_IMAGE;
+        // SAFETY: the instance and physical device are the context's, alive while it is.
+        let props = unsafe {
+            ctx.instance()
+                .get_physical_device_format_properties(ctx.physical_device(), CONE_FORMAT)
+        };
+        if !props.optimal_tiling_features.contains(needed) {
+            return Err(Error::Unsupported {
+                device: ctx.info().name.clone(),
+                what: format!("{CONE_FORMAT:?} with {needed:?} (the cone map of the cone methods)"),
+            });
+        }
         let name = match kind {
             ConeKind::Conservative => "cone_map",
             ConeKind::Relaxed => "relaxed_cone_map",
