@@ -70,6 +70,11 @@ impl Requirements {
 /// devices. This excludes no Vulkan 1.3 device that could run the pass with a
 /// rasterised G-buffer: `dynamicRendering` support is mandatory in Vulkan 1.3, and the
 /// host renders its G-buffer into those formats as attachments itself.
+///
+/// One method-specific need is checked when it arises instead: the cone methods' cone
+/// map is an `R32G32_SFLOAT` storage image (not mandatory in Vulkan), so creating a pass
+/// or switching to a cone method on a device without that format's storage support fails
+/// with [`crate::error::Error::Unsupported`] naming it.
 pub fn requirements() -> Requirements {
     Requirements {
         api_version: context_requirements::API_VERSION,
