@@ -87,7 +87,7 @@ struct BenchArgs {
     )]
     steps: String,
     /// Methods, comma-separated, or `all`: bump, linear, relief, pom, secant, dig,
-    /// dig-guarded, pyramid, exact.
+    /// dig-guarded, pyramid, exact, cone, cone-exact, relaxed-cone.
     #[arg(long, default_value = "all", value_name = "LIST")]
     methods: String,
     /// Bundled maps (rocks, bricks, mountains), comma-separated, or `none`.
@@ -139,7 +139,7 @@ struct RenderArgs {
     #[arg(long, requires = "heightmap")]
     convention: Option<Convention>,
     /// Intersection method: bump, linear, relief, pom, secant, dig, dig-guarded, pyramid,
-    /// exact.
+    /// exact, cone, cone-exact, relaxed-cone.
     #[arg(long, default_value = "relief")]
     method: Method,
     #[command(flatten)]
@@ -1203,6 +1203,28 @@ fn print_bench_summary(results: &bench::BenchResults) {
                 a(Method::Relief),
                 b(Method::Relief)
             );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// The option texts list the methods by hand: every method is named.
+    #[test]
+    fn method_options_name_every_method() {
+        let mut cli = Cli::command();
+        for sub in ["render", "bench"] {
+            let help = cli
+                .find_subcommand_mut(sub)
+                .expect("subcommand")
+                .render_long_help()
+                .to_string();
+            for m in Method::ALL {
+                assert!(help.contains(m.name()), "`{sub} --help` does not name {m}");
+            }
         }
     }
 }
