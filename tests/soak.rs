@@ -5,8 +5,11 @@
 //! swap period (slots idle) and must be flat after warm-up:
 //!
 //! * device allocations: after the first cycle through the maps, every sample taken with
-//!   map `k` bound has exactly the allocations (count and bytes) of the first sample with
-//!   map `k`, and the allocator's block capacity never grows again;
+//!   map `k` bound has exactly the allocation count of the first sample with map `k`, and
+//!   its bytes within [`PADDING_PER_ALLOCATION`] per allocation (gpu-allocator counts a
+//!   chunk's alignment padding, which depends on where the chunk lands: small images of
+//!   odd sizes, such as an 8-bit map's compact pyramid, move it by tens of bytes); the
+//!   allocator's block capacity never grows again;
 //! * resident memory: grows by at most [`RSS_TOLERANCE_KIB`] from the first sample after
 //!   warm-up to the last (allocator and driver caches settle in the first cycle).
 //!
@@ -19,6 +22,10 @@
 //! ```
 
 mod common;
+
+/// The most alignment padding gpu-allocator may count per allocation beyond the bytes
+/// asked for (Vulkan images and buffers align to at most 256 bytes here).
+const PADDING_PER_ALLOCATION: u64 = 256;
 
 use ash::vk;
 use common::host::RayHost;
@@ -129,9 +136,10 @@ fn soak(frames: usize, swap_every: usize) {
     let (first, rest) = samples.split_at(warm);
     for s in rest {
         let base = &first[s.map];
-        assert_eq!(
-            (s.allocations, s.allocated_bytes),
-            (base.allocations, base.allocated_bytes),
+        assert!(
+            s.allocations == base.allocations
+                && s.allocated_bytes.abs_diff(base.allocated_bytes)
+                    <= PADDING_PER_ALLOCATION * s.allocations as u64,
             "device allocations with map {} changed: {base:?} -> {s:?}",
             s.map
         );

@@ -51,11 +51,13 @@ pub struct Extras {
 }
 
 /// The one-off per-map images of the methods of a run alive at once: max pyramids
-/// (`R32_SFLOAT`, each level padded to a power of two), cone maps (`R32G32_SFLOAT`) and
-/// a relaxed cone map's build scratch (four more pyramids). Measured on a 2048² map,
-/// 64x64 frame (peak resident memory over `relief`'s): `exact` +19.6 MB (its pyramid:
-/// 22.4 MB computed), `cone` +73.8 MB (pyramid and cone map 55.9 MB, the rest the cone
-/// build's pipeline compile), `relaxed-cone` +162.4 MB (145.4 MB computed).
+/// (`R32_SFLOAT`, each level padded to a power of two, and the traversal's compact copy
+/// of an 8- or 16-bit map's, counted at 2 bytes per node), cone maps (`R32G32_SFLOAT`) and
+/// a relaxed cone map's build scratch (four more pyramids). Measured on an 8-bit 2048²
+/// map, 64x64 frame (peak resident memory over `relief`'s): `exact` +36.8 MB (its
+/// pyramid and copy: 28.0 MB computed), `cone` +87.9 MB (61.5 MB computed),
+/// `relaxed-cone` +198.8 MB (173.5 MB computed); the rest is pipeline compiles and the
+/// blit's, within the process allowance (`BASE_BYTES`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MethodMaps {
     /// Max pyramids.
@@ -96,8 +98,9 @@ impl MethodMaps {
         let (w, h) = (size[0].max(1), size[1].max(1));
         let (pw, ph) = (w.next_power_of_two(), h.next_power_of_two());
         let levels = 32 - pw.max(ph).leading_zeros();
+        // The R32 chain and, for 8- and 16-bit maps, its compact copy (at most 2 bytes).
         let pyramid: u64 = (0..levels)
-            .map(|l| u64::from((pw >> l).max(1)) * u64::from((ph >> l).max(1)) * 4)
+            .map(|l| u64::from((pw >> l).max(1)) * u64::from((ph >> l).max(1)) * (4 + 2))
             .sum();
         let cone = u64::from(w) * u64::from(h) * 8;
         u64::from(self.pyramids + 4 * self.relaxed_builds) * pyramid
@@ -350,8 +353,8 @@ mod tests {
     fn method_maps_follow_what_the_method_builds() {
         let size = [2048, 2048];
         let pyramid = MethodMaps::of(Method::Exact, false).bytes(size);
-        // 4 bytes per node over the padded chain: 4 (4^12 - 1) / 3 for 2048².
-        assert_eq!(pyramid, 4 * ((1u64 << 24) - 1) / 3);
+        // 4 + 2 bytes per node over the padded chain: 6 (4^12 - 1) / 3 for 2048².
+        assert_eq!(pyramid, 6 * ((1u64 << 24) - 1) / 3);
         assert_eq!(MethodMaps::of(Method::Relief, false).bytes(size), 0);
         assert_eq!(MethodMaps::of(Method::Relief, true).bytes(size), pyramid);
         assert_eq!(MethodMaps::of(Method::Exact, true).bytes(size), pyramid);

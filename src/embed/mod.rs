@@ -328,6 +328,8 @@ struct ShadowKey {
     own_pyramid: bool,
     extent: vk::Extent2D,
     map: [u32; 2],
+    /// The height texture's format (the pyramid's compact copy follows it).
+    format: vk::Format,
 }
 
 impl ShadowParts {
@@ -348,7 +350,7 @@ impl ShadowParts {
         );
         let own_pyramid = if key.own_pyramid {
             let pass = Guard::new(ctx, PyramidPass::new(ctx)?);
-            let pyramid = Pyramid::new(ctx, key.map, PyramidKind::Cell, addressing)?;
+            let pyramid = Pyramid::new(ctx, key.map, PyramidKind::Cell, addressing, key.format)?;
             Some((pass.keep(), pyramid))
         } else {
             None
@@ -444,7 +446,15 @@ impl DisplacementPass {
             c,
             needs
                 .pyramid
-                .map(|kind| Pyramid::new(c, field_size(field), kind, settings.addressing))
+                .map(|kind| {
+                    Pyramid::new(
+                        c,
+                        field_size(field),
+                        kind,
+                        settings.addressing,
+                        field.format(),
+                    )
+                })
                 .transpose()?,
         );
         let cone_pass = Guard::new(
@@ -455,7 +465,15 @@ impl DisplacementPass {
             c,
             needs
                 .cone
-                .map(|kind| ConeMap::new(c, field_size(field), settings.addressing, kind))
+                .map(|kind| {
+                    ConeMap::new(
+                        c,
+                        field_size(field),
+                        settings.addressing,
+                        kind,
+                        field.format(),
+                    )
+                })
                 .transpose()?,
         );
         let corner_pass = Guard::new(
@@ -550,13 +568,29 @@ impl DisplacementPass {
         let pyramid = self
             .needs
             .pyramid
-            .map(|kind| Pyramid::new(&ctx, field_size(field), kind, self.settings.addressing))
+            .map(|kind| {
+                Pyramid::new(
+                    &ctx,
+                    field_size(field),
+                    kind,
+                    self.settings.addressing,
+                    field.format(),
+                )
+            })
             .transpose()?;
         let pyramid = Guard::new(&ctx, pyramid);
         let cone = self
             .needs
             .cone
-            .map(|kind| ConeMap::new(&ctx, field_size(field), self.settings.addressing, kind))
+            .map(|kind| {
+                ConeMap::new(
+                    &ctx,
+                    field_size(field),
+                    self.settings.addressing,
+                    kind,
+                    field.format(),
+                )
+            })
             .transpose()?;
         let pyramid = pyramid.keep();
         self.retired
@@ -706,7 +740,15 @@ impl DisplacementPass {
         let pyramid = Guard::new(
             c,
             new_pyramid
-                .map(|kind| Pyramid::new(c, self.height.size(), kind, self.settings.addressing))
+                .map(|kind| {
+                    Pyramid::new(
+                        c,
+                        self.height.size(),
+                        kind,
+                        self.settings.addressing,
+                        self.height.image.format,
+                    )
+                })
                 .transpose()?,
         );
         // A cone map of the other kind is replaced (and rebuilt), as a pyramid is.
@@ -723,7 +765,15 @@ impl DisplacementPass {
             needs
                 .cone
                 .filter(|&kind| self.cone.as_ref().is_none_or(|m| m.kind != kind))
-                .map(|kind| ConeMap::new(c, self.height.size(), self.settings.addressing, kind))
+                .map(|kind| {
+                    ConeMap::new(
+                        c,
+                        self.height.size(),
+                        self.settings.addressing,
+                        kind,
+                        self.height.image.format,
+                    )
+                })
                 .transpose()?,
         );
         let corner_pass = Guard::new(
@@ -922,6 +972,7 @@ impl DisplacementPass {
                     && self.needs.pyramid != Some(PyramidKind::Cell),
                 extent: self.settings.extent,
                 map: self.height.size(),
+                format: self.height.image.format,
             }
         })
     }

@@ -123,13 +123,14 @@ pub struct ConeMap {
 }
 
 impl ConeMap {
-    /// Allocates the `kind` cone map of a `size` height map (contents undefined until
-    /// built).
+    /// Allocates the `kind` cone map of a `size` height map whose texture has
+    /// `height_format` (contents undefined until built).
     pub fn new(
         ctx: &Context,
         size: [u32; 2],
         addressing: Addressing,
         kind: ConeKind,
+        height_format: vk::Format,
     ) -> Result<Self> {
         let extent = vk::Extent2D {
             width: size[0].max(1),
@@ -186,7 +187,7 @@ impl ConeMap {
         };
         if kind == ConeKind::Relaxed {
             for falls in PyramidKind::FALLS {
-                match Pyramid::new(ctx, size, falls, addressing) {
+                match Pyramid::new(ctx, size, falls, addressing, height_format) {
                     Ok(p) => map.falls.push(p),
                     Err(e) => {
                         map.destroy(ctx);
