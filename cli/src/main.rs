@@ -928,8 +928,14 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             label: "reference (CPU, exact)".into(),
             rgba: frame_ref.color.clone(),
         }];
+        // The method column as wide as the longest name.
+        let w = Method::ALL
+            .iter()
+            .map(|m| m.name().len())
+            .max()
+            .unwrap_or(6);
         println!(
-            "\n{:<11} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>10} {:>10} {:>9}",
+            "\n{:<w$} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>10} {:>10} {:>9}",
             "method",
             "gbuffer",
             "trace ms",
@@ -954,7 +960,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             };
             let e = &m.error;
             println!(
-                "{:<11} {:>10.3} {:>10.3} {:>10.3} {:>10.3} {:>8.1} {:>10.3} {:>10.3} {:>10.3} {:>9.2}",
+                "{:<w$} {:>10.3} {:>10.3} {:>10.3} {:>10.3} {:>8.1} {:>10.3} {:>10.3} {:>10.3} {:>9.2}",
                 method.name(),
                 t("gbuffer"),
                 t("trace"),
