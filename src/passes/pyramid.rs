@@ -19,15 +19,16 @@
 //!
 //! # The traversal's copy
 //!
-//! The chain is built in `R32_SFLOAT` (storage writes). A cell or falls pyramid of an
-//! 8- or 16-bit map is then blitted, level by level, into a copy in the map's own format
-//! (`R8_UNORM` / `R16_UNORM`): its values are maxima of texels (or 0), so the copy holds
+//! The chain is built in `R32_SFLOAT` (storage writes). A cell pyramid of an 8- or
+//! 16-bit map is then blitted, level by level, into a copy in the map's own format
+//! (`R8_UNORM` / `R16_UNORM`): its values are maxima of texels, so the copy holds
 //! them exactly, and sampling it converts them exactly as sampling the height texture
 //! converts the texels (the traversal compares the two). The traversals read the copy: a
 //! quarter (or half) of the bytes, which is what a large map's traversal pays for (on
 //! lavapipe `exact` on a 2048² map 1.18-1.25x faster, on 1024² 1.09-1.25x, the same hits;
 //! the blit adds about 20 ms to a 2048² build). Without blit and sampling support for
-//! that format, or for footprint pyramids (means, not texels), the chain itself is read.
+//! that format, for footprint pyramids (means, not texels) and for the relaxed cone
+//! build's falls pyramids (scratch, read once), the chain itself is read.
 //!
 //! # Contract (engine embedding)
 //!
@@ -265,7 +266,9 @@ fn compact_format(
     kind: PyramidKind,
     height_format: vk::Format,
 ) -> Option<vk::Format> {
-    if kind == PyramidKind::Footprint {
+    // Footprint bounds are means, not texels; falls pyramids are the relaxed cone
+    // build's scratch, read once.
+    if kind != PyramidKind::Cell {
         return None;
     }
     let format = match height_format {
