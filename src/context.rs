@@ -497,6 +497,16 @@ impl Context {
     pub fn physical_device(&self) -> vk::PhysicalDevice {
         self.physical_device
     }
+    /// The optimal-tiling features the device has for `format`.
+    pub fn format_features(&self, format: vk::Format) -> vk::FormatFeatureFlags {
+        // SAFETY: the physical device belongs to the context's instance, alive as long as
+        // the context.
+        unsafe {
+            self.instance
+                .get_physical_device_format_properties(self.physical_device, format)
+        }
+        .optimal_tiling_features
+    }
     /// The logical device.
     pub fn device(&self) -> &ash::Device {
         &self.device

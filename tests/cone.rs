@@ -115,6 +115,14 @@ fn brute_cone(
     best
 }
 
+/// The method that builds a `kind` cone map.
+fn method_of(kind: ConeKind) -> Method {
+    match kind {
+        ConeKind::Conservative => Method::Cone,
+        ConeKind::Relaxed => Method::RelaxedCone,
+    }
+}
+
 /// The GPU cone map of `field` with `addressing` built by a `method` renderer (as the
 /// methods build it: lazily, once, timed as `cone`).
 fn gpu_cone_map(
@@ -162,11 +170,7 @@ fn check_map(
     addressing: Addressing,
     kind: ConeKind,
 ) -> f64 {
-    let method = match kind {
-        ConeKind::Conservative => Method::Cone,
-        ConeKind::Relaxed => Method::RelaxedCone,
-    };
-    let mut gpu = gpu_cone_map(ctx, field, addressing, method);
+    let mut gpu = gpu_cone_map(ctx, field, addressing, method_of(kind));
     if kind == ConeKind::Relaxed {
         // Stored negated exactly where wider than the conservative cone (the trace tests
         // the surface there only).
@@ -307,11 +311,7 @@ fn cone_steps_cross_the_surface_as_their_map_promises() {
     for field in maps.iter().filter(|f| f.width() > 1 && f.height() > 1) {
         for addressing in [Addressing::Repeat, Addressing::Clamp] {
             for kind in [ConeKind::Conservative, ConeKind::Relaxed] {
-                let method = match kind {
-                    ConeKind::Conservative => Method::Cone,
-                    ConeKind::Relaxed => Method::RelaxedCone,
-                };
-                let cones = gpu_cone_map(&ctx, field, addressing, method);
+                let cones = gpu_cone_map(&ctx, field, addressing, method_of(kind));
                 let (w, h) = (field.width() as i64, field.height() as i64);
                 // Clamp: the decal only (a ray leaving it ends there).
                 let inside = |x: f64, y: f64| {

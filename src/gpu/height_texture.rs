@@ -416,15 +416,10 @@ fn mip_levels(ctx: &Context, format: vk::Format, extent: vk::Extent2D, chain: bo
     if !chain {
         return 1;
     }
-    // SAFETY: the physical device belongs to the context's instance.
-    let props = unsafe {
-        ctx.instance()
-            .get_physical_device_format_properties(ctx.physical_device(), format)
-    };
     let needed = vk::FormatFeatureFlags::BLIT_SRC
         | vk::FormatFeatureFlags::BLIT_DST
         | vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR;
-    if props.optimal_tiling_features.contains(needed) {
+    if ctx.format_features(format).contains(needed) {
         32 - extent.width.max(extent.height).leading_zeros()
     } else {
         1

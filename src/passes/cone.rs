@@ -140,12 +140,7 @@ impl ConeMap {
         // formats): the cone methods need it, the other methods do not, so it is checked
         // here rather than in the device requirements.
         let needed = vk::FormatFeatureFlags::STORAGE_IMAGE | vk::FormatFeatureFlags::SAMPLED_IMAGE;
-        // SAFETY: the instance and physical device are the context's, alive while it is.
-        let props = unsafe {
-            ctx.instance()
-                .get_physical_device_format_properties(ctx.physical_device(), CONE_FORMAT)
-        };
-        if !props.optimal_tiling_features.contains(needed) {
+        if !ctx.format_features(CONE_FORMAT).contains(needed) {
             return Err(Error::Unsupported {
                 device: ctx.info().name.clone(),
                 what: format!("{CONE_FORMAT:?} with {needed:?} (the cone map of the cone methods)"),

@@ -275,17 +275,11 @@ fn compact_format(
         vk::Format::R8_UNORM | vk::Format::R16_UNORM => height_format,
         _ => return None,
     };
-    let features = |f: vk::Format| {
-        // SAFETY: the instance and physical device are the context's, alive while it is.
-        unsafe {
-            ctx.instance()
-                .get_physical_device_format_properties(ctx.physical_device(), f)
-        }
-        .optimal_tiling_features
-    };
     let dst = vk::FormatFeatureFlags::BLIT_DST | vk::FormatFeatureFlags::SAMPLED_IMAGE;
-    (features(format).contains(dst)
-        && features(PYRAMID_FORMAT).contains(vk::FormatFeatureFlags::BLIT_SRC))
+    (ctx.format_features(format).contains(dst)
+        && ctx
+            .format_features(PYRAMID_FORMAT)
+            .contains(vk::FormatFeatureFlags::BLIT_SRC))
     .then_some(format)
 }
 
