@@ -175,6 +175,8 @@ pub struct Context {
     messages: Arc<MessageCounter>,
     info: DeviceInfo,
     owns_handles: bool,
+    /// Whether this context enabled the Khronos validation layer on its instance.
+    validation: bool,
 }
 
 impl Context {
@@ -294,6 +296,7 @@ impl Context {
         // the returned context (`owns_handles`), which destroys them in `Drop`.
         let mut ctx = unsafe { Self::assemble(handles, messages, messenger, has_debug_utils) }?;
         ctx.owns_handles = true;
+        ctx.validation = validation;
         ctx.set_name(ctx.device.handle(), "dispmap.device");
         ctx.set_name(ctx.queue, "dispmap.queue");
         Ok(ctx)
@@ -363,6 +366,7 @@ impl Context {
             messages,
             info,
             owns_handles: false,
+            validation: false,
         })
     }
 
@@ -540,6 +544,13 @@ impl Context {
     /// Whether a debug messenger is installed (validation or debug utils available).
     pub fn has_messenger(&self) -> bool {
         self.messenger.is_some()
+    }
+
+    /// Whether this context enabled the Khronos validation layer on the instance it
+    /// created (`ContextOptions::validation` or `DISPMAP_VALIDATION`); `false` for a
+    /// host's handles ([`Context::from_handles`]), whose layers the host chose.
+    pub fn validation_enabled(&self) -> bool {
+        self.validation
     }
 
     /// Gives a Vulkan object a debug name (no-op without `VK_EXT_debug_utils`).
@@ -825,6 +836,13 @@ fn pick_device(
         .collect::<Vec<_>>()
         .join("; ");
     if let Some(sel) = selector {
+        if sel.trim().is_empty() {
+            return Err(Error::NoDevice(format!(
+                "the device selector (--device) is empty: an empty name \
+                 would match every device; give an index or a part of a name (devices: \
+                 {listing})"
+            )));
+        }
         let chosen = match sel.parse::<usize>() {
             Ok(i) => devices.get(i).copied().ok_or_else(|| {
                 Error::NoDevice(format!(

@@ -69,6 +69,8 @@ pub struct HeightField {
     height: u32,
     texels: Texels,
     label: String,
+    /// Which part of a multi-part OpenEXR file the heights came from.
+    part: Option<String>,
 }
 
 /// The largest height-map file read (4 GiB): a bigger one is refused before reading.
@@ -90,53 +92,17 @@ pub struct ImageHeader {
     pub file_bytes: u64,
 }
 
-/// Opens `path` for reading if it is a regular file of at most [`MAX_FILE_BYTES`]: a
-/// device (`/dev/zero`), FIFO or folder cannot be size-checked and is refused.
+/// Opens `path` for reading if it is a regular file of at most [`MAX_FILE_BYTES`]
+/// ([`crate::input::open`]): a device (`/dev/zero`), FIFO or folder cannot be
+/// size-checked and is refused.
 fn open_checked(path: &Path) -> Result<(std::fs::File, u64)> {
-    let io = |source| Error::Io {
-        path: path.to_owned(),
-        source,
-    };
-    // The kind is checked before opening: opening a FIFO for reading blocks until a
-    // writer comes.
-    let meta = std::fs::metadata(path).map_err(io)?;
-    let image_error = |message: String| Error::Image {
-        path: path.to_owned(),
-        message,
-    };
-    if !meta.is_file() {
-        return Err(image_error(if meta.is_dir() {
-            "is a folder, not an image file".into()
-        } else {
-            "is not a regular file (a device or pipe is not read: its size cannot be checked)"
-                .into()
-        }));
-    }
-    if meta.len() > MAX_FILE_BYTES {
-        return Err(image_error(format!(
-            "the file has {} bytes, more than the {} read at most",
-            meta.len(),
-            MAX_FILE_BYTES
-        )));
-    }
-    let file = std::fs::File::open(path).map_err(io)?;
-    Ok((file, meta.len()))
+    crate::input::open(path, MAX_FILE_BYTES, "an image file")
 }
 
-/// Reads a whole file after [`open_checked`]'s checks (a regular file of at most
+/// Reads a whole image file after [`open_checked`]'s checks (a regular file of at most
 /// [`MAX_FILE_BYTES`]).
 pub(crate) fn read_checked(path: &Path) -> Result<Vec<u8>> {
-    let (file, len) = open_checked(path)?;
-    let mut bytes = Vec::with_capacity(len as usize);
-    std::io::Read::read_to_end(
-        &mut std::io::Read::take(file, MAX_FILE_BYTES + 1),
-        &mut bytes,
-    )
-    .map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
-    Ok(bytes)
+    crate::input::read(path, MAX_FILE_BYTES, "an image file")
 }
 
 impl HeightField {
@@ -149,41 +115,42 @@ impl HeightField {
             path: path.to_owned(),
             message,
         };
-        let reader = image::ImageReader::new(std::io::BufReader::new(file))
+        let mut reader = std::io::BufReader::new(file);
+        let is_exr = std::io::BufRead::fill_buf(&mut reader)
+            .map(|head| image::guess_format(head).ok() == Some(image::ImageFormat::OpenExr))
+            .unwrap_or(false);
+        if is_exr {
+            // The part the height is read from (crate::exr_height's rule), by its header.
+            let part = crate::exr_height::choose(reader).map_err(image_error)?;
+            let side = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+            let by_image = part.parts == 1 && part.channels == crate::exr_height::Channels::Rgb;
+            return Ok(ImageHeader {
+                width: side(part.width),
+                height: side(part.height),
+                // image decodes a single-part RGB file as RGBA f32; the rest is read as
+                // one f32 per texel.
+                decoded_bytes_per_pixel: if by_image { 16 } else { 4 },
+                texel_bytes: 4,
+                file_bytes,
+            });
+        }
+        let reader = image::ImageReader::new(reader)
             .with_guessed_format()
             .map_err(|e| image_error(e.to_string()))?;
-        let Some(format) = reader.format() else {
+        if reader.format().is_none() {
             return Err(image_error("not a PNG, JPEG or OpenEXR image".into()));
-        };
-        let decoder = match reader.into_decoder() {
-            Ok(d) => d,
-            Err(e) if format == image::ImageFormat::OpenExr => {
-                // A single-channel file (read by `load` through exr): its header.
-                let meta = std::fs::File::open(path)
-                    .map(std::io::BufReader::new)
-                    .map_err(|source| Error::Io {
-                        path: path.to_owned(),
-                        source,
-                    })
-                    .and_then(|f| {
-                        exr::meta::MetaData::read_from_buffered(f, false)
-                            .map_err(|_| image_error(format!("cannot decode: {e}")))
-                    })?;
-                let size = meta
-                    .headers
-                    .first()
-                    .map(|h| h.layer_size)
-                    .ok_or_else(|| image_error(format!("cannot decode: {e}")))?;
-                return Ok(ImageHeader {
-                    width: u32::try_from(size.width()).unwrap_or(u32::MAX),
-                    height: u32::try_from(size.height()).unwrap_or(u32::MAX),
-                    decoded_bytes_per_pixel: 4,
-                    texel_bytes: 4,
-                    file_bytes,
-                });
-            }
-            Err(e) => return Err(image_error(format!("cannot decode: {e}"))),
-        };
+        }
+        let format = reader.format();
+        let decoder = reader.into_decoder().map_err(|e| {
+            image_error(match (format, png_header_size(path)) {
+                (Some(image::ImageFormat::Png), Some((w, h))) => format!(
+                    "cannot decode: the header says {w}x{h} pixels, more than the PNG decoder \
+                     takes ({e}); a height map may have at most the device's \
+                     maxImageDimension2D pixels per side"
+                ),
+                _ => format!("cannot decode: {e}"),
+            })
+        })?;
         let (width, height) = image::ImageDecoder::dimensions(&decoder);
         let color = image::ImageDecoder::color_type(&decoder);
         let texel_bytes = match color.bytes_per_pixel() / color.channel_count().max(1) {
@@ -205,6 +172,10 @@ impl HeightField {
     /// an image whose decoded size exceeds the decoder's limit is refused with its size.
     pub fn load(path: &Path, convention: Convention) -> Result<Self> {
         let bytes = read_checked(path)?;
+        png_palette_complete(&bytes).map_err(|message| Error::Image {
+            path: path.to_owned(),
+            message,
+        })?;
         if image::guess_format(&bytes).ok() == Some(image::ImageFormat::Jpeg) {
             jpeg_complete(&bytes).map_err(|message| Error::Image {
                 path: path.to_owned(),
@@ -223,26 +194,37 @@ impl HeightField {
                 message: "not a PNG, JPEG or OpenEXR image".into(),
             });
         }
-        let is_exr = reader.format() == Some(image::ImageFormat::OpenExr);
-        let decoded = reader.decode();
-        if is_exr
-            && decoded.is_err()
-            && let Some((width, height, values)) = single_channel_exr(&bytes)
-        {
-            let label = path.display().to_string();
-            let invert = convention == Convention::Depth;
-            let heights = values
-                .into_iter()
-                .map(|v| if invert { 1.0 - v } else { v })
-                .collect();
-            return Self::from_heights(width, height, heights, &label).map_err(|e| match e {
-                Error::InvalidInput { message, .. } => Error::Image {
-                    path: path.to_owned(),
-                    message,
-                },
-                other => other,
-            });
+        if reader.format() == Some(image::ImageFormat::OpenExr) {
+            let image_error = |message: String| Error::Image {
+                path: path.to_owned(),
+                message,
+            };
+            let part =
+                crate::exr_height::choose(std::io::Cursor::new(&bytes)).map_err(image_error)?;
+            if part.parts > 1 || part.channels != crate::exr_height::Channels::Rgb {
+                let values = crate::exr_height::read(&bytes, &part).map_err(image_error)?;
+                let invert = convention == Convention::Depth;
+                let heights = values
+                    .into_iter()
+                    .map(|v| if invert { 1.0 - v } else { v })
+                    .collect();
+                let side = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+                let label = path.display().to_string();
+                let mut field =
+                    Self::from_heights(side(part.width), side(part.height), heights, &label)
+                        .map_err(|e| match e {
+                            Error::InvalidInput { message, .. } => {
+                                image_error(format!("{}: {message}", part.describe()))
+                            }
+                            other => other,
+                        })?;
+                if part.parts > 1 {
+                    field.part = Some(part.describe());
+                }
+                return Ok(field);
+            }
         }
+        let decoded = reader.decode();
         let image = decoded.map_err(|e| {
             let message = match (&e, Self::probe(path)) {
                 (image::ImageError::Limits(_), Ok(h)) => format!(
@@ -276,6 +258,10 @@ impl HeightField {
 
     /// Decodes an in-memory PNG, JPEG or OpenEXR file (e.g. a bundled map).
     pub fn decode(bytes: &[u8], convention: Convention, label: &str) -> Result<Self> {
+        png_palette_complete(bytes).map_err(|message| Error::Image {
+            path: label.into(),
+            message,
+        })?;
         if image::guess_format(bytes).ok() == Some(image::ImageFormat::Jpeg) {
             jpeg_complete(bytes).map_err(|message| Error::Image {
                 path: label.into(),
@@ -362,6 +348,7 @@ impl HeightField {
             height,
             texels,
             label,
+            part: None,
         })
     }
 
@@ -390,6 +377,7 @@ impl HeightField {
             height,
             texels: Texels::R32F(values),
             label: label.to_owned(),
+            part: None,
         })
     }
 
@@ -425,6 +413,13 @@ impl HeightField {
     /// Where the field came from (a file name or a procedural label).
     pub fn label(&self) -> &str {
         &self.label
+    }
+
+    /// The part of a multi-part OpenEXR file the heights were read from (`part 1
+    /// 'height' of 2 (channel Y)`), chosen by the rule in docs/scenes.md; `None` for any
+    /// other file.
+    pub fn part(&self) -> Option<&str> {
+        self.part.as_deref()
     }
 
     /// The stored texels.
@@ -477,39 +472,6 @@ impl HeightField {
 /// would load as a valid map. Complete files end their last scan with the end-of-image
 /// marker `FF D9`; neither it nor a scan marker can occur inside entropy-coded data
 /// (`FF` is stuffed there), so "an `FF D9` after the last `FF DA`" is the test.
-/// The one channel of a single-channel OpenEXR file (`Y`, else `R`), which image's
-/// decoder refuses (it needs R, G and B): width, height and the values row by row;
-/// `None` when the file has neither channel or does not decode.
-fn single_channel_exr(bytes: &[u8]) -> Option<(u32, u32, Vec<f32>)> {
-    use exr::prelude::{ReadChannels as _, ReadLayers as _, ReadSpecificChannel as _};
-    for name in ["Y", "R"] {
-        let read = exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .specific_channels()
-            .required(name)
-            .collect_pixels(
-                |size: exr::prelude::Vec2<usize>, _| (size.width(), vec![0f32; size.area()]),
-                |(width, values): &mut (usize, Vec<f32>),
-                 at: exr::prelude::Vec2<usize>,
-                 (v,): (f32,)| values[at.y() * *width + at.x()] = v,
-            )
-            .first_valid_layer()
-            .all_attributes()
-            .from_buffered(std::io::Cursor::new(bytes));
-        if let Ok(image) = read {
-            let size = image.layer_data.size;
-            let (_, values) = image.layer_data.channel_data.pixels;
-            let (w, h) = (
-                u32::try_from(size.width()).ok()?,
-                u32::try_from(size.height()).ok()?,
-            );
-            return Some((w, h, values));
-        }
-    }
-    None
-}
-
 /// Refuses a JPEG that ends early: without an end-of-image marker after its last scan,
 /// or with one appended to data that was cut (the case image's lenient decoder accepts,
 /// filling what is missing with grey or leaving a scan half applied).
@@ -548,6 +510,61 @@ fn jpeg_complete(bytes: &[u8]) -> std::result::Result<(), String> {
                 .into(),
         ),
     }
+}
+
+/// The width and height in a PNG file's header (its first chunk, IHDR), read without a
+/// decoder (one that refuses the size gives no size).
+fn png_header_size(path: &Path) -> Option<(u32, u32)> {
+    let (mut file, _) = open_checked(path).ok()?;
+    let mut head = [0u8; 24];
+    std::io::Read::read_exact(&mut file, &mut head).ok()?;
+    let word = |at: usize| u32::from_be_bytes([head[at], head[at + 1], head[at + 2], head[at + 3]]);
+    (&head[12..16] == b"IHDR").then(|| (word(16), word(20)))
+}
+
+/// Refuses a palette PNG with a pixel whose index is past the end of its palette (the
+/// decoder would make it black); other files pass. Reads the raw indices (at most one
+/// byte per pixel, less than the decoded image).
+pub(crate) fn png_palette_complete(bytes: &[u8]) -> std::result::Result<(), String> {
+    if image::guess_format(bytes).ok() != Some(image::ImageFormat::Png) {
+        return Ok(());
+    }
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    // Not decodable here: the image decoder's own error names the cause.
+    let Ok(mut reader) = decoder.read_info() else {
+        return Ok(());
+    };
+    let info = reader.info();
+    if info.color_type != png::ColorType::Indexed {
+        return Ok(());
+    }
+    let entries = info.palette.as_ref().map_or(0, |p| p.len() / 3);
+    let bits = info.bit_depth as u32;
+    let (width, height) = (info.width as usize, info.height as usize);
+    let Some(size) = reader.output_buffer_size() else {
+        return Ok(());
+    };
+    let mut buf = vec![0u8; size];
+    let Ok(frame) = reader.next_frame(&mut buf) else {
+        return Ok(());
+    };
+    let per_byte = (8 / bits.max(1)) as usize;
+    for y in 0..height {
+        let row = &buf[y * frame.line_size..(y + 1) * frame.line_size];
+        for x in 0..width {
+            let byte = row[x / per_byte];
+            let shift = 8 - bits as usize * (x % per_byte + 1);
+            let index = (byte >> shift) as usize & ((1usize << bits) - 1);
+            if index >= entries {
+                return Err(format!(
+                    "pixel ({x}, {y}) has palette index {index}, past the palette's {entries} \
+                     entries"
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn luminance8([r, g, b]: [u8; 3]) -> u8 {

@@ -36,6 +36,10 @@ pub struct MaterialImages {
 
 fn load_rgba(path: &Path) -> Result<RgbaImage> {
     let bytes = crate::heightfield::read_checked(path)?;
+    crate::heightfield::png_palette_complete(&bytes).map_err(|message| Error::Image {
+        path: path.to_owned(),
+        message,
+    })?;
     let image = image::load_from_memory(&bytes).map_err(|e| Error::Image {
         path: path.to_owned(),
         message: format!("cannot decode: {e}"),

@@ -11,6 +11,7 @@
 pub mod bench;
 pub mod bundled;
 pub mod contact_sheet;
+pub mod frame_limit;
 pub mod heatmap;
 pub mod measure;
 pub mod memory;

@@ -19,6 +19,29 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// `println!` of this binary: a line to standard output that records a failed write
+/// instead of panicking ([`console`]).
+macro_rules! println {
+    () => {
+        $crate::console::line($crate::console::Stream::Out, format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::console::line($crate::console::Stream::Out, format_args!($($arg)*))
+    };
+}
+
+/// `eprintln!` of this binary: a line to standard error that records a failed write
+/// instead of panicking ([`console`]).
+macro_rules! eprintln {
+    () => {
+        $crate::console::line($crate::console::Stream::Err, format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::console::line($crate::console::Stream::Err, format_args!($($arg)*))
+    };
+}
+
+mod console;
 mod view;
 
 #[derive(Parser, Debug)]
@@ -187,9 +210,10 @@ struct CommonArgs {
     /// pom's n_max, secant's samples per segment. Default: 15 for secant, 64 otherwise.
     #[arg(long, allow_negative_numbers = true)]
     steps: Option<u32>,
-    /// pom: n_min, the sample count at a head-on view.
-    #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
-    min_steps: u32,
+    /// pom: n_min, the sample count at a head-on view; at most --steps (n_max)
+    /// [default: 8, or --steps when that is lower].
+    #[arg(long, allow_negative_numbers = true)]
+    min_steps: Option<u32>,
     /// Binary-search steps after the linear march (relief, dig).
     #[arg(long, default_value_t = 5, allow_negative_numbers = true)]
     refine_steps: u32,
@@ -276,6 +300,25 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((w, h))
 }
 
+/// pom's default n_min (`--min-steps`), lowered to `--steps` when that is lower.
+const DEFAULT_MIN_STEPS: u32 = 8;
+
+/// [`RenderSettings::validate`], and pom's n_min at most its n_max (`--min-steps` above
+/// `--steps` would take more samples head-on than at grazing angles).
+fn validate_settings(settings: &RenderSettings) -> Result<()> {
+    settings.validate()?;
+    let p = &settings.params;
+    if settings.method == Method::Pom && p.min_steps > p.steps {
+        bail!(
+            "invalid --min-steps: {} is above --steps {} (pom's head-on sample count n_min \
+             must not exceed n_max)",
+            p.min_steps,
+            p.steps
+        );
+    }
+    Ok(())
+}
+
 impl CommonArgs {
     fn settings(&self, method: Method) -> RenderSettings {
         RenderSettings {
@@ -284,7 +327,9 @@ impl CommonArgs {
             method,
             params: MethodParams {
                 steps: self.steps.unwrap_or(method.default_steps()),
-                min_steps: self.min_steps,
+                min_steps: self
+                    .min_steps
+                    .unwrap_or(DEFAULT_MIN_STEPS.min(self.steps.unwrap_or(method.default_steps()))),
                 refine_steps: self.refine_steps,
                 segments: self.segments,
                 block: [self.block.0, self.block.1],
@@ -331,8 +376,11 @@ impl CommonArgs {
         if let Some(steps) = self.steps {
             p.steps = steps;
         }
-        if given("min_steps") {
-            p.min_steps = self.min_steps;
+        if let Some(min_steps) = self.min_steps {
+            p.min_steps = min_steps;
+        } else if file.method.min_steps.is_none() {
+            // Neither the scene nor the command line set n_min: the default, at most n_max.
+            p.min_steps = p.min_steps.min(p.steps);
         }
         if given("refine_steps") {
             p.refine_steps = self.refine_steps;
@@ -518,6 +566,12 @@ fn main() {
         eprintln!("error: {}", error_chain(&e));
         std::process::exit(1);
     }
+    // A console that could not be written fails the run, after its outputs were
+    // committed.
+    if let Some(failure) = console::failure() {
+        eprintln!("error: {failure} (the run finished: its outputs, if any, were written)");
+        std::process::exit(1);
+    }
 }
 
 /// The error and its causes, `outer: inner`, skipping a cause whose text the message
@@ -601,10 +655,10 @@ fn info(options: &ContextOptions) -> Result<()> {
     println!("max image 2D:         {}", i.max_image_dimension_2d);
     println!(
         "validation:           {}",
-        if ctx.has_messenger() {
-            "messenger installed"
-        } else {
-            "off"
+        match (ctx.validation_enabled(), ctx.has_messenger()) {
+            (true, true) => "on (Khronos validation layer, messages counted)",
+            (true, false) => "on (Khronos validation layer, no debug messenger)",
+            (false, _) => "off (DISPMAP_VALIDATION=1 turns it on)",
         }
     );
     finish(ctx)
@@ -634,7 +688,7 @@ fn render_inputs(
                 bail!("--heightmap and --convention are needed without --scene");
             };
             let settings = args.common.settings(args.method);
-            settings.validate()?;
+            validate_settings(&settings)?;
             (settings, source, None)
         }
         Some(scene_path) => {
@@ -646,20 +700,46 @@ fn render_inputs(
                 method_given.then_some(args.method),
                 matches,
             );
-            settings.validate()?;
+            validate_settings(&settings)?;
             let source = given_map.unwrap_or_else(|| file.heightmap_source(scene_path));
             (settings, source, Some((file, scene_path)))
         }
     };
-    let check_memory = |map: memory::MapSize| {
+    // The map's header, then a scene's mesh (not loaded when --geometry overrides it):
+    // both measured before either is read, counted in the estimate.
+    let header = match &source {
+        MapSource::File { path, .. } => Some(HeightField::probe(path)?),
+        MapSource::Bundled { .. } => None,
+    };
+    let mesh_path = match &scene {
+        Some((file, path)) if settings.scene.geometry == Geometry::Mesh => file
+            .mesh
+            .as_ref()
+            .map(|m| path.parent().unwrap_or(Path::new(".")).join(m)),
+        _ => None,
+    };
+    let mesh = match &mesh_path {
+        Some(m) => dispmap_cli::mesh_file::measure(m)?,
+        None => memory::MeshSize::default(),
+    };
+    let check_memory = |map: memory::MapSize, mesh: memory::MeshSize| {
         let frame = [settings.width, settings.height];
         let what = format!(
-            "rendering {}x{} on the {}x{} map {}{}",
+            "rendering {}x{} on the {}x{} map {}{}{}",
             frame[0],
             frame[1],
             map.size[0],
             map.size[1],
             source.label(),
+            match &mesh_path {
+                Some(m) => format!(
+                    " with the mesh {} ({} vertices, {} triangles)",
+                    m.display(),
+                    mesh.vertices,
+                    mesh.triangles
+                ),
+                None => String::new(),
+            },
             if args.metrics.is_some() {
                 " with the reference (--metrics)"
             } else {
@@ -674,21 +754,39 @@ fn render_inputs(
                 settings.method,
                 settings.shadows.mode == ShadowMode::Hard,
             ),
+            mesh,
         };
         let estimate = memory::estimate(map, frame, extras);
         memory::check(&estimate, args.common.max_memory, &what)
     };
-    if let MapSource::File { path, .. } = &source {
-        check_memory(memory::MapSize::from_header(&HeightField::probe(path)?))?;
+    if let Some(header) = &header {
+        check_memory(memory::MapSize::from_header(header), mesh)?;
     }
     let field = source.load()?;
+    if let Some(part) = field.part() {
+        eprintln!(
+            "note: {} has several parts: the height is read from {part} (the first part \
+             with a Y channel, else with R, G and B, else with R; docs/scenes.md)",
+            source.label()
+        );
+    }
     if let MapSource::Bundled { .. } = &source {
-        check_memory(memory::MapSize::loaded(&field))?;
+        check_memory(memory::MapSize::loaded(&field), mesh)?;
     }
     let assets = match scene {
         Some((file, path)) => file.assets(path, settings.scene.geometry == Geometry::Mesh)?,
         None => SceneAssets::default(),
     };
+    // The mesh as parsed (an OBJ's vertex count was an estimate): its memory while
+    // rendering, before anything is uploaded.
+    if let Some(m) = &assets.mesh {
+        let parsed = memory::MeshSize {
+            file_bytes: 0,
+            vertices: m.vertices.len() as u64,
+            triangles: m.indices.len() as u64 / 3,
+        };
+        check_memory(memory::MapSize::loaded(&field), parsed)?;
+    }
     Ok((field, source.label(), settings, assets))
 }
 
@@ -749,6 +847,7 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
         bail!("invalid --heatmap-max: {max} is not a positive finite number");
     }
     let ctx = Arc::new(Context::headless(options)?);
+    dispmap_cli::frame_limit::check(&ctx, settings.width, settings.height, "--size")?;
     {
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
@@ -877,7 +976,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
     args.common.check()?;
     // Every method's settings are checked before anything is printed or created.
     for &method in Method::ALL {
-        args.common.settings(method).validate()?;
+        validate_settings(&args.common.settings(method))?;
     }
     let field = bundled::rocks()?;
     let first = args.common.settings(Method::ALL[0]);
@@ -902,6 +1001,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
     output::check_folder_writable(&args.out_dir).context("invalid --out-dir")?;
     let mut outputs = output::Outputs::new();
     let ctx = Arc::new(Context::headless(options)?);
+    dispmap_cli::frame_limit::check(&ctx, first.width, first.height, "--size")?;
     println!(
         "dispmap: {} on {} ({}), {}x{}, camera elevation {} deg, steps {}, median of {} frames",
         field.label(),
@@ -1051,6 +1151,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         heatmap: true,
         depth: false,
         maps: memory::MethodMaps::together(&config.methods),
+        mesh: memory::MeshSize::default(),
     };
     let sweep_extras = memory::Extras {
         maps: memory::MethodMaps::together(&config.size_methods),
@@ -1090,6 +1191,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
     output::check_folder_writable(&args.out).context("invalid --out")?;
 
     let ctx = Arc::new(Context::headless(options)?);
+    dispmap_cli::frame_limit::check(&ctx, config.frame[0], config.frame[1], "--size")?;
     let bar = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {

@@ -48,6 +48,49 @@ pub struct Extras {
     pub depth: bool,
     /// The methods' pyramids and cone maps alive at the peak.
     pub maps: MethodMaps,
+    /// A loaded mesh (`geometry = "mesh"`); all zero for none.
+    pub mesh: MeshSize,
+}
+
+/// Bytes a mesh holds while it is parsed, per byte of its files (the bytes read, the
+/// parser's lines and arrays). Measured: see docs/guarantees.md, "Memory".
+const MESH_LOAD_BYTES_PER_FILE_BYTE: u64 = 3;
+/// Bytes per vertex while a mesh is built (the parsed attributes, the per-vertex sums of
+/// the tangent frame, the finished vertices).
+const MESH_LOAD_BYTES_PER_VERTEX: u64 = 320;
+/// Bytes per triangle while a mesh is built (parsed and finished indices).
+const MESH_LOAD_BYTES_PER_TRIANGLE: u64 = 48;
+/// Bytes per vertex of a loaded mesh while rendering (the mesh, the GPU's vertex buffer
+/// and its staging copy: 56 bytes each).
+const MESH_BYTES_PER_VERTEX: u64 = 192;
+/// Bytes per triangle of a loaded mesh while rendering (indices: the mesh's, the GPU's
+/// and the staging copy).
+const MESH_BYTES_PER_TRIANGLE: u64 = 48;
+
+/// A mesh's size for the estimate: its files' bytes and its vertex and triangle counts
+/// ([`crate::mesh_file::measure`], before it is loaded).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MeshSize {
+    /// The mesh file's bytes (with a glTF's buffer files).
+    pub file_bytes: u64,
+    /// Vertices.
+    pub vertices: u64,
+    /// Triangles.
+    pub triangles: u64,
+}
+
+impl MeshSize {
+    /// Bytes held while the mesh is read and built.
+    pub fn load_bytes(&self) -> u64 {
+        self.file_bytes * MESH_LOAD_BYTES_PER_FILE_BYTE
+            + self.vertices * MESH_LOAD_BYTES_PER_VERTEX
+            + self.triangles * MESH_LOAD_BYTES_PER_TRIANGLE
+    }
+
+    /// Bytes held while rendering it.
+    pub fn render_bytes(&self) -> u64 {
+        self.vertices * MESH_BYTES_PER_VERTEX + self.triangles * MESH_BYTES_PER_TRIANGLE
+    }
 }
 
 /// The one-off per-map images of the methods of a run alive at once: max pyramids
@@ -185,14 +228,24 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
     } else {
         (0, 0)
     };
-    let load_peak = map.load_bytes + field;
-    let render_peak = field + gpu + method_maps + frame_bytes + ref_map + ref_frame;
+    // The mesh is read after the map: the map's load and the mesh's are two peaks.
+    let mesh_load = extras.mesh.load_bytes();
+    let mesh_render = extras.mesh.render_bytes();
+    let load_peak = map.load_bytes.max(mesh_load) + field;
+    let render_peak = field + gpu + method_maps + frame_bytes + ref_map + ref_frame + mesh_render;
     let mut parts = vec![("process", BASE_BYTES)];
     if load_peak > render_peak {
-        parts.push(("map file and decoding", map.load_bytes));
+        if mesh_load > map.load_bytes {
+            parts.push(("mesh file and parsing", mesh_load));
+        } else {
+            parts.push(("map file and decoding", map.load_bytes));
+        }
         parts.push(("height field", field));
     } else {
         parts.push(("height field", field));
+        if mesh_render > 0 {
+            parts.push(("mesh", mesh_render));
+        }
         parts.push(("GPU copy of the map", gpu));
         if method_maps > 0 {
             parts.push(("pyramids and cone maps", method_maps));
@@ -294,11 +347,16 @@ pub fn check(estimate: &Estimate, max: Option<u64>, what: &str) -> Result<()> {
     Err(Error::invalid(
         "memory",
         format!(
-            "{what} needs about {} ({}), more than the {} of {source}; use a smaller map \
+            "{what} needs about {} ({}), more than the {} of {source}; use a smaller map{} \
              or frame{}",
             human(estimate.bytes),
             parts.join(", "),
             human(limit),
+            if estimate.parts.iter().any(|(n, _)| n.starts_with("mesh")) {
+                ", mesh"
+            } else {
+                ""
+            },
             if max.is_some() {
                 " or raise --max-memory"
             } else {

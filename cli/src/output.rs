@@ -86,6 +86,19 @@ fn check_extension(path: &Path, format: Format) -> Result<()> {
     }
 }
 
+/// Checks, before any work, that `path` can take an output in `format`: the extension
+/// matches it (`shot.jpg` is refused for a PNG) and [`check_writable`] holds.
+pub fn check_writable_as(path: &Path, format: Format) -> Result<()> {
+    check_extension(path, format)?;
+    check_writable(path)
+}
+
+/// Refuses a name whose extension does not match `format` (see [`check_writable_as`]),
+/// without looking at the file system beyond whether the path is a device.
+pub fn check_format(path: &Path, format: Format) -> Result<()> {
+    check_extension(path, format)
+}
+
 fn is_device(path: &Path) -> bool {
     std::fs::metadata(path).is_ok_and(|m| {
         let t = m.file_type();
@@ -148,11 +161,23 @@ fn target_of(path: &Path) -> Result<Target> {
             "ends in '/' (a folder name), not a file name",
         ));
     }
-    if path.file_name().is_none() {
+    let Some(name) = path.file_name() else {
         return Err(io_error(
             path,
             std::io::ErrorKind::InvalidInput,
             "names no file",
+        ));
+    };
+    let max = name_max(&parent_of(path));
+    if name.len() > max {
+        return Err(io_error(
+            path,
+            std::io::ErrorKind::InvalidInput,
+            format!(
+                "the file name has {} bytes, more than the {max} its file system allows \
+                 (NAME_MAX)",
+                name.len()
+            ),
         ));
     }
     let resolved = match std::fs::symlink_metadata(path) {
@@ -257,6 +282,45 @@ fn parent_of(path: &Path) -> PathBuf {
     }
 }
 
+/// The longest file name the file system of `folder` takes (`pathconf(_PC_NAME_MAX)`);
+/// 255 (Linux's `NAME_MAX`) where it cannot be asked (a missing folder).
+fn name_max(folder: &Path) -> usize {
+    const DEFAULT: usize = 255;
+    let Ok(c) = std::ffi::CString::new(folder.as_os_str().as_bytes()) else {
+        return DEFAULT;
+    };
+    // SAFETY: `c` is a NUL-terminated string that outlives the call; pathconf(3) only
+    // reads it.
+    let max = unsafe { libc::pathconf(c.as_ptr(), libc::_PC_NAME_MAX) };
+    usize::try_from(max)
+        .ok()
+        .filter(|&m| m > 0)
+        .unwrap_or(DEFAULT)
+}
+
+/// The temporary file of `target`: `.<name>.<pid>.tmp` beside it, or, where that is
+/// longer than the folder's `NAME_MAX`, the name cut to fit and marked with `~<k>` (`k`:
+/// the output's number in the commit, so two cut names never meet). Always a name the
+/// file system takes, as long as the target's own name is one.
+fn temporary_name(target: &Path, k: usize) -> PathBuf {
+    let folder = parent_of(target);
+    let name = target
+        .file_name()
+        .map(|n| n.as_bytes().to_vec())
+        .unwrap_or_else(|| b"output".to_vec());
+    let pid = std::process::id();
+    let plain = [b".", &name[..], format!(".{pid}.tmp").as_bytes()].concat();
+    let max = name_max(&folder);
+    let bytes = if plain.len() <= max {
+        plain
+    } else {
+        let tail = format!("~{k}.{pid}.tmp");
+        let keep = max.saturating_sub(1 + tail.len()).min(name.len());
+        [b".", &name[..keep], tail.as_bytes()].concat()
+    };
+    folder.join(std::ffi::OsStr::from_bytes(&bytes))
+}
+
 /// The temporary files of a commit in progress, for [`clean_up_on_signals`]'s handler:
 /// NUL-terminated paths, null where free. A path is never freed once registered (a
 /// handler on another thread may be reading it); each is a few dozen bytes per output.
@@ -314,12 +378,49 @@ extern "C" fn remove_temporaries_and_die(signal: libc::c_int) {
     }
 }
 
-/// Installs a handler for SIGINT, SIGTERM and SIGHUP that removes the temporary files of
-/// a commit in progress and then ends the process by the same signal (as it would have
-/// ended without the handler). Call once, early in `main`.
+/// The signals whose default action ends the process and that a handler may catch,
+/// less those left alone: SIGSEGV and SIGBUS (the standard library's stack-overflow
+/// report), SIGILL and SIGFPE (faults of the code itself), SIGTRAP (a debugger's), and
+/// any this process ignores (SIGPIPE: failed writes are errors; SIGXFSZ: see `main`; a
+/// SIGHUP ignored by `nohup`). The real-time signals from `SIGRTMIN` up end the process
+/// by default too and are added by [`clean_up_on_signals`].
+pub const CLEANED_UP_SIGNALS: [libc::c_int; 15] = [
+    libc::SIGHUP,
+    libc::SIGINT,
+    libc::SIGQUIT,
+    libc::SIGTERM,
+    libc::SIGUSR1,
+    libc::SIGUSR2,
+    libc::SIGALRM,
+    libc::SIGVTALRM,
+    libc::SIGPROF,
+    libc::SIGXCPU,
+    libc::SIGIO,
+    libc::SIGPWR,
+    libc::SIGSTKFLT,
+    libc::SIGSYS,
+    libc::SIGABRT,
+];
+
+/// Installs a handler for every signal that ends the process by default
+/// ([`CLEANED_UP_SIGNALS`] and the real-time signals) that removes the temporary files
+/// of a commit in progress and then ends the process by the same signal (as it would
+/// have ended without the handler). A signal this process ignores stays ignored. Call
+/// once, early in `main`.
 pub fn clean_up_on_signals() {
     let handler = remove_temporaries_and_die as extern "C" fn(libc::c_int);
-    for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+    let realtime = libc::SIGRTMIN()..=libc::SIGRTMAX();
+    for signal in CLEANED_UP_SIGNALS.into_iter().chain(realtime) {
+        // SAFETY: a zeroed sigaction is a valid value to be filled; sigaction(2) with a
+        // null new action only reads the current disposition into it.
+        let ignored = unsafe {
+            let mut old: libc::sigaction = std::mem::zeroed();
+            libc::sigaction(signal, std::ptr::null(), &mut old) == 0
+                && old.sa_sigaction == libc::SIG_IGN
+        };
+        if ignored {
+            continue;
+        }
         // SAFETY: the handler only reads atomics, calls unlink, signal and raise (all
         // async-signal-safe) and touches no lock or allocation.
         unsafe {
@@ -487,15 +588,16 @@ impl Outputs {
             }
             remove_folders(&created);
         };
-        for entry in self.entries.iter().filter(|e| e.bytes.is_some()) {
+        for (k, entry) in self
+            .entries
+            .iter()
+            .filter(|e| e.bytes.is_some())
+            .enumerate()
+        {
             let Target::Replace { path: target, mode } = &entry.target else {
                 continue;
             };
-            let name = target
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "output".into());
-            let tmp = parent_of(target).join(format!(".{name}.{}.tmp", std::process::id()));
+            let tmp = temporary_name(target, k);
             let bytes = entry.bytes.as_deref().unwrap_or_default();
             // Registered before it exists, so a signal never misses it.
             let slot = register_temporary(&tmp);

@@ -56,6 +56,9 @@ use dispmap::scene::{Camera, Geometry, Light, Scene};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// The largest scene file read (1 MiB; a scene is a few hundred bytes).
+pub const MAX_SCENE_BYTES: u64 = 1 << 20;
+
 /// Default frame size of a scene file.
 pub const DEFAULT_SIZE: [u32; 2] = [640, 360];
 
@@ -272,12 +275,9 @@ impl SceneFile {
         })
     }
 
-    /// Reads and parses `path`.
+    /// Reads and parses `path` (a regular file of at most [`MAX_SCENE_BYTES`]).
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = dispmap::input::read_to_string(path, MAX_SCENE_BYTES, "a scene file")?;
         Self::parse(&text, path)
     }
 

@@ -6,6 +6,8 @@
 
 #[path = "../../tests/common/mod.rs"]
 mod common;
+#[path = "support/hostile.rs"]
+mod hostile;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -13,6 +15,14 @@ use std::time::{Duration, Instant};
 
 /// A run that takes longer than this is a hang.
 const HANG: Duration = Duration::from_secs(120);
+/// Every bad input is refused within this (measured: 0.3-3 s each under validation).
+const ROW_SECONDS: Duration = Duration::from_secs(60);
+/// Every bad-input run peaks below this resident memory (measured: 100-200 MB; an input
+/// read without bound grows by gigabytes)...
+const ROW_PEAK_BYTES: u64 = 1 << 30;
+/// ...and cannot take more than this data segment (`RLIMIT_DATA`), so a regression fails
+/// the row instead of exhausting the machine.
+const ROW_DATA_LIMIT: u64 = 4 << 30;
 
 /// One bad input: the `render` options it replaces or adds (the others are a valid
 /// small render of the rocks map), environment variables, and what stderr must contain.
@@ -21,6 +31,8 @@ struct Row {
     options: Vec<(&'static str, String)>,
     env: &'static [(&'static str, &'static str)],
     expect: Vec<String>,
+    /// What stderr must not contain (a wrong cause).
+    absent: Vec<String>,
     /// A command the run goes through (`setpriv` to run as another user, `sh -c` for a
     /// file size limit); empty: none.
     wrap: Vec<String>,
@@ -32,6 +44,7 @@ fn row(name: &'static str, options: &[(&'static str, &str)], expect: &[&str]) ->
         options: options.iter().map(|(k, v)| (*k, v.to_string())).collect(),
         env: &[],
         expect: expect.iter().map(|s| s.to_string()).collect(),
+        absent: Vec::new(),
         wrap: Vec::new(),
     }
 }
@@ -179,6 +192,7 @@ fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
         "outside.toml",
         b"geometry = \"mesh\"\nmesh = \"outside.gltf\"\n",
     );
+    issue_26_fixtures(dir);
     // A read-only output file (kept as it is).
     write("read-only.png", b"old");
     std::fs::set_permissions(
@@ -208,6 +222,132 @@ fn fixtures(dir: &Path, max_dimension: u32) -> Fixtures {
         zero: mknod(&zero, 1, 5).then(|| zero.to_str().unwrap().to_owned()),
         read_only: mounted.then_some(read_only),
     }
+}
+
+/// The inputs of issue 26's rows: glTF accessors the specification does not allow,
+/// inputs that never end (FIFOs, `/dev/zero` behind symlinks, sparse giants), meshes
+/// above the memory bound, damaged and multi-part OpenEXR files, odd PNG headers.
+fn issue_26_fixtures(dir: &Path) {
+    use hostile::*;
+    let write = |name: &str, bytes: &[u8]| std::fs::write(dir.join(name), bytes).unwrap();
+    let scene = |name: &str, mesh: &str| {
+        write(
+            name,
+            format!("geometry = \"mesh\"\nmesh = \"{mesh}\"\n").as_bytes(),
+        )
+    };
+    let fifo = |name: &str| {
+        assert!(
+            Command::new("mkfifo")
+                .arg(dir.join(name))
+                .status()
+                .unwrap()
+                .success()
+        );
+    };
+    let zero = |name: &str| std::os::unix::fs::symlink("/dev/zero", dir.join(name)).unwrap();
+    // 1. glTF accessors.
+    for (name, uv, index, stride) in [
+        ("index-byte", FLOAT, BYTE, None),
+        ("index-short", FLOAT, SHORT, None),
+        ("index-float", FLOAT, FLOAT, None),
+        ("uv-byte", BYTE, UNSIGNED_SHORT, None),
+        ("uv-short", SHORT, UNSIGNED_SHORT, None),
+        ("uv-uint", UNSIGNED_INT, UNSIGNED_SHORT, None),
+        ("stride-4", FLOAT, UNSIGNED_SHORT, Some(4)),
+    ] {
+        gltf_triangle(dir, name, uv, index, stride);
+        scene(&format!("{name}.toml"), &format!("{name}.gltf"));
+    }
+    // 3. Inputs that never end.
+    fifo("fifo-scene.toml");
+    fifo("fifo.obj");
+    scene("fifo-obj.toml", "fifo.obj");
+    fifo("fifo.gltf");
+    scene("fifo-gltf.toml", "fifo.gltf");
+    gltf_triangle(dir, "fifo-buffer", FLOAT, UNSIGNED_SHORT, None);
+    std::fs::remove_file(dir.join("fifo-buffer.bin")).unwrap();
+    fifo("fifo-buffer.bin");
+    scene("fifo-buffer.toml", "fifo-buffer.gltf");
+    zero("zero-scene.toml");
+    zero("zero-link.obj");
+    scene("zero-obj.toml", "zero-link.obj");
+    write(
+        "zero-mtl.obj",
+        b"mtllib zero-link.mtl\nv 0 0 0\nv 1 0 0\nv 0 0 -1\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    );
+    zero("zero-link.mtl");
+    scene("zero-mtl.toml", "zero-mtl.obj");
+    gltf_triangle(dir, "zero-buffer", FLOAT, UNSIGNED_SHORT, None);
+    std::fs::remove_file(dir.join("zero-buffer.bin")).unwrap();
+    zero("zero-buffer.bin");
+    scene("zero-buffer.toml", "zero-buffer.gltf");
+    // Sparse giants: a 2 GB scene file, a 5 GB OBJ (no disk space taken).
+    std::fs::File::create(dir.join("sparse.toml"))
+        .unwrap()
+        .set_len(2 << 30)
+        .unwrap();
+    std::fs::File::create(dir.join("sparse.obj"))
+        .unwrap()
+        .set_len(5 << 30)
+        .unwrap();
+    scene("sparse-obj.toml", "sparse.obj");
+    // 4. Meshes in the memory bound: 180,000 triangles (8.6 MB of OBJ); a glTF claiming
+    // 17 million.
+    write("grid.obj", obj_grid(300).as_bytes());
+    scene("grid.toml", "grid.obj");
+    gltf_claiming(dir, "huge", 17_000_000);
+    scene("huge-gltf.toml", "huge.gltf");
+    // 7. Damaged single-channel OpenEXR (Y only, 8x40: three ZIP16 chunks).
+    let zip = exr(
+        &[("height", "Y", 1.0)],
+        8,
+        40,
+        exr::compression::Compression::ZIP16,
+    );
+    let rle = exr(
+        &[("height", "Y", 1.0)],
+        8,
+        40,
+        exr::compression::Compression::RLE,
+    );
+    write("exr-cut.exr", &zip[..zip.len() * 6 / 10]);
+    let table = exr_header_end(&zip);
+    let mut offsets = zip.clone();
+    offsets[table..table + 8].copy_from_slice(&(1u64 << 40).to_le_bytes());
+    write("exr-offsets.exr", &offsets);
+    let mut corrupt = zip.clone();
+    let first = u64::from_le_bytes(zip[table..table + 8].try_into().unwrap()) as usize;
+    // The chunk: y (4 bytes), size (4), then the compressed bytes.
+    for b in &mut corrupt[first + 8..first + 24] {
+        *b ^= 0x5A;
+    }
+    write("exr-zip.exr", &corrupt);
+    let table = exr_header_end(&rle);
+    let first = u64::from_le_bytes(rle[table..table + 8].try_into().unwrap()) as usize;
+    let mut corrupt = rle.clone();
+    corrupt[first + 4..first + 8].copy_from_slice(&7u32.to_le_bytes());
+    write("exr-rle.exr", &corrupt);
+    let mut window = zip.clone();
+    let at = exr_attribute(&zip, "dataWindow");
+    window[at + 12..at + 16].copy_from_slice(&4000i32.to_le_bytes());
+    write("exr-window.exr", &window);
+    // 8. Multi-part: a colour part, then the height part (Y, up to 3: out of range).
+    write(
+        "multi-high.exr",
+        &exr(
+            &[("color", "R", 0.5), ("height", "Y", 3.0)],
+            4,
+            4,
+            exr::compression::Compression::Uncompressed,
+        ),
+    );
+    // 13. A PNG header claiming 2147483647x1; also seen: a palette index past the palette.
+    write("huge.png", &png(2147483647, 1, 0, None, &[0, 0]));
+    write(
+        "palette.png",
+        &png(2, 1, 3, Some(&[0, 0, 0, 255, 255, 255]), &[0, 1, 5]),
+    );
 }
 
 impl Drop for Fixtures {
@@ -337,6 +477,7 @@ fn rows(f: &Fixtures) -> Vec<Row> {
         row("no such device (name)",   &[("--device", "no-such-gpu")],              &["no-such-gpu", "no suitable Vulkan device"]),
         row("no such device (index)",  &[("--device", "7")],                        &["device index 7 out of range"]),
     ];
+    rows.extend(issue_26_rows(f));
     // A driver manifest that is not JSON: the variable is named (leaked so the row can
     // borrow it for the test's life).
     let icd: &'static str = Box::leak(f.path("bad-icd.json").into_boxed_str());
@@ -398,6 +539,59 @@ fn rows(f: &Fixtures) -> Vec<Row> {
     rows
 }
 
+/// Issue 26's rows (the inputs of [`issue_26_fixtures`]); numbered as the issue's
+/// defects.
+#[rustfmt::skip]
+fn issue_26_rows(f: &Fixtures) -> Vec<Row> {
+    let p = |name: &str| f.path(name);
+    let rgb = &["rgb channels"][..];
+    let without = |r: Row, absent: &[&str]| Row { absent: absent.iter().map(|s| s.to_string()).collect(), ..r };
+    let long_name = f.out_dir.join(format!("{}.png", "n".repeat(252)));
+    vec![
+        // 1. glTF accessors the specification does not allow, named with the file, mesh,
+        // primitive and accessor.
+        row("glTF indices of BYTE",    &[("--scene", &p("index-byte.toml"))],  &["index-byte.gltf", "mesh 0, primitive 0, accessor 2 (indices)", "SCALAR of BYTE"]),
+        row("glTF indices of SHORT",   &[("--scene", &p("index-short.toml"))], &["index-short.gltf", "accessor 2 (indices)", "SCALAR of SHORT"]),
+        row("glTF indices of FLOAT",   &[("--scene", &p("index-float.toml"))], &["index-float.gltf", "accessor 2 (indices)", "SCALAR of FLOAT"]),
+        row("glTF TEXCOORD_0 of BYTE", &[("--scene", &p("uv-byte.toml"))],     &["uv-byte.gltf", "mesh 0, primitive 0, accessor 1 (TEXCOORD_0)", "VEC2 of BYTE"]),
+        row("glTF TEXCOORD_0 of SHORT", &[("--scene", &p("uv-short.toml"))],   &["uv-short.gltf", "accessor 1 (TEXCOORD_0)", "VEC2 of SHORT"]),
+        row("glTF TEXCOORD_0 of UNSIGNED_INT", &[("--scene", &p("uv-uint.toml"))], &["uv-uint.gltf", "accessor 1 (TEXCOORD_0)", "VEC2 of UNSIGNED_INT"]),
+        row("glTF byteStride below the element", &[("--scene", &p("stride-4.toml"))], &["stride-4.gltf", "accessor 0 (POSITION)", "byteStride 4, smaller than the accessor's 12-byte element"]),
+        // 3. Inputs that never end: refused before reading.
+        row("scene file is a FIFO",    &[("--scene", &p("fifo-scene.toml"))],  &["fifo-scene.toml", "not a regular file"]),
+        row("OBJ mesh is a FIFO",      &[("--scene", &p("fifo-obj.toml"))],    &["fifo.obj", "not a regular file"]),
+        row("glTF mesh is a FIFO",     &[("--scene", &p("fifo-gltf.toml"))],   &["fifo.gltf", "not a regular file"]),
+        row("glTF .bin is a FIFO",     &[("--scene", &p("fifo-buffer.toml"))], &["fifo-buffer.bin", "not a regular file"]),
+        row("scene file is /dev/zero (symlink)", &[("--scene", &p("zero-scene.toml"))], &["zero-scene.toml", "not a regular file"]),
+        row("OBJ is /dev/zero (symlink)", &[("--scene", &p("zero-obj.toml"))], &["zero-link.obj", "not a regular file"]),
+        row("OBJ mtllib is /dev/zero", &[("--scene", &p("zero-mtl.toml"))],    &["zero-mtl.obj", "mtllib", "zero-link.mtl", "not a regular file"]),
+        row("glTF .bin is /dev/zero",  &[("--scene", &p("zero-buffer.toml"))], &["zero-buffer.bin", "not a regular file"]),
+        row("2 GB sparse scene file",  &[("--scene", &p("sparse.toml"))],      &["sparse.toml", "2147483648 bytes, more than the 1048576"]),
+        row("5 GB sparse OBJ",         &[("--scene", &p("sparse-obj.toml"))],  &["sparse.obj", "5368709120 bytes, more than the 4294967296"]),
+        // 4. Meshes count in the memory bound.
+        row("mesh above --max-memory", &[("--scene", &p("grid.toml")), ("--max-memory", "150M")], &["grid.obj (90601 vertices, 180000 triangles)", "needs about", "mesh file and parsing", "smaller map, mesh or frame"]),
+        row("mesh above 16M triangles", &[("--scene", &p("huge-gltf.toml"))],  &["huge.gltf", "17000000 triangles, more than the 16777216"]),
+        // 5. A frame past the device's resource limits, refused before any allocation.
+        row("frame past maxResourceSize", &[("--size", "16384x16384"), ("--max-memory", "1T")], &["--size", "16384x16384", "bytes per image", "at most"]),
+        // 6. An output name longer than NAME_MAX, refused before any work.
+        row("output name past NAME_MAX", &[("--out", long_name.to_str().unwrap())], &["--out", "256 bytes, more than the 255", "NAME_MAX"]),
+        // 7. Damaged single-channel OpenEXR: the real cause, not "no rgb channels".
+        without(row("EXR cut",          &[("--heightmap", &p("exr-cut.exr"))],     &["exr-cut.exr", "cannot decode part 0 'height' of 1 (channel Y)"]), rgb),
+        without(row("EXR offset table past the end", &[("--heightmap", &p("exr-offsets.exr"))], &["exr-offsets.exr", "cannot decode part 0"]), rgb),
+        without(row("EXR corrupt ZIP block", &[("--heightmap", &p("exr-zip.exr"))], &["exr-zip.exr", "cannot decode part 0"]), rgb),
+        without(row("EXR corrupt RLE block", &[("--heightmap", &p("exr-rle.exr"))], &["exr-rle.exr", "cannot decode part 0"]), rgb),
+        without(row("EXR data window lies", &[("--heightmap", &p("exr-window.exr"))], &["exr-window.exr", "cannot decode part 0"]), rgb),
+        // 8. Multi-part OpenEXR: the part is named in the range error.
+        row("multi-part EXR out of range", &[("--heightmap", &p("multi-high.exr"))], &["multi-high.exr", "part 1 'height' of 2 (channel Y)", "outside [0, 1]"]),
+        // 13. A PNG header of 2147483647x1 names its size.
+        row("PNG header 2147483647x1", &[("--heightmap", &p("huge.png"))],     &["huge.png", "2147483647x1", "maxImageDimension2D"]),
+        // Also seen.
+        row("empty --device",          &[("--device", "")],                     &["--device", "is empty"]),
+        row("pom --min-steps above --steps", &[("--method", "pom"), ("--min-steps", "64"), ("--steps", "8")], &["--min-steps", "64 is above --steps 8"]),
+        row("PNG palette index past the palette", &[("--heightmap", &p("palette.png"))], &["palette.png", "palette index 5, past the palette's 2 entries"]),
+    ]
+}
+
 /// Runs `dispmap render` with the valid defaults overridden by `row` and returns the
 /// exit code (`None`: killed by a signal) and stderr; fails on a hang.
 fn run(row: &Row, out: &Path) -> (Option<i32>, String) {
@@ -442,21 +636,28 @@ fn run(row: &Row, out: &Path) -> (Option<i32>, String) {
         // `=` so a value starting with '-' is not read as an option.
         cmd.arg(format!("{k}={v}"));
     }
+    hostile::limit_memory(&mut cmd, ROW_DATA_LIMIT);
     let mut child = cmd.spawn().unwrap();
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if start.elapsed() > HANG {
-            child.kill().ok();
-            panic!("{}: still running after {HANG:?}", row.name);
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let ended = hostile::wait_bounded(&mut child, HANG, row.name);
     let mut stderr = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
-    (status.code(), stderr)
+    if ended.elapsed > ROW_SECONDS {
+        stderr.push_str(&format!(
+            "\n[test] took {:?}, more than {ROW_SECONDS:?}",
+            ended.elapsed
+        ));
+    }
+    if ended.peak_bytes > ROW_PEAK_BYTES {
+        stderr.push_str(&format!(
+            "\n[test] peaked at {} MB, more than {} MB",
+            ended.peak_bytes >> 20,
+            ROW_PEAK_BYTES >> 20
+        ));
+    }
+    if let Some(signal) = ended.signal {
+        stderr.push_str(&format!("\n[test] ended by signal {signal}"));
+    }
+    (ended.code, stderr)
 }
 
 #[test]
@@ -495,6 +696,14 @@ fn every_bad_input_is_named_and_leaves_nothing() {
             if !stderr.contains(want.as_str()) {
                 problems.push(format!("'{want}' not in stderr"));
             }
+        }
+        for unwanted in &row.absent {
+            if stderr.contains(unwanted.as_str()) {
+                problems.push(format!("'{unwanted}' in stderr (the wrong cause)"));
+            }
+        }
+        if stderr.contains("[test]") {
+            problems.push("over its time or memory bound, or killed".to_owned());
         }
         let left: Vec<_> = std::fs::read_dir(&out_dir)
             .unwrap()
@@ -762,12 +971,19 @@ fn exact_methods_warn_beyond_the_guaranteed_depth_scale() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// A run killed by SIGTERM while committing its outputs leaves no temporary file: the
+/// A run killed while committing its outputs leaves no temporary file, whichever signal
+/// that ends a process by default kills it (issue 26, 11: SIGQUIT and SIGUSR2 too): the
 /// commit writes `--out`'s temporary file, then blocks opening a FIFO given as
 /// `--heatmap` (no reader), and is killed there.
 #[test]
 fn a_kill_during_the_commit_leaves_no_temporary_file() {
-    let dir = scratch("kill");
+    for signal in ["TERM", "QUIT", "USR2"] {
+        kill_during_the_commit(signal);
+    }
+}
+
+fn kill_during_the_commit(signal: &str) {
+    let dir = scratch(&format!("kill-{signal}"));
     let out_dir = dir.join("out");
     std::fs::create_dir_all(&out_dir).unwrap();
     let fifo = dir.join("heat");
@@ -803,13 +1019,332 @@ fn a_kill_during_the_commit_leaves_no_temporary_file() {
     );
     assert!(
         Command::new("kill")
-            .args(["-TERM", &child.id().to_string()])
+            .args([&format!("-{signal}"), &child.id().to_string()])
             .status()
             .unwrap()
             .success()
     );
     let status = child.wait().unwrap();
-    assert!(status.code().is_none(), "not ended by the signal: {status}");
-    assert!(names(&out_dir).is_empty(), "left {:?}", names(&out_dir));
+    assert!(
+        status.code().is_none(),
+        "SIG{signal}: not ended by the signal: {status}"
+    );
+    assert!(
+        names(&out_dir).is_empty(),
+        "SIG{signal}: left {:?}",
+        names(&out_dir)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 26, 2: a console that cannot be written (a closed pipe, `/dev/full`) is an
+/// ordinary error reported after the run's outputs are committed: `render`, `demo` and
+/// `bench` write every output, exit with 1 and say why; `info` too; nothing panics.
+#[test]
+fn a_console_that_cannot_be_written_loses_no_output() {
+    use std::fs::File;
+    let dir = scratch("console");
+    let full = || Stdio::from(File::options().write(true).open("/dev/full").unwrap());
+    // How a run's standard output fails: a pipe whose reader is gone, or a full device.
+    let closed_pipe = |c: &mut Command| {
+        c.stdout(Stdio::piped()).stderr(Stdio::piped());
+        let mut child = c.spawn().unwrap();
+        drop(child.stdout.take());
+        child
+    };
+    let on_full = |c: &mut Command| {
+        c.stdout(full()).stderr(Stdio::piped());
+        c.spawn().unwrap()
+    };
+    let check = |child: &mut std::process::Child, what: &str| {
+        let ended = hostile::wait_bounded(child, HANG, what);
+        let mut stderr = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+        assert_eq!(ended.code, Some(1), "{what}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{what}: {stderr}");
+        assert!(
+            stderr.contains("error: cannot write to standard output")
+                && stderr.contains("its outputs, if any, were written"),
+            "{what}: {stderr}"
+        );
+    };
+    let png = dir.join("piped.png");
+    let mut child = closed_pipe(
+        render_args(&mut dispmap())
+            .arg("--out")
+            .arg(&png)
+            .arg("--metrics")
+            .arg(dir.join("piped.json")),
+    );
+    check(&mut child, "render | (closed)");
+    assert!(image::open(&png).is_ok());
+    assert!(
+        std::fs::read(dir.join("piped.json"))
+            .unwrap()
+            .starts_with(b"{")
+    );
+    let png = dir.join("full.png");
+    let mut child = on_full(render_args(&mut dispmap()).arg("--out").arg(&png));
+    check(&mut child, "render > /dev/full");
+    assert!(image::open(&png).is_ok());
+    let demo = dir.join("demo");
+    let mut child = on_full(
+        dispmap()
+            .args(["demo", "--size", "16x16", "--frames", "1", "--out-dir"])
+            .arg(&demo),
+    );
+    check(&mut child, "demo > /dev/full");
+    assert!(image::open(demo.join("contact_sheet.png")).is_ok());
+    assert!(image::open(demo.join("reference.png")).is_ok());
+    let bench = dir.join("bench");
+    let mut child = closed_pipe(
+        dispmap()
+            .args([
+                "bench", "--quiet", "--size", "16x16", "--frames", "1", "--repeat", "1",
+            ])
+            .args([
+                "--steps",
+                "8",
+                "--methods",
+                "bump",
+                "--maps",
+                "rocks",
+                "--sizes",
+                "none",
+                "--out",
+            ])
+            .arg(&bench),
+    );
+    check(&mut child, "bench | (closed)");
+    assert!(bench.join("report.md").exists() && bench.join("results.csv").exists());
+    let mut child = on_full(dispmap().arg("info"));
+    check(&mut child, "info > /dev/full");
+    let leftovers: Vec<String> = names(&dir)
+        .into_iter()
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 26, 12: `info` says whether validation is on.
+#[test]
+fn info_says_whether_validation_is_on() {
+    for (env, want) in [
+        ("0", "validation:           off"),
+        ("1", "validation:           on"),
+    ] {
+        let out = dispmap()
+            .env("DISPMAP_VALIDATION", env)
+            .arg("info")
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.contains(want), "DISPMAP_VALIDATION={env}:\n{stdout}");
+    }
+}
+
+/// Issue 26, 6: a legal 250-byte output name (the limit is 255) is written: the
+/// temporary file's name is cut to fit, and nothing is left beside it.
+#[test]
+fn a_250_byte_output_name_is_written() {
+    let dir = scratch("long-name");
+    let name = format!("{}.png", "n".repeat(246));
+    assert_eq!(name.len(), 250);
+    let out = render_args(&mut dispmap())
+        .arg("--out")
+        .arg(dir.join(&name))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(image::open(dir.join(&name)).is_ok());
+    assert_eq!(names(&dir), [name]);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 26, 3, 9 and 10: the viewer's file inputs are bounded regular files, a
+/// screenshot's name must be a PNG's, and a script's values are checked when it is
+/// parsed, naming `file:line`; all before a window opens (no display is needed), fast,
+/// in bounded memory, without a panic.
+#[test]
+fn view_inputs_are_checked_before_a_window() {
+    let dir = scratch("view-inputs");
+    let fifo = dir.join("fifo.txt");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let zero = dir.join("zero.txt");
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let script = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    let (fifo, zero) = (fifo.to_str().unwrap(), zero.to_str().unwrap());
+    let depth = script("depth.txt", "0 method pom\n1 depth-scale 1001\n");
+    let lod = script("lod.txt", "# comment\n\n2 lod 99\n");
+    let steps = script("steps.txt", "0 steps 70000\n");
+    let shot = script("shot.txt", "0 screenshot x.jpg\n");
+    let jpg = dir.join("s.jpg");
+    let cases: Vec<(&str, Vec<&str>, Vec<String>)> = vec![
+        (
+            "camera path FIFO",
+            vec!["--camera-path", fifo],
+            vec![fifo.into(), "not a regular file".into()],
+        ),
+        (
+            "script FIFO",
+            vec!["--script", fifo],
+            vec![fifo.into(), "not a regular file".into()],
+        ),
+        (
+            "camera path /dev/zero",
+            vec!["--camera-path", zero],
+            vec![zero.into(), "not a regular file".into()],
+        ),
+        (
+            "script /dev/zero",
+            vec!["--script", zero],
+            vec![zero.into(), "not a regular file".into()],
+        ),
+        (
+            "depth-scale 1001",
+            vec!["--script", &depth],
+            vec![format!("{depth}:2"), "1001 is outside [0, 1000]".into()],
+        ),
+        (
+            "lod 99",
+            vec!["--script", &lod],
+            vec![format!("{lod}:3"), "99 is outside 0..=31".into()],
+        ),
+        (
+            "steps 70000",
+            vec!["--script", &steps],
+            vec![format!("{steps}:1"), "70000 is outside 1..=65536".into()],
+        ),
+        (
+            "script screenshot x.jpg",
+            vec!["--script", &shot],
+            vec![
+                format!("{shot}:1"),
+                ".jpg does not match the format written (PNG)".into(),
+            ],
+        ),
+        (
+            "--screenshot s.jpg",
+            vec!["--screenshot", jpg.to_str().unwrap()],
+            vec![
+                "s.jpg".into(),
+                ".jpg does not match the format written (PNG)".into(),
+            ],
+        ),
+    ];
+    for (what, args, want) in cases {
+        let mut cmd = dispmap();
+        cmd.args(["view", "--frames", "2", "--size", "16x16"])
+            .args(&args)
+            .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        hostile::limit_memory(&mut cmd, ROW_DATA_LIMIT);
+        let mut child = cmd.spawn().unwrap();
+        let ended = hostile::wait_bounded(&mut child, HANG, what);
+        let mut stderr = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+        assert_eq!(ended.code, Some(1), "{what}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{what}: {stderr}");
+        for w in &want {
+            assert!(stderr.contains(w.as_str()), "{what}: '{w}' not in {stderr}");
+        }
+        assert!(
+            ended.elapsed < ROW_SECONDS,
+            "{what}: took {:?}",
+            ended.elapsed
+        );
+        assert!(
+            ended.peak_bytes < ROW_PEAK_BYTES,
+            "{what}: {} MB",
+            ended.peak_bytes >> 20
+        );
+    }
+    assert!(!jpg.exists() && !dir.join("x.jpg").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The inputs issue 26 keeps working: a multi-part OpenEXR whose height is in its second
+/// part renders from that part and says so; glTF files with the accessor types the
+/// specification allows (normalized UNSIGNED_SHORT texture coordinates, UNSIGNED_INT
+/// indices) render.
+#[test]
+fn allowed_gltf_accessors_and_multi_part_exr_render() {
+    let dir = scratch("allowed");
+    let multi = dir.join("multi.exr");
+    std::fs::write(
+        &multi,
+        hostile::exr(
+            &[("color", "R", 1.0), ("height", "Y", 1.0)],
+            4,
+            4,
+            exr::compression::Compression::ZIP16,
+        ),
+    )
+    .unwrap();
+    let out = dispmap()
+        .args([
+            "render",
+            "--convention",
+            "height",
+            "--size",
+            "16x16",
+            "--frames",
+            "1",
+            "--heightmap",
+        ])
+        .arg(&multi)
+        .arg("--out")
+        .arg(dir.join("multi.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("note:") && stderr.contains("part 1 'height' of 2 (channel Y)"),
+        "{stderr}"
+    );
+    for (name, uv, index) in [
+        ("float", hostile::FLOAT, hostile::UNSIGNED_INT),
+        ("ushort", hostile::UNSIGNED_SHORT, hostile::UNSIGNED_SHORT),
+        ("ubyte", hostile::UNSIGNED_BYTE, hostile::UNSIGNED_BYTE),
+    ] {
+        hostile::gltf_triangle(&dir, name, uv, index, Some(12));
+        let scene = dir.join(format!("{name}.toml"));
+        std::fs::write(
+            &scene,
+            format!("geometry = \"mesh\"\nmesh = \"{name}.gltf\"\nsize = [16, 16]\n"),
+        )
+        .unwrap();
+        let png = dir.join(format!("{name}.png"));
+        let out = dispmap()
+            .args(["render", "--frames", "1", "--scene"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&png)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {stderr}");
+        assert!(image::open(&png).is_ok());
+    }
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -127,7 +127,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
             render_inputs(&inputs, matches)?
         } else {
             let settings = common.settings(method);
-            settings.validate()?;
+            crate::validate_settings(&settings)?;
             let field = bundled::rocks()?;
             (field, "rocks".to_owned(), settings, SceneAssets::default())
         };
@@ -141,11 +141,12 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         .transpose()?
         .unwrap_or_default();
     if let Some(path) = &screenshot {
-        output::check_writable(path).context("invalid --screenshot")?;
+        output::check_writable_as(path, output::Format::Png).context("invalid --screenshot")?;
     }
     for (_, action) in &script.events {
         if let Action::Screenshot(path) = action {
-            output::check_writable(path).context("invalid --script screenshot")?;
+            output::check_writable_as(path, output::Format::Png)
+                .context("invalid --script screenshot")?;
         }
     }
     if let Some(right) = split {
@@ -500,6 +501,7 @@ impl Viewer {
             &instance_exts,
             &[ash::khr::swapchain::NAME],
         )?);
+        dispmap_cli::frame_limit::check(&ctx, s.width, s.height, "--size")?;
         let size = window.inner_size();
         let presenter = Presenter::new(&ctx, &*window, [size.width, size.height])?;
         let extent = presenter.extent();

@@ -24,9 +24,13 @@
 //! | `screenshot` | a PNG path | writes that frame as presented |
 
 use anyhow::{Context as _, Result, bail};
-use dispmap::method::Method;
+use dispmap::method::{Method, MethodParams};
 use dispmap::passes::shadow::ShadowMode;
+use dispmap::scene::Scene;
 use std::path::{Path, PathBuf};
+
+/// The largest camera path or script file read (16 MiB).
+pub const MAX_FILE_BYTES: u64 = 16 << 20;
 
 /// One camera of a path.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,7 +59,7 @@ impl CameraPath {
             return Ok(CameraPath::Orbit);
         }
         let path = Path::new(arg);
-        let text = std::fs::read_to_string(path)
+        let text = dispmap::input::read_to_string(path, MAX_FILE_BYTES, "a camera path")
             .with_context(|| format!("invalid --camera-path: cannot read {}", path.display()))?;
         let mut points = Vec::new();
         for (n, line) in text.lines().enumerate() {
@@ -146,7 +150,7 @@ pub struct Script {
 impl Script {
     /// Reads and checks a script file (module docs); errors name the file and line.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
+        let text = dispmap::input::read_to_string(path, MAX_FILE_BYTES, "a script")
             .with_context(|| format!("invalid --script: cannot read {}", path.display()))?;
         Self::parse(&text, &path.display().to_string())
     }
@@ -215,9 +219,22 @@ impl Script {
                         .ok()
                         .filter(|s| *s > 0)
                         .ok_or_else(|| bad(format!("'{v}' is not a positive integer")))?;
+                    // The ranges `render` checks, here at parse time (before any frame).
+                    MethodParams::with_steps(s)
+                        .validate()
+                        .map_err(|e| bad(e.to_string()))?;
                     Action::Steps(s)
                 }
-                "depth-scale" => Action::DepthScale(number("a depth")?),
+                "depth-scale" => {
+                    let d = number("a depth")?;
+                    Scene {
+                        depth_scale: d,
+                        ..Scene::default()
+                    }
+                    .validate()
+                    .map_err(|e| bad(e.to_string()))?;
+                    Action::DepthScale(d)
+                }
                 "shadows" => {
                     let v = need("off, hard or soft")?;
                     Action::Shadows(
@@ -227,7 +244,16 @@ impl Script {
                 }
                 "lod" => match need("off or a threshold")? {
                     "off" => Action::Lod(None),
-                    _ => Action::Lod(Some(number("a threshold")?)),
+                    _ => {
+                        let l = number("a threshold")?;
+                        MethodParams {
+                            lod_threshold: Some(l),
+                            ..MethodParams::default()
+                        }
+                        .validate()
+                        .map_err(|e| bad(e.to_string()))?;
+                        Action::Lod(Some(l))
+                    }
                 },
                 "map" => {
                     let v = need("a bundled map")?;
@@ -241,7 +267,12 @@ impl Script {
                 }
                 "heatmap" => Action::Heatmap(switch(need("on or off")?)?),
                 "error" => Action::Error,
-                "screenshot" => Action::Screenshot(PathBuf::from(need("a PNG path")?)),
+                "screenshot" => {
+                    let path = PathBuf::from(need("a PNG path")?);
+                    crate::output::check_format(&path, crate::output::Format::Png)
+                        .map_err(|e| bad(e.to_string()))?;
+                    Action::Screenshot(path)
+                }
                 other => return Err(bad(format!("unknown action '{other}'"))),
             };
             match (&action, arg) {
