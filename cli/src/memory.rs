@@ -52,14 +52,26 @@ pub struct Extras {
     pub mesh: MeshSize,
 }
 
-/// Bytes a mesh holds while it is parsed, per byte of its files (the bytes read, the
-/// parser's lines and arrays). Measured: see docs/guarantees.md, "Memory".
-const MESH_LOAD_BYTES_PER_FILE_BYTE: u64 = 3;
-/// Bytes per vertex while a mesh is built (the parsed attributes, the per-vertex sums of
-/// the tangent frame, the finished vertices).
-const MESH_LOAD_BYTES_PER_VERTEX: u64 = 320;
-/// Bytes per triangle while a mesh is built (parsed and finished indices).
-const MESH_LOAD_BYTES_PER_TRIANGLE: u64 = 48;
+/// Bytes a mesh holds while it is read and built, per byte of its files (the bytes read,
+/// held while the parser runs), per vertex (the parser's attributes and index map, the
+/// mesh's per-vertex sums for its tangent frame, the finished vertices) and per triangle
+/// (the parser's, the mesh's and the upload's indices). Fitted to the peak resident
+/// memory of OBJ and glTF meshes of 0.7-2 million triangles (docs/guarantees.md,
+/// "Memory": measured 0.80 bytes per file byte, 131 per vertex, 91 per triangle), and
+/// rounded up.
+const MESH_LOAD_BYTES_PER_FILE_BYTE: u64 = 1;
+/// See [`MESH_LOAD_BYTES_PER_FILE_BYTE`].
+const MESH_LOAD_BYTES_PER_VERTEX: u64 = 170;
+/// See [`MESH_LOAD_BYTES_PER_FILE_BYTE`].
+const MESH_LOAD_BYTES_PER_TRIANGLE: u64 = 120;
+/// Freed memory the C allocator keeps across the load's phases: blocks below glibc's
+/// mmap threshold (at most 32 MiB) go back to its heap, not to the system, so a mesh of
+/// up to a few hundred thousand vertices peaks at the sum of its phases (measured: up
+/// to 570 bytes per vertex and 66 MB above the per-element terms); counted as 750 bytes
+/// per vertex, at most 96 MiB.
+const MESH_HEAP_BYTES_PER_VERTEX: u64 = 750;
+/// See [`MESH_HEAP_BYTES_PER_VERTEX`].
+const MESH_HEAP_MAX_BYTES: u64 = 96 << 20;
 /// Bytes per vertex of a loaded mesh while rendering (the mesh, the GPU's vertex buffer
 /// and its staging copy: 56 bytes each).
 const MESH_BYTES_PER_VERTEX: u64 = 192;
@@ -85,6 +97,7 @@ impl MeshSize {
         self.file_bytes * MESH_LOAD_BYTES_PER_FILE_BYTE
             + self.vertices * MESH_LOAD_BYTES_PER_VERTEX
             + self.triangles * MESH_LOAD_BYTES_PER_TRIANGLE
+            + (self.vertices * MESH_HEAP_BYTES_PER_VERTEX).min(MESH_HEAP_MAX_BYTES)
     }
 
     /// Bytes held while rendering it.

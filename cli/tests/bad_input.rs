@@ -1348,3 +1348,69 @@ fn allowed_gltf_accessors_and_multi_part_exr_render() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 26, 4: what a mesh adds to a render's peak resident memory stays within what
+/// it adds to the estimate `--max-memory` is checked against (an 80,000-triangle OBJ
+/// grid against the same scene on the plane; both under validation, whose own memory
+/// is in neither difference).
+#[test]
+fn a_mesh_render_stays_within_its_estimate() {
+    let dir = scratch("mesh-memory");
+    std::fs::write(dir.join("grid.obj"), hostile::obj_grid(200)).unwrap();
+    let mesh = dir.join("grid.toml");
+    std::fs::write(
+        &mesh,
+        "geometry = \"mesh\"\nmesh = \"grid.obj\"\nsize = [16, 16]\n",
+    )
+    .unwrap();
+    let plane = dir.join("plane.toml");
+    std::fs::write(&plane, "size = [16, 16]\n").unwrap();
+    let measure = |scene: &Path| {
+        let refused = dispmap()
+            .args(["render", "--frames", "1", "--max-memory", "1", "--scene"])
+            .arg(scene)
+            .arg("--out")
+            .arg(dir.join("refused.png"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        let mib: f64 = stderr
+            .split("needs about ")
+            .nth(1)
+            .and_then(|rest| rest.split(" MiB").next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no estimate in: {stderr}"));
+        let mut cmd = dispmap();
+        cmd.args(["render", "--frames", "1", "--scene"])
+            .arg(scene)
+            .arg("--out")
+            .arg(dir.join("out.png"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        let mut child = cmd.spawn().unwrap();
+        let ended = hostile::wait_bounded(&mut child, HANG, "render");
+        let mut stderr = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+        assert_eq!(ended.code, Some(0), "{stderr}");
+        assert!(image::open(dir.join("out.png")).is_ok());
+        (
+            (mib * f64::from(1u32 << 20)) as i64,
+            ended.peak_bytes as i64,
+        )
+    };
+    let (mesh_estimate, mesh_peak) = measure(&mesh);
+    let (plane_estimate, plane_peak) = measure(&plane);
+    let (added, estimated) = (mesh_peak - plane_peak, mesh_estimate - plane_estimate);
+    eprintln!(
+        "the mesh adds {} MiB, estimated {} MiB",
+        added >> 20,
+        estimated >> 20
+    );
+    assert!(
+        added <= estimated,
+        "the mesh adds {} MiB, more than its estimate {} MiB",
+        added >> 20,
+        estimated >> 20
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
