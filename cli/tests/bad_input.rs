@@ -1168,10 +1168,10 @@ fn a_250_byte_output_name_is_written() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Issue 26, 3, 9 and 10: the viewer's file inputs are bounded regular files, a
-/// screenshot's name must be a PNG's, and a script's values are checked when it is
-/// parsed, naming `file:line`; all before a window opens (no display is needed), fast,
-/// in bounded memory, without a panic.
+/// Issue 26, 3, 4, 9 and 10: the viewer's file inputs are bounded regular files, its
+/// mesh counts in `--max-memory`, a screenshot's name must be a PNG's, and a script's
+/// values are checked when it is parsed, naming `file:line`; all before a window opens
+/// (no display is needed), fast, in bounded memory, without a panic.
 #[test]
 fn view_inputs_are_checked_before_a_window() {
     let dir = scratch("view-inputs");
@@ -1196,7 +1196,17 @@ fn view_inputs_are_checked_before_a_window() {
     let steps = script("steps.txt", "0 steps 70000\n");
     let shot = script("shot.txt", "0 screenshot x.jpg\n");
     let jpg = dir.join("s.jpg");
+    std::fs::write(dir.join("grid.obj"), hostile::obj_grid(300)).unwrap();
+    let mesh = script("grid.toml", "geometry = \"mesh\"\nmesh = \"grid.obj\"\n");
     let cases: Vec<(&str, Vec<&str>, Vec<String>)> = vec![
+        (
+            "mesh above --max-memory",
+            vec!["--scene", &mesh, "--max-memory", "150M"],
+            vec![
+                "grid.obj (90601 vertices, 180000 triangles)".into(),
+                "needs about".into(),
+            ],
+        ),
         (
             "camera path FIFO",
             vec!["--camera-path", fifo],
