@@ -1295,10 +1295,43 @@ fn view_inputs_are_checked_before_a_window() {
 /// The inputs issue 26 keeps working: a multi-part OpenEXR whose height is in its second
 /// part renders from that part and says so; glTF files with the accessor types the
 /// specification allows (normalized UNSIGNED_SHORT texture coordinates, UNSIGNED_INT
-/// indices) render.
+/// indices) render; a palette PNG whose indices are all in its palette renders.
 #[test]
-fn allowed_gltf_accessors_and_multi_part_exr_render() {
+fn allowed_inputs_render() {
     let dir = scratch("allowed");
+    let palette = dir.join("palette.png");
+    std::fs::write(
+        &palette,
+        hostile::png(
+            2,
+            2,
+            3,
+            Some(&[0, 0, 0, 255, 255, 255]),
+            &[0, 0, 1, 0, 1, 0],
+        ),
+    )
+    .unwrap();
+    let out = dispmap()
+        .args([
+            "render",
+            "--convention",
+            "height",
+            "--size",
+            "16x16",
+            "--frames",
+            "1",
+            "--heightmap",
+        ])
+        .arg(&palette)
+        .arg("--out")
+        .arg(dir.join("palette-out.png"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let multi = dir.join("multi.exr");
     std::fs::write(
         &multi,
