@@ -113,6 +113,14 @@ pub struct Camera {
     /// Eye height above the macro surface for the tiled plane (tiles); the quad uses
     /// a distance that frames it.
     pub height: f32,
+    /// Distance from the eye to the centre the camera orbits, for the quad and the
+    /// meshes (world units); `None`: the distance that frames the geometry. The tiled
+    /// plane's distance follows from `height` and ignores this.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub distance: Option<f32>,
 }
 
 impl Default for Camera {
@@ -122,6 +130,7 @@ impl Default for Camera {
             azimuth_deg: 0.0,
             fov_y_deg: 45.0,
             height: 0.25,
+            distance: None,
         }
     }
 }
@@ -214,6 +223,14 @@ impl Scene {
                 ));
             }
         }
+        if let Some(d) = c.distance
+            && !(d.is_finite() && (1e-3..=1e4).contains(&d))
+        {
+            return Err(Error::invalid(
+                "camera-distance",
+                format!("{d} is outside [0.001, 10000]"),
+            ));
+        }
         for (name, value) in [
             ("camera-azimuth", c.azimuth_deg),
             ("light-azimuth", self.light.azimuth_deg),
@@ -231,21 +248,28 @@ impl Scene {
             .unwrap_or_else(|| self.geometry.addressing())
     }
 
+    /// Distance from the eye to the point the camera orbits: from the eye height on the
+    /// tiled plane, else [`Camera::distance`] or the distance that frames the geometry.
+    pub fn orbit_distance(&self) -> f32 {
+        let c = &self.camera;
+        match self.geometry {
+            Geometry::TiledPlane => c.height / c.elevation_deg.to_radians().sin().max(1e-6),
+            Geometry::Quad => c.distance.unwrap_or(1.4),
+            // Meshes fit the unit sphere: frame it vertically with a small margin.
+            _ => c
+                .distance
+                .unwrap_or_else(|| 1.08 / (c.fov_y_deg.to_radians() / 2.0).sin().max(1e-3)),
+        }
+    }
+
     /// Eye and view-projection for a `width x height` frame.
     pub fn frame_camera(&self, width: u32, height: u32) -> FrameCamera {
         let c = &self.camera;
-        let (target, distance) = match self.geometry {
-            Geometry::TiledPlane => (
-                Vec3::ZERO,
-                c.height / c.elevation_deg.to_radians().sin().max(1e-6),
-            ),
-            Geometry::Quad => (Vec3::new(0.5, 0.0, 0.5), 1.4),
-            // Meshes fit the unit sphere: frame it vertically with a small margin.
-            _ => (
-                Vec3::ZERO,
-                1.08 / (c.fov_y_deg.to_radians() / 2.0).sin().max(1e-3),
-            ),
+        let target = match self.geometry {
+            Geometry::Quad => Vec3::new(0.5, 0.0, 0.5),
+            _ => Vec3::ZERO,
         };
+        let distance = self.orbit_distance();
         let to_eye = direction(c.elevation_deg, c.azimuth_deg);
         let eye = target + distance * to_eye;
         let forward = -to_eye;

@@ -345,6 +345,7 @@ impl CommonArgs {
                     azimuth_deg: self.camera_azimuth,
                     fov_y_deg: self.fov,
                     height: self.camera_height,
+                    distance: None,
                 },
                 light: Light::default(),
                 addressing: None,

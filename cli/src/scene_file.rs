@@ -330,6 +330,7 @@ impl SceneFile {
                     azimuth_deg: self.camera.azimuth.unwrap_or(c.azimuth_deg),
                     fov_y_deg: self.camera.fov.unwrap_or(c.fov_y_deg),
                     height: self.camera.height.unwrap_or(c.height),
+                    distance: None,
                 },
                 light: Light {
                     elevation_deg: self.light.elevation.unwrap_or(l.elevation_deg),

@@ -1,8 +1,10 @@
 //! `dispmap view` under Xvfb: a scripted run (a method switch, a resize, a camera path)
 //! on the machine's Vulkan device with validation on, whose last presented frame must
-//! equal `dispmap render`'s frame of the same camera and method bit for bit. Skipped,
-//! with a message saying why, where no X server can be started (no `Xvfb`: Debian's
-//! `xvfb` package, which scripts/setup-debian.sh installs).
+//! equal `dispmap render`'s frame of the same camera and method bit for bit (`--no-ui`);
+//! the split view with the error overlay, with and without the on-screen panel; zoom on
+//! an object; the overlay with level of detail on. Skipped, with a message saying why,
+//! where no X server can be started (no `Xvfb`: Debian's `xvfb` package, which
+//! scripts/setup-debian.sh installs).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -68,7 +70,7 @@ fn scripted_viewer_presents_the_render_frame_bit_for_bit() {
             .env("DISPLAY", &xvfb.display)
             .env_remove("WAYLAND_DISPLAY")
             .args([
-                "view", "--method", "relief", "--size", "128x80", "--frames", "6",
+                "view", "--method", "relief", "--size", "128x80", "--frames", "6", "--no-ui",
             ])
             .arg("--camera-path")
             .arg(&path)
@@ -145,6 +147,22 @@ fn printed_artifacts(stderr: &str, method: &str) -> f64 {
     after.split('%').next().unwrap().parse().unwrap()
 }
 
+/// Runs `dispmap view` under `xvfb` with `args`; returns standard error.
+fn view(xvfb: &xvfb::Xvfb, args: &[&str], script: &Path, shot: &Path) -> String {
+    run_checked(
+        dispmap()
+            .env("DISPLAY", &xvfb.display)
+            .env_remove("WAYLAND_DISPLAY")
+            .arg("view")
+            .args(args)
+            .arg("--script")
+            .arg(script)
+            .arg("--screenshot")
+            .arg(shot),
+        "dispmap view",
+    )
+}
+
 #[test]
 fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts() {
     let xvfb = match start_xvfb() {
@@ -157,29 +175,30 @@ fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts(
         }
     };
     let dir = scratch("split");
-    let (script, shot) = (dir.join("script.txt"), dir.join("view.png"));
+    let (script, shot, panel_shot) = (
+        dir.join("script.txt"),
+        dir.join("view.png"),
+        dir.join("panel.png"),
+    );
     std::fs::write(&script, "0 split dig-guarded\n0 divider 0.5\n1 error\n").unwrap();
-    let (w, h) = (128u32, 72u32);
+    // Large enough for the panel to leave part of the frame uncovered.
+    let (w, h) = (480u32, 270u32);
     let common = [
         "--steps",
         "16",
         "--camera-elevation",
         "8",
         "--size",
-        "128x72",
+        "480x270",
     ];
-    let stderr = run_checked(
-        dispmap()
-            .env("DISPLAY", &xvfb.display)
-            .env_remove("WAYLAND_DISPLAY")
-            .args(["view", "--method", "relief", "--frames", "3"])
-            .args(common)
-            .arg("--script")
-            .arg(&script)
-            .arg("--screenshot")
-            .arg(&shot),
-        "dispmap view",
-    );
+    let view_args: Vec<&str> = ["--method", "relief", "--frames", "3"]
+        .into_iter()
+        .chain(common)
+        .collect();
+    let no_ui: Vec<&str> = view_args.iter().copied().chain(["--no-ui"]).collect();
+    let stderr = view(&xvfb, &no_ui, &script, &shot);
+    // The summary counts the frames asked for (the overlay's wait renders more).
+    assert!(stderr.contains("frames: 3"), "{stderr}");
     let render = |method: &str| {
         let (png, json) = (
             dir.join(format!("{method}.png")),
@@ -216,11 +235,11 @@ fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts(
         relief_artifacts > 0.0,
         "relief at 16 steps and 8 degrees has artifacts"
     );
-    let view = image::open(&shot).unwrap().to_rgba8();
-    assert_eq!(view.dimensions(), (w, h));
+    let view_img = image::open(&shot).unwrap().to_rgba8();
+    assert_eq!(view_img.dimensions(), (w, h));
     let divider = w / 2;
     let (mut marked_left, mut marked_right) = (0, 0);
-    for (x, y, p) in view.enumerate_pixels() {
+    for (x, y, p) in view_img.enumerate_pixels() {
         let mark = p.0 == [255, 0, 0, 255] || p.0 == [0, 255, 255, 255];
         if x < divider {
             if mark {
@@ -243,4 +262,139 @@ fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts(
             "marks on dig-guarded's side without artifacts"
         );
     }
+
+    // The same run with the panel: it is drawn into the screenshot over the top-left
+    // of the same frame, the side labels at the bottom; the rest is the same frame.
+    let stderr = view(&xvfb, &view_args, &script, &panel_shot);
+    assert!(stderr.contains("panel: median ms per frame"), "{stderr}");
+    let panel = image::open(&panel_shot).unwrap().to_rgba8();
+    assert_eq!(panel.dimensions(), (w, h));
+    let differ = |x0: u32, y0: u32, x1: u32, y1: u32| {
+        let mut n = 0;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                n += u32::from(panel.get_pixel(x, y) != view_img.get_pixel(x, y));
+            }
+        }
+        (n, (x1 - x0) * (y1 - y0))
+    };
+    // Where the panel opens (8 px from the top-left corner, 250 px wide): most pixels
+    // differ (text, widgets, its background).
+    let (n, of) = differ(12, 12, 200, 150);
+    assert!(n * 2 > of, "only {n} of {of} pixels differ in the panel's area");
+    // Right of the panel and above the labels: the frame alone.
+    let (n, of) = differ(330, 0, w, h - 40);
+    assert_eq!(n, 0, "{n} of {of} pixels outside the panel and labels differ");
+}
+
+#[test]
+fn zoom_moves_the_eye_on_an_object() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            eprintln!("SKIPPED zoom_moves_the_eye_on_an_object: {why}");
+            return;
+        }
+    };
+    let dir = scratch("zoom");
+    let args = [
+        "--geometry",
+        "sphere",
+        "--method",
+        "relief",
+        "--steps",
+        "16",
+        "--size",
+        "96x64",
+        "--frames",
+        "2",
+        "--no-ui",
+    ];
+    let shot = |name: &str, script: &str| {
+        let (file, png) = (
+            dir.join(format!("{name}.txt")),
+            dir.join(format!("{name}.png")),
+        );
+        std::fs::write(&file, script).unwrap();
+        view(&xvfb, &args, &file, &png);
+        image::open(&png).unwrap().to_rgba8()
+    };
+    let still = shot("still", "# no change\n");
+    let closer = shot("closer", "1 zoom 3\n");
+    let farther = shot("farther", "1 zoom -3\n");
+    // The sphere fills more of the frame from closer: fewer background pixels.
+    let sky = *still.get_pixel(0, 0);
+    let background = |img: &image::RgbaImage| img.pixels().filter(|p| **p == sky).count();
+    let (b_still, b_closer, b_farther) = (
+        background(&still),
+        background(&closer),
+        background(&farther),
+    );
+    assert!(
+        b_closer < b_still && b_still < b_farther,
+        "background pixels: closer {b_closer}, start {b_still}, farther {b_farther}"
+    );
+}
+
+#[test]
+fn error_overlay_with_level_of_detail_counts_bump_pixels_apart() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            eprintln!("SKIPPED error_overlay_with_level_of_detail_counts_bump_pixels_apart: {why}");
+            return;
+        }
+    };
+    let dir = scratch("lod");
+    let (script, shot) = (dir.join("script.txt"), dir.join("view.png"));
+    std::fs::write(&script, "0 map bricks\n0 lod 1\n1 error\n").unwrap();
+    let stderr = view(
+        &xvfb,
+        &[
+            "--method",
+            "exact",
+            "--depth-scale",
+            "0.2",
+            "--size",
+            "160x90",
+            "--frames",
+            "3",
+            "--no-ui",
+        ],
+        &script,
+        &shot,
+    );
+    // exact is exact where level of detail leaves it the pixel: no artifact.
+    assert_eq!(printed_artifacts(&stderr, "exact"), 0.0, "{stderr}");
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with("error overlay: exact:"))
+        .unwrap();
+    let sent: usize = line
+        .split(", ")
+        .find(|p| p.contains("more sent to bump mapping"))
+        .and_then(|p| p.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no level-of-detail count: {line}"));
+    assert!(sent > 100, "only {sent} pixels sent to bump mapping: {line}");
+    // They are shown in their own colour, and nothing is marked an artifact.
+    let img = image::open(&shot).unwrap().to_rgba8();
+    let magenta = img.pixels().filter(|p| p.0 == [255, 0, 255, 255]).count();
+    let red = img.pixels().filter(|p| p.0 == [255, 0, 0, 255]).count();
+    assert_eq!(magenta, sent, "magenta pixels");
+    assert_eq!(red, 0, "artifact pixels");
+}
+
+#[test]
+fn view_help_gives_the_viewers_defaults() {
+    let out = Command::new(env!("CARGO_BIN_EXE_dispmap"))
+        .args(["view", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(help.contains("[default: 960x540]"), "{help}");
+    assert!(!help.contains("256x144"), "{help}");
+    assert!(!help.contains("[default: 3]"), "{help}");
+    assert!(help.contains("--no-ui"), "{help}");
 }

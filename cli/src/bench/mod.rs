@@ -150,6 +150,7 @@ pub fn protocol_scene() -> Scene {
             azimuth_deg: 0.0,
             fov_y_deg: FOV_Y_DEG,
             height: Camera::default().height,
+            distance: None,
         },
         ..Scene::default()
     }

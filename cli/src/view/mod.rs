@@ -1,29 +1,35 @@
 //! `dispmap view`: an interactive window on the renderer, one more host of the same
 //! frame as `render` ([`Renderer::render`]), presented through a swapchain
-//! ([`present`]). Keys rather than a panel (docs/viewer.md says why), live GPU times in
-//! the window title, the error overlay computed on demand off the render thread, and a
-//! headless scripted mode (`--frames`, [`script`]) for tests and demos.
+//! ([`present`]), with an on-screen panel drawn over it ([`panel`], through [`ui`]):
+//! the methods and their parameters, live GPU times, the error overlay computed on
+//! demand off the render thread, and a headless scripted mode (`--frames`, [`script`])
+//! for tests and demos.
 
+mod panel;
 mod present;
 mod script;
+mod ui;
 
 use crate::{CommonArgs, RenderArgs, finish, render_inputs};
 use anyhow::{Context as _, Result, bail};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args};
 use dispmap::context::{Context, ContextOptions};
-use dispmap::heightfield::{Convention, HeightField};
+use ash::vk;
+use dispmap::heightfield::{Addressing, Convention, HeightField};
 use dispmap::method::{MaxLevel, Method};
 use dispmap::passes::PassName;
 use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
 use dispmap::renderer::{RenderSettings, Renderer, SceneAssets};
-use dispmap::scene::Camera;
+use dispmap::scene::{Camera, Geometry, Scene};
 use dispmap_cli::heatmap;
 use dispmap_cli::measure::Measure as _;
 use dispmap_cli::metrics::{self, ARTIFACT_TEXELS, ErrorMetrics, HitTexel, MapGeometry};
 use dispmap_cli::reference::{Hit, Ray, Reference};
 use dispmap_cli::{bundled, output};
-use present::{DIVIDER_PX, DIVIDER_RGBA, Presenter, Source};
+use panel::{OverlayState, SideError, SideInfo};
+use present::{DIVIDER_PX, DIVIDER_RGBA, Layout, Part, Presenter, Source};
+use std::collections::VecDeque;
 use script::{Action, CameraPath, Script};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -47,11 +53,26 @@ const ARTIFACT_RGBA: [u8; 4] = [255, 0, 0, 255];
 /// Miss pixels of the error overlay (exactly one of method and reference hits) and
 /// non-finite hits.
 const MISS_RGBA: [u8; 4] = [0, 255, 255, 255];
+/// Pixels of the error overlay that level of detail sent (wholly or in part) to bump
+/// mapping: not compared with the reference.
+const LOD_RGBA: [u8; 4] = [255, 0, 255, 255];
+/// Frames in the panel's rolling graph.
+const HISTORY: usize = 120;
 /// How long a scripted resize may take before the run fails.
 const RESIZE_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// `dispmap view`'s arguments: `render`'s inputs, plus the viewer's.
 #[derive(Args, Debug)]
+#[command(
+    mut_arg("size", |a| a
+        .default_value("960x540")
+        .help("The window's first size, WIDTHxHEIGHT (the frame follows the window)")),
+    mut_arg("frames", |a| a
+        .hide_default_value(true)
+        .help("Headless use: run N frames, write --screenshot, print the timings and exit \
+               [default: interactive, until the window closes]")
+        .value_name("N")),
+)]
 pub struct ViewArgs {
     /// A scene file (as `render --scene`); flags given override its values.
     #[arg(long, value_name = "FILE")]
@@ -87,6 +108,9 @@ pub struct ViewArgs {
     /// --frames.
     #[arg(long, value_name = "FILE", requires = "frames")]
     screenshot: Option<PathBuf>,
+    /// No on-screen panel, labels or help: the window shows `render`'s frame alone.
+    #[arg(long)]
+    no_ui: bool,
 }
 
 /// Runs `dispmap view`; `matches` are the subcommand's.
@@ -104,6 +128,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         camera_path,
         script,
         screenshot,
+        no_ui,
     } = args;
     // `render`'s inputs, read by `render`'s code (with its memory check).
     let inputs = RenderArgs {
@@ -131,7 +156,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
             let field = bundled::rocks()?;
             (field, "rocks".to_owned(), settings, SceneAssets::default())
         };
-    if !headless && !given("size") && inputs.scene.is_none() {
+    if !given("size") && inputs.scene.is_none() {
         (settings.width, settings.height) = DEFAULT_WINDOW;
     }
     let camera_path = camera_path.as_deref().map(CameraPath::parse).transpose()?;
@@ -163,6 +188,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         pending_resize: None,
         waiting_error: false,
         applied: None,
+        waited: 0,
     });
     let state = ViewState {
         maps: vec![(label, Arc::new(field))],
@@ -172,8 +198,12 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         steps: common.steps,
         right: split,
         divider: 0.5,
+        compare: Compare::Wipe,
+        show_b: false,
         heatmap: start_heatmap,
         home: settings.scene.camera,
+        panel: true,
+        help: false,
     };
     let event_loop = EventLoop::new().context(
         "cannot open a window: no display server (set DISPLAY or WAYLAND_DISPLAY, or run \
@@ -187,6 +217,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         viewer: None,
         error: None,
         done: false,
+        ui: !no_ui,
     };
     event_loop
         .run_app(&mut app)
@@ -218,9 +249,39 @@ struct ViewState {
     right: Option<Method>,
     /// The divider, a fraction of the width.
     divider: f32,
+    /// How the two methods of the split view are compared.
+    compare: Compare,
+    /// A/B mode shows the right method.
+    show_b: bool,
     heatmap: bool,
     /// The camera the reset key returns to.
     home: Camera,
+    /// The panel is shown.
+    panel: bool,
+    /// The help overlay is shown.
+    help: bool,
+}
+
+/// How the split view puts the two methods on screen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Compare {
+    /// Left of the divider one method, right of it the other (same camera, same frame).
+    Wipe,
+    /// The whole frame shows one method at a time, the other one key away: the same
+    /// pixels.
+    Flip,
+    /// Both at half the width side by side, each the whole view of the same camera.
+    SideBySide,
+}
+
+impl Compare {
+    fn next(self) -> Self {
+        match self {
+            Compare::Wipe => Compare::Flip,
+            Compare::Flip => Compare::SideBySide,
+            Compare::SideBySide => Compare::Wipe,
+        }
+    }
 }
 
 impl ViewState {
@@ -244,6 +305,8 @@ struct Headless {
     waiting_error: bool,
     /// The frame whose actions were applied (a frame that waits renders again).
     applied: Option<u32>,
+    /// Frames rendered again while waiting (for a resize or the error overlay).
+    waited: u32,
 }
 
 struct App {
@@ -254,6 +317,8 @@ struct App {
     error: Option<anyhow::Error>,
     /// The scripted frames all ran.
     done: bool,
+    /// Draw the panel (not `--no-ui`).
+    ui: bool,
 }
 
 impl ApplicationHandler for App {
@@ -266,6 +331,7 @@ impl ApplicationHandler for App {
             &self.options,
             &self.state,
             self.headless.is_some(),
+            self.ui,
         ) {
             Ok(v) => self.viewer = Some(v),
             Err(e) => {
@@ -279,6 +345,22 @@ impl ApplicationHandler for App {
         let Some(viewer) = self.viewer.as_mut() else {
             return;
         };
+        // The panel sees input first; what it uses does not move the camera.
+        let mut to_panel = false;
+        if self.headless.is_none()
+            && let Some(gui) = viewer.gui.as_mut()
+        {
+            let consumed = gui.on_event(&viewer.window, &event);
+            to_panel = match &event {
+                WindowEvent::KeyboardInput { .. } => gui.wants_keyboard(),
+                WindowEvent::MouseInput {
+                    state: ElementState::Released,
+                    ..
+                } => false,
+                WindowEvent::CursorMoved { .. } => false,
+                _ => consumed || gui.wants_pointer(),
+            };
+        }
         let result = match event {
             WindowEvent::CloseRequested => {
                 event_loop.exit();
@@ -299,7 +381,7 @@ impl ApplicationHandler for App {
                 viewer.modifiers = m.state();
                 Ok(())
             }
-            WindowEvent::KeyboardInput { event, .. } if self.headless.is_none() => {
+            WindowEvent::KeyboardInput { event, .. } if self.headless.is_none() && !to_panel => {
                 match viewer.key(&mut self.state, &event) {
                     Ok(true) => {
                         event_loop.exit();
@@ -309,7 +391,7 @@ impl ApplicationHandler for App {
                     Err(e) => Err(e),
                 }
             }
-            WindowEvent::MouseInput { state, button, .. } if self.headless.is_none() => {
+            WindowEvent::MouseInput { state, button, .. } if self.headless.is_none() && !to_panel => {
                 viewer.mouse_button(button, state == ElementState::Pressed);
                 Ok(())
             }
@@ -317,12 +399,12 @@ impl ApplicationHandler for App {
                 viewer.cursor(&mut self.state, [position.x as f32, position.y as f32]);
                 Ok(())
             }
-            WindowEvent::MouseWheel { delta, .. } if self.headless.is_none() => {
+            WindowEvent::MouseWheel { delta, .. } if self.headless.is_none() && !to_panel => {
                 let lines = match delta {
                     MouseScrollDelta::LineDelta(_, y) => y,
                     MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
                 };
-                zoom(&mut self.state.settings.scene.camera, lines);
+                zoom(&mut self.state.settings.scene, lines);
                 Ok(())
             }
             _ => Ok(()),
@@ -349,8 +431,11 @@ enum Flow {
 struct Overlay {
     /// The inputs it was computed for.
     key: FrameKey,
-    /// Per side: which pixels are artifacts (1) or misses / non-finite (2).
+    /// Per side: which pixels are artifacts (1), misses / non-finite (2) or sent to
+    /// bump mapping by level of detail (3).
     marks: Vec<Vec<u8>>,
+    /// Per side: the measures.
+    results: Vec<SideError>,
 }
 
 /// A background reference job.
@@ -362,6 +447,9 @@ struct ErrorJob {
     rays: Vec<Option<Ray>>,
     /// Per side: name, hits, map geometry.
     sides: Vec<(String, Vec<HitTexel>, MapGeometry)>,
+    /// The pixels level of detail sends (wholly or in part) to bump mapping (empty when
+    /// it is off).
+    lod: Vec<bool>,
 }
 
 /// What a frame depends on: the overlay is dropped when any of it changes.
@@ -373,6 +461,8 @@ struct FrameKey {
 
 struct Viewer {
     // Field order is drop order; `shutdown` destroys the GPU objects explicitly first.
+    /// The on-screen panel (`None` with `--no-ui`).
+    gui: Option<ui::Gui>,
     presenter: Presenter,
     left: Renderer,
     right: Option<Renderer>,
@@ -397,6 +487,10 @@ struct Viewer {
     error_requested: bool,
     /// The last state the renderers accepted.
     good: Option<Snapshot>,
+    /// Each side's GPU milliseconds of the last [`HISTORY`] frames.
+    history: [VecDeque<f32>; 2],
+    /// The heat map's top count per side, when it is shown.
+    heat_scales: [Option<f32>; 2],
 }
 
 /// What the keys change, as last accepted by the renderers.
@@ -443,7 +537,17 @@ struct Stats {
     /// Every frame's GPU milliseconds (the left side's passes, one-off passes left
     /// out), for the headless summary.
     all_gpu: Vec<f64>,
-    iterations: Option<f64>,
+    /// Every frame's panel cost: CPU and GPU milliseconds.
+    all_ui_cpu: Vec<f64>,
+    all_ui_gpu: Vec<f64>,
+    /// What the panel shows, from the last update: per side the mean milliseconds per
+    /// pass and the mean iterations per pixel; frames per second; median frame time.
+    shown_passes: [Vec<(PassName, f64)>; 2],
+    shown_iterations: [Option<f64>; 2],
+    shown_fps: f64,
+    shown_frame_ms: f64,
+    /// The panel's cost in the last frame.
+    last_ui: (f64, Option<f64>),
 }
 
 impl Stats {
@@ -458,7 +562,13 @@ impl Stats {
             all_render: Vec::new(),
             all_frame: Vec::new(),
             all_gpu: Vec::new(),
-            iterations: None,
+            all_ui_cpu: Vec::new(),
+            all_ui_gpu: Vec::new(),
+            shown_passes: [Vec::new(), Vec::new()],
+            shown_iterations: [None, None],
+            shown_fps: 0.0,
+            shown_frame_ms: 0.0,
+            last_ui: (0.0, None),
         }
     }
 
@@ -484,10 +594,11 @@ impl Viewer {
         options: &ContextOptions,
         state: &ViewState,
         headless: bool,
+        ui: bool,
     ) -> Result<Self> {
         let s = &state.settings;
         let attributes = Window::default_attributes()
-            .with_title("dispmap view")
+            .with_title(title(state))
             .with_inner_size(PhysicalSize::new(s.width, s.height))
             .with_resizable(true);
         let window = Arc::new(
@@ -529,6 +640,16 @@ impl Viewer {
             Some(Ok(r)) => Some(r),
             None => None,
         };
+        let gui = match ui.then(|| ui::Gui::new(&ctx, &window, presenter.format())) {
+            Some(Err(e)) => {
+                let mut presenter = presenter;
+                presenter.destroy(&ctx);
+                drop((left, right));
+                return Err(e);
+            }
+            Some(Ok(g)) => Some(g),
+            None => None,
+        };
         eprintln!(
             "dispmap view: {} on {} ({}), {}x{}, {:?}{}",
             state.maps[state.map].0,
@@ -537,13 +658,14 @@ impl Viewer {
             extent.width,
             extent.height,
             presenter.present_mode(),
-            if headless {
-                ""
-            } else {
-                "; keys: see docs/viewer.md (Esc quits)"
+            match (headless, ui) {
+                (true, _) => "",
+                (false, true) => "; F1 lists the keys, Tab hides the panel, Esc quits",
+                (false, false) => "; keys: see docs/viewer.md (Esc quits)",
             }
         );
         Ok(Viewer {
+            gui,
             presenter,
             left,
             right,
@@ -563,6 +685,8 @@ impl Viewer {
             window_size: [size.width, size.height],
             error_requested: false,
             good: None,
+            history: [VecDeque::new(), VecDeque::new()],
+            heat_scales: [None, None],
         })
     }
 
@@ -570,6 +694,7 @@ impl Viewer {
     /// then the context (failing on any validation message, as every command does).
     fn shutdown(self) -> Result<()> {
         let Viewer {
+            gui,
             mut presenter,
             left,
             right,
@@ -577,6 +702,9 @@ impl Viewer {
             window,
             ..
         } = self;
+        if let Some(mut gui) = gui {
+            gui.destroy(&ctx);
+        }
         presenter.destroy(&ctx);
         drop(right);
         drop(left);
@@ -705,7 +833,8 @@ impl Viewer {
             }
         }
         let e = self.presenter.extent();
-        if let Err(err) = self.sync(state, [e.width, e.height]) {
+        let frame = [e.width, e.height];
+        if let Err(err) = self.sync(state, frame_layout(state, frame).0) {
             if headless.is_some() {
                 return Err(err);
             }
@@ -717,9 +846,10 @@ impl Viewer {
                 .clone()
                 .context("no earlier state to go back to")?;
             good.restore(state);
-            self.sync(state, [e.width, e.height])?;
+            self.sync(state, frame_layout(state, frame).0)?;
         }
         self.good = Some(Snapshot::of(state));
+        let layout = frame_layout(state, frame).1;
 
         let render_start = Instant::now();
         let times = self.left.render()?;
@@ -729,9 +859,18 @@ impl Viewer {
             .filter(|(n, _)| !n.is_one_off())
             .map(|(_, ms)| ms)
             .sum();
+        push_history(&mut self.history[0], gpu_ms);
         if let Some(r) = self.right.as_mut() {
             let times = r.render()?;
             self.stats.add(1, &times);
+            let right_ms: f64 = times
+                .iter()
+                .filter(|(n, _)| !n.is_one_off())
+                .map(|(_, ms)| ms)
+                .sum();
+            push_history(&mut self.history[1], right_ms);
+        } else {
+            self.history[1].clear();
         }
         let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
         if std::mem::take(&mut self.error_requested) {
@@ -749,36 +888,75 @@ impl Viewer {
         let advance = headless
             .as_deref()
             .is_none_or(|h| h.pending_resize.is_none() && !h.waiting_error);
+        // The panel's numbers: at the first frame, then twice a second.
+        if self.stats.updates == 0 || self.stats.since.elapsed() >= STATS_PERIOD {
+            self.report(state, headless.is_none())?;
+        }
 
-        // The frame: the renderer's image(s) as they are, or composed on the CPU.
-        let divider = self.divider_px(state);
+        // The frame: the renderers' images as they are, or composed on the CPU.
         let composed = if state.heatmap || self.overlay.is_some() {
-            Some(self.compose(state, divider)?)
+            Some(self.compose(state, &layout)?)
         } else {
+            self.heat_scales = [None, None];
             None
         };
         let source = match &composed {
             Some(rgba) => Source::Cpu {
                 rgba,
-                extent: self.left.settings().extent(),
+                extent: layout.frame,
             },
             None => Source::Gpu {
-                left: self.left.color_image(),
-                right: self.right.as_ref().map(|r| (r.color_image(), divider)),
+                images: [
+                    Some(self.left.color_image()),
+                    self.right.as_ref().map(|r| r.color_image()),
+                ],
+                layout: &layout,
             },
         };
         let last = headless
             .as_deref()
             .is_some_and(|h| advance && self.frame_index + 1 >= h.frames);
+        // The panel, drawn over the frame.
+        if self.gui.is_some() {
+            let info = self.panel_info(state, &layout);
+            let mut requests = panel::Requests::default();
+            if let Some(gui) = self.gui.as_mut() {
+                gui.run(&self.ctx, &self.window, |ctx| {
+                    let r = panel::draw(ctx, state, &info);
+                    requests.error |= r.error;
+                    requests.screenshot |= r.screenshot;
+                    if r.map.is_some() {
+                        requests.map = r.map;
+                    }
+                })?;
+            }
+            if requests.error {
+                self.error_requested = true;
+            }
+            if requests.screenshot {
+                self.screenshots_taken += 1;
+                self.screenshot_next = Some(next_screenshot_path(self.screenshots_taken));
+            }
+            if let Some(name) = requests.map {
+                switch_map(state, Some(&name))?;
+            }
+        }
         let final_shot = if last {
             headless.as_deref().and_then(|h| h.screenshot.clone())
         } else {
             None
         };
         let shot_path = final_shot.or_else(|| self.screenshot_next.take());
-        let presented = self
-            .presenter
-            .present(&self.ctx, source, shot_path.is_some(), size)?;
+        let presented = self.presenter.present(
+            &self.ctx,
+            source,
+            self.gui.as_mut().map(|g| g as &mut dyn present::Overlay),
+            shot_path.is_some(),
+            size,
+        )?;
+        if let Some(gui) = self.gui.as_mut() {
+            gui.after_frame()?;
+        }
         if !presented.shown {
             if let Some(p) = shot_path {
                 self.screenshot_next = Some(p);
@@ -800,24 +978,75 @@ impl Viewer {
         self.stats.all_render.push(render_ms);
         self.stats.all_frame.push(frame_ms);
         self.stats.all_gpu.push(gpu_ms);
-        self.stats.frames += 1;
-        if self.stats.since.elapsed() >= STATS_PERIOD {
-            self.report(state, headless.is_none())?;
+        if let Some(gui) = &self.gui {
+            self.stats.last_ui = (gui.cpu_ms, presented.overlay_gpu_ms);
+            self.stats.all_ui_cpu.push(gui.cpu_ms);
+            if let Some(g) = presented.overlay_gpu_ms {
+                self.stats.all_ui_gpu.push(g);
+            }
         }
+        self.stats.frames += 1;
         if advance {
             self.frame_index += 1;
+        } else if let Some(h) = headless.as_deref_mut() {
+            h.waited += 1;
         }
         if last {
-            self.summary();
+            self.summary(headless.as_deref());
             return Ok(Flow::Done);
         }
         Ok(Flow::Continue)
     }
 
-    /// The divider's column in frame pixels.
-    fn divider_px(&self, state: &ViewState) -> u32 {
-        let w = self.left.settings().width;
-        ((state.divider * w as f32).round() as u32).min(w)
+    /// What the panel shows.
+    fn panel_info(&self, state: &ViewState, layout: &Layout) -> panel::Info {
+        let renderers = std::iter::once(&self.left).chain(self.right.as_ref());
+        let sides = renderers
+            .enumerate()
+            .map(|(i, r)| SideInfo {
+                method: r.settings().method,
+                passes: self.stats.shown_passes[i].clone(),
+                iterations: self.stats.shown_iterations[i],
+                heat_scale: self.heat_scales[i],
+                error: self
+                    .overlay
+                    .as_ref()
+                    .and_then(|o| o.results.get(i).copied()),
+            })
+            .collect();
+        let overlay = match (&self.job, &self.overlay) {
+            (Some(j), _) => OverlayState::Computing(
+                j.done.load(Ordering::Relaxed) as f32 / j.total.max(1) as f32,
+            ),
+            (None, Some(_)) => OverlayState::Shown,
+            (None, None) => OverlayState::Off,
+        };
+        // Each side's label at the middle of its widest part on screen.
+        let scale = self.presenter.extent().width as f32 / layout.frame.width.max(1) as f32;
+        let mut label_columns: Vec<(usize, f32)> = Vec::new();
+        for part in &layout.parts {
+            let w = part.src_x1.saturating_sub(part.src_x0);
+            if w == 0 {
+                continue;
+            }
+            label_columns.push((part.side, (part.dst_x as f32 + w as f32 / 2.0) * scale));
+        }
+        let s = self.left.settings();
+        panel::Info {
+            sides,
+            fps: self.stats.shown_fps,
+            frame_ms: self.stats.shown_frame_ms,
+            history: [
+                self.history[0].iter().copied().collect(),
+                self.history[1].iter().copied().collect(),
+            ],
+            overlay,
+            panel_ms: self.stats.last_ui,
+            frame: [layout.frame.width, layout.frame.height],
+            label_columns,
+            maps: state.maps.iter().map(|(n, _)| n.clone()).collect(),
+            geometry: format!("{:?}", s.scene.geometry).to_lowercase(),
+        }
     }
 
     fn scripted(&mut self, state: &mut ViewState, h: &mut Headless, action: Action) -> Result<()> {
@@ -825,6 +1054,14 @@ impl Viewer {
             Action::Method(m) => state.settings.method = m,
             Action::Split(m) => state.right = m,
             Action::Divider(f) => state.divider = f,
+            Action::Compare(c) => state.compare = c,
+            Action::Flip => {
+                state.compare = Compare::Flip;
+                state.show_b = !state.show_b;
+            }
+            Action::Zoom(lines) => zoom(&mut state.settings.scene, lines),
+            Action::Panel(on) => state.panel = on,
+            Action::Help(on) => state.help = on,
             Action::Resize(w, hgt) => {
                 let _ = self.window.request_inner_size(PhysicalSize::new(w, hgt));
                 h.pending_resize = Some(([w, hgt], Instant::now()));
@@ -845,10 +1082,12 @@ impl Viewer {
         Ok(())
     }
 
-    /// The frame composed on the CPU: each side's colour (or heat map), the overlay's
-    /// marks, the divider.
-    fn compose(&self, state: &ViewState, divider: u32) -> Result<Vec<u8>> {
+    /// The frame composed on the CPU: each side's colour (or heat map) with the
+    /// overlay's marks, put together by `layout` over the divider's colour. Also keeps
+    /// the heat map's scale per side.
+    fn compose(&mut self, state: &ViewState, layout: &Layout) -> Result<Vec<u8>> {
         let mut sides = Vec::new();
+        let mut scales = [None, None];
         for (i, r) in std::iter::once(&self.left)
             .chain(self.right.as_ref())
             .enumerate()
@@ -856,6 +1095,7 @@ impl Viewer {
             let mut rgba = if state.heatmap {
                 let hits = r.read_hits()?;
                 let covered = heatmap::coverage(&hits, None);
+                scales[i] = Some(heatmap::iteration_stats(&hits, &covered).max as f32);
                 heatmap::iteration_heatmap(&hits, &covered, None)?
             } else {
                 r.read_color()?
@@ -865,24 +1105,33 @@ impl Viewer {
                     match m {
                         1 => px.copy_from_slice(&ARTIFACT_RGBA),
                         2 => px.copy_from_slice(&MISS_RGBA),
+                        3 => px.copy_from_slice(&LOD_RGBA),
                         _ => {}
                     }
                 }
             }
-            sides.push(rgba);
+            sides.push((rgba, r.settings().width as usize));
         }
-        let mut out = sides.swap_remove(0);
-        if let Some(right) = sides.first() {
-            let w = self.left.settings().width as usize;
-            let (d, d_end) = (
-                divider as usize,
-                (divider + DIVIDER_PX).min(w as u32) as usize,
-            );
-            for (row_out, row_right) in out.chunks_exact_mut(4 * w).zip(right.chunks_exact(4 * w)) {
-                for x in d..d_end {
-                    row_out[4 * x..4 * x + 4].copy_from_slice(&DIVIDER_RGBA);
-                }
-                row_out[4 * d_end..].copy_from_slice(&row_right[4 * d_end..]);
+        self.heat_scales = scales;
+        let (w, h) = (
+            layout.frame.width as usize,
+            layout.frame.height as usize,
+        );
+        let mut out = DIVIDER_RGBA.repeat(w * h);
+        for part in &layout.parts {
+            let Some((rgba, side_w)) = sides.get(part.side) else {
+                continue;
+            };
+            let (x0, x1) = (part.src_x0 as usize, (part.src_x1 as usize).min(*side_w));
+            let dst = part.dst_x as usize;
+            if x0 >= x1 || dst + (x1 - x0) > w {
+                continue;
+            }
+            for (row_out, row_in) in out
+                .chunks_exact_mut(4 * w)
+                .zip(rgba.chunks_exact(4 * side_w))
+            {
+                row_out[4 * dst..4 * (dst + x1 - x0)].copy_from_slice(&row_in[4 * x0..4 * x1]);
             }
         }
         Ok(out)
@@ -908,8 +1157,24 @@ impl Viewer {
                 r.map_geometry(),
             ));
         }
+        let settings = *self.left.settings();
+        let lod = match settings.params.lod_threshold {
+            Some(threshold) => {
+                let (normals, _) = self.left.read_frames()?;
+                let g = self.left.map_geometry();
+                lod_pixels(
+                    &rays,
+                    &normals,
+                    settings.width as usize,
+                    [g.map_width, g.map_height],
+                    settings.scene.addressing() == Addressing::Repeat,
+                    threshold,
+                )
+            }
+            None => Vec::new(),
+        };
         let field = state.maps[state.map].1.clone();
-        let addressing = self.left.settings().scene.addressing();
+        let addressing = settings.scene.addressing();
         let done = Arc::new(AtomicUsize::new(0));
         let (tx, rx) = mpsc::channel();
         let total = rays.len();
@@ -936,6 +1201,7 @@ impl Viewer {
             rx,
             rays,
             sides,
+            lod,
         });
         Ok(())
     }
@@ -963,15 +1229,42 @@ impl Viewer {
             }
             return Ok(());
         }
+        // Pixels level of detail sent to bump mapping are not compared: no ray.
+        let compared: Vec<Option<Ray>> = job
+            .rays
+            .iter()
+            .enumerate()
+            .map(|(i, r)| r.filter(|_| !job.lod.get(i).copied().unwrap_or(false)))
+            .collect();
+        let covered = job.rays.iter().filter(|r| r.is_some()).count();
+        let lod_count = job
+            .rays
+            .iter()
+            .zip(&job.lod)
+            .filter(|(r, l)| r.is_some() && **l)
+            .count();
         let mut marks = Vec::new();
+        let mut results = Vec::new();
         for (name, gpu, geometry) in &job.sides {
-            let e = metrics::hit_errors(gpu, &hits, &job.rays, *geometry);
-            print_error(name, &e);
-            marks.push(mark_pixels(gpu, &hits, &job.rays, *geometry));
+            let e = metrics::hit_errors(gpu, &hits, &compared, *geometry);
+            print_error(name, &e, lod_count);
+            let mut m = mark_pixels(gpu, &hits, &compared, *geometry);
+            for ((mark, ray), lod) in m.iter_mut().zip(&job.rays).zip(&job.lod) {
+                if ray.is_some() && *lod {
+                    *mark = 3;
+                }
+            }
+            marks.push(m);
+            results.push(SideError {
+                metrics: e,
+                lod_pixels: lod_count,
+                covered,
+            });
         }
         self.overlay = Some(Overlay {
             key: job.key,
             marks,
+            results,
         });
         if let Some(h) = headless {
             h.waiting_error = false;
@@ -979,46 +1272,39 @@ impl Viewer {
         Ok(())
     }
 
-    /// Updates the live numbers (window title, and standard error when interactive).
+    /// Updates the live numbers (the panel's, the window title, and standard error
+    /// when interactive).
     fn report(&mut self, state: &ViewState, print: bool) -> Result<()> {
         let secs = self.stats.since.elapsed().as_secs_f64();
         let fps = f64::from(self.stats.frames) / secs.max(1e-9);
-        let hits = self.left.read_hits()?;
-        let covered = heatmap::coverage(&hits, None);
-        let iterations = heatmap::iteration_stats(&hits, &covered).mean;
-        self.stats.iterations = Some(iterations);
-        let passes = |side: &[(PassName, f64, u32)]| {
+        let mut iterations = [None, None];
+        for (i, r) in std::iter::once(&self.left)
+            .chain(self.right.as_ref())
+            .enumerate()
+        {
+            let hits = r.read_hits()?;
+            let covered = heatmap::coverage(&hits, None);
+            iterations[i] = Some(heatmap::iteration_stats(&hits, &covered).mean);
+        }
+        let mean = |side: &[(PassName, f64, u32)]| -> Vec<(PassName, f64)> {
             side.iter()
-                .map(|(n, sum, count)| format!("{n} {:.2}", sum / f64::from((*count).max(1))))
+                .map(|(n, sum, count)| (*n, sum / f64::from((*count).max(1))))
+                .collect()
+        };
+        let passes = |side: &[(PassName, f64)]| {
+            side.iter()
+                .map(|(n, ms)| format!("{n} {ms:.2}"))
                 .collect::<Vec<_>>()
                 .join(", ")
         };
-        let mut gpu = passes(&self.stats.passes[0]);
+        let shown = [mean(&self.stats.passes[0]), mean(&self.stats.passes[1])];
+        let mut gpu = passes(&shown[0]);
         if self.right.is_some() {
-            gpu = format!("{gpu} / right: {}", passes(&self.stats.passes[1]));
+            gpu = format!("{gpu} / right: {}", passes(&shown[1]));
         }
         let frame_ms = dispmap::timing::median(&self.stats.frame_wall);
         let s = self.left.settings();
-        let mut what = format!(
-            "{} {} steps (refine {}, min {}, segments {}, block {}, max level {}, lod {}, \
-             shadows {} x{}, depth {:.3})",
-            s.method.name(),
-            s.params.steps,
-            s.params.refine_steps,
-            s.params.min_steps,
-            s.params.segments,
-            s.params.block[0],
-            match s.params.max_level {
-                MaxLevel::Fixed(l) => l.to_string(),
-                MaxLevel::Auto => "auto".into(),
-            },
-            s.params
-                .lod_threshold
-                .map_or("off".into(), |l| l.to_string()),
-            s.shadows.mode.name(),
-            s.shadows.samples,
-            s.scene.depth_scale
-        );
+        let mut what = format!("{} {} steps", s.method.name(), s.params.steps);
         if let Some(r) = &self.right {
             what.push_str(&format!(
                 " | {} {} steps",
@@ -1034,7 +1320,7 @@ impl Viewer {
         });
         let line = format!(
             "{what} | GPU ms: {gpu} | {:.1} iter/px | {:.1} fps, frame {:.1} ms | {}x{} {}{}",
-            iterations,
+            iterations[0].unwrap_or(0.0),
             fps,
             frame_ms,
             s.width,
@@ -1042,11 +1328,17 @@ impl Viewer {
             state.maps[state.map].0,
             progress.unwrap_or_default()
         );
-        self.window.set_title(&format!("dispmap view: {line}"));
-        // The title has every update; standard error one in four (every 2 s).
+        self.window.set_title(&title(state));
+        // Standard error one update in four (every 2 s).
         if print && self.stats.updates % 4 == 0 {
             eprintln!("{line}");
         }
+        if self.stats.frames > 0 {
+            self.stats.shown_passes = shown;
+            self.stats.shown_fps = fps;
+            self.stats.shown_frame_ms = frame_ms;
+        }
+        self.stats.shown_iterations = iterations;
         self.stats.updates += 1;
         self.stats.since = Instant::now();
         self.stats.frames = 0;
@@ -1057,18 +1349,33 @@ impl Viewer {
     }
 
     /// The headless run's timing summary.
-    fn summary(&self) {
+    fn summary(&self, headless: Option<&Headless>) {
         // The first frames build pipelines and upload the map: left out when there are
         // enough frames.
         let skip = if self.stats.all_frame.len() > 4 { 2 } else { 0 };
         let render = dispmap::timing::median(&self.stats.all_render[skip..]);
         let frame = dispmap::timing::median(&self.stats.all_frame[skip..]);
         let gpu = dispmap::timing::median(&self.stats.all_gpu[skip..]);
+        let (asked, waited) = headless.map_or((self.frame_index, 0), |h| (h.frames, h.waited));
+        let waited = if waited > 0 {
+            format!(" (and {waited} rendered again while waiting for a resize or the overlay)")
+        } else {
+            String::new()
+        };
         eprintln!(
-            "frames: {}, median ms per frame: GPU (left side's passes) {gpu:.2}, wall: \
-             render {render:.2}, render + present {frame:.2} (first {skip} left out)",
-            self.stats.all_frame.len(),
+            "frames: {asked}{waited}, median ms per frame: GPU (left side's passes) {gpu:.2}, \
+             wall: render {render:.2}, render + present {frame:.2} (first {skip} left out)",
         );
+        if self.gui.is_some() {
+            let cpu_skip = skip.min(self.stats.all_ui_cpu.len());
+            let gpu_skip = skip.min(self.stats.all_ui_gpu.len());
+            eprintln!(
+                "panel: median ms per frame: CPU {:.3} (egui, tessellation, uploads, \
+                 recording), GPU {:.3} (its draw)",
+                dispmap::timing::median(&self.stats.all_ui_cpu[cpu_skip..]),
+                dispmap::timing::median(&self.stats.all_ui_gpu[gpu_skip..]),
+            );
+        }
     }
 
     fn key(&mut self, state: &mut ViewState, event: &KeyEvent) -> Result<bool> {
@@ -1079,11 +1386,32 @@ impl Viewer {
             return Ok(false);
         };
         let shift = self.modifiers.shift_key();
+        if let KeyCode::KeyW | KeyCode::KeyS = code {
+            let lines = if code == KeyCode::KeyW { 1.0 } else { -1.0 };
+            zoom(&mut state.settings.scene, lines);
+            return Ok(false);
+        }
         let camera = &mut state.settings.scene.camera;
         match code {
             KeyCode::Escape => return Ok(true),
-            KeyCode::KeyW => zoom(camera, 1.0),
-            KeyCode::KeyS => zoom(camera, -1.0),
+            KeyCode::Tab => state.panel = !state.panel,
+            KeyCode::F1 => state.help = !state.help,
+            KeyCode::KeyX => {
+                if state.right.is_none() {
+                    state.right = Some(cycle(state.settings.method, false));
+                }
+                state.compare = state.compare.next();
+            }
+            KeyCode::Space => {
+                if state.right.is_none() {
+                    state.right = Some(cycle(state.settings.method, false));
+                }
+                if state.compare == Compare::Flip {
+                    state.show_b = !state.show_b;
+                } else {
+                    state.compare = Compare::Flip;
+                }
+            }
             KeyCode::KeyA => camera.azimuth_deg -= 5.0,
             KeyCode::KeyD => camera.azimuth_deg += 5.0,
             KeyCode::KeyQ => tilt(camera, -if shift { 0.5 } else { 2.0 }),
@@ -1258,9 +1586,141 @@ fn cycle(m: Method, back: bool) -> Method {
     all[if back { (i + n - 1) % n } else { (i + 1) % n }]
 }
 
-/// Moves the eye toward (`lines > 0`) or away from the target.
-fn zoom(camera: &mut Camera, lines: f32) {
-    camera.height = (camera.height * 0.9f32.powf(lines)).clamp(0.01, 100.0);
+/// Moves the eye toward (`lines > 0`) or away from the target: on the tiled plane the
+/// eye height, on the quad and the meshes the orbit distance, by 10% a line.
+fn zoom(scene: &mut Scene, lines: f32) {
+    let camera = &mut scene.camera;
+    match scene.geometry {
+        Geometry::TiledPlane => {
+            camera.height = (camera.height * 0.9f32.powf(lines)).clamp(0.01, 100.0);
+        }
+        _ => {
+            let d = scene.orbit_distance() * 0.9f32.powf(lines);
+            set_distance(scene, d);
+        }
+    }
+}
+
+/// Sets the orbit distance: on the tiled plane through the eye height (at the current
+/// elevation), elsewhere directly; within the zoom's limits.
+fn set_distance(scene: &mut Scene, distance: f32) {
+    let camera = &mut scene.camera;
+    match scene.geometry {
+        Geometry::TiledPlane => {
+            let sin = camera.elevation_deg.to_radians().sin().max(1e-6);
+            camera.height = (distance * sin).clamp(0.01, 100.0);
+        }
+        _ => camera.distance = Some(distance.clamp(0.05, 1000.0)),
+    }
+}
+
+/// The window's title: the methods shown.
+fn title(state: &ViewState) -> String {
+    match state.right {
+        Some(r) => format!("dispmap view: {} | {}", state.settings.method.name(), r.name()),
+        None => format!("dispmap view: {}", state.settings.method.name()),
+    }
+}
+
+/// Appends a frame's milliseconds to a rolling graph of [`HISTORY`] frames.
+fn push_history(history: &mut VecDeque<f32>, ms: f64) {
+    if history.len() == HISTORY {
+        history.pop_front();
+    }
+    history.push_back(ms as f32);
+}
+
+/// Each side's frame size and where the sides' columns go in a frame of `frame`
+/// pixels, for the compare mode of `state`.
+fn frame_layout(state: &ViewState, frame: [u32; 2]) -> ([u32; 2], Layout) {
+    let [w, h] = frame;
+    let extent = vk::Extent2D {
+        width: w,
+        height: h,
+    };
+    let part = |side, src_x0, src_x1, dst_x| Part {
+        side,
+        src_x0,
+        src_x1,
+        dst_x,
+    };
+    let (size, parts) = match (state.right, state.compare) {
+        (None, _) => (frame, vec![part(0, 0, w, 0)]),
+        (Some(_), Compare::Flip) => (frame, vec![part(usize::from(state.show_b), 0, w, 0)]),
+        (Some(_), Compare::Wipe) => {
+            let d = ((state.divider * w as f32).round() as u32).min(w);
+            let d_end = (d + DIVIDER_PX).min(w);
+            (frame, vec![part(0, 0, d, 0), part(1, d_end, w, d_end)])
+        }
+        (Some(_), Compare::SideBySide) => {
+            let half = (w.saturating_sub(DIVIDER_PX) / 2).max(1);
+            (
+                [half, h],
+                vec![part(0, 0, half, 0), part(1, 0, half, w.saturating_sub(half))],
+            )
+        }
+    };
+    (
+        size,
+        Layout {
+            frame: extent,
+            parts,
+        },
+    )
+}
+
+/// The pixels level of detail sends (wholly or in part) to bump mapping at
+/// `threshold`: those whose footprint level exceeds `threshold - 1` (`trace_lod` in
+/// glsl/common/trace.glsl blends from there). The level is the CPU twin of
+/// `footprint_level` there: log2 of the larger uv step in texels to the right / lower
+/// neighbour (left / upper at the last column / row) on the same surface (`normals`'
+/// w), tile wraps removed under repeat addressing; pixels within 1e-3 of the boundary
+/// count as sent (the GPU's f32 level may fall on either side).
+fn lod_pixels(
+    rays: &[Option<Ray>],
+    normals: &[[f32; 4]],
+    width: usize,
+    map: [u32; 2],
+    repeat: bool,
+    threshold: f32,
+) -> Vec<bool> {
+    let height = rays.len() / width.max(1);
+    let from = f64::from(threshold) - 1.0 - 1e-3;
+    (0..rays.len())
+        .map(|i| {
+            let Some(ray) = &rays[i] else {
+                return false;
+            };
+            let (x, y) = (i % width, i / width);
+            let mut texels: f64 = 0.0;
+            for (q, inside) in [
+                (if x + 1 < width { i + 1 } else { i.wrapping_sub(1) }, width > 1),
+                (
+                    if y + 1 < height {
+                        i + width
+                    } else {
+                        i.wrapping_sub(width)
+                    },
+                    height > 1,
+                ),
+            ] {
+                if !inside || normals.get(q).map(|n| n[3]) != normals.get(i).map(|n| n[3]) {
+                    continue;
+                }
+                let Some(n) = rays.get(q).and_then(Option::as_ref) else {
+                    continue;
+                };
+                let mut d = [n.uv0[0] - ray.uv0[0], n.uv0[1] - ray.uv0[1]];
+                if repeat {
+                    for c in &mut d {
+                        *c -= c.round();
+                    }
+                }
+                texels = texels.max((d[0] * f64::from(map[0])).hypot(d[1] * f64::from(map[1])));
+            }
+            texels.max(1.0).log2() > from
+        })
+        .collect()
 }
 
 /// Changes the elevation within `[MIN_ELEVATION, 90]` degrees.
@@ -1327,10 +1787,16 @@ fn mark_pixels(
         .collect()
 }
 
-fn print_error(name: &str, e: &ErrorMetrics) {
+fn print_error(name: &str, e: &ErrorMetrics, lod: usize) {
+    let lod = if lod > 0 {
+        format!(", {lod} more sent to bump mapping by level of detail (magenta, not compared)")
+    } else {
+        String::new()
+    };
     eprintln!(
         "error overlay: {name}: mean {:.3} texels, p99 {:.3}, max {:.3}, artifacts {:.3}% \
-         (red: more than {ARTIFACT_TEXELS} texel off; cyan: misses), {} pixels, non-finite {}",
+         (red: more than {ARTIFACT_TEXELS} texel off; cyan: misses), {} pixels, non-finite \
+         {}{lod}",
         e.mean_texels,
         e.p99_texels,
         e.max_texels,

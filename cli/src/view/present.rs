@@ -24,17 +24,49 @@ pub const DIVIDER_PX: u32 = 2;
 /// The divider's colour (RGBA8, also the CPU composition's).
 pub const DIVIDER_RGBA: [u8; 4] = [255, 255, 255, 255];
 
+/// One piece of a frame: the columns `[src_x0, src_x1)` of a side's image (all its
+/// rows) placed at column `dst_x` of the frame, unscaled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Part {
+    /// Which side's image: 0 left (or only), 1 right.
+    pub side: usize,
+    /// First column taken.
+    pub src_x0: u32,
+    /// One past the last column taken.
+    pub src_x1: u32,
+    /// Column of the frame it goes to.
+    pub dst_x: u32,
+}
+
+/// How the sides' images make up the frame: the parts, over the divider's colour where
+/// no part lands.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Layout {
+    /// The frame's size (the window's).
+    pub frame: vk::Extent2D,
+    /// The pieces, in order.
+    pub parts: Vec<Part>,
+}
+
+impl Layout {
+    /// True when the parts leave columns uncovered (the divider, or the gap between
+    /// two halves).
+    pub fn has_gaps(&self) -> bool {
+        let covered: u32 = self.parts.iter().map(|p| p.src_x1 - p.src_x0).sum();
+        covered < self.frame.width
+    }
+}
+
 /// What a frame shows.
 pub enum Source<'a> {
-    /// The renderer's colour image, or two of them left and right of a divider at the
-    /// given column (the left image's columns `[0, divider)`, the right's from
-    /// `divider + DIVIDER_PX`). The images are in the renderer's post-frame state
-    /// ([`dispmap::renderer::Renderer::color_image`]) and are returned to it.
+    /// The sides' colour images (in the renderer's post-frame state,
+    /// [`dispmap::renderer::Renderer::color_image`], and returned to it), put together
+    /// by `layout`.
     Gpu {
-        /// The (left) image.
-        left: &'a Image,
-        /// The right image and the divider's column.
-        right: Option<(&'a Image, u32)>,
+        /// Left (or only) and right images.
+        images: [Option<&'a Image>; 2],
+        /// Where their columns go.
+        layout: &'a Layout,
     },
     /// A frame composed on the CPU: RGBA8 (sRGB-encoded, as the renderer's), row by row,
     /// `extent` pixels.
@@ -46,6 +78,16 @@ pub enum Source<'a> {
     },
 }
 
+/// Something drawn over the copied frame inside a dynamic-rendering pass on the
+/// swapchain image (the viewer's panel).
+pub trait Overlay {
+    /// Records the drawing into `cmd`, inside a rendering pass whose one colour
+    /// attachment is the swapchain image (loaded, `extent` pixels, the presenter's
+    /// format).
+    fn record(&mut self, ctx: &Context, cmd: vk::CommandBuffer, extent: vk::Extent2D)
+    -> Result<()>;
+}
+
 /// What [`Presenter::present`] did.
 pub struct Presented {
     /// False when nothing was presented (the swapchain was out of date, the window
@@ -53,7 +95,19 @@ pub struct Presented {
     pub shown: bool,
     /// The presented image as RGBA8, row by row, when a screenshot was asked for.
     pub screenshot: Option<(vk::Extent2D, Vec<u8>)>,
+    /// GPU milliseconds of the overlay's drawing (its timestamps), when one was drawn.
+    pub overlay_gpu_ms: Option<f64>,
 }
+
+/// The overlay's colour attachment: blended over (read and written).
+const ATTACHMENT_BLEND: Access = Access {
+    stage: vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT,
+    access: vk::AccessFlags2::from_raw(
+        vk::AccessFlags2::COLOR_ATTACHMENT_READ.as_raw()
+            | vk::AccessFlags2::COLOR_ATTACHMENT_WRITE.as_raw(),
+    ),
+    layout: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+};
 
 /// The instance extensions a surface for `window` needs.
 pub fn instance_extensions(window: &impl HasDisplayHandle) -> Result<Vec<&'static CStr>> {
@@ -77,6 +131,10 @@ pub struct Presenter {
     surface: vk::SurfaceKHR,
     swapchain: vk::SwapchainKHR,
     images: Vec<vk::Image>,
+    /// One colour view per swapchain image (the overlay's attachment).
+    views: Vec<vk::ImageView>,
+    /// Two timestamps around the overlay's drawing.
+    queries: vk::QueryPool,
     /// One per swapchain image: signalled by the frame's submission, waited by present.
     rendered: Vec<vk::Semaphore>,
     acquired: vk::Semaphore,
@@ -126,6 +184,8 @@ impl Presenter {
             surface,
             swapchain: vk::SwapchainKHR::null(),
             images: Vec::new(),
+            views: Vec::new(),
+            queries: vk::QueryPool::null(),
             rendered: Vec::new(),
             acquired: vk::Semaphore::null(),
             format: vk::Format::UNDEFINED,
@@ -244,7 +304,16 @@ impl Presenter {
             self.acquired = device
                 .create_semaphore(&vk::SemaphoreCreateInfo::default(), None)
                 .context("vkCreateSemaphore")?;
+            self.queries = device
+                .create_query_pool(
+                    &vk::QueryPoolCreateInfo::default()
+                        .query_type(vk::QueryType::TIMESTAMP)
+                        .query_count(2),
+                    None,
+                )
+                .context("vkCreateQueryPool")?;
         }
+        ctx.set_name(self.queries, "viewer.overlay_timestamps");
         ctx.set_name(self.pool, "viewer.pool");
         ctx.set_name(self.cmd, "viewer.cmd");
         ctx.set_name(self.fence, "viewer.fence");
@@ -256,6 +325,11 @@ impl Presenter {
     /// The swapchain's size.
     pub fn extent(&self) -> vk::Extent2D {
         self.extent
+    }
+
+    /// The swapchain's format.
+    pub fn format(&self) -> vk::Format {
+        self.format
     }
 
     /// The present mode in use.
@@ -286,11 +360,13 @@ impl Presenter {
             self.extent = extent;
             return Ok(false);
         }
-        let usage = vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::TRANSFER_SRC;
+        let usage = vk::ImageUsageFlags::TRANSFER_DST
+            | vk::ImageUsageFlags::TRANSFER_SRC
+            | vk::ImageUsageFlags::COLOR_ATTACHMENT;
         if !caps.supported_usage_flags.contains(usage) {
             bail!(
-                "the window's swapchain images cannot be copy destinations and sources \
-                 (supported usage {:?})",
+                "the window's swapchain images cannot be copy destinations, sources and \
+                 colour attachments (supported usage {:?})",
                 caps.supported_usage_flags
             );
         }
@@ -339,6 +415,9 @@ impl Presenter {
             for s in self.rendered.drain(..) {
                 ctx.device().destroy_semaphore(s, None);
             }
+            for v in self.views.drain(..) {
+                ctx.device().destroy_image_view(v, None);
+            }
         }
         self.swapchain = swapchain;
         // SAFETY: the swapchain was just created.
@@ -353,6 +432,17 @@ impl Presenter {
             .context("vkCreateSemaphore")?;
             ctx.set_name(s, &format!("viewer.rendered{i}"));
             self.rendered.push(s);
+            let view_info = vk::ImageViewCreateInfo::default()
+                .image(self.images[i])
+                .view_type(vk::ImageViewType::TYPE_2D)
+                .format(self.format)
+                .subresource_range(dispmap::gpu::image::full_range(self.format, 1));
+            // SAFETY: the image belongs to the swapchain just created; the view is
+            // destroyed before the swapchain (here on the next recreate, or `destroy`).
+            let view = unsafe { ctx.device().create_image_view(&view_info, None) }
+                .context("vkCreateImageView")?;
+            ctx.set_name(view, &format!("viewer.swapchain_view{i}"));
+            self.views.push(view);
         }
         self.extent = extent;
         log::info!(
@@ -367,19 +457,22 @@ impl Presenter {
     }
 
     /// Copies `source` into the next swapchain image (blitted to the swapchain's size
-    /// when they differ, nearest texel; an identity copy when they are equal) and
-    /// presents it; with `screenshot` also reads the presented image back. Waits for the
-    /// submission. Out-of-date and suboptimal swapchains are recreated for `size`.
+    /// when they differ, nearest texel; an identity copy when they are equal), draws
+    /// `overlay` over it (timed) and presents it; with `screenshot` also reads the
+    /// presented image back. Waits for the submission. Out-of-date and suboptimal
+    /// swapchains are recreated for `size`.
     pub fn present(
         &mut self,
         ctx: &Context,
         source: Source<'_>,
+        mut overlay: Option<&mut dyn Overlay>,
         screenshot: bool,
         size: [u32; 2],
     ) -> Result<Presented> {
         let not_shown = Presented {
             shown: false,
             screenshot: None,
+            overlay_gpu_ms: None,
         };
         if self.extent.width == 0 || self.extent.height == 0 {
             return Ok(not_shown);
@@ -448,10 +541,9 @@ impl Presenter {
         // The renderer's images (or the composite) as blit sources.
         let mut sources: Vec<(&Image, Access)> = Vec::new();
         match &source {
-            Source::Gpu { left, right } => {
-                sources.push((left, Access::COMPUTE_STORAGE_WRITE));
-                if let Some((r, _)) = right {
-                    sources.push((r, Access::COMPUTE_STORAGE_WRITE));
+            Source::Gpu { images, .. } => {
+                for img in images.iter().flatten() {
+                    sources.push((img, Access::COMPUTE_STORAGE_WRITE));
                 }
             }
             Source::Cpu { .. } => {
@@ -477,6 +569,9 @@ impl Presenter {
         // upload copy recorded by `stage_cpu` in this command buffer); the swapchain
         // image's contents are discarded.
         unsafe {
+            if overlay.is_some() {
+                device.cmd_reset_query_pool(cmd, self.queries, 0, 2);
+            }
             if let Source::Cpu { .. } = source {
                 self.record_cpu_copy(ctx, cmd);
             }
@@ -485,58 +580,52 @@ impl Presenter {
         let full = |e: vk::Extent2D| [0, 0, e.width, e.height];
         let mut blits: Vec<(&Image, [u32; 4], [u32; 4])> = Vec::new();
         match &source {
-            Source::Gpu { left, right: None } => {
-                blits.push((left, full(left.extent), full(extent)));
-            }
-            Source::Gpu {
-                left,
-                right: Some((right, divider)),
-            } => {
-                // Columns of the frame map to columns of the swapchain image by scale.
-                let src_w = left.extent.width;
-                let d = (*divider).min(src_w);
+            Source::Gpu { images, layout } => {
+                // Columns of the frame map to columns of the swapchain image by scale
+                // (they differ only while a resize is on its way).
+                let frame_w = layout.frame.width.max(1);
                 let scale = |x: u32| {
-                    (u64::from(x) * u64::from(extent.width) / u64::from(src_w.max(1))) as u32
+                    (u64::from(x) * u64::from(extent.width) / u64::from(frame_w)) as u32
                 };
-                let d_end = (d + DIVIDER_PX).min(src_w);
-                if d > 0 {
+                for part in &layout.parts {
+                    let src = images[part.side].context("a layout part has no image")?;
+                    let x1 = part.src_x1.min(src.extent.width);
+                    if part.src_x0 >= x1 {
+                        continue;
+                    }
+                    let dst_x1 = part.dst_x + (x1 - part.src_x0);
                     blits.push((
-                        left,
-                        [0, 0, d, left.extent.height],
-                        [0, 0, scale(d), extent.height],
+                        src,
+                        [part.src_x0, 0, x1, src.extent.height],
+                        [scale(part.dst_x), 0, scale(dst_x1), extent.height],
                     ));
                 }
-                if d_end < src_w {
-                    blits.push((
-                        right,
-                        [d_end, 0, src_w, right.extent.height],
-                        [scale(d_end), 0, extent.width, extent.height],
-                    ));
-                }
-                let clear = vk::ClearColorValue {
-                    float32: DIVIDER_RGBA.map(|c| f32::from(c) / 255.0),
-                };
-                // SAFETY: `cmd` is recording; the swapchain image is in
-                // TRANSFER_DST_OPTIMAL (barrier above); the blits below write after the
-                // clear (same stage, ordered by the barrier that follows).
-                unsafe {
-                    device.cmd_clear_color_image(
-                        cmd,
-                        image,
-                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                        &clear,
-                        &[color_range],
-                    );
-                    sync::record(
-                        ctx,
-                        cmd,
-                        &[sync::image_barrier(
+                if layout.has_gaps() {
+                    let clear = vk::ClearColorValue {
+                        float32: DIVIDER_RGBA.map(|c| f32::from(c) / 255.0),
+                    };
+                    // SAFETY: `cmd` is recording; the swapchain image is in
+                    // TRANSFER_DST_OPTIMAL (barrier above); the blits below write after
+                    // the clear (same stage, ordered by the barrier that follows).
+                    unsafe {
+                        device.cmd_clear_color_image(
+                            cmd,
                             image,
-                            color_range,
-                            Access::TRANSFER_WRITE,
-                            Access::TRANSFER_WRITE,
-                        )],
-                    );
+                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                            &clear,
+                            &[color_range],
+                        );
+                        sync::record(
+                            ctx,
+                            cmd,
+                            &[sync::image_barrier(
+                                image,
+                                color_range,
+                                Access::TRANSFER_WRITE,
+                                Access::TRANSFER_WRITE,
+                            )],
+                        );
+                    }
                 }
             }
             Source::Cpu { .. } => {
@@ -586,6 +675,61 @@ impl Presenter {
                 )
             };
         }
+        // The swapchain image's last use: the blits, or the overlay drawn over them.
+        let mut written = Access::TRANSFER_WRITE;
+        if let Some(overlay) = overlay.as_deref_mut() {
+            // SAFETY: `cmd` is recording outside a render pass; the swapchain image was
+            // last written by the blits (barrier from that state); its view is of this
+            // image (made with it in `recreate`); the query pool holds the two queries,
+            // reset at the start of this command buffer.
+            unsafe {
+                sync::record(
+                    ctx,
+                    cmd,
+                    &[sync::image_barrier(
+                        image,
+                        color_range,
+                        Access::TRANSFER_WRITE,
+                        ATTACHMENT_BLEND,
+                    )],
+                );
+                device.cmd_write_timestamp2(
+                    cmd,
+                    vk::PipelineStageFlags2::ALL_COMMANDS,
+                    self.queries,
+                    0,
+                );
+                let attachments = [vk::RenderingAttachmentInfo::default()
+                    .image_view(self.views[index as usize])
+                    .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .load_op(vk::AttachmentLoadOp::LOAD)
+                    .store_op(vk::AttachmentStoreOp::STORE)];
+                device.cmd_begin_rendering(
+                    cmd,
+                    &vk::RenderingInfo::default()
+                        .render_area(vk::Rect2D {
+                            offset: vk::Offset2D::default(),
+                            extent,
+                        })
+                        .layer_count(1)
+                        .color_attachments(&attachments),
+                );
+            }
+            let recorded = overlay.record(ctx, cmd, extent);
+            // SAFETY: the rendering pass begun above is ended whatever the overlay did,
+            // so the command buffer stays consistent; on an error it is never submitted.
+            unsafe {
+                device.cmd_end_rendering(cmd);
+                device.cmd_write_timestamp2(
+                    cmd,
+                    vk::PipelineStageFlags2::ALL_COMMANDS,
+                    self.queries,
+                    1,
+                );
+            }
+            recorded?;
+            written = ATTACHMENT_BLEND;
+        }
         let present = Access {
             stage: vk::PipelineStageFlags2::NONE,
             access: vk::AccessFlags2::NONE,
@@ -609,7 +753,7 @@ impl Presenter {
             after.push(sync::image_barrier(
                 image,
                 color_range,
-                Access::TRANSFER_WRITE,
+                written,
                 Access::TRANSFER_READ,
             ));
             let copy = vk::BufferImageCopy::default()
@@ -643,12 +787,7 @@ impl Presenter {
                 );
             }
         } else {
-            after.push(sync::image_barrier(
-                image,
-                color_range,
-                Access::TRANSFER_WRITE,
-                present,
-            ));
+            after.push(sync::image_barrier(image, color_range, written, present));
             // SAFETY: as above.
             unsafe { sync::record(ctx, cmd, &after) };
         }
@@ -692,6 +831,25 @@ impl Presenter {
                 .reset_fences(&[self.fence])
                 .context("vkResetFences")?;
         }
+        let overlay_gpu_ms = if overlay.is_some() {
+            let mut stamps = [0u64; 2];
+            // SAFETY: both queries were written by the submission waited for above.
+            unsafe {
+                device.get_query_pool_results(
+                    self.queries,
+                    0,
+                    &mut stamps,
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )
+            }
+            .context("vkGetQueryPoolResults")?;
+            let bits = ctx.info().timestamp_valid_bits;
+            let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+            let ticks = (stamps[1] & mask).wrapping_sub(stamps[0] & mask) & mask;
+            Some(ticks as f64 * f64::from(ctx.info().timestamp_period_ns) * 1e-6)
+        } else {
+            None
+        };
         match presented {
             Ok(false) => {}
             Ok(true) | Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => {
@@ -717,6 +875,7 @@ impl Presenter {
         Ok(Presented {
             shown: true,
             screenshot: shot,
+            overlay_gpu_ms,
         })
     }
 
@@ -821,6 +980,13 @@ impl Presenter {
             let _ = device.device_wait_idle();
             for s in self.rendered.drain(..) {
                 device.destroy_semaphore(s, None);
+            }
+            for v in self.views.drain(..) {
+                device.destroy_image_view(v, None);
+            }
+            if self.queries != vk::QueryPool::null() {
+                device.destroy_query_pool(self.queries, None);
+                self.queries = vk::QueryPool::null();
             }
             if self.acquired != vk::Semaphore::null() {
                 device.destroy_semaphore(self.acquired, None);

@@ -13,6 +13,11 @@
 //! | `method` | a method name | the (left) method |
 //! | `split` | a method name, or `off` | the right side of the split view |
 //! | `divider` | a fraction in `[0, 1]` | the split view's divider position |
+//! | `compare` | `wipe`, `ab`, `side-by-side` | how the split view shows the two methods |
+//! | `flip` | | A/B mode, showing the other method |
+//! | `zoom` | a number of wheel lines | the eye moves toward (positive) or away from the target |
+//! | `panel` | `on`, `off` | the on-screen panel |
+//! | `help` | `on`, `off` | the help overlay of the keys |
 //! | `resize` | `WIDTHxHEIGHT` | asks the window system for that size; later frames wait until it has it |
 //! | `steps` | N | the step count of every method shown |
 //! | `depth-scale` | a number | the displacement depth |
@@ -23,6 +28,7 @@
 //! | `error` | | computes the error overlay; later frames wait until it is shown |
 //! | `screenshot` | a PNG path | writes that frame as presented |
 
+use super::Compare;
 use anyhow::{Context as _, Result, bail};
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::shadow::ShadowMode;
@@ -120,6 +126,16 @@ pub enum Action {
     Split(Option<Method>),
     /// The divider as a fraction of the width.
     Divider(f32),
+    /// How the split view shows the two methods.
+    Compare(Compare),
+    /// A/B mode, showing the other method.
+    Flip,
+    /// Wheel lines of zoom.
+    Zoom(f32),
+    /// The panel on or off.
+    Panel(bool),
+    /// The help overlay on or off.
+    Help(bool),
     /// A window size.
     Resize(u32, u32),
     /// Steps of every method shown.
@@ -204,6 +220,26 @@ impl Script {
                     }
                     Action::Divider(f)
                 }
+                "compare" => match need("wipe, ab or side-by-side")? {
+                    "wipe" => Action::Compare(Compare::Wipe),
+                    "ab" => Action::Compare(Compare::Flip),
+                    "side-by-side" => Action::Compare(Compare::SideBySide),
+                    v => {
+                        return Err(bad(format!(
+                            "'{v}' is not wipe, ab or side-by-side"
+                        )));
+                    }
+                },
+                "flip" => Action::Flip,
+                "zoom" => {
+                    let lines = number("wheel lines")?;
+                    if lines.abs() > 100.0 {
+                        return Err(bad(format!("zoom {lines} is outside [-100, 100]")));
+                    }
+                    Action::Zoom(lines)
+                }
+                "panel" => Action::Panel(switch(need("on or off")?)?),
+                "help" => Action::Help(switch(need("on or off")?)?),
                 "resize" => {
                     let v = need("WIDTHxHEIGHT")?;
                     let (w, h) = crate::parse_size(v).map_err(bad)?;
@@ -277,6 +313,7 @@ impl Script {
             };
             match (&action, arg) {
                 (Action::Error, Some(_)) => return Err(bad("`error` takes no argument".into())),
+                (Action::Flip, Some(_)) => return Err(bad("`flip` takes no argument".into())),
                 _ => events.push((frame, action)),
             }
         }
@@ -291,7 +328,8 @@ mod tests {
     #[test]
     fn a_script_parses_and_bad_lines_name_their_line() {
         let s = Script::parse(
-            "# comment\n0 method pom\n2 resize 96x64 # smaller\n3 split dig\n4 error\n",
+            "# comment\n0 method pom\n2 resize 96x64 # smaller\n3 split dig\n4 error\n\
+             5 compare side-by-side\n5 flip\n6 zoom -2.5\n6 panel off\n",
             "t",
         )
         .unwrap();
@@ -302,6 +340,10 @@ mod tests {
                 (2, Action::Resize(96, 64)),
                 (3, Action::Split(Some(Method::Dig))),
                 (4, Action::Error),
+                (5, Action::Compare(Compare::SideBySide)),
+                (5, Action::Flip),
+                (6, Action::Zoom(-2.5)),
+                (6, Action::Panel(false)),
             ]
         );
         for (text, want) in [
@@ -312,6 +354,9 @@ mod tests {
             ("1 fly", "unknown action"),
             ("1 steps", "needs"),
             ("1 error now", "no argument"),
+            ("1 compare swipe", "t:1"),
+            ("1 zoom 1e9", "outside"),
+            ("1 panel maybe", "neither on nor off"),
         ] {
             let e = Script::parse(text, "t").unwrap_err().to_string();
             assert!(e.contains(want), "{text}: {e}");
