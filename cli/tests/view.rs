@@ -182,14 +182,14 @@ fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts(
     );
     std::fs::write(&script, "0 split dig-guarded\n0 divider 0.5\n1 error\n").unwrap();
     // Large enough for the panel to leave part of the frame uncovered.
-    let (w, h) = (480u32, 270u32);
+    let (w, h) = (640u32, 270u32);
     let common = [
         "--steps",
         "16",
         "--camera-elevation",
         "8",
         "--size",
-        "480x270",
+        "640x270",
     ];
     let view_args: Vec<&str> = ["--method", "relief", "--frames", "3"]
         .into_iter()
@@ -278,13 +278,19 @@ fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts(
         }
         (n, (x1 - x0) * (y1 - y0))
     };
-    // Where the panel opens (8 px from the top-left corner, 250 px wide): most pixels
-    // differ (text, widgets, its background).
-    let (n, of) = differ(12, 12, 200, 150);
-    assert!(n * 2 > of, "only {n} of {of} pixels differ in the panel's area");
+    // Where the panel opens (8 px from the top-left corner, about 400 px wide): most
+    // pixels differ (text, widgets, its background).
+    let (n, of) = differ(12, 12, 300, 200);
+    assert!(
+        n * 2 > of,
+        "only {n} of {of} pixels differ in the panel's area"
+    );
     // Right of the panel and above the labels: the frame alone.
-    let (n, of) = differ(330, 0, w, h - 40);
-    assert_eq!(n, 0, "{n} of {of} pixels outside the panel and labels differ");
+    let (n, of) = differ(440, 0, w, h - 36);
+    assert_eq!(
+        n, 0,
+        "{n} of {of} pixels outside the panel and labels differ"
+    );
 }
 
 #[test]
@@ -319,12 +325,13 @@ fn zoom_moves_the_eye_on_an_object() {
         view(&xvfb, &args, &file, &png);
         image::open(&png).unwrap().to_rgba8()
     };
-    let still = shot("still", "# no change\n");
-    let closer = shot("closer", "1 zoom 3\n");
-    let farther = shot("farther", "1 zoom -3\n");
+    // The heat map paints pixels without geometry black.
+    let still = shot("still", "0 heatmap on\n");
+    let closer = shot("closer", "0 heatmap on\n1 zoom 3\n");
+    let farther = shot("farther", "0 heatmap on\n1 zoom -3\n");
     // The sphere fills more of the frame from closer: fewer background pixels.
-    let sky = *still.get_pixel(0, 0);
-    let background = |img: &image::RgbaImage| img.pixels().filter(|p| **p == sky).count();
+    let background =
+        |img: &image::RgbaImage| img.pixels().filter(|p| p.0 == [0, 0, 0, 255]).count();
     let (b_still, b_closer, b_farther) = (
         background(&still),
         background(&closer),
@@ -347,16 +354,23 @@ fn error_overlay_with_level_of_detail_counts_bump_pixels_apart() {
     };
     let dir = scratch("lod");
     let (script, shot) = (dir.join("script.txt"), dir.join("view.png"));
-    std::fs::write(&script, "0 map bricks\n0 lod 1\n1 error\n").unwrap();
+    // Bricks close up: level of detail at 2 sends the farther half of the plane to bump
+    // mapping and leaves the nearer half to the methods.
+    std::fs::write(&script, "0 map bricks\n0 lod 2\n1 error\n").unwrap();
+    let (w, h) = (256u32, 144u32);
     let stderr = view(
         &xvfb,
         &[
             "--method",
             "exact",
+            "--split",
+            "relief",
             "--depth-scale",
             "0.2",
+            "--camera-height",
+            "0.05",
             "--size",
-            "160x90",
+            "256x144",
             "--frames",
             "3",
             "--no-ui",
@@ -364,25 +378,43 @@ fn error_overlay_with_level_of_detail_counts_bump_pixels_apart() {
         &script,
         &shot,
     );
-    // exact is exact where level of detail leaves it the pixel: no artifact.
-    assert_eq!(printed_artifacts(&stderr, "exact"), 0.0, "{stderr}");
-    let line = stderr
-        .lines()
-        .find(|l| l.starts_with("error overlay: exact:"))
-        .unwrap();
-    let sent: usize = line
-        .split(", ")
-        .find(|p| p.contains("more sent to bump mapping"))
-        .and_then(|p| p.split(' ').next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no level-of-detail count: {line}"));
-    assert!(sent > 100, "only {sent} pixels sent to bump mapping: {line}");
-    // They are shown in their own colour, and nothing is marked an artifact.
+    let line = |method: &str| {
+        stderr
+            .lines()
+            .find(|l| l.starts_with(&format!("error overlay: {method}:")))
+            .unwrap_or_else(|| panic!("no overlay line for {method}: {stderr}"))
+            .to_owned()
+    };
+    // The count before `what` in a line's `, `-separated parts.
+    let count = |line: &str, what: &str| -> usize {
+        line.split(", ")
+            .find(|p| p.contains(what))
+            .and_then(|p| p.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no '{what}' count: {line}"))
+    };
+    let exact = line("exact");
+    let sent = count(&exact, "more sent to bump mapping");
+    let compared = count(&exact, "pixels");
+    assert!(
+        sent > 1000 && compared > 1000,
+        "level of detail should split the frame: {exact}"
+    );
+    // exact is exact where level of detail leaves the pixel to it; relief, on the same
+    // pixels, is not.
+    assert_eq!(printed_artifacts(&stderr, "exact"), 0.0, "{exact}");
+    assert!(printed_artifacts(&stderr, "relief") > 0.0, "{stderr}");
+    // The pixels sent to bump mapping have their own colour; no artifact is marked on
+    // exact's side (left of the divider).
     let img = image::open(&shot).unwrap().to_rgba8();
+    assert_eq!(img.dimensions(), (w, h));
     let magenta = img.pixels().filter(|p| p.0 == [255, 0, 255, 255]).count();
-    let red = img.pixels().filter(|p| p.0 == [255, 0, 0, 255]).count();
-    assert_eq!(magenta, sent, "magenta pixels");
-    assert_eq!(red, 0, "artifact pixels");
+    assert!(magenta > 500, "only {magenta} magenta pixels");
+    let red_left = img
+        .enumerate_pixels()
+        .filter(|(x, _, p)| *x < w / 2 && p.0 == [255, 0, 0, 255])
+        .count();
+    assert_eq!(red_left, 0, "artifact pixels on exact's side");
 }
 
 #[test]

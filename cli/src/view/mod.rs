@@ -12,10 +12,10 @@ mod ui;
 
 use crate::{CommonArgs, RenderArgs, finish, render_inputs};
 use anyhow::{Context as _, Result, bail};
+use ash::vk;
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args};
 use dispmap::context::{Context, ContextOptions};
-use ash::vk;
 use dispmap::heightfield::{Addressing, Convention, HeightField};
 use dispmap::method::{MaxLevel, Method};
 use dispmap::passes::PassName;
@@ -29,8 +29,8 @@ use dispmap_cli::reference::{Hit, Ray, Reference};
 use dispmap_cli::{bundled, output};
 use panel::{OverlayState, SideError, SideInfo};
 use present::{DIVIDER_PX, DIVIDER_RGBA, Layout, Part, Presenter, Source};
-use std::collections::VecDeque;
 use script::{Action, CameraPath, Script};
+use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, mpsc};
@@ -391,7 +391,9 @@ impl ApplicationHandler for App {
                     Err(e) => Err(e),
                 }
             }
-            WindowEvent::MouseInput { state, button, .. } if self.headless.is_none() && !to_panel => {
+            WindowEvent::MouseInput { state, button, .. }
+                if self.headless.is_none() && !to_panel =>
+            {
                 viewer.mouse_button(button, state == ElementState::Pressed);
                 Ok(())
             }
@@ -1113,10 +1115,7 @@ impl Viewer {
             sides.push((rgba, r.settings().width as usize));
         }
         self.heat_scales = scales;
-        let (w, h) = (
-            layout.frame.width as usize,
-            layout.frame.height as usize,
-        );
+        let (w, h) = (layout.frame.width as usize, layout.frame.height as usize);
         let mut out = DIVIDER_RGBA.repeat(w * h);
         for part in &layout.parts {
             let Some((rgba, side_w)) = sides.get(part.side) else {
@@ -1617,7 +1616,11 @@ fn set_distance(scene: &mut Scene, distance: f32) {
 /// The window's title: the methods shown.
 fn title(state: &ViewState) -> String {
     match state.right {
-        Some(r) => format!("dispmap view: {} | {}", state.settings.method.name(), r.name()),
+        Some(r) => format!(
+            "dispmap view: {} | {}",
+            state.settings.method.name(),
+            r.name()
+        ),
         None => format!("dispmap view: {}", state.settings.method.name()),
     }
 }
@@ -1656,7 +1659,10 @@ fn frame_layout(state: &ViewState, frame: [u32; 2]) -> ([u32; 2], Layout) {
             let half = (w.saturating_sub(DIVIDER_PX) / 2).max(1);
             (
                 [half, h],
-                vec![part(0, 0, half, 0), part(1, 0, half, w.saturating_sub(half))],
+                vec![
+                    part(0, 0, half, 0),
+                    part(1, 0, half, w.saturating_sub(half)),
+                ],
             )
         }
     };
@@ -1694,7 +1700,14 @@ fn lod_pixels(
             let (x, y) = (i % width, i / width);
             let mut texels: f64 = 0.0;
             for (q, inside) in [
-                (if x + 1 < width { i + 1 } else { i.wrapping_sub(1) }, width > 1),
+                (
+                    if x + 1 < width {
+                        i + 1
+                    } else {
+                        i.wrapping_sub(1)
+                    },
+                    width > 1,
+                ),
                 (
                     if y + 1 < height {
                         i + width

@@ -3,7 +3,7 @@
 //! overlay's results with its legend, the heat map's colour bar; the labels of the split
 //! sides and the help overlay of the keys.
 
-use super::{ARTIFACT_RGBA, Compare, LOD_RGBA, MISS_RGBA, MIN_ELEVATION, ViewState};
+use super::{ARTIFACT_RGBA, Compare, LOD_RGBA, MIN_ELEVATION, MISS_RGBA, ViewState};
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::passes::PassName;
 use dispmap::passes::shadow::ShadowMode;
@@ -15,7 +15,10 @@ use egui::{Align2, Color32, FontId, Pos2, Rect, Sense, Stroke, Vec2};
 /// same table).
 pub const KEYS: &[(&str, &str)] = &[
     ("left drag", "orbit: azimuth, elevation"),
-    ("wheel, W / S", "zoom: the eye moves toward / away from the target"),
+    (
+        "wheel, W / S",
+        "zoom: the eye moves toward / away from the target",
+    ),
     ("A / D", "orbit left / right by 5 degrees"),
     ("Q / E", "elevation down / up by 2 degrees (Shift: 0.5)"),
     ("R", "reset the camera"),
@@ -525,7 +528,10 @@ fn timings(ui: &mut egui::Ui, info: &Info) {
                 "{:.1} fps, frame {:.1} ms",
                 info.fps, info.frame_ms
             ));
-            let colours = [Color32::from_rgb(255, 200, 60), Color32::from_rgb(90, 200, 255)];
+            let colours = [
+                Color32::from_rgb(255, 200, 60),
+                Color32::from_rgb(90, 200, 255),
+            ];
             for (i, s) in info.sides.iter().enumerate() {
                 let name = if info.sides.len() > 1 {
                     format!("{}: {}", if i == 0 { "A" } else { "B" }, s.method.name())
@@ -577,7 +583,8 @@ fn graph(ui: &mut egui::Ui, info: &Info, colours: [Color32; 2]) {
             .iter()
             .enumerate()
             .map(|(i, &ms)| {
-                let x = rect.left() + rect.width() * (i + super::HISTORY - h.len()) as f32 / n as f32;
+                let x =
+                    rect.left() + rect.width() * (i + super::HISTORY - h.len()) as f32 / n as f32;
                 let y = rect.bottom() - (rect.height() - 12.0) * ms / top;
                 Pos2::new(x, y)
             })
@@ -646,7 +653,11 @@ fn overlay(ui: &mut egui::Ui, state: &ViewState, info: &Info, req: &mut Requests
                 rgb(ARTIFACT_RGBA),
                 format!("artifact: hit more than {ARTIFACT_TEXELS} texel off"),
             );
-            swatch(ui, rgb(MISS_RGBA), "miss: only one of method, reference hits".into());
+            swatch(
+                ui,
+                rgb(MISS_RGBA),
+                "miss: only one of method, reference hits".into(),
+            );
             if state.settings.params.lod_threshold.is_some() {
                 swatch(ui, rgb(LOD_RGBA), "sent to bump mapping by LOD".into());
             }

@@ -584,9 +584,8 @@ impl Presenter {
                 // Columns of the frame map to columns of the swapchain image by scale
                 // (they differ only while a resize is on its way).
                 let frame_w = layout.frame.width.max(1);
-                let scale = |x: u32| {
-                    (u64::from(x) * u64::from(extent.width) / u64::from(frame_w)) as u32
-                };
+                let scale =
+                    |x: u32| (u64::from(x) * u64::from(extent.width) / u64::from(frame_w)) as u32;
                 for part in &layout.parts {
                     let src = images[part.side].context("a layout part has no image")?;
                     let x1 = part.src_x1.min(src.extent.width);
@@ -844,7 +843,11 @@ impl Presenter {
             }
             .context("vkGetQueryPoolResults")?;
             let bits = ctx.info().timestamp_valid_bits;
-            let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+            let mask = if bits >= 64 {
+                u64::MAX
+            } else {
+                (1u64 << bits) - 1
+            };
             let ticks = (stamps[1] & mask).wrapping_sub(stamps[0] & mask) & mask;
             Some(ticks as f64 * f64::from(ctx.info().timestamp_period_ns) * 1e-6)
         } else {

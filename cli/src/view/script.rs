@@ -225,9 +225,7 @@ impl Script {
                     "ab" => Action::Compare(Compare::Flip),
                     "side-by-side" => Action::Compare(Compare::SideBySide),
                     v => {
-                        return Err(bad(format!(
-                            "'{v}' is not wipe, ab or side-by-side"
-                        )));
+                        return Err(bad(format!("'{v}' is not wipe, ab or side-by-side")));
                     }
                 },
                 "flip" => Action::Flip,

@@ -155,9 +155,7 @@ impl Gui {
             }
         }
         self.pixels_per_point = output.pixels_per_point;
-        self.primitives = self
-            .egui
-            .tessellate(output.shapes, output.pixels_per_point);
+        self.primitives = self.egui.tessellate(output.shapes, output.pixels_per_point);
         self.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         Ok(())
     }
