@@ -1329,7 +1329,7 @@ impl Viewer {
         );
         self.window.set_title(&title(state));
         // Standard error one update in four (every 2 s).
-        if print && self.stats.updates % 4 == 0 {
+        if print && self.stats.updates.is_multiple_of(4) {
             eprintln!("{line}");
         }
         if self.stats.frames > 0 {
