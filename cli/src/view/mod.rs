@@ -58,6 +58,8 @@ const MISS_RGBA: [u8; 4] = [0, 255, 255, 255];
 const LOD_RGBA: [u8; 4] = [255, 0, 255, 255];
 /// Frames in the panel's rolling graph.
 const HISTORY: usize = 120;
+/// How long the panel shows the last screenshot's file name.
+const NOTICE_TIME: Duration = Duration::from_secs(5);
 /// How long a scripted resize may take before the run fails.
 const RESIZE_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -493,6 +495,8 @@ struct Viewer {
     history: [VecDeque<f32>; 2],
     /// The heat map's top count per side, when it is shown.
     heat_scales: [Option<f32>; 2],
+    /// The last screenshot's line, shown in the panel for a few seconds.
+    notice: Option<(String, Instant)>,
 }
 
 /// What the keys change, as last accepted by the renderers.
@@ -689,6 +693,7 @@ impl Viewer {
             good: None,
             history: [VecDeque::new(), VecDeque::new()],
             heat_scales: [None, None],
+            notice: None,
         })
     }
 
@@ -967,12 +972,14 @@ impl Viewer {
         }
         if let (Some(path), Some((extent, rgba))) = (&shot_path, &presented.screenshot) {
             output::write_png(path, extent.width, extent.height, rgba)?;
-            eprintln!(
+            let line = format!(
                 "screenshot: {} ({}x{})",
                 path.display(),
                 extent.width,
                 extent.height
             );
+            eprintln!("{line}");
+            self.notice = Some((line, Instant::now()));
         }
         let frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
         self.stats.render_wall.push(render_ms);
@@ -1048,6 +1055,11 @@ impl Viewer {
             label_columns,
             maps: state.maps.iter().map(|(n, _)| n.clone()).collect(),
             geometry: format!("{:?}", s.scene.geometry).to_lowercase(),
+            notice: self
+                .notice
+                .as_ref()
+                .filter(|(_, at)| at.elapsed() < NOTICE_TIME)
+                .map(|(line, _)| line.clone()),
         }
     }
 

@@ -115,6 +115,8 @@ pub struct Info {
     pub maps: Vec<String>,
     /// The geometry's name.
     pub geometry: String,
+    /// A recent message (the last screenshot's file).
+    pub notice: Option<String>,
 }
 
 /// What the user asked for through the panel (besides direct changes of the state).
@@ -178,9 +180,14 @@ pub fn draw(ctx: &egui::Context, state: &mut ViewState, info: &Info) -> Requests
             timings(ui, info);
             scene(ui, state, info, &mut req);
             camera(ui, state);
-            if ui.button("Screenshot").clicked() {
-                req.screenshot = true;
-            }
+            ui.horizontal(|ui| {
+                if ui.button("Screenshot (P)").clicked() {
+                    req.screenshot = true;
+                }
+                if let Some(n) = &info.notice {
+                    ui.label(n);
+                }
+            });
         });
     req
 }
