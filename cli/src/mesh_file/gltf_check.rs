@@ -226,7 +226,9 @@ fn check_accessor(
                 view.index()
             ));
         }
-        if stride % component != 0 || (offset + view.offset() as u64) % component != 0 {
+        if !stride.is_multiple_of(component)
+            || !(offset + view.offset() as u64).is_multiple_of(component)
+        {
             return Err(format!(
                 "{name}: its offset or stride is not a multiple of its {component}-byte \
                  component (byteOffset {offset}, bufferView {} at {}, stride {stride})",
@@ -262,7 +264,7 @@ fn check_accessor(
     let index_size = index.index_type().size() as u64;
     let bytes = view_bytes(name, &index.view(), buffers, false)?;
     let start = index.offset() as u64;
-    if start % index_size != 0 || start + n * index_size > bytes.len() as u64 {
+    if !start.is_multiple_of(index_size) || start + n * index_size > bytes.len() as u64 {
         return Err(format!(
             "{name}: its {n} sparse indices from byte {start} do not fit bufferView {} ({} \
              bytes) or are not aligned",
@@ -294,7 +296,7 @@ fn check_accessor(
     let values = sparse.values();
     let bytes = view_bytes(name, &values.view(), buffers, false)?;
     let start = values.offset() as u64;
-    if start % component != 0 || start + n * element > bytes.len() as u64 {
+    if !start.is_multiple_of(component) || start + n * element > bytes.len() as u64 {
         return Err(format!(
             "{name}: its {n} sparse values from byte {start} do not fit bufferView {} ({} \
              bytes) or are not aligned",
