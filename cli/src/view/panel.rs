@@ -141,11 +141,14 @@ pub fn draw(ctx: &egui::Context, state: &mut ViewState, info: &Info) -> Requests
     labels(ctx, info);
     if state.help {
         let mut open = true;
-        egui::Window::new("Keys")
+        let height = ctx.content_rect().height() - 24.0 - LABEL_BAND;
+        egui::Window::new("Keys (F1 closes)")
             .open(&mut open)
             .collapsible(false)
             .resizable(false)
-            .anchor(Align2::CENTER_CENTER, Vec2::ZERO)
+            .vscroll(true)
+            .max_height(height.max(60.0))
+            .anchor(Align2::CENTER_TOP, Vec2::new(0.0, 8.0))
             .show(ctx, |ui| {
                 egui::Grid::new("keys").striped(true).show(ui, |ui| {
                     for (key, what) in KEYS {
