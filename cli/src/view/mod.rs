@@ -1753,93 +1753,6 @@ fn lod_pixels(
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use dispmap::method::MethodParams;
-
-    fn state(right: Option<Method>, compare: Compare) -> ViewState {
-        let settings = RenderSettings {
-            width: 100,
-            height: 40,
-            method: Method::Relief,
-            params: MethodParams::default(),
-            scene: Scene::default(),
-            shadows: ShadowSettings::default(),
-        };
-        ViewState {
-            maps: Vec::new(),
-            map: 0,
-            assets: SceneAssets::default(),
-            settings,
-            steps: None,
-            right,
-            divider: 0.5,
-            compare,
-            show_b: true,
-            heatmap: false,
-            home: settings.scene.camera,
-            panel: true,
-            help: false,
-        }
-    }
-
-    fn part(side: usize, src_x0: u32, src_x1: u32, dst_x: u32) -> Part {
-        Part {
-            side,
-            src_x0,
-            src_x1,
-            dst_x,
-        }
-    }
-
-    #[test]
-    fn each_compare_mode_lays_out_its_sides() {
-        let frame = [100, 40];
-        let (size, l) = frame_layout(&state(None, Compare::Wipe), frame);
-        assert!(!l.has_gaps());
-        assert_eq!((size, l.parts), (frame, vec![part(0, 0, 100, 0)]));
-        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Wipe), frame);
-        assert_eq!(size, frame);
-        assert_eq!(l.parts, vec![part(0, 0, 50, 0), part(1, 52, 100, 52)]);
-        assert!(l.has_gaps());
-        // A/B: the shown side fills the frame, the same pixels as a frame of its own.
-        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Flip), frame);
-        assert_eq!((size, l.parts), (frame, vec![part(1, 0, 100, 0)]));
-        // Side by side: each renderer at half the width less the divider.
-        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), frame);
-        assert_eq!(size, [49, 40]);
-        assert_eq!(l.parts, vec![part(0, 0, 49, 0), part(1, 0, 49, 51)]);
-    }
-
-    #[test]
-    fn level_of_detail_sends_minified_pixels_past_the_band() {
-        // One row of four pixels over a 64-texel map: uv steps of 0.5, 3, 12 texels.
-        let ray = |u: f64| {
-            Some(Ray {
-                uv0: [u, 0.0],
-                parallax: [0.0, 0.0],
-            })
-        };
-        let t = 1.0 / 64.0;
-        let rays = [ray(0.0), ray(0.5 * t), ray(3.5 * t), ray(15.5 * t)];
-        let normals = [[0.0, 1.0, 0.0, 0.0]; 4];
-        let sent = |threshold| lod_pixels(&rays, &normals, 4, [64, 64], true, threshold);
-        // Levels: 0 (magnified), 1.58, 3.58, 3.58 (the last pixel looks left); a pixel
-        // is sent above threshold - 1.
-        assert_eq!(sent(1.0), vec![false, true, true, true]);
-        assert_eq!(sent(3.0), vec![false, false, true, true]);
-        assert_eq!(sent(5.0), vec![false, false, false, false]);
-        // Below 1 every pixel blends toward bump mapping.
-        assert_eq!(sent(0.5), vec![true; 4]);
-        // Another surface's neighbour is not a neighbour.
-        let mut split = normals;
-        split[2][3] = 1.0;
-        let sent = lod_pixels(&rays, &split, 4, [64, 64], true, 3.0);
-        assert_eq!(sent, vec![false, false, false, false]);
-    }
-}
-
 /// Changes the elevation within `[MIN_ELEVATION, 90]` degrees.
 fn tilt(camera: &mut Camera, degrees: f32) {
     camera.elevation_deg = (camera.elevation_deg + degrees).clamp(MIN_ELEVATION, 90.0);
@@ -1929,4 +1842,91 @@ fn next_screenshot_path(from: u32) -> PathBuf {
         .map(|n| PathBuf::from(format!("dispmap-view-{n}.png")))
         .find(|p| !Path::new(p).exists())
         .unwrap_or_else(|| PathBuf::from("dispmap-view.png"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dispmap::method::MethodParams;
+
+    fn state(right: Option<Method>, compare: Compare) -> ViewState {
+        let settings = RenderSettings {
+            width: 100,
+            height: 40,
+            method: Method::Relief,
+            params: MethodParams::default(),
+            scene: Scene::default(),
+            shadows: ShadowSettings::default(),
+        };
+        ViewState {
+            maps: Vec::new(),
+            map: 0,
+            assets: SceneAssets::default(),
+            settings,
+            steps: None,
+            right,
+            divider: 0.5,
+            compare,
+            show_b: true,
+            heatmap: false,
+            home: settings.scene.camera,
+            panel: true,
+            help: false,
+        }
+    }
+
+    fn part(side: usize, src_x0: u32, src_x1: u32, dst_x: u32) -> Part {
+        Part {
+            side,
+            src_x0,
+            src_x1,
+            dst_x,
+        }
+    }
+
+    #[test]
+    fn each_compare_mode_lays_out_its_sides() {
+        let frame = [100, 40];
+        let (size, l) = frame_layout(&state(None, Compare::Wipe), frame);
+        assert!(!l.has_gaps());
+        assert_eq!((size, l.parts), (frame, vec![part(0, 0, 100, 0)]));
+        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Wipe), frame);
+        assert_eq!(size, frame);
+        assert_eq!(l.parts, vec![part(0, 0, 50, 0), part(1, 52, 100, 52)]);
+        assert!(l.has_gaps());
+        // A/B: the shown side fills the frame, the same pixels as a frame of its own.
+        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Flip), frame);
+        assert_eq!((size, l.parts), (frame, vec![part(1, 0, 100, 0)]));
+        // Side by side: each renderer at half the width less the divider.
+        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), frame);
+        assert_eq!(size, [49, 40]);
+        assert_eq!(l.parts, vec![part(0, 0, 49, 0), part(1, 0, 49, 51)]);
+    }
+
+    #[test]
+    fn level_of_detail_sends_minified_pixels_past_the_band() {
+        // One row of four pixels over a 64-texel map: uv steps of 0.5, 3, 12 texels.
+        let ray = |u: f64| {
+            Some(Ray {
+                uv0: [u, 0.0],
+                parallax: [0.0, 0.0],
+            })
+        };
+        let t = 1.0 / 64.0;
+        let rays = [ray(0.0), ray(0.5 * t), ray(3.5 * t), ray(15.5 * t)];
+        let normals = [[0.0, 1.0, 0.0, 0.0]; 4];
+        let sent = |threshold| lod_pixels(&rays, &normals, 4, [64, 64], true, threshold);
+        // Levels: 0 (magnified), 1.58, 3.58, 3.58 (the last pixel looks left); a pixel
+        // is sent above threshold - 1.
+        assert_eq!(sent(1.0), vec![false, true, true, true]);
+        assert_eq!(sent(3.0), vec![false, false, true, true]);
+        assert_eq!(sent(5.0), vec![false, false, false, false]);
+        // Below 1 every pixel blends toward bump mapping.
+        assert_eq!(sent(0.5), vec![true; 4]);
+        // Another surface's neighbour is not a neighbour.
+        let mut split = normals;
+        split[2][3] = 1.0;
+        let sent = lod_pixels(&rays, &split, 4, [64, 64], true, 3.0);
+        assert_eq!(sent, vec![false, false, false, false]);
+    }
 }
