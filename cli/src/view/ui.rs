@@ -6,6 +6,11 @@
 //! set, rewritten each frame after the previous frame's fence; egui's texture uploads
 //! (the font atlas) are submitted and waited for by the renderer itself before the frame
 //! is recorded; textures egui frees are freed after the frame's fence.
+//!
+//! egui updates its font atlas in patches when new glyphs appear. The renderer records
+//! a patch's upload with the image's old contents discarded (a transition from
+//! `UNDEFINED`), which a GPU may honour; so the viewer keeps a copy of each texture,
+//! patches the copy and uploads it whole.
 
 use super::present::Overlay;
 use anyhow::{Context as _, Result};
@@ -13,6 +18,8 @@ use ash::vk;
 use dispmap::context::Context;
 use egui_ash_renderer::allocator::GpuAllocator;
 use egui_ash_renderer::{DynamicRendering, Options, RenderMode, Renderer};
+use std::collections::HashMap;
+use std::sync::Arc;
 use std::time::Instant;
 use winit::event::WindowEvent;
 use winit::window::Window;
@@ -30,6 +37,8 @@ pub struct Gui {
     pixels_per_point: f32,
     /// Textures egui freed in the last run: freed after that frame was drawn.
     to_free: Vec<egui::TextureId>,
+    /// The contents of each egui texture (module docs).
+    copies: HashMap<egui::TextureId, egui::ColorImage>,
     /// CPU milliseconds of the last frame's panel: egui's run, tessellation, texture
     /// uploads and recording.
     pub cpu_ms: f64,
@@ -109,6 +118,7 @@ impl Gui {
             primitives: Vec::new(),
             pixels_per_point: 1.0,
             to_free: Vec::new(),
+            copies: HashMap::new(),
             cpu_ms: 0.0,
         })
     }
@@ -149,8 +159,35 @@ impl Gui {
         self.to_free = textures.free.drain().collect();
         for (id, deltas) in set {
             for delta in &deltas {
+                let egui::ImageData::Color(image) = &delta.image;
+                let whole = match delta.pos {
+                    None => {
+                        self.copies.insert(id, (**image).clone());
+                        delta.clone()
+                    }
+                    Some([x0, y0]) => {
+                        let copy = self.copies.get_mut(&id).with_context(|| {
+                            format!("egui patched its texture {id:?} before setting it")
+                        })?;
+                        let [w, h] = image.size;
+                        let width = copy.size[0];
+                        if x0 + w > width || y0 + h > copy.size[1] {
+                            anyhow::bail!("egui's patch of texture {id:?} lies outside it");
+                        }
+                        for row in 0..h {
+                            let at = (y0 + row) * width + x0;
+                            copy.pixels[at..at + w]
+                                .copy_from_slice(&image.pixels[row * w..(row + 1) * w]);
+                        }
+                        egui::epaint::ImageDelta::partial(
+                            [0, 0],
+                            Arc::new(copy.clone()),
+                            delta.options,
+                        )
+                    }
+                };
                 renderer
-                    .set_texture(ctx.queue(), self.pool, id, delta)
+                    .set_texture(ctx.queue(), self.pool, id, &whole)
                     .map_err(|e| anyhow::anyhow!("the panel's texture upload failed: {e}"))?;
             }
         }
@@ -165,6 +202,7 @@ impl Gui {
         let ids = std::mem::take(&mut self.to_free);
         if let Some(r) = self.renderer.as_mut() {
             for id in ids {
+                self.copies.remove(&id);
                 r.free_texture(id)
                     .map_err(|e| anyhow::anyhow!("freeing the panel's textures: {e}"))?;
             }
