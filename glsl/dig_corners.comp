@@ -8,8 +8,9 @@
 //
 // Output (rgba32f per corner):
 //   x: that ray height (1 when the entry point is already on the surface);
-//   y: the surface id of the corner pixel (G-buffer normal.w; 0 = no geometry, or a
-//      clamp-addressed ray that leaves the decal: a silhouette, not a surface point);
+//   y: the surface id of the corner pixel (G-buffer normal.w; 0 = no geometry, a pixel of
+//      another material, or a clamp-addressed ray that leaves the decal: a silhouette,
+//      not a surface point);
 //   z: the height fetches spent (the corner pass's share of the iteration count);
 //   w: 0.
 // Block corners stored as floats, not 8 bits as in the paper: the interval ends are
@@ -23,6 +24,8 @@ layout(set = 0, binding = 1) uniform sampler2D u_depth;
 layout(set = 0, binding = 2) uniform sampler2D u_normal;
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 layout(set = 0, binding = 4, rgba32f) uniform writeonly image2D u_corners;
+// G-buffer tangent; w = the material (glsl/common/tiles.glsl).
+layout(set = 0, binding = 5) uniform sampler2D u_tangent;
 
 layout(push_constant) uniform CornerParams {
     uvec2 frame_size;
@@ -30,7 +33,11 @@ layout(push_constant) uniform CornerParams {
     uvec2 block;
     uint steps;
     uint addressing;
+    uint material;      // the material whose grid this is
+    uint pad;
 } pc;
+
+#include "tiles.glsl"
 
 #include "march.glsl"
 
@@ -40,7 +47,9 @@ void main() {
         return;
     }
     ivec2 pixel = min(corner * ivec2(pc.block), ivec2(pc.frame_size) - 1);
-    if (texelFetch(u_depth, pixel, 0).r <= 0.0) {
+    // No geometry or another material: not a point of this material's surface (a block
+    // with such a corner falls back, as at a surface boundary).
+    if (texelFetch(u_depth, pixel, 0).r <= 0.0 || decode_material(texelFetch(u_tangent, pixel, 0).w) != pc.material) {
         imageStore(u_corners, corner, vec4(1.0, 0.0, 0.0, 0.0));
         return;
     }

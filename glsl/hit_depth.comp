@@ -31,12 +31,17 @@ layout(push_constant) uniform HitDepthParams {
     vec4 clip_w_row;    // row 3 of eye offset -> clip (the homogeneous w)
     uvec2 frame_size;   // pixels
     float depth_scale;  // displacement depth in tile units
-    uint pad;
+    uint material;      // the material this dispatch resolves (its tiles: binding 15)
 } pc;
 
+#define DISPMAP_TILE_PASS
+#include "tiles.glsl"
+
+// One workgroup per tile of the material's list; `classify` wrote the other pixels (the
+// G-buffer's own depth).
 void main() {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
+    ivec2 pixel;
+    if (!material_pixel(pc.material, pc.frame_size, pixel)) {
         return;
     }
     float depth = texelFetch(u_depth, pixel, 0).r;
@@ -53,7 +58,7 @@ void main() {
     vec3 N = texelFetch(u_normal, pixel, 0).xyz;
     vec4 t4 = texelFetch(u_tangent, pixel, 0);
     vec3 T = t4.xyz;
-    vec3 B = t4.w * cross(N, T);
+    vec3 B = handedness(t4.w) * cross(N, T);
     vec2 duv = hit.xy - uv0;
     vec3 p = entry + T * duv.x + B * duv.y - N * ((1.0 - hit.z) * pc.depth_scale);
     float z = dot(pc.clip_z_row, vec4(p, 1.0));

@@ -22,10 +22,12 @@ layout(set = 0, binding = 6) uniform sampler2D u_normal_map;
 #ifdef SHADOWS
 layout(set = 0, binding = 7, r16f) uniform readonly image2D u_visibility;
 #endif
+// G-buffer depth (which pixels have geometry: glsl/common/tiles.glsl).
+layout(set = 0, binding = 8) uniform sampler2D u_depth;
 
 layout(push_constant) uniform ShadeParams {
     mat4 inv_view_proj;  // clip -> world
-    vec4 camera_pos;     // xyz
+    vec4 camera_pos;     // xyz; w: the material this dispatch shades (an integer)
     vec4 light_dir;      // xyz: unit vector towards the light; w: intensity
     uvec2 frame_size;
     uvec2 map_size;
@@ -36,15 +38,15 @@ layout(push_constant) uniform ShadeParams {
 } pc;
 
 #include "heightfield.glsl"
+#define DISPMAP_TILE_PASS
+#include "tiles.glsl"
 
-vec3 srgb_encode(vec3 c) {
-    c = clamp(c, 0.0, 1.0);
-    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
-}
+#include "sky.glsl"
 
+// One workgroup per tile of the material's list; other pixels keep the host's colour.
 void main() {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
+    ivec2 pixel;
+    if (!material_pixel(uint(pc.camera_pos.w), pc.frame_size, pixel)) {
         return;
     }
     // View direction from the pixel alone (no depth needed).
@@ -54,15 +56,14 @@ void main() {
 
     vec4 hit = imageLoad(u_hit, pixel);
     if (hit.z < 0.0) {
-        // Sky: a vertical gradient.
-        float t = clamp(0.5 - 0.5 * V.y, 0.0, 1.0);
-        imageStore(u_color, pixel, vec4(srgb_encode(mix(vec3(0.45, 0.6, 0.8), vec3(0.85, 0.9, 0.95), t)), 1.0));
+        // A ray that left the decal: the sky.
+        imageStore(u_color, pixel, vec4(sky_color(V), 1.0));
         return;
     }
     vec3 N = texelFetch(u_normal, pixel, 0).xyz;
     vec4 t4 = texelFetch(u_tangent, pixel, 0);
     vec3 T = t4.xyz;
-    vec3 B = t4.w * cross(N, T);
+    vec3 B = handedness(t4.w) * cross(N, T);
     vec3 n_ts = height_normal(hit.xy, vec2(pc.map_size), pc.depth_scale);
     vec4 normal_map = textureLod(u_normal_map, hit.xy, 0.0);
     if (normal_map.a < 0.5) {

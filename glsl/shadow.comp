@@ -70,6 +70,8 @@ layout(set = 0, binding = 2) uniform sampler2D u_tangent;
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 // binding 4: the cell-max pyramid, PYRAMID variant only (declared by pyramid.glsl).
 layout(set = 0, binding = 5, r16f) uniform writeonly image2D u_visibility;
+// G-buffer depth (which pixels have geometry: glsl/common/tiles.glsl).
+layout(set = 0, binding = 6) uniform sampler2D u_depth;
 
 layout(push_constant) uniform ShadowParams {
     vec4 light_dir;      // xyz: world-space unit vector towards the light
@@ -83,7 +85,14 @@ layout(push_constant) uniform ShadowParams {
     uint steps;          // hard, marching: steps over the full depth (the method's)
     uint samples;        // soft: light samples
     uint pyramid_levels; // levels of the bound pyramid (PYRAMID variant)
+    uint material;       // the material this dispatch shadows (its tiles: binding 15)
+    uint pad0;
+    uint pad1;
+    uint pad2;
 } pc;
+
+#define DISPMAP_TILE_PASS
+#include "tiles.glsl"
 
 #define SHADOW_MODE_HARD 1u
 #define SHADOW_MODE_SOFT 2u
@@ -143,9 +152,10 @@ float soft_visibility(vec2 uv, vec2 climb) {
     return 1.0 - clamp(occlusion, 0.0, 1.0);
 }
 
+// One workgroup per tile of the material's list; other pixels are left alone.
 void main() {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
+    ivec2 pixel;
+    if (!material_pixel(pc.material, pc.frame_size, pixel)) {
         return;
     }
     vec4 hit = imageLoad(u_hit, pixel);
@@ -154,7 +164,7 @@ void main() {
         vec3 N = normalize(texelFetch(u_normal, pixel, 0).xyz);
         vec4 t4 = texelFetch(u_tangent, pixel, 0);
         vec3 T = normalize(t4.xyz);
-        vec3 B = t4.w * cross(N, T);
+        vec3 B = handedness(t4.w) * cross(N, T);
         vec3 L = pc.light_dir.xyz;
         vec3 l_ts = vec3(dot(L, T), dot(L, B), dot(L, N));
         if (!(l_ts.z > 0.0)) {

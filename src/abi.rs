@@ -13,6 +13,12 @@ pub const ADDRESSING_REPEAT: u32 = 0;
 pub const ADDRESSING_CLAMP: u32 = 1;
 /// `NO_HIT_HEIGHT` in `glsl/common/frame.glsl`: the hit height of a miss.
 pub const NO_HIT_HEIGHT: f32 = -1.0;
+/// `NOT_DISPLACED_HEIGHT` in `glsl/common/frame.glsl`: the hit height of a pixel of flat
+/// geometry (G-buffer `tangent.w` = 0), written by the classification pass.
+pub const NOT_DISPLACED_HEIGHT: f32 = -2.0;
+/// `MAX_MATERIALS` in `glsl/common/tiles.glsl`: the materials a pass may hold (the
+/// G-buffer's `tangent.w` holds `index + 1` exactly in f16).
+pub const MAX_MATERIALS: u32 = 1024;
 
 /// `TraceParams` in `glsl/common/trace.glsl`.
 #[repr(C)]
@@ -49,8 +55,8 @@ pub struct TraceParams {
     /// With `TRACE_FLAG_LOD`: the footprint mip level from which a pixel takes the bump
     /// result without tracing (a one-level band below it blends toward bump).
     pub lod_threshold: f32,
-    /// Padding to 16 bytes.
-    pub pad: u32,
+    /// The material this dispatch traces (the index in the pass's table).
+    pub material: u32,
 }
 
 /// `TRACE_FLAG_AUTO_LEVEL` in `glsl/common/trace.glsl`: the pyramid method derives its
@@ -111,6 +117,24 @@ pub struct CornerParams {
     pub steps: u32,
     /// `ADDRESSING_*`.
     pub addressing: u32,
+    /// The material whose grid this is.
+    pub material: u32,
+    /// Padding.
+    pub pad: u32,
+}
+
+/// `ClassifyParams` in `glsl/classify.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ClassifyParams {
+    /// Frame size in pixels.
+    pub frame_size: [u32; 2],
+    /// Table entries (live or vacant).
+    pub material_count: u32,
+    /// Entries per material list.
+    pub tile_capacity: u32,
+    /// `CLASSIFY_FLAG_*`.
+    pub flags: u32,
 }
 
 /// `GBufferParams` in `glsl/common/gbuffer.glsl`.
@@ -122,7 +146,8 @@ pub struct GBufferParams {
     /// The vertex stages transform positions relative to the eye, so a camera far from
     /// the origin keeps full precision near the eye.
     pub view_proj: Mat4,
-    /// Eye position (xyz).
+    /// Eye position (xyz); `w`: the material this dispatch shades (an integer in f32:
+    /// the block is at the 128 bytes every device allows).
     pub camera_pos: Vec4,
     /// x0, z0, x1, z1 of the quad (or of the plane's grid) on the y = 0 plane.
     pub world_rect: Vec4,
@@ -155,7 +180,8 @@ impl GBufferParams {
 pub struct ShadeParams {
     /// Clip to world.
     pub inv_view_proj: Mat4,
-    /// Eye position (xyz).
+    /// Eye position (xyz); `w`: the material this dispatch shades (an integer in f32:
+    /// the block is at the 128 bytes every device allows).
     pub camera_pos: Vec4,
     /// Unit vector towards the light (xyz) and intensity (w).
     pub light_dir: Vec4,
@@ -217,8 +243,8 @@ pub struct HitDepthParams {
     pub frame_size: [u32; 2],
     /// Displacement depth in tile units.
     pub depth_scale: f32,
-    /// Padding to 16 bytes.
-    pub pad: u32,
+    /// The material this dispatch resolves.
+    pub material: u32,
 }
 
 /// `ShadowParams` in `glsl/shadow.comp`.
@@ -247,6 +273,10 @@ pub struct ShadowParams {
     pub samples: u32,
     /// Levels of the bound pyramid (0 without one).
     pub pyramid_levels: u32,
+    /// The material this dispatch shadows.
+    pub material: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 /// `SHADOW_MODE_HARD` in `glsl/shadow.comp`.
@@ -372,7 +402,7 @@ mod tests {
                 ("pyramid_levels", offset_of!(TraceParams, pyramid_levels)),
                 ("depth_scale", offset_of!(TraceParams, depth_scale)),
                 ("lod_threshold", offset_of!(TraceParams, lod_threshold)),
-                ("pad", offset_of!(TraceParams, pad)),
+                ("material", offset_of!(TraceParams, material)),
             ],
             size_of::<TraceParams>(),
         );
@@ -423,6 +453,7 @@ mod tests {
                 ("block", offset_of!(CornerParams, block)),
                 ("steps", offset_of!(CornerParams, steps)),
                 ("addressing", offset_of!(CornerParams, addressing)),
+                ("material", offset_of!(CornerParams, material)),
             ],
             size_of::<CornerParams>(),
         );
@@ -480,7 +511,7 @@ mod tests {
                 ("clip_w_row", offset_of!(HitDepthParams, clip_w_row)),
                 ("frame_size", offset_of!(HitDepthParams, frame_size)),
                 ("depth_scale", offset_of!(HitDepthParams, depth_scale)),
-                ("pad", offset_of!(HitDepthParams, pad)),
+                ("material", offset_of!(HitDepthParams, material)),
             ],
             size_of::<HitDepthParams>(),
         );
@@ -505,11 +536,29 @@ mod tests {
                     ("steps", offset_of!(ShadowParams, steps)),
                     ("samples", offset_of!(ShadowParams, samples)),
                     ("pyramid_levels", offset_of!(ShadowParams, pyramid_levels)),
+                    ("material", offset_of!(ShadowParams, material)),
                 ],
                 size_of::<ShadowParams>(),
             );
         }
-        assert_eq!(size_of::<ShadowParams>(), 64);
+        assert_eq!(size_of::<ShadowParams>(), 80);
+    }
+
+    #[test]
+    fn classify_params_layout() {
+        for shader in [&shaders::CLASSIFY_COMP, &shaders::CLASSIFY_COMP_DEPTH] {
+            check(
+                shader,
+                "ClassifyParams",
+                &[
+                    ("frame_size", offset_of!(ClassifyParams, frame_size)),
+                    ("material_count", offset_of!(ClassifyParams, material_count)),
+                    ("tile_capacity", offset_of!(ClassifyParams, tile_capacity)),
+                    ("flags", offset_of!(ClassifyParams, flags)),
+                ],
+                size_of::<ClassifyParams>(),
+            );
+        }
     }
 
     #[test]

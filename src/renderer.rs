@@ -33,6 +33,7 @@ use crate::mesh::{Mesh, MeshBuffers};
 use crate::method::{Method, MethodParams};
 use crate::passes::PassName;
 use crate::passes::dig::Corner;
+use crate::passes::background::BackgroundPass;
 use crate::passes::gbuffer::{GBuffer, GBufferPass, Ray};
 use crate::passes::shade::COLOR_FORMAT;
 use crate::passes::shadow::{ShadowSettings, VISIBILITY_FORMAT};
@@ -120,6 +121,8 @@ pub struct Renderer {
     hit: Image,
     color: Image,
     gbuffer_pass: GBufferPass,
+    /// The host's shading of what the pass leaves alone: sky and flat geometry.
+    background: BackgroundPass,
     /// The macro geometry's vertex and index buffers (meshes only).
     mesh: Option<MeshBuffers>,
     pass: DisplacementPass,
@@ -208,6 +211,7 @@ impl Renderer {
             mesh.map(|m| MeshBuffers::upload(c, &shot, &m))
                 .transpose()?,
         );
+        let background = Guard::new(c, BackgroundPass::new(c)?);
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             field,
@@ -237,11 +241,19 @@ impl Renderer {
             hit: hit.keep(),
             color: color.keep(),
             gbuffer_pass: gbuffer_pass.keep(),
+            background: background.keep(),
             mesh: mesh.keep(),
             pass,
             depth_written: false,
             builds: Vec::new(),
         })
+    }
+
+    /// The G-buffer of the last frame (after [`Renderer::render`]: sampled-readable by
+    /// compute shaders, `SHADER_READ_ONLY_OPTIMAL`), e.g. its tangent for the depth
+    /// resolve.
+    pub fn gbuffer(&self) -> &GBuffer {
+        &self.gbuffer
     }
 
     /// The settings in use.
@@ -395,8 +407,8 @@ impl Renderer {
             })
         };
 
-        // The pass's entry contract: G-buffer sampled by compute, hit buffer and colour
-        // discarded in GENERAL.
+        // The pass's entry contract: G-buffer sampled by compute, hit buffer discarded in
+        // GENERAL, colour in GENERAL with the host's background (below).
         let mut entry = self.gbuffer.barriers(
             (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
             (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
@@ -414,6 +426,10 @@ impl Renderer {
         // colour images are the renderer's, alive, and their previous frame was waited
         // for, so they may be discarded.
         unsafe { sync::record(ctx, cmd, &entry) };
+        // SAFETY: `cmd` is recording outside a render pass and submitted below; the
+        // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
+        // (the barriers above).
+        unsafe { self.record_background(cmd, &target) };
         let inputs = self.frame_inputs(Some(target));
         // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
         // submitted below; the views are the renderer's, in the entry states; one slot,
@@ -470,6 +486,45 @@ impl Renderer {
             light_intensity: scene.light.intensity,
         };
         (camera, target)
+    }
+
+    /// The host's background (sky, flat geometry) into the colour image, then the
+    /// colour's barrier for `shade`'s writes of the displaced pixels.
+    ///
+    /// # Safety
+    /// `cmd` is recording outside a render pass on the context's queue and is submitted
+    /// (and waited for) while the renderer lives; when it executes, the G-buffer is
+    /// sampled-readable by compute and the colour image in `GENERAL`, earlier accesses
+    /// ordered before compute-shader storage writes.
+    unsafe fn record_background(&self, cmd: vk::CommandBuffer, target: &ShadeTarget) {
+        let ctx = &*self.ctx;
+        let e = self.settings.extent();
+        let params = crate::abi::ShadeParams::new(
+            target.view_proj,
+            target.camera_pos,
+            target.light_dir,
+            target.light_intensity,
+            [e.width, e.height],
+            [1, 1],
+            0.0,
+        );
+        // SAFETY: this function's contract; the views are the renderer's, alive.
+        unsafe {
+            self.background.record(
+                ctx,
+                cmd,
+                self.gbuffer.views(),
+                self.color.view_ref(),
+                &params,
+            );
+            sync::transition(
+                ctx,
+                cmd,
+                &self.color,
+                Access::COMPUTE_STORAGE_WRITE,
+                Access::COMPUTE_STORAGE_WRITE,
+            );
+        }
     }
 
     fn frame_inputs(&self, shade: Option<ShadeTarget>) -> FrameInputs {
@@ -678,8 +733,11 @@ impl Renderer {
         // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
         // context's queue family) and is submitted and waited for below; the colour image
         // is the renderer's, alive, and its previous frame was waited for, so it may be
-        // discarded.
-        unsafe { sync::transition(ctx, cmd, color, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
+        // discarded; the G-buffer is sampled-readable since the frame that drew it.
+        unsafe {
+            sync::transition(ctx, cmd, color, DISCARD, Access::COMPUTE_STORAGE_WRITE);
+            self.record_background(cmd, &target);
+        }
         // SAFETY: `cmd` is recording and submitted below; the hits (and the given
         // visibility) were uploaded and made visible to storage reads; one slot, whose
         // previous frame was waited for.
@@ -708,6 +766,7 @@ impl Drop for Renderer {
         unsafe { self.pass.destroy() };
         self.mesh.destroy(ctx);
         self.gbuffer_pass.destroy(ctx);
+        self.background.destroy(ctx);
         self.color.destroy(ctx);
         self.hit.destroy(ctx);
         self.gbuffer.destroy(ctx);

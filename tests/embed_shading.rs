@@ -98,7 +98,9 @@ fn slot_images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, Image
         image(
             "resolved_depth",
             DEPTH_FORMAT,
-            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+                | vk::ImageUsageFlags::TRANSFER_SRC
+                | vk::ImageUsageFlags::TRANSFER_DST,
         ),
     )
 }
@@ -236,17 +238,50 @@ impl Host {
                             slot.resolved.raw,
                             slot.resolved.range(),
                             DISCARD,
-                            Access::DEPTH_ATTACHMENT_WRITE,
+                            Access::TRANSFER_WRITE,
+                        ),
+                        // The resolve reads the G-buffer's tangent (which pixels are
+                        // displaced) in the fragment stage.
+                        sync::image_barrier(
+                            slot.gbuffer.tangent.raw,
+                            slot.gbuffer.tangent.range(),
+                            Access::COMPUTE_SAMPLED,
+                            FRAGMENT_SAMPLED,
                         ),
                     ],
                 )
             };
+            // The host's own depth before the resolve merges into it: cleared to 0 (the
+            // reverse-Z far plane), as the G-buffer's depth is where nothing was drawn.
+            // SAFETY: as above; the image is in TRANSFER_DST_OPTIMAL (the barrier above).
+            unsafe {
+                ctx.device().cmd_clear_depth_stencil_image(
+                    cmd,
+                    slot.resolved.raw,
+                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                    &vk::ClearDepthStencilValue::default(),
+                    &[slot.resolved.range()],
+                );
+                sync::transition(
+                    &ctx,
+                    cmd,
+                    &slot.resolved,
+                    Access::TRANSFER_WRITE,
+                    Access::DEPTH_ATTACHMENT_WRITE,
+                );
+            }
             // SAFETY: as above; `source` is sampled-readable by fragment shaders and the
             // resolved image in `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), both of
             // the frame's extent; the resolve pass lives as long as the host.
             unsafe {
-                self.resolve
-                    .record(&ctx, cmd, source.view, slot.resolved.view, extent)
+                self.resolve.record(
+                    &ctx,
+                    cmd,
+                    source.view,
+                    slot.gbuffer.tangent.view,
+                    slot.resolved.view,
+                    extent,
+                )
             };
             slot.resolved_written = true;
         }

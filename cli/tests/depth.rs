@@ -395,7 +395,9 @@ fn a_box_clips_at_the_displaced_height() {
         DEPTH_FORMAT,
         extent,
         1,
-        vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
+        vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+            | vk::ImageUsageFlags::TRANSFER_SRC
+            | vk::ImageUsageFlags::TRANSFER_DST,
     )
     .unwrap();
     let mut color = Image::new(
@@ -410,6 +412,7 @@ fn a_box_clips_at_the_displaced_height() {
     let mut resolve = DepthResolvePass::new(&ctx).unwrap();
     let mut boxes = BoxPipeline::new(&ctx);
     let source = renderer.hit_depth().expect("depth output is on");
+    let tangent = &renderer.gbuffer().tangent;
     let cmd = shot.begin(&ctx).unwrap();
     // SAFETY: `cmd` was just begun by `shot.begin` (outside a render pass, on the context's
     // queue family) and is submitted and waited for below, while every image lives;
@@ -431,7 +434,14 @@ fn a_box_clips_at_the_displaced_height() {
                     depth.raw,
                     depth.range(),
                     Access::UNDEFINED,
-                    Access::DEPTH_ATTACHMENT_WRITE,
+                    Access::TRANSFER_WRITE,
+                ),
+                // The resolve reads which pixels are displaced from the G-buffer tangent.
+                sync::image_barrier(
+                    tangent.raw,
+                    tangent.range(),
+                    Access::COMPUTE_SAMPLED,
+                    FRAGMENT_SAMPLED,
                 ),
                 sync::image_barrier(
                     color.raw,
@@ -442,9 +452,28 @@ fn a_box_clips_at_the_displaced_height() {
             ],
         )
     };
-    // SAFETY: as above; `source` is sampled-readable by fragment shaders and `depth` in
-    // `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), both of `extent`.
-    unsafe { resolve.record(&ctx, cmd, source.view, depth.view, extent) };
+    // The host's depth before the merge: cleared to 0 (the far plane), as the G-buffer's
+    // is where nothing was drawn.
+    // SAFETY: as above; `depth` is in TRANSFER_DST_OPTIMAL (the barrier above).
+    unsafe {
+        ctx.device().cmd_clear_depth_stencil_image(
+            cmd,
+            depth.raw,
+            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+            &vk::ClearDepthStencilValue::default(),
+            &[depth.range()],
+        );
+        sync::transition(
+            &ctx,
+            cmd,
+            &depth,
+            Access::TRANSFER_WRITE,
+            Access::DEPTH_ATTACHMENT_WRITE,
+        );
+    }
+    // SAFETY: as above; `source` and the tangent are sampled-readable by fragment shaders
+    // and `depth` in `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), all of `extent`.
+    unsafe { resolve.record(&ctx, cmd, source.view, tangent.view, depth.view, extent) };
     // SAFETY: as above; `depth` was written in `DEPTH_ATTACHMENT_OPTIMAL` by the resolve.
     unsafe {
         sync::transition(
@@ -459,7 +488,8 @@ fn a_box_clips_at_the_displaced_height() {
     // `depth` holds the resolved depth in `DEPTH_ATTACHMENT_OPTIMAL` (the barrier above).
     unsafe { boxes.record(&ctx, cmd, &color, &depth, &params) };
     // Back to the state the renderer documents for its corrected depth.
-    // SAFETY: as above; `source` is in `SHADER_READ_ONLY_OPTIMAL` (the first barriers).
+    // SAFETY: as above; `source` and the tangent are in `SHADER_READ_ONLY_OPTIMAL` (the
+    // first barriers).
     unsafe {
         sync::transition(
             &ctx,
@@ -467,8 +497,9 @@ fn a_box_clips_at_the_displaced_height() {
             source,
             FRAGMENT_SAMPLED,
             Access::COMPUTE_STORAGE_WRITE,
-        )
-    };
+        );
+        sync::transition(&ctx, cmd, tangent, FRAGMENT_SAMPLED, Access::COMPUTE_SAMPLED);
+    }
     shot.submit_and_wait(&ctx).unwrap();
     let rgba = read_image(&ctx, &shot, &color, Access::COLOR_ATTACHMENT_WRITE).unwrap();
     // The resolve copied the corrected depth pixel for pixel (the box wrote only where

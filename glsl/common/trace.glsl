@@ -20,6 +20,8 @@ layout(set = 0, binding = 2) uniform sampler2D u_height;
 layout(set = 0, binding = 3, rgba32f) uniform writeonly image2D u_hit;
 // G-buffer normal; w = surface id (DIG's corner test, the footprint's neighbours).
 layout(set = 0, binding = 6) uniform sampler2D u_normal;
+// G-buffer tangent; w = the material (glsl/common/tiles.glsl).
+layout(set = 0, binding = 7) uniform sampler2D u_tangent;
 
 layout(push_constant) uniform TraceParams {
     uvec2 frame_size;   // pixels
@@ -37,8 +39,11 @@ layout(push_constant) uniform TraceParams {
     uint pyramid_levels;// levels of the bound pyramid (0: none)
     float depth_scale;  // displacement depth in tile units
     float lod_threshold;// TRACE_FLAG_LOD: the mip level from which pixels take bump mapping
-    uint pad;
+    uint material;      // the material this dispatch traces (its tiles: binding 15)
 } pc;
+
+#define DISPMAP_TILE_PASS
+#include "tiles.glsl"
 
 // The pyramid method picks its coarsest level from the pixel's texel footprint.
 #define TRACE_FLAG_AUTO_LEVEL 1u
@@ -97,8 +102,9 @@ Hit relief_search(Ray ray, inout uint iterations) {
 // The texels one pixel spans: the larger of the entry point's steps to the right and
 // down neighbours (the left / upper one at the frame's last column / row), with the tile
 // wraps of uv0 (reduced to [0, 1) for repeat addressing) removed by taking the nearest
-// image of the difference. A neighbour without geometry or on another surface (another
-// chart: its uvs are not continuous with this pixel's) gives no step; with neither, the
+// image of the difference. A neighbour without geometry, of another material or on
+// another surface (another chart: its uvs are not continuous with this pixel's) gives no
+// step; with neither, the
 // footprint is 0 (no minification known: full detail). Compute shaders have no implicit
 // derivatives, so this is the finite-difference |d uv / d pixel| the hardware would use.
 float footprint_texels(ivec2 pixel, vec2 uv0) {
@@ -107,7 +113,7 @@ float footprint_texels(ivec2 pixel, vec2 uv0) {
     for (int a = 0; a < 2; ++a) {
         ivec2 q = pixel;
         q[a] += q[a] + 1 < int(pc.frame_size[a]) ? 1 : -1;
-        if (q[a] < 0 || texelFetch(u_depth, q, 0).r <= 0.0 || texelFetch(u_normal, q, 0).w != surface) {
+        if (q[a] < 0 || pixel_material(q) != pc.material || texelFetch(u_normal, q, 0).w != surface) {
             continue;
         }
         vec2 d = texelFetch(u_ray, q, 0).xy - uv0;
@@ -175,13 +181,11 @@ Hit trace_lod(Ray ray, ivec2 pixel) {
     return Hit(mix(traced.uv, bump.uv, w), mix(traced.h, bump.h, w), traced.iterations + bump.iterations);
 }
 
+// One workgroup per tile of the material's list; pixels of other materials, flat ones and
+// those without geometry are left alone (`classify` wrote the hits of the last two).
 void main() {
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
-        return;
-    }
-    if (texelFetch(u_depth, pixel, 0).r <= 0.0) {
-        imageStore(u_hit, pixel, vec4(0.0, 0.0, NO_HIT_HEIGHT, 0.0));
+    ivec2 pixel;
+    if (!material_pixel(pc.material, pc.frame_size, pixel)) {
         return;
     }
     vec4 g = texelFetch(u_ray, pixel, 0);

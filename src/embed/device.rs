@@ -9,9 +9,9 @@ use ash::vk;
 use std::ffi::CStr;
 
 /// Timestamp queries one [`DisplacementPass::record`](super::DisplacementPass::record) writes at most: a begin/end pair
-/// for each of `upload`, `pyramid`, `dig_corners`, `trace`, `shadow`, `shade` and
-/// `hit_depth`.
-pub const MAX_QUERIES: u32 = 14;
+/// for each of `upload`, `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`,
+/// `shade` and `hit_depth`.
+pub const MAX_QUERIES: u32 = 18;
 
 /// Largest `frames_in_flight` a pass accepts.
 pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;

@@ -127,6 +127,7 @@
 //! The host builds `DepthResolvePass::new(&ctx)` once and destroys it itself.
 
 mod device;
+mod plan;
 mod record;
 
 pub use device::{
@@ -136,23 +137,24 @@ pub use device::{
 
 use crate::context::Context;
 use crate::error::{Error, Result};
+use crate::gpu::Image;
 use crate::gpu::owned::{Destroy, Guard, RetireQueue};
-use crate::gpu::{Buffer, HeightTexture, Image};
 use crate::heightfield::{Addressing, HeightField};
-use crate::material::{MaterialImages, MaterialStaging, MaterialTextures};
-use crate::method::{Method, MethodParams, Needs, PyramidKind};
+use crate::material::{MaterialImages, MaterialTextures};
+use crate::method::{Method, MethodParams};
+use crate::passes::classify::{ClassifyPass, TileLists};
 use crate::passes::cone::{ConeMap, ConePass};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::GBufferViews;
-use crate::passes::hit_depth::HitDepthPass;
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
-use crate::passes::shadow::{ShadowPass, ShadowTrace};
+use crate::passes::shadow::ShadowPass;
 use crate::passes::trace::TracePass;
 use ash::vk;
 use glam::{Mat4, Vec3};
 use std::sync::Arc;
 
+pub use crate::abi::{MAX_MATERIALS, NOT_DISPLACED_HEIGHT};
 pub use crate::passes::PassName;
 pub use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, RAY_FORMAT};
 pub use crate::passes::hit_depth::HIT_DEPTH_FORMAT;
@@ -246,279 +248,164 @@ pub struct DepthCamera {
     pub eye: Vec3,
 }
 
-/// A height texture's contents not yet recorded.
-enum Fill {
-    /// A new map's staging buffer.
-    Upload(Buffer),
-    /// The texture it replaces (level of detail switched on or off: the mip chain added
-    /// or dropped), whose level 0 is copied; frames in flight may still sample it.
-    Copy(HeightTexture),
+/// The settings of one displaced material (one entry of the pass's material table).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialSettings {
+    /// The intersection method.
+    pub method: Method,
+    /// Its parameters.
+    pub params: MethodParams,
+    /// Displacement depth in uv (tile) units: the value the host's G-buffer used for `P`
+    /// on this material's pixels.
+    pub depth_scale: f32,
+    /// Height-map addressing: `Repeat` for tiled surfaces, `Clamp` for decals (must match
+    /// the `addressing` the host's G-buffer shader used for `uv0`). Fixed for a material's
+    /// life ([`DisplacementPass::set_material_settings`] refuses a change).
+    pub addressing: Addressing,
 }
 
-impl Destroy for Fill {
-    fn destroy(&mut self, ctx: &Context) {
-        match self {
-            Fill::Upload(b) => b.destroy(ctx),
-            Fill::Copy(h) => h.destroy(ctx),
+impl PassSettings {
+    /// The settings of the material [`DisplacementPass::new`] makes from these.
+    pub fn material(&self) -> MaterialSettings {
+        MaterialSettings {
+            method: self.method,
+            params: self.params,
+            depth_scale: self.depth_scale,
+            addressing: self.addressing,
         }
     }
+}
+
+/// A handle to one material of a [`DisplacementPass`]'s table. Its
+/// [`MaterialId::index`] is the value the host's G-buffer writes for the material's
+/// pixels (`glsl/include/dispmap_gbuffer.glsl`: `tangent.w = ±(index + 1)`). A removed
+/// material's handle is refused by every call, also after its index is reused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MaterialId {
+    index: u32,
+    generation: u32,
+}
+
+impl MaterialId {
+    /// The material's index in the table: what the G-buffer encodes.
+    pub fn index(self) -> u32 {
+        self.index
+    }
+}
+
+/// The frame-wide settings: the frame size and the frames in flight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FrameSettings {
+    extent: vk::Extent2D,
+    frames_in_flight: u32,
 }
 
 /// The displacement pass for a host engine (see the module docs for the contract), and
 /// the one orchestrator of dispmap's compute passes: the standalone
 /// [`crate::renderer::Renderer`] is a host of it like any engine.
 ///
-/// Owns its pipelines, the height texture (and pyramid when the method needs one), the
-/// material maps when set, one DIG corner grid per frame slot (DIG methods) and, with
-/// [`Timestamps::Owned`], a query pool. Destroy it explicitly with
-/// [`DisplacementPass::destroy`]; in debug builds one dropped without it logs a warning
-/// (and leaks its objects).
+/// Holds a table of displaced materials ([`DisplacementPass::add_material`]), each with
+/// its height map, method and depth scale, and builds for each only what its method
+/// needs (shared between materials with the same map); one set of per-slot images for the
+/// whole frame. Destroy it explicitly with [`DisplacementPass::destroy`]; in debug builds
+/// one dropped without it logs a warning (and leaks its objects).
 pub struct DisplacementPass {
     ctx: Arc<Context>,
-    settings: PassSettings,
-    needs: Needs,
-    trace: TracePass,
+    frame: FrameSettings,
+    /// The first material's settings and the frame's (what [`DisplacementPass::settings`]
+    /// returns), kept in step with the table.
+    primary_settings: PassSettings,
+    /// The handle of the material `new` made.
+    primary: MaterialId,
+    materials: Vec<Option<plan::MaterialEntry>>,
+    maps: Vec<Option<plan::MapEntry>>,
+    next_generation: u32,
+    traces: Vec<TracePass>,
     shade: ShadePass,
+    classify: ClassifyPass,
     pyramid_pass: Option<PyramidPass>,
     corner_pass: Option<DigCornerPass>,
-    height: HeightTexture,
-    /// How `height` is still to be filled (the next `record` records it); `None` once
-    /// filled.
-    pending_fill: Option<Fill>,
-    /// Albedo and normal map ([`DisplacementPass::set_material`]).
-    material: Option<MaterialTextures>,
-    /// Their staging buffers until a record copies them.
-    pending_material: Option<MaterialStaging>,
-    pyramid: Option<Pyramid>,
-    pyramid_built: bool,
-    /// The cone-map pipeline and the map (cone methods).
-    cone_pass: Option<ConePass>,
-    cone: Option<ConeMap>,
-    cone_built: bool,
-    /// One grid per frame slot (empty unless the method is a DIG).
-    corners: Vec<CornerGrid>,
+    cone_passes: Vec<ConePass>,
+    shadow_passes: Vec<ShadowPass>,
+    /// One tile list set per frame slot.
+    tiles: Vec<TileLists>,
+    /// One visibility image per frame slot (self-shadowing on).
+    visibility: Vec<Image>,
+    /// The corrected-depth output (`None` when off).
+    depth: Option<plan::DepthParts>,
+    /// Whether the corrected depth is requested.
+    depth_on: bool,
+    /// The frame size the frame-sized resources were built for.
+    built_extent: vk::Extent2D,
     query_pool: Option<vk::QueryPool>,
     /// The owned-pool scopes each slot recorded last.
     slot_scopes: Vec<Vec<TimestampScope>>,
     retired: RetireQueue,
     /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
     shadows: ShadowSettings,
-    /// What self-shadowing needs (`None` when off).
-    shadow: Option<ShadowParts>,
-    /// The corrected-depth output (`None` when off).
-    depth: Option<DepthParts>,
     destroyed: bool,
 }
 
-/// What self-shadowing adds to the pass: the `shadow` pipeline of the method's query,
-/// one visibility image per frame slot and, for hard shadows of the `pyramid` method
-/// (whose own pyramid is not a cell pyramid), a cell pyramid with its pass.
-struct ShadowParts {
-    pass: ShadowPass,
-    visibility: Vec<Image>,
-    own_pyramid: Option<(PyramidPass, Pyramid)>,
-    own_built: bool,
-    /// What it was built for: the query, the frame size and the height map's size.
-    key: ShadowKey,
-}
-
-#[derive(Clone, Copy, PartialEq, Eq)]
-struct ShadowKey {
-    trace: ShadowTrace,
-    own_pyramid: bool,
-    extent: vk::Extent2D,
-    map: [u32; 2],
-    /// The height texture's format (the pyramid's compact copy follows it).
-    format: vk::Format,
-}
-
-impl ShadowParts {
-    fn new(ctx: &Context, key: ShadowKey, frames: u32, addressing: Addressing) -> Result<Self> {
-        let pass = Guard::new(ctx, ShadowPass::new(ctx, key.trace)?);
-        let visibility = Guard::new(
-            ctx,
-            per_slot(ctx, frames, |s| {
-                Image::new(
-                    ctx,
-                    &format!("embed.visibility{s}"),
-                    VISIBILITY_FORMAT,
-                    key.extent,
-                    1,
-                    vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-                )
-            })?,
-        );
-        let own_pyramid = if key.own_pyramid {
-            let pass = Guard::new(ctx, PyramidPass::new(ctx)?);
-            let pyramid = Pyramid::new(ctx, key.map, PyramidKind::Cell, addressing, key.format)?;
-            Some((pass.keep(), pyramid))
-        } else {
-            None
-        };
-        Ok(ShadowParts {
-            pass: pass.keep(),
-            visibility: visibility.keep(),
-            own_pyramid,
-            own_built: false,
-            key,
-        })
-    }
-}
-
-impl Destroy for ShadowParts {
-    fn destroy(&mut self, ctx: &Context) {
-        self.pass.destroy(ctx);
-        self.visibility.destroy(ctx);
-        self.own_pyramid.destroy(ctx);
-    }
-}
-
-/// The corrected-depth output: the `hit_depth` pipeline and one `R32_SFLOAT` image per
-/// frame slot.
-struct DepthParts {
-    pass: HitDepthPass,
-    images: Vec<Image>,
-}
-
-impl DepthParts {
-    fn new(ctx: &Context, extent: vk::Extent2D, frames: u32) -> Result<Self> {
-        let pass = Guard::new(ctx, HitDepthPass::new(ctx)?);
-        let images = per_slot(ctx, frames, |s| {
-            Image::new(
-                ctx,
-                &format!("embed.hit_depth{s}"),
-                HIT_DEPTH_FORMAT,
-                extent,
-                1,
-                vk::ImageUsageFlags::STORAGE
-                    | vk::ImageUsageFlags::SAMPLED
-                    | vk::ImageUsageFlags::TRANSFER_SRC,
-            )
-        })?;
-        Ok(DepthParts {
-            pass: pass.keep(),
-            images,
-        })
-    }
-}
-
-impl Destroy for DepthParts {
-    fn destroy(&mut self, ctx: &Context) {
-        self.pass.destroy(ctx);
-        self.images.destroy(ctx);
-    }
-}
-
-/// One value per frame slot from `make`; on a failure the ones made are destroyed.
-fn per_slot<T: Destroy>(
-    ctx: &Context,
-    frames: u32,
-    mut make: impl FnMut(u32) -> Result<T>,
-) -> Result<Vec<T>> {
-    let mut made = Guard::new(ctx, Vec::new());
-    for s in 0..frames {
-        made.push(make(s)?);
-    }
-    Ok(made.keep())
-}
-
 impl DisplacementPass {
-    /// Builds the pipelines and the per-slot resources and stages `field` for upload
-    /// (the first [`DisplacementPass::record`] copies it and builds the pyramid). Records
+    /// Builds the pipelines and the per-slot resources, and a table with one material
+    /// (`field` with `settings`' method, parameters, depth scale and addressing; its
+    /// handle is [`DisplacementPass::primary`], index 0), staged for upload (the first
+    /// [`DisplacementPass::record`] copies it and builds what its method needs). Records
     /// and submits nothing.
     pub fn new(ctx: Arc<Context>, field: &HeightField, settings: PassSettings) -> Result<Self> {
-        validate(&ctx, &settings)?;
-        let needs = settings.method.needs();
+        validate_frame(&ctx, settings.extent, settings.frames_in_flight)?;
+        validate_material(&ctx, &settings.material())?;
         let c = &*ctx;
-        // Built in order; a failure destroys what the guards hold.
-        let trace = Guard::new(c, TracePass::new(c, settings.method)?);
         let shade = Guard::new(c, ShadePass::new(c)?);
-        let (height, staging) = HeightTexture::create_for_upload(
-            c,
-            field,
-            settings.addressing,
-            settings.params.lod_threshold.is_some(),
-        )?;
-        let height = Guard::new(c, height);
-        let staging = Guard::new(c, staging);
-        let pyramid_pass = Guard::new(c, needs.pyramid.map(|_| PyramidPass::new(c)).transpose()?);
-        let pyramid = Guard::new(
-            c,
-            needs
-                .pyramid
-                .map(|kind| {
-                    Pyramid::new(
-                        c,
-                        field_size(field),
-                        kind,
-                        settings.addressing,
-                        field.format(),
-                    )
-                })
-                .transpose()?,
-        );
-        let cone_pass = Guard::new(
-            c,
-            needs.cone.map(|kind| ConePass::new(c, kind)).transpose()?,
-        );
-        let cone = Guard::new(
-            c,
-            needs
-                .cone
-                .map(|kind| {
-                    ConeMap::new(
-                        c,
-                        field_size(field),
-                        settings.addressing,
-                        kind,
-                        field.format(),
-                    )
-                })
-                .transpose()?,
-        );
-        let corner_pass = Guard::new(
-            c,
-            needs
-                .dig_corners
-                .then(|| DigCornerPass::new(c))
-                .transpose()?,
-        );
-        let corners = if needs.dig_corners {
-            corner_grids(c, &settings)?
-        } else {
-            Vec::new()
-        };
-        Ok(DisplacementPass {
-            settings,
-            needs,
-            trace: trace.keep(),
+        let classify = Guard::new(c, ClassifyPass::new(c)?);
+        let mut pass = DisplacementPass {
+            frame: FrameSettings {
+                extent: settings.extent,
+                frames_in_flight: settings.frames_in_flight,
+            },
+            primary_settings: settings,
+            primary: MaterialId {
+                index: 0,
+                generation: 0,
+            },
+            materials: Vec::new(),
+            maps: Vec::new(),
+            next_generation: 0,
+            traces: Vec::new(),
             shade: shade.keep(),
-            pyramid_pass: pyramid_pass.keep(),
-            corner_pass: corner_pass.keep(),
-            height: height.keep(),
-            pending_fill: Some(Fill::Upload(staging.keep())),
-            material: None,
-            pending_material: None,
-            pyramid: pyramid.keep(),
-            pyramid_built: false,
-            cone_pass: cone_pass.keep(),
-            cone: cone.keep(),
-            cone_built: false,
-            corners,
+            classify: classify.keep(),
+            pyramid_pass: None,
+            corner_pass: None,
+            cone_passes: Vec::new(),
+            shadow_passes: Vec::new(),
+            tiles: Vec::new(),
+            visibility: Vec::new(),
+            depth: None,
+            depth_on: false,
+            built_extent: vk::Extent2D::default(),
             query_pool: None,
             slot_scopes: vec![Vec::new(); settings.frames_in_flight as usize],
             retired: RetireQueue::new(settings.frames_in_flight),
             shadows: ShadowSettings::default(),
-            shadow: None,
-            depth: None,
             destroyed: false,
             ctx,
-        })
+        };
+        match pass.add_material(field, settings.material()) {
+            Ok(id) => {
+                pass.primary = id;
+                Ok(pass)
+            }
+            Err(e) => {
+                // SAFETY: nothing was recorded with the pass.
+                unsafe { pass.destroy() };
+                Err(e)
+            }
+        }
     }
 
-    /// The settings in use.
+    /// The settings of the first material ([`DisplacementPass::primary`]) and the frame.
     pub fn settings(&self) -> &PassSettings {
-        &self.settings
+        &self.primary_settings
     }
 
     /// The context the pass was built with.
@@ -526,13 +413,184 @@ impl DisplacementPass {
         &self.ctx
     }
 
-    /// Whether the next [`DisplacementPass::record`] fills the height texture (a new map,
-    /// or the mip chain added or dropped with level of detail) or (for the pyramid
-    /// methods) rebuilds the pyramid.
+    /// The handle of the material [`DisplacementPass::new`] made (the one the
+    /// single-material calls such as [`DisplacementPass::set_method`] act on).
+    pub fn primary(&self) -> MaterialId {
+        self.primary
+    }
+
+    /// Adds a displaced material: `field` as its height map (shared with a material that
+    /// already has the same map and addressing: one texture, one pyramid, one cone map),
+    /// its method, parameters and depth scale. Returns its handle; its
+    /// [`MaterialId::index`] (the lowest free one) is what the host's G-buffer writes
+    /// for its pixels. The next record uploads the map and builds what the method needs.
+    /// Needs no GPU idle. On error the pass is unchanged.
+    pub fn add_material(
+        &mut self,
+        field: &HeightField,
+        settings: MaterialSettings,
+    ) -> Result<MaterialId> {
+        self.check_alive()?;
+        validate_material(&self.ctx, &settings)?;
+        let index = match self.materials.iter().position(Option::is_none) {
+            Some(i) => i,
+            None if self.materials.len() < MAX_MATERIALS as usize => self.materials.len(),
+            None => {
+                return Err(Error::invalid(
+                    "material",
+                    format!("the table is full ({MAX_MATERIALS} materials)"),
+                ));
+            }
+        };
+        let (map, new_map) = self.map_for(field, &settings)?;
+        let generation = self.next_generation;
+        self.next_generation += 1;
+        let entry = plan::MaterialEntry {
+            generation,
+            settings,
+            map,
+            shading: None,
+            pending_shading: None,
+            corners: Vec::new(),
+        };
+        if index == self.materials.len() {
+            self.materials.push(Some(entry));
+        } else {
+            self.materials[index] = Some(entry);
+        }
+        if let Err(e) = self.sync() {
+            // Never recorded: destroyed at once.
+            self.materials[index].take().destroy(&self.ctx);
+            if index + 1 == self.materials.len() {
+                self.materials.pop();
+            }
+            if new_map {
+                self.maps[map].take().destroy(&self.ctx);
+            }
+            return Err(e);
+        }
+        Ok(MaterialId {
+            index: index as u32,
+            generation,
+        })
+    }
+
+    /// Removes a material: its pixels are treated as not displaced from the next record
+    /// on. What only it used (its map when no other material shares it, pipelines, grids)
+    /// is retired like a replaced method's resources. Needs no GPU idle.
+    pub fn remove_material(&mut self, id: MaterialId) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        let entry = self.materials[i].take();
+        // The plan without it only drops resources: nothing is built, so the sync cannot
+        // fail for lack of memory (the tile lists keep their size).
+        let result = self.sync();
+        self.retired.retire(entry);
+        result
+    }
+
+    /// The handles of the live materials, by index.
+    pub fn materials(&self) -> Vec<MaterialId> {
+        self.materials
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| {
+                m.as_ref().map(|m| MaterialId {
+                    index: i as u32,
+                    generation: m.generation,
+                })
+            })
+            .collect()
+    }
+
+    /// A material's settings.
+    pub fn material_settings(&self, id: MaterialId) -> Result<MaterialSettings> {
+        Ok(self.entry(id)?.settings)
+    }
+
+    /// Changes a material's method, parameters and depth scale (not its addressing),
+    /// building only what the new settings need that the pass lacks (a `trace` pipeline,
+    /// a pyramid or cone map of its map, DIG grids; the height texture's mip chain when
+    /// level of detail is switched, filled on the GPU from the old texture by the next
+    /// record) and retiring what nothing uses any more.
+    ///
+    /// GPU-use contract: needs no GPU idle; what is replaced may still be read by frames
+    /// in flight, so it is retired: destroyed once every slot has been recorded again (by
+    /// the slot contract, every frame that could use it has completed), or by
+    /// [`DisplacementPass::destroy`]. Frames recorded before the call keep the old
+    /// settings. On error (invalid settings, an allocation or pipeline failure) the pass
+    /// is unchanged.
+    pub fn set_material_settings(&mut self, id: MaterialId, settings: MaterialSettings) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        validate_material(&self.ctx, &settings)?;
+        let old = self.materials[i].as_ref().map(|m| m.settings).unwrap_or(settings);
+        if settings.addressing != old.addressing {
+            return Err(Error::invalid(
+                "addressing",
+                "a material's addressing is fixed: remove it and add it again",
+            ));
+        }
+        self.with_material_settings(i, settings);
+        if let Err(e) = self.sync() {
+            self.with_material_settings(i, old);
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Swaps in a new height map for a material (any size; its addressing). The next
+    /// [`DisplacementPass::record`] uploads it and rebuilds what its method needs (timed
+    /// as `upload`, `pyramid`, `cone`). The old texture and what was derived from it stay
+    /// alive for frames in flight (unless another material still uses them) and are
+    /// retired. Needs no GPU idle. On error the pass is unchanged.
+    pub fn set_material_height_map(&mut self, id: MaterialId, field: &HeightField) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        let settings = self.entry(id)?.settings;
+        let (map, new_map) = self.map_for(field, &settings)?;
+        let old = self.materials[i].as_ref().map_or(map, |m| m.map);
+        if let Some(m) = &mut self.materials[i] {
+            m.map = map;
+        }
+        if let Err(e) = self.sync() {
+            if let Some(m) = &mut self.materials[i] {
+                m.map = old;
+            }
+            if new_map {
+                self.maps[map].take().destroy(&self.ctx);
+            }
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Sets a material's maps for `shade` (an albedo and a tangent-space normal map,
+    /// addressed like its height map; [`crate::material`] has their conventions); empty
+    /// [`MaterialImages`] remove them. The next record uploads them (in its `upload`
+    /// scope); replaced maps are retired. On error the material keeps its old maps.
+    pub fn set_material_maps(&mut self, id: MaterialId, images: &MaterialImages) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        let ctx = self.ctx.clone();
+        let addressing = self.entry(id)?.settings.addressing;
+        let created = MaterialTextures::create_for_upload(&ctx, images, addressing)?;
+        let (shading, staging) = created.unzip();
+        if let Some(m) = &mut self.materials[i] {
+            if let Some(old) = std::mem::replace(&mut m.shading, shading) {
+                self.retired.retire(old);
+            }
+            // Staging never recorded: no frame reads it.
+            std::mem::replace(&mut m.pending_shading, staging).destroy(&ctx);
+        }
+        Ok(())
+    }
+
+    /// Whether the next [`DisplacementPass::record`] fills a height texture (a new map, or
+    /// the mip chain added or dropped with level of detail) or builds a pyramid or cone
+    /// map.
     pub fn rebuild_pending(&self) -> bool {
-        self.pending_fill.is_some()
-            || (self.pyramid.is_some() && !self.pyramid_built)
-            || (self.cone.is_some() && !self.cone_built)
+        self.maps.iter().flatten().any(plan::MapEntry::pending)
     }
 
     /// Per-pass milliseconds of the last frame recorded in `frame_slot` with
@@ -549,336 +607,80 @@ impl DisplacementPass {
         unsafe { read_timestamps(&self.ctx, scopes) }
     }
 
-    /// Swaps in a new height map (any size; same addressing). The next
-    /// [`DisplacementPass::record`] uploads it and, for the pyramid methods, rebuilds the
-    /// pyramid (the min-reduce chain, timed as its own `pyramid` pass). The old texture
-    /// and pyramid stay alive for frames in flight and are destroyed once every slot has
-    /// been recorded again. Needs no GPU idle.
+    /// [`DisplacementPass::set_material_height_map`] of the first material
+    /// ([`DisplacementPass::primary`]).
     pub fn set_height_map(&mut self, field: &HeightField) -> Result<()> {
-        self.check_alive()?;
-        let ctx = self.ctx.clone();
-        let (height, staging) = HeightTexture::create_for_upload(
-            &ctx,
-            field,
-            self.settings.addressing,
-            self.settings.params.lod_threshold.is_some(),
-        )?;
-        let height = Guard::new(&ctx, height);
-        let staging = Guard::new(&ctx, staging);
-        let pyramid = self
-            .needs
-            .pyramid
-            .map(|kind| {
-                Pyramid::new(
-                    &ctx,
-                    field_size(field),
-                    kind,
-                    self.settings.addressing,
-                    field.format(),
-                )
-            })
-            .transpose()?;
-        let pyramid = Guard::new(&ctx, pyramid);
-        let cone = self
-            .needs
-            .cone
-            .map(|kind| {
-                ConeMap::new(
-                    &ctx,
-                    field_size(field),
-                    self.settings.addressing,
-                    kind,
-                    field.format(),
-                )
-            })
-            .transpose()?;
-        let pyramid = pyramid.keep();
-        self.retired
-            .retire(std::mem::replace(&mut self.height, height.keep()));
-        match self.pending_fill.replace(Fill::Upload(staging.keep())) {
-            // Never recorded: no frame reads it.
-            Some(Fill::Upload(mut old)) => old.destroy(&ctx),
-            // The texture frames in flight may still read.
-            Some(Fill::Copy(old)) => self.retired.retire(old),
-            None => {}
-        }
-        if let Some(old) = std::mem::replace(&mut self.pyramid, pyramid) {
-            self.retired.retire(old);
-        }
-        self.pyramid_built = false;
-        if let Some(old) = std::mem::replace(&mut self.cone, cone) {
-            self.retired.retire(old);
-        }
-        self.cone_built = false;
-        // A cell pyramid of the shadow stage's own is of the old map: rebuilt (the old
-        // one is retired with its stage).
-        let own = self
-            .shadow
-            .as_ref()
-            .is_some_and(|s| s.own_pyramid.is_some());
-        self.sync_shadows(own)
+        self.set_material_height_map(self.primary, field)
     }
 
-    /// Sets the material maps `shade` reads at each hit (an albedo and a tangent-space
-    /// normal map, addressed like the height map; [`crate::material`] has their
-    /// conventions); empty [`MaterialImages`] remove them. The next record uploads them
-    /// (in its `upload` scope); replaced maps are retired like a replaced height map.
-    /// On error the pass keeps its old maps.
+    /// [`DisplacementPass::set_material_maps`] of the first material.
     pub fn set_material(&mut self, images: &MaterialImages) -> Result<()> {
-        self.check_alive()?;
-        let ctx = self.ctx.clone();
-        let created = MaterialTextures::create_for_upload(&ctx, images, self.settings.addressing)?;
-        let (material, staging) = created.unzip();
-        if let Some(old) = std::mem::replace(&mut self.material, material) {
-            self.retired.retire(old);
-        }
-        // Staging never recorded: no frame reads it.
-        std::mem::replace(&mut self.pending_material, staging).destroy(&ctx);
-        Ok(())
+        self.set_material_maps(self.primary, images)
     }
 
-    /// Changes the displacement depth (uv units; the value the host's G-buffer used for
-    /// `P`) from the next record on. Builds nothing.
+    /// Changes the first material's displacement depth (uv units; the value the host's
+    /// G-buffer used for `P`) from the next record on. Builds nothing.
     pub fn set_depth_scale(&mut self, depth_scale: f32) -> Result<()> {
-        self.check_alive()?;
-        let settings = PassSettings {
+        let settings = MaterialSettings {
             depth_scale,
-            ..self.settings
+            ..self.material_settings(self.primary)?
         };
-        validate(&self.ctx, &settings)?;
-        self.settings = settings;
-        Ok(())
+        self.set_material_settings(self.primary, settings)
+    }
+
+    /// Switches the first material's method and parameters
+    /// ([`DisplacementPass::set_material_settings`] with its depth scale and addressing).
+    pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {
+        let settings = MaterialSettings {
+            method,
+            params,
+            ..self.material_settings(self.primary)?
+        };
+        self.set_material_settings(self.primary, settings)
     }
 
     /// Changes the frame size (the host's G-buffer, hit buffer and colour image must
-    /// have the new size from the next record on). Per-slot resources of the old size are
-    /// retired, not destroyed at once, so this needs no GPU idle.
+    /// have the new size from the next record on). Frame-sized resources of the old size
+    /// (tile lists, DIG grids, visibility, corrected depth) are retired, not destroyed at
+    /// once, so this needs no GPU idle. On error the pass is unchanged.
     pub fn resize(&mut self, extent: vk::Extent2D) -> Result<()> {
         self.check_alive()?;
-        let settings = PassSettings {
-            extent,
-            ..self.settings
-        };
-        validate(&self.ctx, &settings)?;
-        let grids = if self.needs.dig_corners {
-            corner_grids(&self.ctx, &settings)?
-        } else {
-            Vec::new()
-        };
-        let old = std::mem::replace(&mut self.corners, grids);
-        self.retired.retire(old);
-        self.settings = settings;
-        // The visibility and corrected-depth images of the old size are retired too.
-        self.sync_shadows(false)?;
-        if self.depth.is_some() {
-            self.set_depth_output(false)?;
-            self.set_depth_output(true)?;
+        validate_frame(&self.ctx, extent, self.frame.frames_in_flight)?;
+        let old = self.frame.extent;
+        self.frame.extent = extent;
+        if let Err(e) = self.sync() {
+            self.frame.extent = old;
+            return Err(e);
         }
+        self.primary_settings.extent = extent;
         Ok(())
     }
 
-    /// Switches the intersection method and its parameters, building only what the new
-    /// method needs that the pass does not have yet: its `trace` pipeline, the pyramid
-    /// pipeline and a pyramid of the new kind (built by the next
-    /// [`DisplacementPass::record`], timed as its `pyramid` pass), the DIG corner pipeline
-    /// and one corner grid per slot (new grids also when `params.block` changed). What is
-    /// kept (the height map, a pyramid of the same kind, grids of the same block) is
-    /// reused; `depth_scale`, addressing, extent and `frames_in_flight` stay. The height
-    /// texture has a mip chain only while level of detail is on (`params.lod_threshold`):
-    /// switching it on or off makes a new texture that the next record fills on the GPU
-    /// from the old one's level 0 (in its `upload` scope).
-    ///
-    /// GPU-use contract: needs no GPU idle. What the old method used and the new one does
-    /// not (pipelines, pyramid, grids) may still be read by frames in flight, so it is
-    /// retired like a replaced height map: destroyed once every slot has been recorded
-    /// again (by the slot contract, every frame that could use it has completed), or by
-    /// [`DisplacementPass::destroy`]. Frames recorded before the call keep the old method;
-    /// every `record` after it uses the new one.
-    ///
-    /// On error (invalid `params`, an allocation or pipeline failure) the pass is
-    /// unchanged and keeps its old method. One exception: with self-shadowing on, the
-    /// shadow stage of the new method is built after the switch; if that fails the
-    /// method is switched, the error returned, and records are refused until a
-    /// successful [`DisplacementPass::set_shadows`].
-    pub fn set_method(&mut self, method: Method, params: MethodParams) -> Result<()> {
-        self.check_alive()?;
-        params.validate()?;
-        let ctx = self.ctx.clone();
-        let c = &*ctx;
-        let needs = method.needs();
-        let settings = PassSettings {
-            method,
-            params,
-            ..self.settings
-        };
-        validate(c, &settings)?;
-        // Build everything new first (guarded: a failure destroys it and leaves the pass
-        // as it was), then commit.
-        let chain = params.lod_threshold.is_some();
-        let trace = Guard::new(
-            c,
-            (method != self.trace.method())
-                .then(|| TracePass::new(c, method))
-                .transpose()?,
-        );
-        let height = Guard::new(
-            c,
-            self.height
-                .differs_for(c, chain)
-                .then(|| self.height.create_like(c, chain))
-                .transpose()?,
-        );
-        let pyramid_pass = Guard::new(
-            c,
-            (needs.pyramid.is_some() && self.pyramid_pass.is_none())
-                .then(|| PyramidPass::new(c))
-                .transpose()?,
-        );
-        let new_pyramid = needs
-            .pyramid
-            .filter(|&kind| self.pyramid.as_ref().is_none_or(|old| old.kind != kind));
-        let pyramid = Guard::new(
-            c,
-            new_pyramid
-                .map(|kind| {
-                    Pyramid::new(
-                        c,
-                        self.height.size(),
-                        kind,
-                        self.settings.addressing,
-                        self.height.image.format,
-                    )
-                })
-                .transpose()?,
-        );
-        // A cone map of the other kind is replaced (and rebuilt), as a pyramid is.
-        let cone_pass = Guard::new(
-            c,
-            needs
-                .cone
-                .filter(|&kind| self.cone_pass.as_ref().is_none_or(|p| p.kind != kind))
-                .map(|kind| ConePass::new(c, kind))
-                .transpose()?,
-        );
-        let cone = Guard::new(
-            c,
-            needs
-                .cone
-                .filter(|&kind| self.cone.as_ref().is_none_or(|m| m.kind != kind))
-                .map(|kind| {
-                    ConeMap::new(
-                        c,
-                        self.height.size(),
-                        self.settings.addressing,
-                        kind,
-                        self.height.image.format,
-                    )
-                })
-                .transpose()?,
-        );
-        let corner_pass = Guard::new(
-            c,
-            (needs.dig_corners && self.corner_pass.is_none())
-                .then(|| DigCornerPass::new(c))
-                .transpose()?,
-        );
-        let same_grids =
-            !self.corners.is_empty() && self.corners.iter().all(|g| g.block == params.block);
-        let corners = if needs.dig_corners && !same_grids {
-            Some(corner_grids(c, &settings)?)
-        } else {
-            None
-        };
-
-        // Commit: swap in what was built, retire what the new method does not use.
-        if let Some(trace) = trace.keep() {
-            self.retired
-                .retire(std::mem::replace(&mut self.trace, trace));
-        }
-        if let Some(height) = height.keep() {
-            // The mip chain follows level of detail; level 0 (the map) is unchanged.
-            let old = std::mem::replace(&mut self.height, height);
-            if self.pending_fill.is_some() {
-                // `old` was never filled (its fill is still pending and now fills the
-                // new texture): no frame reads it.
-                self.retired.retire(old);
-            } else {
-                self.pending_fill = Some(Fill::Copy(old));
-            }
-        }
-        if let Some(pass) = pyramid_pass.keep() {
-            self.pyramid_pass = Some(pass);
-        }
-        if let Some(pyramid) = pyramid.keep() {
-            self.retired.retire(self.pyramid.replace(pyramid));
-            self.pyramid_built = false;
-        }
-        if needs.pyramid.is_none() {
-            self.retired.retire(self.pyramid.take());
-            self.retired.retire(self.pyramid_pass.take());
-            self.pyramid_built = false;
-        }
-        if let Some(pass) = cone_pass.keep() {
-            self.retired.retire(self.cone_pass.replace(pass));
-        }
-        if let Some(cone) = cone.keep() {
-            self.retired.retire(self.cone.replace(cone));
-            self.cone_built = false;
-        }
-        if needs.cone.is_none() {
-            self.retired.retire(self.cone.take());
-            self.retired.retire(self.cone_pass.take());
-            self.cone_built = false;
-        }
-        if let Some(pass) = corner_pass.keep() {
-            self.corner_pass = Some(pass);
-        }
-        if let Some(grids) = corners {
-            let old = std::mem::replace(&mut self.corners, grids);
-            self.retired.retire(old);
-        }
-        if !needs.dig_corners {
-            self.retired.retire(std::mem::take(&mut self.corners));
-            self.retired.retire(self.corner_pass.take());
-        }
-        self.settings = settings;
-        self.needs = needs;
-        // The shadow query follows the method's family (ShadowTrace::for_method).
-        self.sync_shadows(false)
-    }
-
-    /// Switches self-shadowing (see [`crate::passes::shadow`] for the modes). On, the
-    /// pass builds what it lacks: the `shadow` pipeline of the method's query, one
-    /// `R16_SFLOAT` visibility image per frame slot, the shaded variant of `shade`
-    /// (binding 7) and, for hard shadows of the `pyramid` method, a cell pyramid of its
-    /// own (built by the next record, in its `pyramid` scope). Off, all of it is retired
-    /// and the plain `shade` pipeline is used again: nothing is built while it is off.
-    /// The stage follows later [`DisplacementPass::set_method`],
-    /// [`DisplacementPass::resize`] and [`DisplacementPass::set_height_map`] calls.
+    /// Switches self-shadowing (see [`crate::passes::shadow`] for the modes) for every
+    /// material. On, the pass builds what it lacks: the `shadow` pipeline of each
+    /// material's query, one `R16_SFLOAT` visibility image per frame slot, the shaded
+    /// variant of `shade` (binding 7) and, for hard shadows of the methods answered by
+    /// the cell pyramid, a cell pyramid of the material's map (built by the next record,
+    /// in its `pyramid` scope). Off, all of it is retired and the plain `shade` pipeline
+    /// is used again: nothing is built while it is off. The stage follows later changes
+    /// of the table.
     ///
     /// The `shadow` pass runs only in frames recorded with a [`ShadeTarget`] (it
     /// darkens dispmap's colour; a host shading from the hit buffer itself gets no
     /// visibility). Its light is the frame's `ShadeTarget::light_dir`.
     ///
-    /// GPU-use contract: as [`DisplacementPass::set_method`] (needs no GPU idle; what is
-    /// replaced is retired until every slot has been recorded again). On an invalid
-    /// `shadows` (samples) the pass is unchanged; on an allocation or pipeline failure
-    /// self-shadowing stays off until a later successful call.
+    /// GPU-use contract: as [`DisplacementPass::set_material_settings`]. On error
+    /// (invalid samples, an allocation or pipeline failure) the pass is unchanged.
     pub fn set_shadows(&mut self, shadows: ShadowSettings) -> Result<()> {
         self.check_alive()?;
         shadows.validate()?;
         let old = self.shadows;
         self.shadows = shadows;
-        let result = self.sync_shadows(false);
-        if result.is_err() {
-            self.shadows = ShadowSettings {
-                mode: ShadowMode::Off,
-                ..old
-            };
-            // Back to the plain shade pipeline where the shaded one was built.
-            let _ = self.sync_shadows(false);
+        if let Err(e) = self.sync() {
+            self.shadows = old;
+            return Err(e);
         }
-        result
+        Ok(())
     }
 
     /// The self-shadowing settings in use.
@@ -893,16 +695,11 @@ impl DisplacementPass {
     /// (what is dropped is retired like a replaced method's resources).
     pub fn set_depth_output(&mut self, on: bool) -> Result<()> {
         self.check_alive()?;
-        match (on, self.depth.is_some()) {
-            (true, false) => {
-                self.depth = Some(DepthParts::new(
-                    &self.ctx,
-                    self.settings.extent,
-                    self.settings.frames_in_flight,
-                )?);
-            }
-            (false, true) => self.retired.retire(self.depth.take()),
-            _ => {}
+        let old = self.depth_on;
+        self.depth_on = on;
+        if let Err(e) = self.sync() {
+            self.depth_on = old;
+            return Err(e);
         }
         Ok(())
     }
@@ -913,14 +710,14 @@ impl DisplacementPass {
     }
 
     /// The corrected depth of `frame_slot` (`R32_SFLOAT`, reverse-Z clip depth of each
-    /// pixel's hit, 0 without one; [`crate::passes::hit_depth`]); `None` when the output
-    /// is off. After a record of that slot it is in `GENERAL`, last written by
-    /// `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`; usage `STORAGE | SAMPLED | TRANSFER_SRC`.
-    /// The host may read it in the same frame (after its own barrier from that state)
-    /// and leave it in any layout: the next record of the slot discards it. To write it
-    /// into the host's `D32_SFLOAT` attachment, record
-    /// [`crate::passes::depth_resolve::DepthResolvePass`] (module docs: "Corrected
-    /// depth").
+    /// displaced pixel's hit, 0 without one, and the G-buffer's own depth for every other
+    /// pixel; [`crate::passes::hit_depth`]); `None` when the output is off. After a record
+    /// of that slot it is in `GENERAL`, last written by `COMPUTE_SHADER`
+    /// `SHADER_STORAGE_WRITE`; usage `STORAGE | SAMPLED | TRANSFER_SRC`. The host may read
+    /// it in the same frame (after its own barrier from that state) and leave it in any
+    /// layout: the next record of the slot discards it. To merge it into the host's
+    /// `D32_SFLOAT` attachment, record [`crate::passes::depth_resolve::DepthResolvePass`]
+    /// (module docs: "Corrected depth").
     pub fn hit_depth(&self, frame_slot: u32) -> Option<&Image> {
         self.depth
             .as_ref()
@@ -928,94 +725,56 @@ impl DisplacementPass {
     }
 
     /// The light visibility of `frame_slot` (`R16_SFLOAT`, 1 = lit; written by the
-    /// `shadow` pass of frames with a [`ShadeTarget`]); `None` when self-shadowing is
-    /// off. After such a record it is in `GENERAL`, last read by `COMPUTE_SHADER`
-    /// `SHADER_STORAGE_READ` (shade); usage `STORAGE | TRANSFER_SRC`. Read-only for the
-    /// host, and only until the slot is recorded again.
+    /// `shadow` pass of frames with a [`ShadeTarget`] for displaced pixels); `None` when
+    /// self-shadowing is off. After such a record it is in `GENERAL`, last read by
+    /// `COMPUTE_SHADER` `SHADER_STORAGE_READ` (shade); usage `STORAGE | TRANSFER_SRC`.
+    /// Read-only for the host, and only until the slot is recorded again.
     pub fn visibility(&self, frame_slot: u32) -> Option<&Image> {
-        self.shadow
-            .as_ref()
-            .and_then(|s| s.visibility.get(frame_slot as usize))
+        self.visibility.get(frame_slot as usize)
     }
 
-    /// The DIG corner grid of `frame_slot` (`None` unless the method is a DIG). After a
-    /// record of that slot it is `SHADER_READ_ONLY_OPTIMAL`, last read by `COMPUTE_SHADER`
-    /// sampled reads; read-only for the host, and only until the slot is recorded again.
+    /// The first material's DIG corner grid of `frame_slot` (`None` unless its method is
+    /// a DIG). After a record of that slot it is `SHADER_READ_ONLY_OPTIMAL`, last read by
+    /// `COMPUTE_SHADER` sampled reads; read-only for the host, and only until the slot is
+    /// recorded again.
     pub fn corner_grid(&self, frame_slot: u32) -> Option<&CornerGrid> {
-        self.corners.get(frame_slot as usize)
+        self.material_corner_grid(self.primary, frame_slot)
     }
 
-    /// The method's pyramid once a record has built it (`None` for methods without one,
-    /// or before the build). `SHADER_READ_ONLY_OPTIMAL`, read by compute shaders;
-    /// read-only for the host.
+    /// A material's DIG corner grid of `frame_slot` (as [`DisplacementPass::corner_grid`]).
+    pub fn material_corner_grid(&self, id: MaterialId, frame_slot: u32) -> Option<&CornerGrid> {
+        self.entry(id).ok()?.corners.get(frame_slot as usize)
+    }
+
+    /// The first material's method pyramid once a record has built it (`None` for
+    /// methods without one, or before the build). `SHADER_READ_ONLY_OPTIMAL`, read by
+    /// compute shaders; read-only for the host.
     pub fn pyramid(&self) -> Option<&Pyramid> {
-        self.pyramid.as_ref().filter(|_| self.pyramid_built)
+        let m = self.entry(self.primary).ok()?;
+        let kind = m.settings.method.needs().pyramid?;
+        self.maps[m.map].as_ref()?.pyramid(kind)
     }
 
-    /// The cone map once a record has built it (`None` for methods without one).
+    /// The first material's cone map once a record has built it (`None` for methods
+    /// without one).
     pub fn cone_map(&self) -> Option<&ConeMap> {
-        self.cone.as_ref().filter(|_| self.cone_built)
+        let m = self.entry(self.primary).ok()?;
+        let kind = m.settings.method.needs().cone?;
+        self.maps[m.map].as_ref()?.cone(kind)
     }
 
-    /// The size of the height map in texels.
+    /// The size of the first material's height map in texels.
     pub fn map_size(&self) -> [u32; 2] {
-        self.height.size()
+        self.entry(self.primary)
+            .ok()
+            .and_then(|m| self.maps[m.map].as_ref())
+            .map_or([0, 0], |m| m.texture.size())
     }
 
-    /// What the shadow stage must be for the current settings (`None`: off).
-    fn shadow_key(&self) -> Option<ShadowKey> {
-        self.shadows.is_on().then(|| {
-            let trace = ShadowTrace::for_method(self.shadows.mode, self.settings.method);
-            ShadowKey {
-                trace,
-                own_pyramid: trace == ShadowTrace::Pyramid
-                    && self.needs.pyramid != Some(PyramidKind::Cell),
-                extent: self.settings.extent,
-                map: self.height.size(),
-                format: self.height.image.format,
-            }
-        })
-    }
-
-    /// Builds, keeps or retires the shadow stage and the shade variant so they fit the
-    /// settings (`force`: rebuild the stage even when it fits). On failure the stage is
-    /// retired (self-shadowing without resources: `record` refuses until a later
-    /// successful call) and the error returned.
-    fn sync_shadows(&mut self, force: bool) -> Result<()> {
-        let on = self.shadows.is_on();
-        let want = self.shadow_key();
-        let have = self.shadow.as_ref().map(|s| s.key);
-        let ctx = self.ctx.clone();
-        if self.shade.is_shadowed() != on {
-            let new = if on {
-                ShadePass::shadowed(&ctx)
-            } else {
-                ShadePass::new(&ctx)
-            };
-            match new {
-                Ok(new) => self.retired.retire(std::mem::replace(&mut self.shade, new)),
-                Err(e) => {
-                    self.retired.retire(self.shadow.take());
-                    return Err(e);
-                }
-            }
-        }
-        if want == have && !(force && have.is_some()) {
-            return Ok(());
-        }
-        let built = want
-            .map(|key| {
-                ShadowParts::new(
-                    &ctx,
-                    key,
-                    self.settings.frames_in_flight,
-                    self.settings.addressing,
-                )
-            })
-            .transpose();
-        self.retired.retire(self.shadow.take());
-        self.shadow = built?;
-        Ok(())
+    /// The number of distinct height textures the table holds (materials with the same
+    /// map and addressing share one).
+    pub fn map_count(&self) -> usize {
+        self.maps.iter().flatten().count()
     }
 
     /// Destroys every object and frees every allocation the pass made. Afterwards any
@@ -1031,20 +790,18 @@ impl DisplacementPass {
         }
         let ctx = &*self.ctx;
         self.retired.destroy_all(ctx);
-        self.shadow.destroy(ctx);
+        self.materials.destroy(ctx);
+        self.maps.destroy(ctx);
         self.depth.destroy(ctx);
-        self.pending_fill.destroy(ctx);
-        self.pending_material.destroy(ctx);
-        self.material.destroy(ctx);
-        self.corners.destroy(ctx);
-        self.cone.destroy(ctx);
-        self.pyramid.destroy(ctx);
-        self.height.destroy(ctx);
+        self.visibility.destroy(ctx);
+        self.tiles.destroy(ctx);
+        self.shadow_passes.destroy(ctx);
+        self.cone_passes.destroy(ctx);
         self.corner_pass.destroy(ctx);
-        self.cone_pass.destroy(ctx);
         self.pyramid_pass.destroy(ctx);
+        self.classify.destroy(ctx);
         self.shade.destroy(ctx);
-        self.trace.destroy(ctx);
+        self.traces.destroy(ctx);
         if let Some(pool) = self.query_pool.take() {
             // SAFETY: this function's contract: no pending use.
             unsafe { ctx.device().destroy_query_pool(pool, None) };
@@ -1060,6 +817,67 @@ impl DisplacementPass {
         }
     }
 
+    /// The table index of a live material's handle.
+    fn entry_index(&self, id: MaterialId) -> Result<usize> {
+        self.check_alive()?;
+        match self.materials.get(id.index as usize) {
+            Some(Some(m)) if m.generation == id.generation => Ok(id.index as usize),
+            _ => Err(Error::invalid(
+                "material",
+                format!("{id:?} is not a material of this pass (removed, or of another pass)"),
+            )),
+        }
+    }
+
+    fn entry(&self, id: MaterialId) -> Result<&plan::MaterialEntry> {
+        let i = self.entry_index(id)?;
+        self.materials[i]
+            .as_ref()
+            .ok_or_else(|| Error::Internal("a checked material entry is empty".into()))
+    }
+
+    /// Sets entry `i`'s settings, keeping [`DisplacementPass::settings`] in step.
+    fn with_material_settings(&mut self, i: usize, settings: MaterialSettings) {
+        if let Some(m) = &mut self.materials[i] {
+            m.settings = settings;
+        }
+        if i == self.primary.index as usize {
+            self.primary_settings = PassSettings {
+                method: settings.method,
+                params: settings.params,
+                depth_scale: settings.depth_scale,
+                addressing: settings.addressing,
+                ..self.primary_settings
+            };
+        }
+    }
+
+    /// The map table entry for `field` with `settings`' addressing: an existing one with
+    /// the same content, or a new one with its upload staged (`true`).
+    fn map_for(&mut self, field: &HeightField, settings: &MaterialSettings) -> Result<(usize, bool)> {
+        let key = plan::MapKey::of(field, settings.addressing);
+        if let Some(i) = self
+            .maps
+            .iter()
+            .position(|m| m.as_ref().is_some_and(|m| m.key == key))
+        {
+            return Ok((i, false));
+        }
+        let chain = settings.params.lod_threshold.is_some();
+        let entry = plan::MapEntry::new(&self.ctx, field, key, chain)?;
+        let i = match self.maps.iter().position(Option::is_none) {
+            Some(i) => {
+                self.maps[i] = Some(entry);
+                i
+            }
+            None => {
+                self.maps.push(Some(entry));
+                self.maps.len() - 1
+            }
+        };
+        Ok((i, true))
+    }
+
     fn owned_pool(&mut self) -> Result<vk::QueryPool> {
         if let Some(pool) = self.query_pool {
             return Ok(pool);
@@ -1067,7 +885,7 @@ impl DisplacementPass {
         let pool = crate::timing::timestamp_pool(
             &self.ctx,
             "embed.timestamps",
-            MAX_QUERIES * self.settings.frames_in_flight,
+            MAX_QUERIES * self.frame.frames_in_flight,
         )?;
         self.query_pool = Some(pool);
         Ok(pool)
@@ -1086,19 +904,10 @@ impl Drop for DisplacementPass {
     }
 }
 
-fn validate(ctx: &Context, s: &PassSettings) -> Result<()> {
+fn validate_material(ctx: &Context, s: &MaterialSettings) -> Result<()> {
     s.params.validate()?;
     if let Some(limit) = ctx.info().loop_limit {
         s.method.check_loop_limit(&s.params, limit)?;
-    }
-    if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&s.frames_in_flight) {
-        return Err(Error::invalid(
-            "frames_in_flight",
-            format!(
-                "{} is outside 1..={MAX_FRAMES_IN_FLIGHT}",
-                s.frames_in_flight
-            ),
-        ));
     }
     if !s.depth_scale.is_finite() || s.depth_scale < 0.0 {
         return Err(Error::invalid(
@@ -1106,8 +915,17 @@ fn validate(ctx: &Context, s: &PassSettings) -> Result<()> {
             format!("{} is not a finite value >= 0", s.depth_scale),
         ));
     }
+    Ok(())
+}
+
+fn validate_frame(ctx: &Context, e: vk::Extent2D, frames_in_flight: u32) -> Result<()> {
+    if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&frames_in_flight) {
+        return Err(Error::invalid(
+            "frames_in_flight",
+            format!("{frames_in_flight} is outside 1..={MAX_FRAMES_IN_FLIGHT}"),
+        ));
+    }
     let max = ctx.info().max_image_dimension_2d;
-    let e = s.extent;
     if e.width == 0 || e.height == 0 || e.width > max || e.height > max {
         return Err(Error::invalid(
             "extent",
@@ -1118,14 +936,4 @@ fn validate(ctx: &Context, s: &PassSettings) -> Result<()> {
         ));
     }
     Ok(())
-}
-
-fn field_size(field: &HeightField) -> [u32; 2] {
-    [field.width(), field.height()]
-}
-
-fn corner_grids(ctx: &Context, s: &PassSettings) -> Result<Vec<CornerGrid>> {
-    per_slot(ctx, s.frames_in_flight, |_| {
-        CornerGrid::new(ctx, [s.extent.width, s.extent.height], s.params.block)
-    })
 }

@@ -1,19 +1,24 @@
-//! Recording a frame: `[upload] -> [pyramid] -> [cone] -> [dig_corners] -> trace -> [shadow] ->
-//! [shade] -> [hit_depth]`. Each stage is one method that places its own barriers next
-//! to its dispatch, from the state the stage before it left (the module docs' table).
+//! Recording a frame: `[upload] -> [pyramid] -> [cone] -> classify -> [dig_corners] -> trace
+//! -> [shadow] -> [shade] -> [hit_depth]`. Each stage is one method that places its own
+//! barriers next to its dispatches, from the state the stage before it left (the module
+//! docs' table); a per-material stage records one indirect dispatch per live material
+//! over the material's tiles, all in the stage's one timestamp scope.
 
+use super::plan::{Fill, MapEntry, MaterialEntry};
 use super::{
-    DepthCamera, DisplacementPass, Fill, FrameInputs, MAX_QUERIES, RecordedFrame, ShadeTarget,
+    DepthCamera, DisplacementPass, FrameInputs, MAX_QUERIES, RecordedFrame, ShadeTarget,
     Timestamps,
 };
 use crate::abi::ShadeParams;
+use crate::method::PyramidKind;
+use crate::passes::classify::{ClassifyInputs, MaterialTiles};
 use crate::error::{Error, Result};
 use crate::gpu::ViewRef;
 use crate::gpu::sync::{self, Access};
 use crate::passes::PassName;
 use crate::passes::hit_depth::HitDepthInputs;
 use crate::passes::shade::ShadeInputs;
-use crate::passes::shadow::{ShadowInputs, ShadowPass};
+use crate::passes::shadow::{ShadowInputs, ShadowPass, ShadowTrace};
 use crate::passes::trace::TraceInputs;
 use crate::timing::ScopeWriter;
 use ash::vk;
@@ -113,19 +118,23 @@ impl DisplacementPass {
         }
         // SAFETY: this function's contract is `begin`'s.
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
-        // SAFETY: this function's contract; `begin` reset the writer's queries.
-        unsafe { self.record_builds(cmd, &mut w, inputs.frame_slot) };
-        let params = self.shade_params(&target);
+        // SAFETY: this function's contract; `begin` reset the writer's queries; the
+        // classification leaves the host's hits as they are (no hit writes) and orders
+        // its own writes before the passes after it.
+        unsafe {
+            self.record_builds(cmd, &mut w, inputs.frame_slot);
+            self.record_classify(cmd, &mut w, inputs, false, None);
+        }
         let visibility = match visibility {
             Some(v) => Some(v),
             // SAFETY: this function's contract: the host's hits are visible to storage
             // reads.
-            None => unsafe { self.record_shadow(cmd, &mut w, inputs, &params)? },
+            None => unsafe { self.record_shadow(cmd, &mut w, inputs, &target)? },
         };
         // SAFETY: this function's contract: the host's hits and a given visibility are
         // visible to storage reads; `record_shadow`'s visibility is made so by its exit
         // barrier.
-        unsafe { self.record_shade(cmd, &mut w, inputs, &target, &params, visibility)? };
+        unsafe { self.record_shade(cmd, &mut w, inputs, &target, visibility)? };
         Ok(self.finish(inputs.frame_slot, w, timestamps))
     }
 
@@ -155,11 +164,25 @@ impl DisplacementPass {
         // SAFETY: this function's contract is `begin`'s.
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
         let slot = inputs.frame_slot;
+        let depth_image = self.hit_depth(slot).map(|i| (i.view, i));
+        if let Some((_, image)) = depth_image {
+            // Discarded: the host's reads of the slot's previous frame (any stage) have
+            // completed by the slot contract; the barrier also orders them (WAR). Written
+            // by `classify` (pixels without displacement) and `hit_depth`.
+            // SAFETY: this function's contract (`cmd` recording outside a render pass); the
+            // image is the slot's, alive until retired after the slot's frames, and may be
+            // discarded (the slot contract).
+            unsafe {
+                sync::transition(&self.ctx, cmd, image, DISCARD_ANY, Access::COMPUTE_STORAGE_WRITE)
+            };
+        }
+        let depth_view = depth_image.map(|(v, _)| v);
         // SAFETY: this function's contract; `begin` reset the writer's queries, and each
-        // stage follows the state the previous one left (builds, then the corner grid
-        // `trace` reads).
+        // stage follows the state the previous one left (builds, the classification and
+        // its exit barrier, then the corner grids `trace` reads).
         unsafe {
             self.record_builds(cmd, &mut w, slot);
+            self.record_classify(cmd, &mut w, inputs, true, depth_view);
             self.record_corners(cmd, &mut w, inputs);
             self.record_trace(cmd, &mut w, inputs)?;
         }
@@ -176,18 +199,19 @@ impl DisplacementPass {
             unsafe { self.ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
         }
         if let Some(target) = &inputs.shade {
-            let params = self.shade_params(target);
             // SAFETY: this function's contract; the hits are visible to storage reads (the
             // memory barrier above), and `shade` reads the visibility `record_shadow`
             // left readable.
             unsafe {
-                let visibility = self.record_shadow(cmd, &mut w, inputs, &params)?;
-                self.record_shade(cmd, &mut w, inputs, target, &params, visibility)?;
+                let visibility = self.record_shadow(cmd, &mut w, inputs, target)?;
+                self.record_shade(cmd, &mut w, inputs, target, visibility)?;
             }
         }
         if let Some(camera) = camera {
             // SAFETY: this function's contract; the hits are visible to storage reads (the
-            // memory barrier above, recorded whenever the depth output is on).
+            // memory barrier above, recorded whenever the depth output is on), the image
+            // in `GENERAL` for storage writes (the transition above, `classify`'s exit
+            // barrier).
             unsafe { self.record_hit_depth(cmd, &mut w, inputs, &camera) };
         }
         Ok(self.finish(slot, w, timestamps))
@@ -206,16 +230,14 @@ impl DisplacementPass {
     ) -> Result<ScopeWriter> {
         self.check_alive()?;
         let slot = inputs.frame_slot;
-        if slot >= self.settings.frames_in_flight {
+        let frames = self.frame.frames_in_flight;
+        if slot >= frames {
             return Err(Error::invalid(
                 "frame_slot",
-                format!(
-                    "{slot} is not below frames_in_flight ({})",
-                    self.settings.frames_in_flight
-                ),
+                format!("{slot} is not below frames_in_flight ({frames})"),
             ));
         }
-        let extent = self.settings.extent;
+        let extent = self.frame.extent;
         if inputs.gbuffer.extent != extent {
             return Err(Error::invalid(
                 "gbuffer",
@@ -226,13 +248,6 @@ impl DisplacementPass {
                     extent.width,
                     extent.height
                 ),
-            ));
-        }
-        if self.shadows.is_on() && self.shadow.is_none() {
-            return Err(Error::invalid(
-                "shadows",
-                "self-shadowing is on but its resources are missing (a failed set_shadows, \
-                 set_method, resize or set_height_map: call set_shadows again)",
             ));
         }
         let (pool, first) = match timestamps {
@@ -263,123 +278,199 @@ impl DisplacementPass {
         frame
     }
 
-    /// The pending work of earlier changes: the `upload` scope (a new height map, the
-    /// height texture refilled for level of detail, material maps) and the `pyramid`
-    /// scope (the method's pyramid and the shadow stage's own cell pyramid). Each fill
-    /// leaves its image readable by compute shaders.
+    /// The live materials: `(tiles, entry, map)` for each, by index.
+    fn live<'a>(&'a self, slot: u32) -> Vec<(MaterialTiles, &'a MaterialEntry, &'a MapEntry)> {
+        let lists = &self.tiles[slot as usize];
+        self.materials
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| {
+                let m = m.as_ref()?;
+                let map = self.maps[m.map].as_ref()?;
+                Some((lists.of(i as u32), m, map))
+            })
+            .collect()
+    }
+
+    /// The pending work of earlier changes: the `upload` scope (new height maps, height
+    /// textures refilled for level of detail, material maps), the `pyramid` scope (every
+    /// unbuilt pyramid) and the `cone` scope (every unbuilt cone map). Each fill leaves its
+    /// image readable by compute shaders.
     ///
     /// # Safety
     /// As [`DisplacementPass::record`].
     unsafe fn record_builds(&mut self, cmd: vk::CommandBuffer, w: &mut ScopeWriter, slot: u32) {
         let ctx = self.ctx.clone();
-        let fill = self.pending_fill.take();
-        let material = self.pending_material.take();
-        if fill.is_some() || material.is_some() {
+        let fills: Vec<(usize, Fill)> = (self.maps.iter_mut().enumerate())
+            .filter_map(|(i, m)| Some((i, m.as_mut()?.pending_fill.take()?)))
+            .collect();
+        let shading: Vec<(usize, crate::material::MaterialStaging)> =
+            (self.materials.iter_mut().enumerate())
+                .filter_map(|(i, m)| Some((i, m.as_mut()?.pending_shading.take()?)))
+                .collect();
+        if !fills.is_empty() || !shading.is_empty() {
             // SAFETY: `record`'s contract: `cmd` is recording outside a render pass on the
             // context's queue family, after `begin` reset the writer's queries (the scope's
             // contract). In the body (inside this block): a `Fill::Upload` staging buffer
-            // came with `self.height` from `create_for_upload`, a `Fill::Copy` source is
+            // came with its map's texture from `create_for_upload`, a `Fill::Copy` source is
             // the previous texture of the same map (`create_like`), its level 0
-            // sampled-readable as every fill leaves it; the material staging came with
-            // `self.material` from `create_for_upload`; the new images have never been
-            // accessed. The staging data and sources are retired below until the frames
-            // reading them have completed, and the textures live until the pass is
-            // destroyed after its frames.
+            // sampled-readable as every fill leaves it; a material's staging came with its
+            // textures from `create_for_upload`; the new images have never been accessed.
+            // The staging data and sources are retired below until the frames reading them
+            // have completed, and the textures live until they are retired after them.
             unsafe {
                 w.scope(&ctx, cmd, PassName::Upload, |cmd| {
-                    match &fill {
-                        Some(Fill::Upload(staging)) => {
-                            self.height.record_upload(&ctx, cmd, staging)
+                    for (i, fill) in &fills {
+                        let Some(map) = &self.maps[*i] else { continue };
+                        match fill {
+                            Fill::Upload(staging) => map.texture.record_upload(&ctx, cmd, staging),
+                            Fill::Copy(source) => map.texture.record_copy_from(&ctx, cmd, source),
                         }
-                        Some(Fill::Copy(source)) => self.height.record_copy_from(&ctx, cmd, source),
-                        None => {}
                     }
-                    if let (Some(textures), Some(staging)) = (&self.material, &material) {
-                        textures.record_upload(&ctx, cmd, staging);
+                    for (i, staging) in &shading {
+                        if let Some(textures) =
+                            self.materials[*i].as_ref().and_then(|m| m.shading.as_ref())
+                        {
+                            textures.record_upload(&ctx, cmd, staging);
+                        }
                     }
                 })
             };
         }
-        match fill {
-            // Read by this frame's copy only: destroyed when this slot is next recorded.
-            Some(Fill::Upload(staging)) => self.retired.retire_for_slot(slot, staging),
-            // Read by this frame's copy and by frames in flight in other slots: kept
-            // until every slot has been recorded again.
-            Some(Fill::Copy(source)) => self.retired.retire(source),
-            None => {}
+        for (_, fill) in fills {
+            match fill {
+                // Read by this frame's copy only: destroyed when this slot is next recorded.
+                Fill::Upload(staging) => self.retired.retire_for_slot(slot, staging),
+                // Read by this frame's copy and by frames in flight in other slots: kept
+                // until every slot has been recorded again.
+                Fill::Copy(source) => self.retired.retire(source),
+            }
         }
-        if let Some(staging) = material {
+        for (_, staging) in shading {
             self.retired.retire_for_slot(slot, staging);
         }
 
-        let method_pyramid = match (&self.pyramid_pass, &self.pyramid, self.pyramid_built) {
-            (Some(pass), Some(pyramid), false) => Some((pass, pyramid)),
-            _ => None,
-        };
-        let shadow_pyramid = match &self.shadow {
-            Some(s) if !s.own_built => s.own_pyramid.as_ref().map(|(pass, p)| (pass, p)),
-            _ => None,
-        };
-        if method_pyramid.is_some() || shadow_pyramid.is_some() {
+        if self.maps.iter().flatten().any(|m| m.pyramids.iter().any(|p| !p.built)) {
+            let pass = self.pyramid_pass.as_ref();
             // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-            // queries reset by `begin`). In the body (inside this block): the height texture
+            // queries reset by `begin`). In the body (inside this block): each height texture
             // is sampled-readable (filled in the upload scope above or by an earlier frame);
             // a pyramid is built only while unbuilt, so no frame has read it; the pass and
             // pyramids live until they are retired after the frames that use them.
             unsafe {
                 w.scope(&ctx, cmd, PassName::Pyramid, |cmd| {
-                    for (pass, pyramid) in method_pyramid.into_iter().chain(shadow_pyramid) {
-                        pass.record(&ctx, cmd, &self.height, pyramid);
+                    let Some(pass) = pass else { return };
+                    for map in self.maps.iter().flatten() {
+                        for p in map.pyramids.iter().filter(|p| !p.built) {
+                            pass.record(&ctx, cmd, &map.texture, &p.value);
+                        }
                     }
                 })
             };
-        }
-        self.pyramid_built = self.pyramid.is_some();
-        if let Some(s) = &mut self.shadow {
-            s.own_built = s.own_pyramid.is_some();
+            if pass.is_some() {
+                for map in self.maps.iter_mut().flatten() {
+                    for p in &mut map.pyramids {
+                        p.built = true;
+                    }
+                }
+            }
         }
         // SAFETY: `record`'s contract, as above.
-        unsafe { self.record_cone(w, cmd) };
+        unsafe { self.record_cones(w, cmd) };
     }
 
-    /// The `cone` scope (cone methods): the cone map from the (built) cell pyramid, when
-    /// unbuilt.
+    /// The `cone` scope (cone methods): each unbuilt cone map from its map's (built) cell
+    /// pyramid.
     ///
     /// # Safety
     /// As [`DisplacementPass::record`].
-    unsafe fn record_cone(&mut self, w: &mut ScopeWriter, cmd: vk::CommandBuffer) {
-        let (Some(pass), Some(cone), Some(pyramid), false) = (
-            &self.cone_pass,
-            &self.cone,
-            self.pyramid.as_ref().filter(|_| self.pyramid_built),
-            self.cone_built,
-        ) else {
-            return;
+    unsafe fn record_cones(&mut self, w: &mut ScopeWriter, cmd: vk::CommandBuffer) {
+        let ready = |map: &MapEntry| {
+            map.cones.iter().any(|c| !c.built) && map.pyramid(PyramidKind::Cell).is_some()
         };
+        if !self.maps.iter().flatten().any(ready) {
+            return;
+        }
         let ctx = &*self.ctx;
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body: the height texture and the pyramid are
+        // queries reset by `begin`). In the body: each height texture and cell pyramid is
         // sampled-readable (their fill and build, recorded before this in the same command
-        // buffer or by an earlier frame); the cone map is built only while unbuilt, so no
-        // frame has read it; the pass, pyramid and map live until they are retired after
-        // the frames that use them.
+        // buffer or by an earlier frame); a cone map is built only while unbuilt, so no
+        // frame has read it; the passes, pyramids and maps live until they are retired
+        // after the frames that use them.
         unsafe {
             w.scope(ctx, cmd, PassName::Cone, |cmd| {
-                pass.record(ctx, cmd, &self.height, pyramid, cone);
+                for map in self.maps.iter().flatten().filter(|m| ready(m)) {
+                    let Some(pyramid) = map.pyramid(PyramidKind::Cell) else { continue };
+                    for cone in map.cones.iter().filter(|c| !c.built) {
+                        let kind = cone.value.kind;
+                        if let Some(pass) = self.cone_passes.iter().find(|p| p.kind == kind) {
+                            pass.record(ctx, cmd, &map.texture, pyramid, &cone.value);
+                        }
+                    }
+                }
             })
         };
-        self.cone_built = true;
-        // What only the build read (a relaxed map's falls pyramids) goes once this
-        // command buffer's frame has executed.
-        if let Some(cone) = &mut self.cone {
-            let scratch = cone.take_scratch();
-            if !scratch.is_empty() {
-                self.retired.retire(scratch);
+        let mut scratch = Vec::new();
+        for map in self.maps.iter_mut().flatten() {
+            if map.pyramid(PyramidKind::Cell).is_none() {
+                continue;
             }
+            for cone in map.cones.iter_mut().filter(|c| !c.built) {
+                cone.built = true;
+                // What only the build read (a relaxed map's falls pyramids) goes once this
+                // command buffer's frame has executed.
+                scratch.extend(cone.value.take_scratch());
+            }
+        }
+        if !scratch.is_empty() {
+            self.retired.retire(scratch);
         }
     }
 
-    /// The DIG corner pass (DIG methods only): the slot's grid discarded -> storage
+    /// The `classify` scope: the slot's tile lists (and, with `write_hits`, the hit
+    /// texels of pixels without displacement; with `hit_depth`, their corrected depth).
+    ///
+    /// # Safety
+    /// As [`DisplacementPass::record`]; `hit_depth` (the slot's corrected depth) is in
+    /// `GENERAL`, earlier accesses ordered before compute-shader storage writes.
+    unsafe fn record_classify(
+        &self,
+        cmd: vk::CommandBuffer,
+        w: &mut ScopeWriter,
+        inputs: &FrameInputs,
+        write_hits: bool,
+        hit_depth: Option<vk::ImageView>,
+    ) {
+        let ctx = &*self.ctx;
+        let lists = &self.tiles[inputs.frame_slot as usize];
+        let mut live: Vec<bool> = self.materials.iter().map(Option::is_some).collect();
+        live.resize(lists.materials() as usize, false);
+        let classify = ClassifyInputs {
+            depth: inputs.gbuffer.depth,
+            tangent: inputs.gbuffer.tangent,
+            hit: ViewRef {
+                view: inputs.hit,
+                extent: self.frame.extent,
+            },
+            write_hits,
+            hit_depth,
+            lists,
+            live: &live,
+        };
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body: the G-buffer is in its entry state, the
+        // hit buffer in `GENERAL` (the host's barrier), the corrected depth transitioned by
+        // the caller; the slot's lists were last read by the slot's previous frame, which
+        // has completed (the slot contract).
+        unsafe {
+            w.scope(ctx, cmd, PassName::Classify, |cmd| {
+                self.classify.record(ctx, cmd, &classify)
+            })
+        };
+    }
+
+    /// The DIG corner pass of each DIG material: its slot's grid discarded -> storage
     /// write, the pass, then -> sampled by `trace`.
     ///
     /// # Safety
@@ -391,55 +482,70 @@ impl DisplacementPass {
         inputs: &FrameInputs,
     ) {
         let ctx = &*self.ctx;
-        let grid = self.corners.get(inputs.frame_slot as usize);
-        let (Some(pass), Some(grid)) = (&self.corner_pass, grid) else {
+        let slot = inputs.frame_slot as usize;
+        let Some(pass) = &self.corner_pass else {
             return;
         };
-        let image = &grid.image;
-        // The slot's previous frame (the last reader) has completed: discarded.
-        // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the grid is
-        // the slot's, alive until retired after the slot's frames, and by the slot
-        // contract its last reader has completed, so it may be discarded.
-        unsafe {
-            sync::transition(
-                ctx,
-                cmd,
-                image,
-                DISCARD_COMPUTE,
-                Access::COMPUTE_STORAGE_WRITE,
-            )
-        };
+        let grids: Vec<_> = self
+            .live(inputs.frame_slot)
+            .into_iter()
+            .filter_map(|(t, m, map)| Some((t.material, m.corners.get(slot)?, map, m)))
+            .collect();
+        if grids.is_empty() {
+            return;
+        }
+        for (_, grid, _, _) in &grids {
+            // The slot's previous frame (the last reader) has completed: discarded.
+            // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the grid
+            // is the slot's, alive until retired after the slot's frames, and by the slot
+            // contract its last reader has completed, so it may be discarded.
+            unsafe {
+                sync::transition(
+                    ctx,
+                    cmd,
+                    &grid.image,
+                    DISCARD_COMPUTE,
+                    Access::COMPUTE_STORAGE_WRITE,
+                )
+            };
+        }
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the host's G-buffer
         // is in its entry state (sampled-readable, `record`'s contract), the height
-        // texture sampled-readable (its fill), the grid in `GENERAL` for storage writes
-        // (the transition above) and made for this extent.
+        // textures sampled-readable (their fill), the grids in `GENERAL` for storage writes
+        // (the transitions above) and made for this extent.
         unsafe {
             w.scope(ctx, cmd, PassName::DigCorners, |cmd| {
-                pass.record(
-                    ctx,
-                    cmd,
-                    inputs.gbuffer,
-                    &self.height,
-                    grid,
-                    self.settings.params.steps,
-                )
+                for (material, grid, map, m) in &grids {
+                    pass.record(
+                        ctx,
+                        cmd,
+                        inputs.gbuffer,
+                        &map.texture,
+                        grid,
+                        m.settings.params.steps,
+                        *material,
+                    );
+                }
             })
         };
-        // SAFETY: `record`'s contract; the grid is in `GENERAL`, written by the corner
-        // pass.
-        unsafe {
-            sync::transition(
-                ctx,
-                cmd,
-                image,
-                Access::COMPUTE_STORAGE_WRITE,
-                Access::COMPUTE_SAMPLED,
-            )
-        };
+        for (_, grid, _, _) in &grids {
+            // SAFETY: `record`'s contract; the grid is in `GENERAL`, written by the corner
+            // pass.
+            unsafe {
+                sync::transition(
+                    ctx,
+                    cmd,
+                    &grid.image,
+                    Access::COMPUTE_STORAGE_WRITE,
+                    Access::COMPUTE_SAMPLED,
+                )
+            };
+        }
     }
 
-    /// The method into the hit buffer (which enters discarded in `GENERAL`: the host's
+    /// Each material's method into the hit buffer over its tiles (the buffer enters in
+    /// `GENERAL`: the host's barrier; `classify`'s writes ordered before by its exit
     /// barrier).
     ///
     /// # Safety
@@ -453,50 +559,65 @@ impl DisplacementPass {
         let ctx = &*self.ctx;
         let hit = ViewRef {
             view: inputs.hit,
-            extent: self.settings.extent,
+            extent: self.frame.extent,
         };
+        let slot = inputs.frame_slot as usize;
+        let live = self.live(inputs.frame_slot);
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the G-buffer is in
-        // its entry state and the hit buffer discarded in `GENERAL` (the host's barriers,
-        // `record`'s contract); the height texture and pyramid are sampled-readable
-        // (their builds), the slot's corner grid too (`record_corners`).
+        // its entry state and the hit buffer in `GENERAL` (the host's barriers, `record`'s
+        // contract); the height textures, pyramids and cone maps are sampled-readable
+        // (their builds), the slot's corner grids too (`record_corners`); the tile lists
+        // are the classification's.
         unsafe {
             w.scope(ctx, cmd, PassName::Trace, |cmd| {
-                self.trace.record(
-                    ctx,
-                    cmd,
-                    TraceInputs {
-                        gbuffer: inputs.gbuffer,
-                        height: &self.height,
-                        hit,
-                        pyramid: self.pyramid.as_ref(),
-                        corners: self.corners.get(inputs.frame_slot as usize),
-                        cone: self.cone.as_ref(),
-                    },
-                    &self.settings.params,
-                    self.settings.depth_scale,
-                )
+                for (tiles, m, map) in &live {
+                    let s = &m.settings;
+                    let needs = s.method.needs();
+                    let Some(trace) = self.traces.iter().find(|t| t.method() == s.method) else {
+                        return Err(Error::Internal(format!(
+                            "no trace pipeline for {}",
+                            s.method.name()
+                        )));
+                    };
+                    trace.record(
+                        ctx,
+                        cmd,
+                        TraceInputs {
+                            gbuffer: inputs.gbuffer,
+                            height: &map.texture,
+                            hit,
+                            pyramid: needs.pyramid.and_then(|k| map.pyramid(k)),
+                            corners: m.corners.get(slot),
+                            cone: needs.cone.and_then(|k| map.cone(k)),
+                            tiles: *tiles,
+                        },
+                        &s.params,
+                        s.depth_scale,
+                    )?;
+                }
+                Ok(())
             })
         }
     }
 
-    /// The shading constants of a frame lit as `target` says.
-    fn shade_params(&self, target: &ShadeTarget) -> ShadeParams {
-        let e = self.settings.extent;
+    /// The shading constants of a frame lit as `target` says, for a material on `map`.
+    fn shade_params(&self, target: &ShadeTarget, m: &MaterialEntry, map: &MapEntry) -> ShadeParams {
+        let e = self.frame.extent;
         ShadeParams::new(
             target.view_proj,
             target.camera_pos,
             target.light_dir,
             target.light_intensity,
             [e.width, e.height],
-            self.height.size(),
-            self.settings.depth_scale,
+            map.texture.size(),
+            m.settings.depth_scale,
         )
     }
 
     /// Self-shadowing (when on): the slot's visibility image discarded -> storage write,
-    /// the `shadow` pass over the hits, then -> storage read by `shade`. Returns the
-    /// visibility view (`None` when self-shadowing is off).
+    /// the `shadow` pass of each material over its hits, then -> storage read by `shade`.
+    /// Returns the visibility view (`None` when self-shadowing is off).
     ///
     /// # Safety
     /// As [`DisplacementPass::record`]; the hits are visible to storage reads.
@@ -505,13 +626,12 @@ impl DisplacementPass {
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
         inputs: &FrameInputs,
-        params: &ShadeParams,
+        target: &ShadeTarget,
     ) -> Result<Option<vk::ImageView>> {
         let ctx = &*self.ctx;
-        let Some(stage) = &self.shadow else {
+        let Some(image) = self.visibility.get(inputs.frame_slot as usize) else {
             return Ok(None);
         };
-        let image = &stage.visibility[inputs.frame_slot as usize];
         // The slot's previous frame (the last reader) has completed: discarded.
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the
         // visibility image is the slot's, alive until retired after the slot's frames,
@@ -525,35 +645,42 @@ impl DisplacementPass {
                 Access::COMPUTE_STORAGE_WRITE,
             )
         };
-        let shadow_params = ShadowPass::params(
-            &self.shadows,
-            self.settings.params.steps,
-            params,
-            self.settings.addressing,
-        );
-        let pyramid = match &stage.own_pyramid {
-            Some((_, p)) => Some(p),
-            None => self.pyramid.as_ref(),
-        };
+        let live = self.live(inputs.frame_slot);
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the hits are visible
         // to storage reads (this function's contract), the G-buffer is in its entry
-        // state, the height texture and pyramid sampled-readable (their builds), the
+        // state, the height textures and pyramids sampled-readable (their builds), the
         // visibility in `GENERAL` for storage writes (the transition above).
         unsafe {
             w.scope(ctx, cmd, PassName::Shadow, |cmd| {
-                stage.pass.record(
-                    ctx,
-                    cmd,
-                    ShadowInputs {
-                        hit: inputs.hit,
-                        gbuffer: inputs.gbuffer,
-                        height: &self.height,
-                        pyramid,
-                        visibility: image.view_ref(),
-                    },
-                    &shadow_params,
-                )
+                for (tiles, m, map) in &live {
+                    let s = &m.settings;
+                    let trace = ShadowTrace::for_method(self.shadows.mode, s.method);
+                    let Some(pass) = self.shadow_passes.iter().find(|p| p.trace() == trace)
+                    else {
+                        return Err(Error::Internal("no shadow pipeline".into()));
+                    };
+                    let params = ShadowPass::params(
+                        &self.shadows,
+                        s.params.steps,
+                        &self.shade_params(target, m, map),
+                        s.addressing,
+                    );
+                    pass.record(
+                        ctx,
+                        cmd,
+                        ShadowInputs {
+                            hit: inputs.hit,
+                            gbuffer: inputs.gbuffer,
+                            height: &map.texture,
+                            pyramid: map.pyramid(PyramidKind::Cell),
+                            visibility: image.view_ref(),
+                            tiles: *tiles,
+                        },
+                        &params,
+                    )?;
+                }
+                Ok(())
             })?
         };
         // SAFETY: `record`'s contract; the visibility is in `GENERAL`, written by the
@@ -570,8 +697,9 @@ impl DisplacementPass {
         Ok(Some(image.view))
     }
 
-    /// `shade`: the hits (and the visibility) lit into the target's colour image, which
-    /// enters discarded in `GENERAL` (the host's barrier).
+    /// `shade`: each material's hits (and the visibility) lit into the target's colour
+    /// image, which enters in `GENERAL` with the host's colour (kept where nothing is
+    /// displaced; the host's barrier).
     ///
     /// # Safety
     /// As [`DisplacementPass::record`]; the hits and the visibility are visible to
@@ -582,43 +710,47 @@ impl DisplacementPass {
         w: &mut ScopeWriter,
         inputs: &FrameInputs,
         target: &ShadeTarget,
-        params: &ShadeParams,
         visibility: Option<vk::ImageView>,
     ) -> Result<()> {
         let ctx = &*self.ctx;
+        let live = self.live(inputs.frame_slot);
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the hits and the
         // visibility are visible to storage reads (this function's contract), the
-        // G-buffer is in its entry state and the colour image discarded in `GENERAL` (the
-        // host's barriers), the height texture and material maps sampled-readable (their
+        // G-buffer is in its entry state and the colour image in `GENERAL` (the host's
+        // barriers), the height textures and material maps sampled-readable (their
         // uploads).
         unsafe {
             w.scope(ctx, cmd, PassName::Shade, |cmd| {
-                self.shade.record(
-                    ctx,
-                    cmd,
-                    ShadeInputs {
-                        hit: inputs.hit,
-                        gbuffer: inputs.gbuffer,
-                        height: &self.height,
-                        material: self.material.as_ref(),
-                        color: ViewRef {
-                            view: target.color,
-                            extent: self.settings.extent,
+                for (tiles, m, map) in &live {
+                    self.shade.record(
+                        ctx,
+                        cmd,
+                        ShadeInputs {
+                            hit: inputs.hit,
+                            gbuffer: inputs.gbuffer,
+                            height: &map.texture,
+                            material: m.shading.as_ref(),
+                            color: ViewRef {
+                                view: target.color,
+                                extent: self.frame.extent,
+                            },
+                            visibility,
+                            tiles: *tiles,
                         },
-                        visibility,
-                    },
-                    params,
-                )
+                        &self.shade_params(target, m, map),
+                    )?;
+                }
+                Ok(())
             })
         }
     }
 
-    /// The corrected depth: the slot's image discarded (the host may have left it in any
-    /// layout) -> storage write, then `hit_depth`.
+    /// The corrected depth of each material's pixels (`classify` wrote the others').
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; the hits are visible to storage reads.
+    /// As [`DisplacementPass::record`]; the hits are visible to storage reads; the slot's
+    /// image is in `GENERAL`, earlier accesses ordered before storage writes.
     unsafe fn record_hit_depth(
         &self,
         cmd: vk::CommandBuffer,
@@ -631,36 +763,34 @@ impl DisplacementPass {
             return;
         };
         let image = &depth.images[inputs.frame_slot as usize];
-        // Discarded: the host's reads of the slot's previous frame (any stage) have
-        // completed by the slot contract; the barrier also orders them (WAR).
-        // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the image is
-        // the slot's, alive until retired after the slot's frames, and may be discarded
-        // (the slot contract).
-        unsafe { sync::transition(ctx, cmd, image, DISCARD_ANY, Access::COMPUTE_STORAGE_WRITE) };
-        let e = self.settings.extent;
-        let params = crate::abi::HitDepthParams::new(
-            camera.view_proj,
-            camera.eye,
-            [e.width, e.height],
-            self.settings.depth_scale,
-        );
+        let e = self.frame.extent;
+        let live = self.live(inputs.frame_slot);
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the hits are visible
         // to storage reads (this function's contract), the G-buffer is in its entry
-        // state, the corrected depth in `GENERAL` for storage writes (the transition
-        // above).
+        // state, the corrected depth in `GENERAL` for storage writes (this function's
+        // contract).
         unsafe {
             w.scope(ctx, cmd, PassName::HitDepth, |cmd| {
-                depth.pass.record(
-                    ctx,
-                    cmd,
-                    HitDepthInputs {
-                        hit: inputs.hit,
-                        gbuffer: inputs.gbuffer,
-                        hit_depth: image.view_ref(),
-                    },
-                    &params,
-                )
+                for (tiles, m, _) in &live {
+                    let params = crate::abi::HitDepthParams::new(
+                        camera.view_proj,
+                        camera.eye,
+                        [e.width, e.height],
+                        m.settings.depth_scale,
+                    );
+                    depth.pass.record(
+                        ctx,
+                        cmd,
+                        HitDepthInputs {
+                            hit: inputs.hit,
+                            gbuffer: inputs.gbuffer,
+                            hit_depth: image.view_ref(),
+                            tiles: *tiles,
+                        },
+                        &params,
+                    );
+                }
             })
         };
     }

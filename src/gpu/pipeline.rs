@@ -114,6 +114,60 @@ impl ComputePipeline {
         // pass; the writes match the set layout and name live resources in their layouts;
         // `push` fits the layout's push-constant range.
         unsafe {
+            self.bind(ctx, cmd, writes, push);
+            dev.cmd_dispatch(
+                cmd,
+                width.div_ceil(self.local_size[0]),
+                height.div_ceil(self.local_size[1]),
+                1,
+            );
+        }
+    }
+
+    /// Binds the pipeline, pushes `writes` as set 0 and `push` as push constants, and
+    /// dispatches the workgroup count read from `args` at `offset` (a
+    /// `VkDispatchIndirectCommand`) when the command buffer executes.
+    ///
+    /// # Safety
+    /// As [`ComputePipeline::dispatch`]; `args` is a live buffer of the device with
+    /// `INDIRECT_BUFFER` usage holding a `VkDispatchIndirectCommand` at `offset` (a
+    /// multiple of 4), written before the dispatch and made visible to
+    /// `DRAW_INDIRECT` `INDIRECT_COMMAND_READ` (the caller's barrier); each of its counts
+    /// is within `maxComputeWorkGroupCount`.
+    pub unsafe fn dispatch_indirect(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        writes: &[vk::WriteDescriptorSet],
+        push: &[u8],
+        args: vk::Buffer,
+        offset: u64,
+    ) {
+        let dev = ctx.device();
+        // SAFETY: this function's # Safety contract, as in `dispatch`; `args` holds a
+        // visible dispatch command at `offset`.
+        unsafe {
+            self.bind(ctx, cmd, writes, push);
+            dev.cmd_dispatch_indirect(cmd, args, offset);
+        }
+    }
+
+    /// Binds the pipeline, its set 0 (`writes`) and push constants (`push`).
+    ///
+    /// # Safety
+    /// As [`ComputePipeline::dispatch`].
+    unsafe fn bind(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        writes: &[vk::WriteDescriptorSet],
+        push: &[u8],
+    ) {
+        let dev = ctx.device();
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match the set layout and name live resources in their layouts;
+        // `push` fits the layout's push-constant range.
+        unsafe {
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
             ctx.push_descriptor().cmd_push_descriptor_set(
                 cmd,
@@ -125,12 +179,6 @@ impl ComputePipeline {
             if !push.is_empty() {
                 dev.cmd_push_constants(cmd, self.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
             }
-            dev.cmd_dispatch(
-                cmd,
-                width.div_ceil(self.local_size[0]),
-                height.div_ceil(self.local_size[1]),
-                1,
-            );
         }
     }
 
@@ -222,6 +270,14 @@ impl FetchPipeline {
         unsafe { ctx.device().destroy_sampler(self.sampler, None) };
         self.sampler = vk::Sampler::null();
     }
+}
+
+/// A descriptor write for binding `binding` of a storage buffer range.
+pub fn buffer_write(binding: u32, info: &[vk::DescriptorBufferInfo]) -> vk::WriteDescriptorSet<'_> {
+    vk::WriteDescriptorSet::default()
+        .dst_binding(binding)
+        .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+        .buffer_info(info)
 }
 
 /// Descriptor info of `image` as a storage image (`GENERAL`).

@@ -3,13 +3,16 @@
 //! attachment with one full-screen triangle whose fragment shader sets `gl_FragDepth`
 //! (`glsl/depth_resolve.vert` / `.frag`), so that geometry drawn afterwards, fog or SSAO
 //! meet the displaced surface instead of the macro polygon. Depth test `ALWAYS`, depth
-//! writes on, no colour attachment: every pixel of the render area gets the source's
-//! value (0, the reverse-Z clear value, where there is no displaced surface).
+//! writes on, no colour attachment. The depth is *merged*: only pixels whose G-buffer
+//! `tangent.w` names a material (displaced pixels; `glsl/include/dispmap_gbuffer.glsl`)
+//! get the source's value (0, the reverse-Z clear value, where a displaced ray found no
+//! surface); every other pixel (flat geometry, no geometry) keeps the target's depth.
 //!
-//! `record` expects the source in `SHADER_READ_ONLY_OPTIMAL`, visible to fragment-shader
-//! sampled reads, and the target in `DEPTH_ATTACHMENT_OPTIMAL` (contents discarded: the
-//! pass overwrites every pixel); it leaves the target written in that layout. The two
-//! images have the same size. It begins and ends its own dynamic rendering instance
+//! `record` expects the source and the G-buffer tangent in `SHADER_READ_ONLY_OPTIMAL`,
+//! visible to fragment-shader sampled reads, and the target in
+//! `DEPTH_ATTACHMENT_OPTIMAL` with its contents (the attachment is loaded), earlier
+//! accesses ordered before the depth reads and writes of the fragment tests; it leaves
+//! the target written in that layout. The three images have the same size. It begins and ends its own dynamic rendering instance
 //! (the device needs `dynamicRendering`).
 
 use crate::context::Context;
@@ -56,11 +59,14 @@ impl DepthResolvePass {
     }
 
     fn build(&mut self, ctx: &Context, dev: &ash::Device) -> Result<()> {
-        let bindings = [vk::DescriptorSetLayoutBinding::default()
-            .binding(0)
-            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-            .descriptor_count(1)
-            .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+        let binding = |b: u32| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(b)
+                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT)
+        };
+        let bindings = [binding(0), binding(1)];
         let set_info = vk::DescriptorSetLayoutCreateInfo::default()
             .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
             .bindings(&bindings);
@@ -91,54 +97,70 @@ impl DepthResolvePass {
         Ok(())
     }
 
-    /// Records the pass: every pixel of `target` (a `D32_SFLOAT` view of `extent`) gets
-    /// the value of `source` (an `R32_SFLOAT` view of the same size). Layouts: module docs.
+    /// Records the pass: every displaced pixel of `target` (a `D32_SFLOAT` view of
+    /// `extent`; displaced: `tangent.w` of the host's G-buffer names a material) gets the
+    /// value of `source` (an `R32_SFLOAT` view of the same size); the others keep their
+    /// depth. Layouts: module docs.
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance (the pass begins and ends its own dynamic rendering), for a
     ///   queue of the context's queue family.
-    /// * `source` (sampled usage) and `target` (`DEPTH_STENCIL_ATTACHMENT` usage, a
-    ///   `D32_SFLOAT` view) belong to that device and are views of images of `extent`.
-    /// * When the command buffer executes, `source` is in `SHADER_READ_ONLY_OPTIMAL`, its
-    ///   writes visible to fragment-shader sampled reads, and `target` in
-    ///   `DEPTH_ATTACHMENT_OPTIMAL`, earlier accesses ordered before the depth writes
-    ///   (the caller's barriers).
+    /// * `source` and `tangent` (sampled usage) and `target` (`DEPTH_STENCIL_ATTACHMENT`
+    ///   usage, a `D32_SFLOAT` view) belong to that device and are views of images of
+    ///   `extent`; `target` is not a view of `source`'s or `tangent`'s image.
+    /// * When the command buffer executes, `source` and `tangent` are in
+    ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to fragment-shader sampled
+    ///   reads, and `target` in `DEPTH_ATTACHMENT_OPTIMAL`, its writes visible to and
+    ///   earlier accesses ordered before the fragment tests' depth reads and writes (the
+    ///   caller's barriers).
     /// * Both images and this pass stay alive until the command buffer has executed.
     pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         source: vk::ImageView,
+        tangent: vk::ImageView,
         target: vk::ImageView,
         extent: vk::Extent2D,
     ) {
         let depth_attachment = vk::RenderingAttachmentInfo::default()
             .image_view(target)
             .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
-            .load_op(vk::AttachmentLoadOp::DONT_CARE)
+            .load_op(vk::AttachmentLoadOp::LOAD)
             .store_op(vk::AttachmentStoreOp::STORE);
         let area = crate::gpu::pipeline::frame_area(extent);
         let rendering = vk::RenderingInfo::default()
             .render_area(area)
             .layer_count(1)
             .depth_attachment(&depth_attachment);
-        let image_info = [vk::DescriptorImageInfo {
-            sampler: self.sampler,
-            image_view: source,
-            image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
-        }];
-        let writes = [vk::WriteDescriptorSet::default()
-            .dst_binding(0)
-            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-            .image_info(&image_info)];
+        let info = |view: vk::ImageView| {
+            [vk::DescriptorImageInfo {
+                sampler: self.sampler,
+                image_view: view,
+                image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+            }]
+        };
+        let (source_info, tangent_info) = (info(source), info(tangent));
+        let writes = [
+            crate::gpu::pipeline::image_write(
+                0,
+                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                &source_info,
+            ),
+            crate::gpu::pipeline::image_write(
+                1,
+                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                &tangent_info,
+            ),
+        ];
         let dev = ctx.device();
         // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
         // size of the target attachment, so it is non-zero and within the viewport limits.
         unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; source and target are alive and in the layouts documented above; the
-        // write matches the set layout (binding 0, a combined image sampler).
+        // writes match the set layout (bindings 0 and 1, combined image samplers).
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);

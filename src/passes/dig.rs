@@ -11,6 +11,11 @@
 //! | 2 | G-buffer `normal` (`w`: surface id) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 3 | height field | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 4 | corner grid (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
+//! | 5 | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
+//!
+//! Each DIG material has its own grid; a corner whose pixel is of another material (or
+//! flat) is stored as no surface, so a block that straddles two materials falls back as
+//! at a surface boundary.
 //!
 //! Each corner holds `(ray height at the last sample above the surface, surface id,
 //! iterations, 0)`; see the shader for the details. The grid has
@@ -32,12 +37,13 @@ use ash::vk;
 /// Format of the corner grid.
 pub const CORNER_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
-const BINDINGS: [vk::DescriptorType; 5] = [
+const BINDINGS: [vk::DescriptorType; 6] = [
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
     vk::DescriptorType::STORAGE_IMAGE,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
 ];
 
 /// Corner-grid size for a frame and block size.
@@ -130,7 +136,8 @@ impl DigCornerPass {
         })
     }
 
-    /// Records the corner dispatch: the G-buffer and height field readable by compute,
+    /// Records the corner dispatch of `material`'s grid (corners whose pixel is of
+    /// another material are marked as no surface): the G-buffer and height field readable by compute,
     /// the grid in `GENERAL` ready for storage writes (see the module table).
     ///
     /// # Safety
@@ -153,6 +160,7 @@ impl DigCornerPass {
         height: &HeightTexture,
         grid: &CornerGrid,
         steps: u32,
+        material: u32,
     ) {
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray);
@@ -160,12 +168,14 @@ impl DigCornerPass {
         let normal = fetch(gbuffer.normal);
         let heights = [height.descriptor()];
         let corners = storage(&grid.image);
+        let tangent = fetch(gbuffer.tangent);
         let writes = [
             image_write(0, BINDINGS[0], &ray),
             image_write(1, BINDINGS[1], &depth),
             image_write(2, BINDINGS[2], &normal),
             image_write(3, BINDINGS[3], &heights),
             image_write(4, BINDINGS[4], &corners),
+            image_write(5, BINDINGS[5], &tangent),
         ];
         let frame = gbuffer.extent;
         let size = grid.size();
@@ -175,6 +185,8 @@ impl DigCornerPass {
             block: grid.block,
             steps,
             addressing: addressing_code(height.addressing),
+            material,
+            pad: 0,
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match `BINDINGS` (the pipeline's set 0) and name live views in

@@ -15,12 +15,18 @@
 //! | 3 | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 4 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 5 | corrected depth (`R32_SFLOAT` storage, written) | `GENERAL` |
+//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//!
+//! One dispatch resolves one material's pixels (a workgroup per tile of its list, the
+//! material's `depth_scale`); `classify` writes the others' (the G-buffer's own depth:
+//! flat geometry, or 0 without geometry).
 
 use crate::abi::HitDepthParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::ViewRef;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::passes::classify::{MaterialTiles, TILES_BINDING};
 use crate::passes::gbuffer::GBufferViews;
 use crate::shaders;
 use ash::vk;
@@ -38,6 +44,12 @@ const BINDINGS: [vk::DescriptorType; 6] = [
     vk::DescriptorType::STORAGE_IMAGE,
 ];
 
+fn bindings() -> Vec<(u32, vk::DescriptorType)> {
+    let mut b = crate::gpu::pipeline::numbered(&BINDINGS);
+    b.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
+    b
+}
+
 /// The images the pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct HitDepthInputs {
@@ -47,6 +59,8 @@ pub struct HitDepthInputs {
     pub gbuffer: GBufferViews,
     /// The corrected depth (written; the frame's size).
     pub hit_depth: ViewRef,
+    /// The material and its tiles.
+    pub tiles: MaterialTiles,
 }
 
 impl HitDepthParams {
@@ -67,7 +81,7 @@ impl HitDepthParams {
             clip_w_row: eye_clip.row(3).as_vec4(),
             frame_size,
             depth_scale,
-            pad: 0,
+            material: 0,
         }
     }
 }
@@ -85,13 +99,13 @@ impl HitDepthPass {
                 ctx,
                 "hit_depth",
                 &shaders::HIT_DEPTH_COMP,
-                &crate::gpu::pipeline::numbered(&BINDINGS),
+                &bindings(),
                 std::mem::size_of::<HitDepthParams>() as u32,
             )?,
         })
     }
 
-    /// Records the dispatch over the whole frame.
+    /// Records the dispatch over the material's tiles.
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
@@ -102,7 +116,8 @@ impl HitDepthPass {
     ///   table: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
     ///   reads; the G-buffer in `SHADER_READ_ONLY_OPTIMAL`, its writes visible to
     ///   compute-shader sampled reads; the corrected depth in `GENERAL`, earlier accesses
-    ///   ordered before compute-shader storage writes (the caller's barriers).
+    ///   ordered before compute-shader storage writes (the caller's barriers); the tile
+    ///   list written by a `classify` recorded before in the same command buffer.
     /// * The images behind `inputs` and this pass stay alive until the command buffer has
     ///   executed.
     pub unsafe fn record(
@@ -116,6 +131,7 @@ impl HitDepthPass {
             hit,
             gbuffer,
             hit_depth,
+            tiles,
         } = inputs;
         let hits = storage_view(hit);
         let fetch = |view| self.pipeline.fetch_view(view);
@@ -133,17 +149,21 @@ impl HitDepthPass {
             image_write(5, BINDINGS[5], &out),
         ];
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the writes match `BINDINGS` (the pipeline's set 0) and name live views in
+        // pass; the writes match `bindings()` (the pipeline's set 0) and name live views in
         // the layouts of the module's table; the push constants are the `HitDepthParams`
-        // the layout was built with; the pipeline lives as long as this pass.
+        // the layout was built with (its material set here); the pipeline lives as long as
+        // this pass; the list is the classification's (this function's contract).
+        let push = HitDepthParams {
+            material: tiles.material,
+            ..*params
+        };
         unsafe {
-            self.pipeline.pipeline.dispatch(
+            tiles.dispatch(
                 ctx,
                 cmd,
+                &self.pipeline.pipeline,
                 &writes,
-                bytemuck::bytes_of(params),
-                hit_depth.extent.width,
-                hit_depth.extent.height,
+                bytemuck::bytes_of(&push),
             )
         };
     }

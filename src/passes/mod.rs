@@ -7,6 +7,8 @@
 //! compute passes (`src/embed/record.rs`, one method per stage), and its host (an engine,
 //! or [`crate::renderer::Renderer`]) the G-buffer's and the entry barriers.
 
+pub mod background;
+pub mod classify;
 pub mod cone;
 pub mod depth_resolve;
 pub mod dig;
@@ -56,6 +58,8 @@ pub enum PassName {
     /// The cone map of the cone-stepping methods (built from the pyramid). One-off:
     /// built once per height map.
     Cone,
+    /// The classification of the frame's tiles by material (every frame).
+    Classify,
     /// The DIG corner pass.
     DigCorners,
     /// The intersection method, writing the hit buffer.
@@ -70,11 +74,12 @@ pub enum PassName {
 
 impl PassName {
     /// Every pass, in recording order.
-    pub const ALL: [PassName; 9] = [
+    pub const ALL: [PassName; 10] = [
         PassName::GBuffer,
         PassName::Upload,
         PassName::Pyramid,
         PassName::Cone,
+        PassName::Classify,
         PassName::DigCorners,
         PassName::Trace,
         PassName::Shadow,
@@ -83,13 +88,14 @@ impl PassName {
     ];
 
     /// The name in reports, metrics files and debug labels (`gbuffer`, `upload`,
-    /// `pyramid`, `cone`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`).
+    /// `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`).
     pub fn as_str(self) -> &'static str {
         match self {
             PassName::GBuffer => "gbuffer",
             PassName::Upload => "upload",
             PassName::Pyramid => "pyramid",
             PassName::Cone => "cone",
+            PassName::Classify => "classify",
             PassName::DigCorners => "dig_corners",
             PassName::Trace => "trace",
             PassName::Shadow => "shadow",

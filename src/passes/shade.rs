@@ -12,6 +12,12 @@
 //! | 5 | albedo map, or the height field when there is none (`crate::material`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 6 | normal map, or the height field when there is none | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 7 | light visibility (`R16_SFLOAT` storage, read; [`ShadePass::shadowed`] only) | `GENERAL` |
+//! | 8 | G-buffer `depth` (sampled: which pixels have geometry) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//!
+//! One dispatch shades one material (its `ShadeParams::camera_pos.w`): a workgroup per
+//! tile of its list, an invocation per pixel of the material; every other pixel keeps the
+//! colour image's contents (the host's).
 //!
 //! Without self-shadowing the pipeline has no binding 7 (the `shadow` pass and its image
 //! are not built); with it ([`ShadePass::shadowed`], the shader's `SHADOWS` variant) the
@@ -22,6 +28,7 @@ use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
+use crate::passes::classify::{MaterialTiles, TILES_BINDING};
 use crate::passes::gbuffer::GBufferViews;
 use crate::shaders;
 use ash::vk;
@@ -42,6 +49,8 @@ const BINDINGS: [vk::DescriptorType; 8] = [
 
 /// The visibility binding of the shadowed variant.
 const VISIBILITY_BINDING: usize = 7;
+/// The G-buffer depth's binding.
+const DEPTH_BINDING: u32 = 8;
 
 /// The images the shade pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
@@ -60,6 +69,8 @@ pub struct ShadeInputs<'a> {
     /// The light visibility of the `shadow` pass (read); required by a
     /// [`ShadePass::shadowed`] pass, ignored otherwise.
     pub visibility: Option<vk::ImageView>,
+    /// The material and its tiles.
+    pub tiles: MaterialTiles,
 }
 
 /// The shade pass.
@@ -93,12 +104,15 @@ impl ShadePass {
                 &BINDINGS[..VISIBILITY_BINDING],
             )
         };
+        let mut bindings = crate::gpu::pipeline::numbered(bindings);
+        bindings.push((DEPTH_BINDING, vk::DescriptorType::COMBINED_IMAGE_SAMPLER));
+        bindings.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
         Ok(ShadePass {
             pipeline: FetchPipeline::new(
                 ctx,
                 name,
                 shader,
-                &crate::gpu::pipeline::numbered(bindings),
+                &bindings,
                 std::mem::size_of::<ShadeParams>() as u32,
             )?,
             shadowed,
@@ -110,7 +124,7 @@ impl ShadePass {
         self.shadowed
     }
 
-    /// Records the dispatch over the whole frame. Fails (recording nothing) when a
+    /// Records the dispatch over the material's tiles. Fails (recording nothing) when a
     /// shadowed pass gets no visibility image.
     ///
     /// # Safety
@@ -124,7 +138,8 @@ impl ShadePass {
     ///   compute-shader storage reads; the G-buffer, `height` and the material maps in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
     ///   reads; the colour image in `GENERAL`, earlier accesses ordered before
-    ///   compute-shader storage writes (the caller's barriers).
+    ///   compute-shader storage writes (the caller's barriers); the tile list written by a
+    ///   `classify` recorded before in the same command buffer.
     /// * The images behind `inputs` and this pass stay alive until the command buffer has
     ///   executed.
     pub unsafe fn record(
@@ -141,6 +156,7 @@ impl ShadePass {
             material,
             color,
             visibility,
+            tiles,
         } = inputs;
         let visibility = match (self.shadowed, visibility) {
             (true, Some(v)) => Some(storage_view(v)),
@@ -155,6 +171,7 @@ impl ShadePass {
         let hits = storage_view(hit);
         let normal = self.pipeline.fetch_view(gbuffer.normal);
         let tangent = self.pipeline.fetch_view(gbuffer.tangent);
+        let depth = self.pipeline.fetch_view(gbuffer.depth);
         let heights = [height.descriptor()];
         let colors = storage_view(color.view);
         let [albedo, normal_map] = crate::material::MaterialTextures::descriptors(material, height);
@@ -166,6 +183,11 @@ impl ShadePass {
             image_write(4, BINDINGS[4], &colors),
             image_write(5, BINDINGS[5], &albedo),
             image_write(6, BINDINGS[6], &normal_map),
+            image_write(
+                DEPTH_BINDING,
+                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                &depth,
+            ),
         ];
         if let Some(v) = &visibility {
             writes.push(image_write(
@@ -177,16 +199,18 @@ impl ShadePass {
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match the pipeline's set 0 (binding 7 exactly for the shadowed
         // variant, checked above) and name live views in the layouts of the module's table;
-        // the push constants are the `ShadeParams` the layout was built with; the pipeline
-        // lives as long as this pass.
+        // the push constants are the `ShadeParams` the layout was built with (`camera_pos.w`
+        // set to the material here); the pipeline lives as long as this pass; the list is
+        // the classification's (this function's contract).
+        let mut params = *params;
+        params.camera_pos.w = tiles.material as f32;
         unsafe {
-            self.pipeline.pipeline.dispatch(
+            tiles.dispatch(
                 ctx,
                 cmd,
+                &self.pipeline.pipeline,
                 &writes,
-                bytemuck::bytes_of(params),
-                color.extent.width,
-                color.extent.height,
+                bytemuck::bytes_of(&params),
             )
         };
         Ok(())

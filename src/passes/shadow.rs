@@ -52,6 +52,11 @@
 //! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 4 | cell-max pyramid (hard shadows of the pyramid methods only) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 5 | visibility (`R16_SFLOAT` storage, written) | `GENERAL` |
+//! | 6 | G-buffer `depth` (sampled: which pixels have geometry) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//!
+//! One dispatch shadows one material: a workgroup per tile of its list, an invocation per
+//! pixel of the material.
 //!
 //! # Cost
 //!
@@ -68,6 +73,7 @@ use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::heightfield::Addressing;
 use crate::method::{Method, PyramidKind};
+use crate::passes::classify::{MaterialTiles, TILES_BINDING};
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::pyramid::Pyramid;
 use crate::scene::addressing_code;
@@ -212,12 +218,15 @@ pub struct ShadowInputs<'a> {
     pub pyramid: Option<&'a Pyramid>,
     /// The visibility output (written; the frame's size).
     pub visibility: ViewRef,
+    /// The material and its tiles.
+    pub tiles: MaterialTiles,
 }
 
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
 const PYRAMID_BINDING: u32 = 4;
 const VISIBILITY_BINDING: u32 = 5;
+const DEPTH_BINDING: u32 = 6;
 
 /// The shadow pass of one [`ShadowTrace`].
 pub struct ShadowPass {
@@ -237,6 +246,8 @@ impl ShadowPass {
             ShadowTrace::Sampled => ("shadow", &shaders::SHADOW_COMP),
         };
         bindings.push((VISIBILITY_BINDING, STORAGE));
+        bindings.push((DEPTH_BINDING, SAMPLED));
+        bindings.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
         let pipeline = FetchPipeline::new(
             ctx,
             name,
@@ -275,10 +286,12 @@ impl ShadowPass {
             steps: steps.max(1),
             samples: settings.samples.max(1),
             pyramid_levels: 0,
+            material: 0,
+            pad: [0; 3],
         }
     }
 
-    /// Records the dispatch over the whole frame. Fails (recording nothing) when the
+    /// Records the dispatch over the material's tiles. Fails (recording nothing) when the
     /// pyramid query gets no cell pyramid.
     ///
     /// # Safety
@@ -292,7 +305,8 @@ impl ShadowPass {
     ///   reads; the G-buffer, `height` and the pyramid in `SHADER_READ_ONLY_OPTIMAL`,
     ///   their writes visible to compute-shader sampled reads; the visibility in
     ///   `GENERAL`, earlier accesses ordered before compute-shader storage writes (the
-    ///   caller's barriers).
+    ///   caller's barriers); the tile list written by a `classify` recorded before in the
+    ///   same command buffer.
     /// * The images behind `inputs` and this pass stay alive until the command buffer has
     ///   executed.
     pub unsafe fn record(
@@ -308,6 +322,7 @@ impl ShadowPass {
             height,
             pyramid,
             visibility,
+            tiles,
         } = inputs;
         let pyramid = match (self.trace, pyramid) {
             (ShadowTrace::Pyramid, Some(p)) if p.kind == PyramidKind::Cell => Some(p),
@@ -325,6 +340,7 @@ impl ShadowPass {
         let heights = [height.descriptor()];
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let out = storage_view(visibility.view);
+        let depth = self.pipeline.fetch_view(gbuffer.depth);
         let mut writes = vec![
             image_write(0, STORAGE, &hits),
             image_write(1, SAMPLED, &normal),
@@ -335,23 +351,25 @@ impl ShadowPass {
             writes.push(image_write(PYRAMID_BINDING, SAMPLED, p));
         }
         writes.push(image_write(VISIBILITY_BINDING, STORAGE, &out));
+        writes.push(image_write(DEPTH_BINDING, SAMPLED, &depth));
         let push = ShadowParams {
             pyramid_levels: pyramid.map_or(0, Pyramid::levels),
+            material: tiles.material,
             ..*params
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match the pipeline's set 0 (the pyramid is bound exactly for
         // `ShadowTrace::Pyramid`, checked above) and name live views in the layouts of the
         // module's table; the push constants are the `ShadowParams` the layout was built
-        // with; the pipeline lives as long as this pass.
+        // with; the pipeline lives as long as this pass; the list is the classification's
+        // (this function's contract).
         unsafe {
-            self.pipeline.pipeline.dispatch(
+            tiles.dispatch(
                 ctx,
                 cmd,
+                &self.pipeline.pipeline,
                 &writes,
                 bytemuck::bytes_of(&push),
-                visibility.extent.width,
-                visibility.extent.height,
             )
         };
         Ok(())

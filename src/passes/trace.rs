@@ -11,9 +11,14 @@
 //! | 4 | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 5 | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 6 | G-buffer `normal` (`w`: surface id; the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 7 | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | 8 | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //!
+//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//!
 //! A method's pipeline declares bindings 4, 5 and 8 only when its [`Needs`] name them.
+//! One dispatch traces one material: a workgroup per tile of its list, an invocation per
+//! pixel of the material (others are left alone).
 //!
 //! Each pixel's hit is `(u, v, height, iterations)`; `height < 0` means no hit.
 
@@ -24,6 +29,7 @@ use crate::error::Result;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
+use crate::passes::classify::{MaterialTiles, TILES_BINDING};
 use crate::passes::cone::ConeMap;
 use crate::passes::dig::CornerGrid;
 use crate::passes::gbuffer::GBufferViews;
@@ -43,6 +49,7 @@ const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
 const PYRAMID_BINDING: u32 = 4;
 const CORNERS_BINDING: u32 = 5;
 const NORMAL_BINDING: u32 = 6;
+const TANGENT_BINDING: u32 = 7;
 const CONE_BINDING: u32 = 8;
 
 /// The bindings of a method with `needs`.
@@ -53,6 +60,8 @@ fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
         (2, SAMPLED),
         (3, STORAGE),
         (NORMAL_BINDING, SAMPLED),
+        (TANGENT_BINDING, SAMPLED),
+        (TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER),
     ];
     if needs.pyramid.is_some() {
         b.push((PYRAMID_BINDING, SAMPLED));
@@ -82,6 +91,8 @@ pub struct TraceInputs<'a> {
     pub corners: Option<&'a CornerGrid>,
     /// The cone map, for the cone methods (built, `SHADER_READ_ONLY_OPTIMAL`).
     pub cone: Option<&'a ConeMap>,
+    /// The material and its tiles.
+    pub tiles: MaterialTiles,
 }
 
 /// The trace pass of one method.
@@ -109,7 +120,7 @@ impl TracePass {
         self.method
     }
 
-    /// Records the dispatch over the whole frame. Fails (recording nothing) when a
+    /// Records the dispatch over the material's tiles. Fails (recording nothing) when a
     /// resource the method needs is missing from `inputs`.
     ///
     /// # Safety
@@ -122,7 +133,8 @@ impl TracePass {
     ///   table: the G-buffer, `height`, the pyramid, the corner grid and the cone map in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
     ///   reads; the hit buffer in `GENERAL`, earlier accesses ordered before
-    ///   compute-shader storage writes (the caller's barriers).
+    ///   compute-shader storage writes (the caller's barriers); the tile list written by a
+    ///   `classify` recorded before in the same command buffer.
     /// * The images behind `inputs` and this pass stay alive until the command buffer has
     ///   executed.
     pub unsafe fn record(
@@ -140,6 +152,7 @@ impl TracePass {
             pyramid,
             corners,
             cone,
+            tiles,
         } = inputs;
         let needs = self.method.needs();
         let missing = |what: &str| {
@@ -175,12 +188,14 @@ impl TracePass {
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
         let normal = fetch(gbuffer.normal);
+        let tangent = fetch(gbuffer.tangent);
         let mut writes = vec![
             image_write(0, SAMPLED, &ray),
             image_write(1, SAMPLED, &depth),
             image_write(2, SAMPLED, &heights),
             image_write(3, STORAGE, &hits),
             image_write(NORMAL_BINDING, SAMPLED, &normal),
+            image_write(TANGENT_BINDING, SAMPLED, &tangent),
         ];
         if let Some(p) = &pyramids {
             writes.push(image_write(PYRAMID_BINDING, SAMPLED, p));
@@ -216,21 +231,21 @@ impl TracePass {
             pyramid_levels: pyramid.map_or(0, Pyramid::levels),
             depth_scale,
             lod_threshold: params.lod_threshold.unwrap_or(0.0),
-            pad: 0,
+            material: tiles.material,
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match `bindings(needs)` (the pipeline's set 0: the pyramid and
         // grid are bound exactly when the method needs them, checked above) and name live
         // views in the layouts of the module's table; the push constants are the
-        // `TraceParams` the layout was built with; the pipeline lives as long as this pass.
+        // `TraceParams` the layout was built with; the pipeline lives as long as this pass;
+        // the list is the classification's (this function's contract).
         unsafe {
-            self.pipeline.pipeline.dispatch(
+            tiles.dispatch(
                 ctx,
                 cmd,
+                &self.pipeline.pipeline,
                 &writes,
                 bytemuck::bytes_of(&push),
-                extent.width,
-                extent.height,
             )
         };
         Ok(())

@@ -40,6 +40,18 @@ pub struct RayHost {
     slots: FrameSlots,
     /// One hit image per slot.
     hits: Vec<Image>,
+    /// One colour image per slot (`submit_shaded`).
+    colors: Vec<Image>,
+}
+
+/// The G-buffer's texels as uploaded or read back: `ray` (f32 x 4), `depth` (f32),
+/// `normal` and `tangent` (f16 x 4 bits).
+#[derive(Clone)]
+pub struct GBufferTexels {
+    pub ray: Vec<[f32; 4]>,
+    pub depth: Vec<f32>,
+    pub normal: Vec<[u16; 4]>,
+    pub tangent: Vec<[u16; 4]>,
 }
 
 impl RayHost {
@@ -67,6 +79,21 @@ impl RayHost {
             )
             .unwrap(),
         };
+        let colors = (0..slots)
+            .map(|s| {
+                Image::new(
+                    c,
+                    &format!("host.color{s}"),
+                    dispmap::embed::COLOR_FORMAT,
+                    extent,
+                    1,
+                    vk::ImageUsageFlags::STORAGE
+                        | vk::ImageUsageFlags::TRANSFER_SRC
+                        | vk::ImageUsageFlags::TRANSFER_DST,
+                )
+                .unwrap()
+            })
+            .collect();
         let hits = (0..slots)
             .map(|s| {
                 Image::new(
@@ -90,6 +117,7 @@ impl RayHost {
             shot,
             slots,
             hits,
+            colors,
         }
     }
 
@@ -191,6 +219,99 @@ impl RayHost {
             .collect()
     }
 
+    /// The G-buffer's texels (needs no frame in flight).
+    pub fn read_gbuffer(&mut self) -> GBufferTexels {
+        self.wait_all();
+        let c = &*self.ctx;
+        let g = &self.gbuffer;
+        let read = |image: &Image| read_image(c, &self.shot, image, Access::COMPUTE_SAMPLED).unwrap();
+        GBufferTexels {
+            ray: bytemuck::cast_slice(&read(&g.ray)).to_vec(),
+            depth: bytemuck::cast_slice(&read(&g.depth)).to_vec(),
+            normal: bytemuck::cast_slice(&read(&g.normal)).to_vec(),
+            tangent: bytemuck::cast_slice(&read(&g.tangent)).to_vec(),
+        }
+    }
+
+    /// Uploads `texels` as the G-buffer (needs no frame in flight).
+    pub fn upload_gbuffer(&mut self, texels: &GBufferTexels) {
+        self.wait_all();
+        let c = &*self.ctx;
+        let g = &self.gbuffer;
+        let after = Access::COMPUTE_SAMPLED;
+        upload_image(c, &self.shot, &g.ray, bytemuck::cast_slice(&texels.ray), after).unwrap();
+        upload_image(c, &self.shot, &g.depth, bytemuck::cast_slice(&texels.depth), after).unwrap();
+        upload_image(c, &self.shot, &g.normal, bytemuck::cast_slice(&texels.normal), after)
+            .unwrap();
+        upload_image(c, &self.shot, &g.tangent, bytemuck::cast_slice(&texels.tangent), after)
+            .unwrap();
+    }
+
+    /// As [`RayHost::submit`] with a `ShadeTarget` whose colour image the host filled with
+    /// `fill` (RGBA8) first; `light_dir` lights it.
+    pub fn submit_shaded(
+        &mut self,
+        pass: &mut DisplacementPass,
+        s: usize,
+        camera: (glam::Mat4, glam::Vec3),
+        fill: [u8; 4],
+    ) {
+        let ctx = self.ctx.clone();
+        let pixels: Vec<[u8; 4]> = vec![fill; self.pixels()];
+        self.slots.wait(s);
+        upload_image(
+            &ctx,
+            &self.shot,
+            &self.colors[s],
+            bytemuck::cast_slice(&pixels),
+            Access::COMPUTE_STORAGE_WRITE,
+        )
+        .unwrap();
+        let cmd = self.slots.begin(s);
+        let hit = &self.hits[s];
+        // SAFETY: as in `submit`; the colour image holds the host's fill in GENERAL,
+        // visible to compute-shader storage writes (the upload above, completed).
+        unsafe { sync::transition(&ctx, cmd, hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
+        let inputs = FrameInputs {
+            frame_slot: s as u32,
+            gbuffer: self.gbuffer.views(),
+            hit: hit.view,
+            shade: Some(dispmap::embed::ShadeTarget {
+                color: self.colors[s].view,
+                view_proj: camera.0,
+                camera_pos: camera.1,
+                light_dir: glam::Vec3::new(0.3, 0.8, 0.5).normalize(),
+                light_intensity: 1.0,
+            }),
+        };
+        // SAFETY: as in `submit`.
+        unsafe { pass.record(cmd, &inputs, Timestamps::Off) }.unwrap();
+        self.slots.submit(s);
+    }
+
+    /// The colour image of slot `s` after its last frame (waits for it).
+    pub fn colors(&mut self, s: usize) -> Vec<[u8; 4]> {
+        self.slots.wait(s);
+        let bytes = read_image(
+            &self.ctx,
+            &self.shot,
+            &self.colors[s],
+            Access::COMPUTE_STORAGE_WRITE,
+        )
+        .unwrap();
+        bytemuck::cast_slice::<u8, [u8; 4]>(&bytes).to_vec()
+    }
+
+    /// Waits for the frame of slot `s`.
+    pub fn wait(&mut self, s: usize) {
+        self.slots.wait(s);
+    }
+
+    /// The one-shot for read-backs.
+    pub fn shot(&self) -> &OneShot {
+        &self.shot
+    }
+
     /// Waits for every slot.
     pub fn wait_all(&mut self) {
         self.slots.wait_all();
@@ -247,6 +368,9 @@ impl RayHost {
         let ctx = self.ctx.clone();
         for hit in &mut self.hits {
             hit.destroy(&ctx);
+        }
+        for color in &mut self.colors {
+            color.destroy(&ctx);
         }
         if let Some(p) = &mut self.gbuffer_pass {
             p.destroy(&ctx);

@@ -1,0 +1,542 @@
+//! The pass's resources as one declarative plan: [`Plan`] is what the settings (the
+//! material table, shadows, the corrected depth, the frame) need, a key per resource;
+//! [`DisplacementPass::sync`] compares it with what exists, builds what differs under a
+//! guard (a failure destroys what it built and leaves the pass as it was), then commits:
+//! swaps in what was built and retires what the plan no longer names (destroyed once
+//! every frame slot has been recorded again). Every setter is "change the settings,
+//! then sync" (restoring the settings when the sync fails).
+//!
+//! | resource | key | built when |
+//! |---|---|---|
+//! | `trace` pipeline | method | a live material uses the method |
+//! | pyramid / DIG corner / cone pipelines | (cone kind) | a live material needs them |
+//! | height texture | map content, size, format, addressing | `add_material` / `set_material_height_map` (the upload is staged there); its mip chain follows level of detail |
+//! | pyramid | (map, kind) | a material on the map needs it (its method, hard shadows' cell pyramid, a cone map's input) |
+//! | cone map | (map, kind) | a material on the map uses a cone method |
+//! | DIG corner grids | (material, block, extent) | the material is a DIG method |
+//! | `shadow` pipelines, visibility images | (query), extent | self-shadowing on |
+//! | corrected-depth pipeline and images | extent | the corrected depth on |
+//! | tile lists | (table size, extent) | always |
+//!
+//! A new preparation pass needs a key here, a constructor and a build stage in
+//! `record.rs`.
+
+use super::{DisplacementPass, HIT_DEPTH_FORMAT, MaterialSettings, VISIBILITY_FORMAT};
+use crate::context::Context;
+use crate::error::Result;
+use crate::gpu::owned::{Destroy, Guard};
+use crate::gpu::{Buffer, HeightTexture, Image};
+use crate::heightfield::{Addressing, HeightField};
+use crate::material::{MaterialStaging, MaterialTextures};
+use crate::method::{ConeKind, Method, PyramidKind};
+use crate::passes::classify::TileLists;
+use crate::passes::cone::{ConeMap, ConePass};
+use crate::passes::dig::{CornerGrid, DigCornerPass};
+use crate::passes::hit_depth::HitDepthPass;
+use crate::passes::pyramid::{Pyramid, PyramidPass};
+use crate::passes::shade::ShadePass;
+use crate::passes::shadow::{ShadowPass, ShadowTrace};
+use crate::passes::trace::TracePass;
+use ash::vk;
+use std::hash::{Hash, Hasher};
+
+/// A height texture's contents not yet recorded.
+pub(super) enum Fill {
+    /// A new map's staging buffer.
+    Upload(Buffer),
+    /// The texture it replaces (level of detail switched on or off: the mip chain added
+    /// or dropped), whose level 0 is copied; frames in flight may still sample it.
+    Copy(HeightTexture),
+}
+
+impl Destroy for Fill {
+    fn destroy(&mut self, ctx: &Context) {
+        match self {
+            Fill::Upload(b) => b.destroy(ctx),
+            Fill::Copy(h) => h.destroy(ctx),
+        }
+    }
+}
+
+/// What identifies a height map: two materials with the same key share one texture and
+/// everything derived from it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct MapKey {
+    /// A 64-bit hash of the texels.
+    hash: u64,
+    size: [u32; 2],
+    format: vk::Format,
+    pub addressing: Addressing,
+}
+
+impl MapKey {
+    pub fn of(field: &HeightField, addressing: Addressing) -> Self {
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        field.bytes().hash(&mut h);
+        MapKey {
+            hash: h.finish(),
+            size: [field.width(), field.height()],
+            format: field.format(),
+            addressing,
+        }
+    }
+}
+
+/// A resource built by a record (`built`) or still to be.
+pub(super) struct Built<T> {
+    pub value: T,
+    pub built: bool,
+}
+
+impl<T: Destroy> Destroy for Built<T> {
+    fn destroy(&mut self, ctx: &Context) {
+        self.value.destroy(ctx);
+    }
+}
+
+/// One height map of the table and what is derived from it.
+pub(super) struct MapEntry {
+    pub key: MapKey,
+    pub texture: HeightTexture,
+    /// How `texture` is still to be filled (the next record); `None` once filled.
+    pub pending_fill: Option<Fill>,
+    pub pyramids: Vec<Built<Pyramid>>,
+    pub cones: Vec<Built<ConeMap>>,
+}
+
+impl MapEntry {
+    /// A new map's texture and its staged upload.
+    pub fn new(ctx: &Context, field: &HeightField, key: MapKey, chain: bool) -> Result<Self> {
+        let (texture, staging) =
+            HeightTexture::create_for_upload(ctx, field, key.addressing, chain)?;
+        Ok(MapEntry {
+            key,
+            texture,
+            pending_fill: Some(Fill::Upload(staging)),
+            pyramids: Vec::new(),
+            cones: Vec::new(),
+        })
+    }
+
+    /// The built pyramid of `kind`.
+    pub fn pyramid(&self, kind: PyramidKind) -> Option<&Pyramid> {
+        self.pyramids
+            .iter()
+            .find(|p| p.built && p.value.kind == kind)
+            .map(|p| &p.value)
+    }
+
+    /// The built cone map of `kind`.
+    pub fn cone(&self, kind: ConeKind) -> Option<&ConeMap> {
+        self.cones
+            .iter()
+            .find(|c| c.built && c.value.kind == kind)
+            .map(|c| &c.value)
+    }
+
+    /// Whether the next record has work for it (a fill, a pyramid or cone build).
+    pub fn pending(&self) -> bool {
+        self.pending_fill.is_some()
+            || self.pyramids.iter().any(|p| !p.built)
+            || self.cones.iter().any(|c| !c.built)
+    }
+}
+
+impl Destroy for MapEntry {
+    fn destroy(&mut self, ctx: &Context) {
+        self.pending_fill.destroy(ctx);
+        self.cones.destroy(ctx);
+        self.pyramids.destroy(ctx);
+        self.texture.destroy(ctx);
+    }
+}
+
+/// One displaced material of the table.
+pub(super) struct MaterialEntry {
+    pub generation: u32,
+    pub settings: MaterialSettings,
+    /// Its map in the pass's map table.
+    pub map: usize,
+    /// Albedo and normal map for `shade`.
+    pub shading: Option<MaterialTextures>,
+    /// Their staging buffers until a record copies them.
+    pub pending_shading: Option<MaterialStaging>,
+    /// One DIG corner grid per frame slot (DIG methods only).
+    pub corners: Vec<CornerGrid>,
+}
+
+impl Destroy for MaterialEntry {
+    fn destroy(&mut self, ctx: &Context) {
+        self.shading.destroy(ctx);
+        self.pending_shading.destroy(ctx);
+        self.corners.destroy(ctx);
+    }
+}
+
+/// The corrected-depth output: the `hit_depth` pipeline and one `R32_SFLOAT` image per
+/// frame slot.
+pub(super) struct DepthParts {
+    pub pass: HitDepthPass,
+    pub images: Vec<Image>,
+}
+
+impl Destroy for DepthParts {
+    fn destroy(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        self.images.destroy(ctx);
+    }
+}
+
+/// What one map needs.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct MapPlan {
+    chain: bool,
+    pyramids: Vec<PyramidKind>,
+    cones: Vec<ConeKind>,
+}
+
+/// What the settings need: a key per resource (module docs).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(super) struct Plan {
+    methods: Vec<Method>,
+    pyramid_pass: bool,
+    corner_pass: bool,
+    cone_kinds: Vec<ConeKind>,
+    /// Per entry of the map table (`None`: no live material uses it).
+    maps: Vec<Option<MapPlan>>,
+    /// Per entry of the material table: the DIG block of its grids.
+    corners: Vec<Option<[u32; 2]>>,
+    shadow_traces: Vec<ShadowTrace>,
+    shadowed_shade: bool,
+    depth: bool,
+    /// Entries of the tile lists (the material table's size, at least 1).
+    table: u32,
+}
+
+fn push_unique<T: PartialEq>(v: &mut Vec<T>, x: T) {
+    if !v.contains(&x) {
+        v.push(x);
+    }
+}
+
+/// What [`DisplacementPass::sync`] built, not yet committed.
+#[derive(Default)]
+struct Additions {
+    traces: Vec<TracePass>,
+    pyramid_pass: Option<PyramidPass>,
+    corner_pass: Option<DigCornerPass>,
+    cone_passes: Vec<ConePass>,
+    shadow_passes: Vec<ShadowPass>,
+    shade: Option<ShadePass>,
+    textures: Vec<(usize, HeightTexture)>,
+    pyramids: Vec<(usize, Pyramid)>,
+    cones: Vec<(usize, ConeMap)>,
+    corners: Vec<(usize, Vec<CornerGrid>)>,
+    visibility: Option<Vec<Image>>,
+    depth: Option<DepthParts>,
+    tiles: Option<Vec<TileLists>>,
+}
+
+impl Destroy for Additions {
+    fn destroy(&mut self, ctx: &Context) {
+        self.traces.destroy(ctx);
+        self.pyramid_pass.destroy(ctx);
+        self.corner_pass.destroy(ctx);
+        self.cone_passes.destroy(ctx);
+        self.shadow_passes.destroy(ctx);
+        self.shade.destroy(ctx);
+        for (_, t) in &mut self.textures {
+            t.destroy(ctx);
+        }
+        for (_, p) in &mut self.pyramids {
+            p.destroy(ctx);
+        }
+        for (_, c) in &mut self.cones {
+            c.destroy(ctx);
+        }
+        for (_, g) in &mut self.corners {
+            g.destroy(ctx);
+        }
+        self.visibility.destroy(ctx);
+        self.depth.destroy(ctx);
+        self.tiles.destroy(ctx);
+    }
+}
+
+/// One value per frame slot from `make`; on a failure the ones made are destroyed.
+pub(super) fn per_slot<T: Destroy>(
+    ctx: &Context,
+    frames: u32,
+    mut make: impl FnMut(u32) -> Result<T>,
+) -> Result<Vec<T>> {
+    let mut made = Guard::new(ctx, Vec::new());
+    for s in 0..frames {
+        made.push(make(s)?);
+    }
+    Ok(made.keep())
+}
+
+impl DisplacementPass {
+    /// What the current settings need.
+    pub(super) fn plan(&self) -> Plan {
+        let mut plan = Plan {
+            maps: vec![None; self.maps.len()],
+            corners: vec![None; self.materials.len()],
+            shadowed_shade: self.shadows.is_on(),
+            depth: self.depth_on,
+            table: (self.materials.len() as u32).max(1),
+            ..Plan::default()
+        };
+        for (i, m) in self.materials.iter().enumerate() {
+            let Some(m) = m else { continue };
+            let s = &m.settings;
+            let needs = s.method.needs();
+            push_unique(&mut plan.methods, s.method);
+            let map = plan.maps[m.map].get_or_insert_with(MapPlan::default);
+            map.chain |= s.params.lod_threshold.is_some();
+            if let Some(kind) = needs.pyramid {
+                push_unique(&mut map.pyramids, kind);
+            }
+            if let Some(kind) = needs.cone {
+                push_unique(&mut map.cones, kind);
+                push_unique(&mut plan.cone_kinds, kind);
+            }
+            if needs.dig_corners {
+                plan.corners[i] = Some(s.params.block);
+            }
+            if self.shadows.is_on() {
+                let trace = ShadowTrace::for_method(self.shadows.mode, s.method);
+                push_unique(&mut plan.shadow_traces, trace);
+                if trace == ShadowTrace::Pyramid {
+                    push_unique(&mut map.pyramids, PyramidKind::Cell);
+                }
+            }
+        }
+        plan.pyramid_pass = plan.maps.iter().flatten().any(|m| !m.pyramids.is_empty());
+        plan.corner_pass = plan.corners.iter().any(Option::is_some);
+        plan
+    }
+
+    /// Builds what the plan needs and the pass lacks, then commits (module docs). On
+    /// error nothing changed.
+    pub(super) fn sync(&mut self) -> Result<()> {
+        let plan = self.plan();
+        let ctx = self.ctx.clone();
+        let c = &*ctx;
+        let extent = self.frame.extent;
+        let frames = self.frame.frames_in_flight;
+        let resized = self.built_extent != extent;
+        let mut add = Guard::new(c, Additions::default());
+        for &m in &plan.methods {
+            if !self.traces.iter().any(|t| t.method() == m) {
+                add.traces.push(TracePass::new(c, m)?);
+            }
+        }
+        if plan.pyramid_pass && self.pyramid_pass.is_none() {
+            add.pyramid_pass = Some(PyramidPass::new(c)?);
+        }
+        if plan.corner_pass && self.corner_pass.is_none() {
+            add.corner_pass = Some(DigCornerPass::new(c)?);
+        }
+        for &k in &plan.cone_kinds {
+            if !self.cone_passes.iter().any(|p| p.kind == k) {
+                add.cone_passes.push(ConePass::new(c, k)?);
+            }
+        }
+        for &t in &plan.shadow_traces {
+            if !self.shadow_passes.iter().any(|p| p.trace() == t) {
+                add.shadow_passes.push(ShadowPass::new(c, t)?);
+            }
+        }
+        if plan.shadowed_shade != self.shade.is_shadowed() {
+            add.shade = Some(if plan.shadowed_shade {
+                ShadePass::shadowed(c)?
+            } else {
+                ShadePass::new(c)?
+            });
+        }
+        for (i, want) in plan.maps.iter().enumerate() {
+            let (Some(want), Some(map)) = (want, &self.maps[i]) else {
+                continue;
+            };
+            if map.texture.differs_for(c, want.chain) {
+                add.textures
+                    .push((i, map.texture.create_like(c, want.chain)?));
+            }
+            let size = map.texture.size();
+            let format = map.texture.image.format;
+            for &kind in &want.pyramids {
+                if !map.pyramids.iter().any(|p| p.value.kind == kind) {
+                    let p = Pyramid::new(c, size, kind, map.key.addressing, format)?;
+                    add.pyramids.push((i, p));
+                }
+            }
+            for &kind in &want.cones {
+                if !map.cones.iter().any(|m| m.value.kind == kind) {
+                    let m = ConeMap::new(c, size, map.key.addressing, kind, format)?;
+                    add.cones.push((i, m));
+                }
+            }
+        }
+        for (i, want) in plan.corners.iter().enumerate() {
+            let (Some(block), Some(m)) = (want, &self.materials[i]) else {
+                continue;
+            };
+            if resized || m.corners.first().is_none_or(|g| g.block != *block) {
+                let grids = per_slot(c, frames, |_| {
+                    CornerGrid::new(c, [extent.width, extent.height], *block)
+                })?;
+                add.corners.push((i, grids));
+            }
+        }
+        if plan.shadowed_shade && (resized || self.visibility.is_empty()) {
+            add.visibility = Some(per_slot(c, frames, |s| {
+                Image::new(
+                    c,
+                    &format!("embed.visibility{s}"),
+                    VISIBILITY_FORMAT,
+                    extent,
+                    1,
+                    vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+                )
+            })?);
+        }
+        if plan.depth && (resized || self.depth.is_none()) {
+            let pass = Guard::new(c, HitDepthPass::new(c)?);
+            let images = per_slot(c, frames, |s| {
+                Image::new(
+                    c,
+                    &format!("embed.hit_depth{s}"),
+                    HIT_DEPTH_FORMAT,
+                    extent,
+                    1,
+                    vk::ImageUsageFlags::STORAGE
+                        | vk::ImageUsageFlags::SAMPLED
+                        | vk::ImageUsageFlags::TRANSFER_SRC,
+                )
+            })?;
+            add.depth = Some(DepthParts {
+                pass: pass.keep(),
+                images,
+            });
+        }
+        if resized || self.tiles.first().is_none_or(|t| t.materials() != plan.table) {
+            add.tiles = Some(per_slot(c, frames, |s| {
+                TileLists::new(c, &format!("embed.tiles{s}"), extent, plan.table)
+            })?);
+        }
+        let add = add.keep();
+        self.commit(&plan, add);
+        Ok(())
+    }
+
+    /// Swaps in what was built and retires what the plan no longer names.
+    fn commit(&mut self, plan: &Plan, add: Additions) {
+        let retired = &mut self.retired;
+        self.traces.extend(add.traces);
+        let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.traces)
+            .into_iter()
+            .partition(|t| plan.methods.contains(&t.method()));
+        self.traces = keep;
+        retired.retire(drop);
+        if let Some(p) = add.pyramid_pass {
+            self.pyramid_pass = Some(p);
+        }
+        if !plan.pyramid_pass {
+            retired.retire(self.pyramid_pass.take());
+        }
+        if let Some(p) = add.corner_pass {
+            self.corner_pass = Some(p);
+        }
+        if !plan.corner_pass {
+            retired.retire(self.corner_pass.take());
+        }
+        self.cone_passes.extend(add.cone_passes);
+        let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.cone_passes)
+            .into_iter()
+            .partition(|p| plan.cone_kinds.contains(&p.kind));
+        self.cone_passes = keep;
+        retired.retire(drop);
+        self.shadow_passes.extend(add.shadow_passes);
+        let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.shadow_passes)
+            .into_iter()
+            .partition(|p| plan.shadow_traces.contains(&p.trace()));
+        self.shadow_passes = keep;
+        retired.retire(drop);
+        if let Some(shade) = add.shade {
+            retired.retire(std::mem::replace(&mut self.shade, shade));
+        }
+        for (i, texture) in add.textures {
+            let Some(map) = &mut self.maps[i] else { continue };
+            // The mip chain follows level of detail; level 0 (the map) is unchanged.
+            let old = std::mem::replace(&mut map.texture, texture);
+            if map.pending_fill.is_some() {
+                // `old` was never filled (its fill is still pending and now fills the
+                // new texture): no frame reads it.
+                retired.retire(old);
+            } else {
+                map.pending_fill = Some(Fill::Copy(old));
+            }
+        }
+        for (i, p) in add.pyramids {
+            if let Some(map) = &mut self.maps[i] {
+                map.pyramids.push(Built {
+                    value: p,
+                    built: false,
+                });
+            }
+        }
+        for (i, m) in add.cones {
+            if let Some(map) = &mut self.maps[i] {
+                map.cones.push(Built {
+                    value: m,
+                    built: false,
+                });
+            }
+        }
+        for (i, want) in plan.maps.iter().enumerate() {
+            match want {
+                None => retired.retire(self.maps[i].take()),
+                Some(want) => {
+                    let Some(map) = &mut self.maps[i] else { continue };
+                    let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut map.pyramids)
+                        .into_iter()
+                        .partition(|p| want.pyramids.contains(&p.value.kind));
+                    map.pyramids = keep;
+                    retired.retire(drop);
+                    let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut map.cones)
+                        .into_iter()
+                        .partition(|c| want.cones.contains(&c.value.kind));
+                    map.cones = keep;
+                    retired.retire(drop);
+                }
+            }
+        }
+        for (i, grids) in add.corners {
+            if let Some(m) = &mut self.materials[i] {
+                retired.retire(std::mem::replace(&mut m.corners, grids));
+            }
+        }
+        for (i, want) in plan.corners.iter().enumerate() {
+            if let (None, Some(m)) = (want, &mut self.materials[i]) {
+                retired.retire(std::mem::take(&mut m.corners));
+            }
+        }
+        if let Some(v) = add.visibility {
+            retired.retire(std::mem::replace(&mut self.visibility, v));
+        }
+        if !plan.shadowed_shade {
+            retired.retire(std::mem::take(&mut self.visibility));
+        }
+        if let Some(d) = add.depth {
+            retired.retire(self.depth.replace(d));
+        }
+        if !plan.depth {
+            retired.retire(self.depth.take());
+        }
+        if let Some(t) = add.tiles {
+            retired.retire(std::mem::replace(&mut self.tiles, t));
+        }
+        self.built_extent = self.frame.extent;
+    }
+}

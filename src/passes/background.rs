@@ -1,0 +1,93 @@
+//! The `background` pass of the standalone renderer (a host's own shading, not part of
+//! the displacement pass): before [`crate::embed::DisplacementPass::record`], it writes
+//! the sky into pixels without geometry and lights pixels of flat geometry (G-buffer
+//! `tangent.w` = 0) with their G-buffer normal (`glsl/background.comp`); the pass's
+//! `shade` then writes the displaced pixels. An engine draws its own sky and flat
+//! geometry instead.
+//!
+//! Bindings: 0 G-buffer `depth`, 1 `normal`, 2 `tangent` (sampled,
+//! `SHADER_READ_ONLY_OPTIMAL`), 3 colour (`R8G8B8A8_UNORM` storage, written, `GENERAL`);
+//! push constants: [`ShadeParams`] (the frame's camera and light).
+
+use crate::abi::ShadeParams;
+use crate::context::Context;
+use crate::error::Result;
+use crate::gpu::ViewRef;
+use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::passes::gbuffer::GBufferViews;
+use crate::shaders;
+use ash::vk;
+
+const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
+const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
+
+/// The background pipeline.
+pub struct BackgroundPass {
+    pipeline: FetchPipeline,
+}
+
+impl BackgroundPass {
+    /// Builds the pipeline.
+    pub fn new(ctx: &Context) -> Result<Self> {
+        Ok(BackgroundPass {
+            pipeline: FetchPipeline::new(
+                ctx,
+                "background",
+                &shaders::BACKGROUND_COMP,
+                &[(0, SAMPLED), (1, SAMPLED), (2, SAMPLED), (3, STORAGE)],
+                std::mem::size_of::<ShadeParams>() as u32,
+            )?,
+        })
+    }
+
+    /// Records the dispatch over the whole frame.
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * The views belong to that device, of `color`'s size; when the command buffer
+    ///   executes the G-buffer is in `SHADER_READ_ONLY_OPTIMAL`, its writes visible to
+    ///   compute-shader sampled reads, and `color` in `GENERAL`, earlier accesses ordered
+    ///   before compute-shader storage writes (the caller's barriers).
+    /// * Everything stays alive until the command buffer has executed.
+    pub unsafe fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        gbuffer: GBufferViews,
+        color: ViewRef,
+        params: &ShadeParams,
+    ) {
+        let fetch = |view| self.pipeline.fetch_view(view);
+        let (depth, normal, tangent) = (
+            fetch(gbuffer.depth),
+            fetch(gbuffer.normal),
+            fetch(gbuffer.tangent),
+        );
+        let out = storage_view(color.view);
+        let writes = [
+            image_write(0, SAMPLED, &depth),
+            image_write(1, SAMPLED, &normal),
+            image_write(2, SAMPLED, &tangent),
+            image_write(3, STORAGE, &out),
+        ];
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match the pipeline's set 0 and name live views in the layouts
+        // above; the push constants are the `ShadeParams` the layout was built with.
+        unsafe {
+            self.pipeline.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(params),
+                color.extent.width,
+                color.extent.height,
+            )
+        };
+    }
+
+    /// Destroys the pipeline and sampler. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+    }
+}

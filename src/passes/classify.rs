@@ -1,0 +1,383 @@
+//! The `classify` pass: sorts the frame's 8x8 tiles by material, so that every later
+//! per-material pass (`dig_corners` aside, `trace`, `shadow`, `shade`, `hit_depth`) is
+//! one indirect dispatch over the tiles that hold the material's pixels
+//! (`glsl/classify.comp`, `glsl/common/tiles.glsl`). A frame's cost then follows its
+//! displaced pixels, not its size times its materials: this is the tile classification
+//! of deferred engines' material and lighting passes.
+//!
+//! A pixel's material is its G-buffer `tangent.w` (`|w|` = index + 1, the sign the
+//! handedness, 0 = not displaced; `glsl/include/dispmap_gbuffer.glsl`). Pixels of no
+//! live material (no geometry, flat geometry, an index past the table or of a removed
+//! material) are not traced: `classify` writes their hit texel (`NO_HIT_HEIGHT` without
+//! geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry) and, with the corrected depth
+//! on, their corrected depth (the G-buffer's own depth).
+//!
+//! Bindings (set 0, push descriptors), mirrored by `glsl/classify.comp`:
+//!
+//! | binding | resource | layout on entry |
+//! |---|---|---|
+//! | 0 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 1 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 2 | hit buffer (storage, written for pixels without displacement) | `GENERAL` |
+//! | 3 | the tile lists (storage buffer, written) | |
+//! | 4 | the dispatch arguments and counts (storage buffer, read and written) | |
+//! | 5 | corrected depth (`DEPTH` variant; storage, written) | `GENERAL` |
+//!
+//! A per-material pass binds its material's list at binding [`TILES_BINDING`].
+
+use crate::abi::ClassifyParams;
+use crate::context::Context;
+use crate::error::{Error, Result};
+use crate::gpu::pipeline::{FetchPipeline, LOCAL_SIZE, buffer_write, image_write, storage_view};
+use crate::gpu::{Buffer, ViewRef};
+use crate::shaders;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+pub use crate::abi::{MAX_MATERIALS, NOT_DISPLACED_HEIGHT};
+
+/// The binding of a per-material pass's tile list (`TILES_BINDING` in
+/// `glsl/common/tiles.glsl`).
+pub const TILES_BINDING: u32 = 15;
+
+/// `CLASSIFY_FLAG_WRITE_HITS` in `glsl/classify.comp`.
+const FLAG_WRITE_HITS: u32 = 1;
+
+/// Entries of a material's list are a multiple of this (256 bytes: the largest
+/// `minStorageBufferOffsetAlignment` Vulkan allows, so every list starts aligned).
+const LIST_ALIGN: u32 = 64;
+
+/// Bytes of one material's arguments: a `VkDispatchIndirectCommand` and its live flag.
+const ARGS_STRIDE: u64 = 16;
+
+const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
+const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
+const BUFFER: vk::DescriptorType = vk::DescriptorType::STORAGE_BUFFER;
+
+/// The tile lists of one frame slot: one list per material of the table and its
+/// indirect dispatch arguments.
+pub struct TileLists {
+    /// Every material's list (`capacity` entries each).
+    pub tiles: Buffer,
+    /// Per material a `VkDispatchIndirectCommand` and a live flag (16 bytes), then a
+    /// count per material.
+    pub args: Buffer,
+    capacity: u32,
+    materials: u32,
+    extent: vk::Extent2D,
+}
+
+impl TileLists {
+    /// Lists for `materials` table entries of a frame of `extent`.
+    pub fn new(ctx: &Context, name: &str, extent: vk::Extent2D, materials: u32) -> Result<Self> {
+        if materials == 0 || materials > MAX_MATERIALS {
+            return Err(Error::invalid(
+                "materials",
+                format!("{materials} is outside 1..={MAX_MATERIALS}"),
+            ));
+        }
+        let [tx, ty] = tile_count(extent);
+        let capacity = (tx * ty).next_multiple_of(LIST_ALIGN);
+        let tiles = Buffer::new(
+            ctx,
+            &format!("{name}.tiles"),
+            u64::from(capacity) * u64::from(materials) * 4,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )?;
+        let args = Buffer::new(
+            ctx,
+            &format!("{name}.args"),
+            args_bytes(materials),
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::INDIRECT_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
+        );
+        let args = match args {
+            Ok(a) => a,
+            Err(e) => {
+                let mut tiles = tiles;
+                tiles.destroy(ctx);
+                return Err(e);
+            }
+        };
+        Ok(TileLists {
+            tiles,
+            args,
+            capacity,
+            materials,
+            extent,
+        })
+    }
+
+    /// The table entries the lists are for.
+    pub fn materials(&self) -> u32 {
+        self.materials
+    }
+
+    /// The frame size the lists are for.
+    pub fn extent(&self) -> vk::Extent2D {
+        self.extent
+    }
+
+    /// Material `m`'s list, for binding [`TILES_BINDING`].
+    pub fn list(&self, m: u32) -> [vk::DescriptorBufferInfo; 1] {
+        let bytes = u64::from(self.capacity) * 4;
+        [vk::DescriptorBufferInfo {
+            buffer: self.tiles.raw,
+            offset: u64::from(m) * bytes,
+            range: bytes,
+        }]
+    }
+
+    /// The offset of material `m`'s `VkDispatchIndirectCommand` in [`TileLists::args`].
+    pub fn args_offset(&self, m: u32) -> u64 {
+        u64::from(m) * ARGS_STRIDE
+    }
+
+    /// Material `m`'s list and dispatch arguments.
+    pub fn of(&self, m: u32) -> MaterialTiles {
+        MaterialTiles {
+            material: m,
+            list: self.list(m)[0],
+            args: self.args.raw,
+            args_offset: self.args_offset(m),
+        }
+    }
+
+    /// Destroys both buffers. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.tiles.destroy(ctx);
+        self.args.destroy(ctx);
+    }
+}
+
+
+/// One material's tiles: what a per-material pass dispatches over.
+#[derive(Clone, Copy, Debug)]
+pub struct MaterialTiles {
+    /// The material (its index in the pass's table).
+    pub material: u32,
+    /// Its list, bound at [`TILES_BINDING`].
+    pub list: vk::DescriptorBufferInfo,
+    /// The buffer holding its `VkDispatchIndirectCommand`.
+    pub args: vk::Buffer,
+    /// That command's offset.
+    pub args_offset: u64,
+}
+
+impl MaterialTiles {
+    /// Binds `pipeline` with `writes` plus the list (binding [`TILES_BINDING`]) and
+    /// `push`, and dispatches one workgroup per tile of the list.
+    ///
+    /// # Safety
+    /// As [`crate::gpu::ComputePipeline::dispatch_indirect`]; the pipeline's set 0
+    /// declares [`TILES_BINDING`] as a storage buffer; the lists were written by a
+    /// `classify` recorded before in the same command buffer (its exit barrier makes them
+    /// visible).
+    pub unsafe fn dispatch(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        pipeline: &crate::gpu::ComputePipeline,
+        writes: &[vk::WriteDescriptorSet],
+        push: &[u8],
+    ) {
+        let list = [self.list];
+        let mut all: Vec<vk::WriteDescriptorSet> = writes.to_vec();
+        all.push(buffer_write(TILES_BINDING, &list));
+        // SAFETY: this function's contract.
+        unsafe { pipeline.dispatch_indirect(ctx, cmd, &all, push, self.args, self.args_offset) };
+    }
+}
+
+/// Tiles of `extent` along x and y.
+pub fn tile_count(extent: vk::Extent2D) -> [u32; 2] {
+    [
+        extent.width.div_ceil(LOCAL_SIZE[0]),
+        extent.height.div_ceil(LOCAL_SIZE[1]),
+    ]
+}
+
+fn args_bytes(materials: u32) -> u64 {
+    u64::from(materials) * (ARGS_STRIDE + 4)
+}
+
+/// What `classify` reads and writes (layouts in the module docs).
+pub struct ClassifyInputs<'a> {
+    /// The host's G-buffer depth.
+    pub depth: vk::ImageView,
+    /// The host's G-buffer tangent (`w`: the material).
+    pub tangent: vk::ImageView,
+    /// The hit buffer.
+    pub hit: ViewRef,
+    /// Whether the hit texels of pixels without displacement are written (not when the
+    /// hit buffer holds the host's hits).
+    pub write_hits: bool,
+    /// The corrected depth (`None` when the output is off).
+    pub hit_depth: Option<vk::ImageView>,
+    /// The slot's lists.
+    pub lists: &'a TileLists,
+    /// Per table entry: whether it holds a material (`lists.materials()` entries).
+    pub live: &'a [bool],
+}
+
+/// The classification pipelines (without and with the corrected depth).
+pub struct ClassifyPass {
+    plain: FetchPipeline,
+    depth: FetchPipeline,
+}
+
+impl ClassifyPass {
+    /// Builds both pipelines.
+    pub fn new(ctx: &Context) -> Result<Self> {
+        let size = std::mem::size_of::<ClassifyParams>() as u32;
+        let base = [
+            (0, SAMPLED),
+            (1, SAMPLED),
+            (2, STORAGE),
+            (3, BUFFER),
+            (4, BUFFER),
+        ];
+        let plain = FetchPipeline::new(ctx, "classify", &shaders::CLASSIFY_COMP, &base, size)?;
+        let mut with_depth = base.to_vec();
+        with_depth.push((5, STORAGE));
+        match FetchPipeline::new(
+            ctx,
+            "classify[depth]",
+            &shaders::CLASSIFY_COMP_DEPTH,
+            &with_depth,
+            size,
+        ) {
+            Ok(depth) => Ok(ClassifyPass { plain, depth }),
+            Err(e) => {
+                let mut plain = plain;
+                plain.destroy(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    /// Records the reset of the lists' arguments (a transfer) and the classification,
+    /// with the barriers around them: on exit the lists and arguments are visible to
+    /// `DRAW_INDIRECT` indirect reads and compute-shader storage reads, and the hit
+    /// buffer's and corrected depth's writes are ordered before (and visible to) later
+    /// compute-shader storage reads and writes (a global memory barrier).
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * The views belong to that device, with the formats and usages of the module's
+    ///   table, of the lists' extent; when the command buffer executes they are in the
+    ///   layouts of the module's table, the G-buffer's writes visible to compute-shader
+    ///   sampled reads, earlier accesses of the hit buffer and the corrected depth ordered
+    ///   before compute-shader storage writes (the caller's barriers).
+    /// * Earlier GPU accesses of the lists have completed (the slot contract), and
+    ///   everything stays alive until the command buffer has executed.
+    pub unsafe fn record(&self, ctx: &Context, cmd: vk::CommandBuffer, inputs: &ClassifyInputs) {
+        let lists = inputs.lists;
+        let dev = ctx.device();
+        let n = lists.materials as usize;
+        let mut init = Vec::with_capacity(n * 5);
+        for m in 0..n {
+            let live = u32::from(inputs.live.get(m).copied().unwrap_or(false));
+            init.extend_from_slice(&[0, 0, 1, live]);
+        }
+        init.resize(n * 5, 0);
+        // The reset waits for the previous frame's readers (a WAR dependency; by the
+        // slot contract they have completed, this makes it explicit to validation).
+        let before = [vk::MemoryBarrier2::default()
+            .src_stage_mask(
+                vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER,
+            )
+            .dst_stage_mask(vk::PipelineStageFlags2::ALL_TRANSFER)];
+        let after_reset = [vk::MemoryBarrier2::default()
+            .src_stage_mask(vk::PipelineStageFlags2::ALL_TRANSFER)
+            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+            .dst_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
+            .dst_access_mask(
+                vk::AccessFlags2::SHADER_STORAGE_READ | vk::AccessFlags2::SHADER_STORAGE_WRITE,
+            )];
+        let after = [vk::MemoryBarrier2::default()
+            .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
+            .src_access_mask(vk::AccessFlags2::SHADER_STORAGE_WRITE)
+            .dst_stage_mask(
+                vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER,
+            )
+            .dst_access_mask(
+                vk::AccessFlags2::INDIRECT_COMMAND_READ
+                    | vk::AccessFlags2::SHADER_STORAGE_READ
+                    | vk::AccessFlags2::SHADER_STORAGE_WRITE,
+            )];
+        let pipeline = if inputs.hit_depth.is_some() {
+            &self.depth
+        } else {
+            &self.plain
+        };
+        let fetch = |view| pipeline.fetch_view(view);
+        let (depth, tangent) = (fetch(inputs.depth), fetch(inputs.tangent));
+        let hits = storage_view(inputs.hit.view);
+        let tiles = [vk::DescriptorBufferInfo {
+            buffer: lists.tiles.raw,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }];
+        let args = [vk::DescriptorBufferInfo {
+            buffer: lists.args.raw,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }];
+        let hit_depth = inputs.hit_depth.map(storage_view);
+        let mut writes = vec![
+            image_write(0, SAMPLED, &depth),
+            image_write(1, SAMPLED, &tangent),
+            image_write(2, STORAGE, &hits),
+            buffer_write(3, &tiles),
+            buffer_write(4, &args),
+        ];
+        if let Some(d) = &hit_depth {
+            writes.push(image_write(5, STORAGE, d));
+        }
+        let extent = inputs.hit.extent;
+        let push = ClassifyParams {
+            frame_size: [extent.width, extent.height],
+            material_count: lists.materials,
+            tile_capacity: lists.capacity,
+            flags: if inputs.write_hits {
+                FLAG_WRITE_HITS
+            } else {
+                0
+            },
+        };
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the update is `args_bytes(materials)` bytes (a multiple of 4, at most
+        // 20 * MAX_MATERIALS < 65536) of a live TRANSFER_DST buffer; the writes match the
+        // pipeline's set 0 and name live resources in the layouts of the module's table;
+        // the push constants are the `ClassifyParams` the layout was built with.
+        unsafe {
+            dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&before));
+            dev.cmd_update_buffer(cmd, lists.args.raw, 0, bytemuck::cast_slice(&init));
+            dev.cmd_pipeline_barrier2(
+                cmd,
+                &vk::DependencyInfo::default().memory_barriers(&after_reset),
+            );
+            pipeline.pipeline.dispatch(
+                ctx,
+                cmd,
+                &writes,
+                bytemuck::bytes_of(&push),
+                extent.width,
+                extent.height,
+            );
+            dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&after));
+        }
+    }
+
+    /// Destroys both pipelines. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.plain.destroy(ctx);
+        self.depth.destroy(ctx);
+    }
+}
+
