@@ -264,10 +264,10 @@ fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
     // Frames at the first size; the first uploads the map and builds the pyramid.
     assert_eq!(
         host.frame(&mut pass),
-        ["upload", "pyramid", "dig_corners", "trace"]
+        ["upload", "pyramid", "classify", "dig_corners", "trace"]
     );
     for _ in 0..3 {
-        assert_eq!(host.frame(&mut pass), ["dig_corners", "trace"]);
+        assert_eq!(host.frame(&mut pass), ["classify", "dig_corners", "trace"]);
     }
     // Resize while both slots' frames are in flight (no wait): the pass retires its
     // old grids, the host replaces each slot's images once that slot's fence signals.
@@ -277,7 +277,7 @@ fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
     assert_eq!(pass.settings().extent, large);
     for _ in 0..4 {
         // The pyramid does not depend on the frame size: not rebuilt.
-        assert_eq!(host.frame(&mut pass), ["dig_corners", "trace"]);
+        assert_eq!(host.frame(&mut pass), ["classify", "dig_corners", "trace"]);
     }
     host.wait_all();
 
@@ -341,54 +341,59 @@ fn set_method_with_frames_in_flight_matches_standalone_for_each_method() {
         (
             Method::Relief,
             MethodParams::for_method(Method::Relief),
-            &["upload", "trace"],
-            &["trace"],
+            &["upload", "classify", "trace"],
+            &["classify", "trace"],
         ),
         (
             Method::Exact,
             MethodParams::for_method(Method::Exact),
-            &["pyramid", "trace"],
-            &["trace"],
+            &["pyramid", "classify", "trace"],
+            &["classify", "trace"],
         ),
         (
             Method::Dig,
             MethodParams::for_method(Method::Dig),
-            &["dig_corners", "trace"],
-            &["dig_corners", "trace"],
+            &["classify", "dig_corners", "trace"],
+            &["classify", "dig_corners", "trace"],
         ),
         (
             Method::DigGuarded,
             dig8,
-            &["pyramid", "dig_corners", "trace"],
-            &["dig_corners", "trace"],
+            &["pyramid", "classify", "dig_corners", "trace"],
+            &["classify", "dig_corners", "trace"],
         ),
         (
             Method::Pyramid,
             MethodParams::for_method(Method::Pyramid),
-            &["pyramid", "trace"],
-            &["trace"],
+            &["pyramid", "classify", "trace"],
+            &["classify", "trace"],
         ),
         // The cone maps follow their kind: a relaxed map replaces the conservative one
         // and back (the cell pyramid stays).
         (
             Method::Cone,
             MethodParams::for_method(Method::Cone),
-            &["pyramid", "cone", "trace"],
-            &["trace"],
+            &["pyramid", "cone", "classify", "trace"],
+            &["classify", "trace"],
         ),
         (
             Method::RelaxedCone,
             MethodParams::for_method(Method::RelaxedCone),
-            &["cone", "trace"],
-            &["trace"],
+            &["cone", "classify", "trace"],
+            &["classify", "trace"],
         ),
         (
             Method::ConeExact,
             MethodParams::for_method(Method::ConeExact),
-            &["cone", "trace"],
-            &["trace"],
+            &["cone", "classify", "trace"],
+            &["classify", "trace"],
         ),
-        (Method::Relief, relief16, &["trace"], &["trace"]),
+        (
+            Method::Relief,
+            relief16,
+            &["classify", "trace"],
+            &["classify", "trace"],
+        ),
     ];
     let shot = OneShot::new(&ctx, "test.readback").unwrap();
     let mut host = Host::new(ctx.clone(), Scene::default(), extent);

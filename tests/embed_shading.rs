@@ -538,7 +538,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: shadows(ShadowMode::Hard, 8),
             depth: true,
             output: Output::Shaded,
-            later: &["trace", "shadow", "shade", "hit_depth"],
+            later: &["classify", "trace", "shadow", "shade", "hit_depth"],
         },
         // Toggled while frames are in flight: soft shadows, no depth.
         Step {
@@ -547,7 +547,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: shadows(ShadowMode::Soft, 8),
             depth: false,
             output: Output::Shaded,
-            later: &["trace", "shadow", "shade"],
+            later: &["classify", "trace", "shadow", "shade"],
         },
         // Off: the plain pipeline again; the colour equals the unshadowed renderer's.
         Step {
@@ -556,7 +556,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: off,
             depth: false,
             output: Output::Shaded,
-            later: &["trace", "shade"],
+            later: &["classify", "trace", "shade"],
         },
         // A marching method with hard shadows (the linear light march) and depth.
         Step {
@@ -565,7 +565,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: shadows(ShadowMode::Hard, 8),
             depth: true,
             output: Output::Shaded,
-            later: &["trace", "shadow", "shade", "hit_depth"],
+            later: &["classify", "trace", "shadow", "shade", "hit_depth"],
         },
         // Level of detail reaches the embedded trace through set_method's parameters.
         Step {
@@ -574,7 +574,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: shadows(ShadowMode::Hard, 8),
             depth: true,
             output: Output::Shaded,
-            later: &["trace", "shadow", "shade", "hit_depth"],
+            later: &["classify", "trace", "shadow", "shade", "hit_depth"],
         },
         // `pyramid`: hard shadows need a cell pyramid of the stage's own.
         Step {
@@ -583,7 +583,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: shadows(ShadowMode::Hard, 8),
             depth: true,
             output: Output::Shaded,
-            later: &["trace", "shadow", "shade", "hit_depth"],
+            later: &["classify", "trace", "shadow", "shade", "hit_depth"],
         },
         // Soft with more samples; then the depth alone, camera through record_with_camera.
         Step {
@@ -592,7 +592,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: shadows(ShadowMode::Soft, 16),
             depth: true,
             output: Output::Shaded,
-            later: &["trace", "shadow", "shade", "hit_depth"],
+            later: &["classify", "trace", "shadow", "shade", "hit_depth"],
         },
         Step {
             lod: None,
@@ -600,7 +600,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
             shadows: shadows(ShadowMode::Soft, 16),
             depth: true,
             output: Output::HitsWithCamera,
-            later: &["dig_corners", "trace", "hit_depth"],
+            later: &["classify", "dig_corners", "trace", "hit_depth"],
         },
     ];
     let shot = OneShot::new(&ctx, "test.readback").unwrap();
@@ -694,7 +694,7 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
     pass.set_shadows(off).unwrap();
     pass.set_depth_output(false).unwrap();
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
-    assert_eq!(passes, ["dig_corners", "trace", "shade"]);
+    assert_eq!(passes, ["classify", "dig_corners", "trace", "shade"]);
     teardown(ctx, pass, host, Some(shot));
 }
 
@@ -721,7 +721,15 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
     let (_, first) = host.frame(&mut pass, Output::Shaded);
     assert_eq!(
         first,
-        ["upload", "pyramid", "trace", "shadow", "shade", "hit_depth"]
+        [
+            "upload",
+            "pyramid",
+            "classify",
+            "trace",
+            "shadow",
+            "shade",
+            "hit_depth"
+        ]
     );
     host.frame(&mut pass, Output::Shaded);
     assert!(host.frames.all_in_flight());
@@ -729,11 +737,22 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
     assert_eq!(
         passes,
-        ["upload", "pyramid", "trace", "shadow", "shade", "hit_depth"]
+        [
+            "upload",
+            "pyramid",
+            "classify",
+            "trace",
+            "shadow",
+            "shade",
+            "hit_depth"
+        ]
     );
     for _ in 0..3 {
         let (_, passes) = host.frame(&mut pass, Output::Shaded);
-        assert_eq!(passes, ["trace", "shadow", "shade", "hit_depth"]);
+        assert_eq!(
+            passes,
+            ["classify", "trace", "shadow", "shade", "hit_depth"]
+        );
     }
     host.wait_all();
     let params = MethodParams::for_method(method);
@@ -769,7 +788,14 @@ fn resize_with_shadows_and_depth_in_flight_matches_standalone_at_the_new_size() 
     let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(method)).unwrap();
     pass.set_shadows(soft).unwrap();
     pass.set_depth_output(true).unwrap();
-    let later = ["dig_corners", "trace", "shadow", "shade", "hit_depth"];
+    let later = [
+        "classify",
+        "dig_corners",
+        "trace",
+        "shadow",
+        "shade",
+        "hit_depth",
+    ];
     for _ in 0..3 {
         host.frame(&mut pass, Output::Shaded);
     }
@@ -821,6 +847,9 @@ fn depth_output_without_a_camera_is_a_clear_error() {
     // With depth on and a ShadeTarget the frame records and reaches the standalone depth
     // (checked in the test above); here only that nothing leaks.
     let (_, passes) = host.frame(&mut pass, Output::Shaded);
-    assert_eq!(passes, ["upload", "trace", "shade", "hit_depth"]);
+    assert_eq!(
+        passes,
+        ["upload", "classify", "trace", "shade", "hit_depth"]
+    );
     teardown(ctx, pass, host, None);
 }

@@ -17,9 +17,7 @@ use ash::vk;
 use common::host::{GBufferTexels, RayHost};
 use common::{asset_map, validated_context};
 use dispmap::Context;
-use dispmap::embed::{
-    DisplacementPass, MaterialSettings, NOT_DISPLACED_HEIGHT, PassSettings,
-};
+use dispmap::embed::{DisplacementPass, MaterialSettings, NOT_DISPLACED_HEIGHT, PassSettings};
 use dispmap::gpu::commands::read_image;
 use dispmap::gpu::sync::Access;
 use dispmap::heightfield::{Addressing, Convention, HeightField};
@@ -75,9 +73,27 @@ fn materials() -> Vec<Mat> {
         },
     };
     vec![
-        m("rocks_depth.jpg", Convention::Depth, Method::Exact, 32, 0.08),
-        m("bricks_depth.jpg", Convention::Depth, Method::Relief, 24, 0.05),
-        m("mountains_height16.png", Convention::Height, Method::Dig, 32, 0.12),
+        m(
+            "rocks_depth.jpg",
+            Convention::Depth,
+            Method::Exact,
+            32,
+            0.08,
+        ),
+        m(
+            "bricks_depth.jpg",
+            Convention::Depth,
+            Method::Relief,
+            24,
+            0.05,
+        ),
+        m(
+            "mountains_height16.png",
+            Convention::Height,
+            Method::Dig,
+            32,
+            0.12,
+        ),
     ]
 }
 
@@ -95,7 +111,11 @@ fn region(x: u32, y: u32) -> Option<usize> {
 
 /// The rasterised G-buffer with the materials of `assign` (pixel -> table index or flat)
 /// written into tangent.w and each region's P scaled to its material's depth scale.
-fn gbuffer(base: &GBufferTexels, depths: &[f32], assign: impl Fn(u32, u32) -> Option<u32>) -> GBufferTexels {
+fn gbuffer(
+    base: &GBufferTexels,
+    depths: &[f32],
+    assign: impl Fn(u32, u32) -> Option<u32>,
+) -> GBufferTexels {
     let mut g = base.clone();
     for y in 0..EXTENT.height {
         for x in 0..EXTENT.width {
@@ -106,7 +126,11 @@ fn gbuffer(base: &GBufferTexels, depths: &[f32], assign: impl Fn(u32, u32) -> Op
                 g.ray[i][2] *= k;
                 g.ray[i][3] *= k;
             }
-            let handed = if g.tangent[i][3] & 0x8000 != 0 { -1.0 } else { 1.0 };
+            let handed = if g.tangent[i][3] & 0x8000 != 0 {
+                -1.0
+            } else {
+                1.0
+            };
             g.tangent[i][3] = match assign(x, y) {
                 Some(m) => f16_bits(handed * (m as f32 + 1.0)),
                 None => 0,
@@ -151,8 +175,13 @@ fn frame(
     let hits = host.hits(s);
     let colors = host.colors(s);
     let image = pass.hit_depth(s as u32).expect("depth output on");
-    let depth = read_image(pass.context(), host.shot(), image, Access::COMPUTE_STORAGE_WRITE)
-        .unwrap();
+    let depth = read_image(
+        pass.context(),
+        host.shot(),
+        image,
+        Access::COMPUTE_STORAGE_WRITE,
+    )
+    .unwrap();
     (hits, colors, bytemuck::cast_slice(&depth).to_vec())
 }
 
@@ -176,10 +205,18 @@ fn three_materials_and_flat_geometry_in_one_record_match_single_material_frames(
     let base = host.read_gbuffer();
 
     // The frame with every material in one pass.
-    let mut all = DisplacementPass::new(ctx.clone(), &mats[0].field, pass_settings(&mats[0].settings))
-        .unwrap();
+    let mut all = DisplacementPass::new(
+        ctx.clone(),
+        &mats[0].field,
+        pass_settings(&mats[0].settings),
+    )
+    .unwrap();
     let ids: Vec<_> = std::iter::once(all.primary())
-        .chain(mats[1..].iter().map(|m| all.add_material(&m.field, m.settings).unwrap()))
+        .chain(
+            mats[1..]
+                .iter()
+                .map(|m| all.add_material(&m.field, m.settings).unwrap()),
+        )
         .collect();
     assert_eq!(ids.iter().map(|i| i.index()).collect::<Vec<_>>(), [0, 1, 2]);
     assert_eq!(all.map_count(), 3);
@@ -214,7 +251,11 @@ fn three_materials_and_flat_geometry_in_one_record_match_single_material_frames(
                     h1[i]
                 );
                 assert_eq!(colors[i], c1[i], "material {m} colour, pixel ({x}, {y})");
-                assert_eq!(depth[i].to_bits(), d1[i].to_bits(), "material {m} depth ({x}, {y})");
+                assert_eq!(
+                    depth[i].to_bits(),
+                    d1[i].to_bits(),
+                    "material {m} depth ({x}, {y})"
+                );
                 checked[m] += 1;
             }
         }
@@ -246,8 +287,16 @@ fn three_materials_and_flat_geometry_in_one_record_match_single_material_frames(
                 continue;
             }
             assert_eq!(colors[i], HOST_COLOR, "flat pixel ({x}, {y}) colour");
-            assert_eq!(hits[i], [0.0, 0.0, NOT_DISPLACED_HEIGHT, 0.0], "flat ({x}, {y})");
-            assert_eq!(depth[i].to_bits(), base.depth[i].to_bits(), "flat ({x}, {y}) depth");
+            assert_eq!(
+                hits[i],
+                [0.0, 0.0, NOT_DISPLACED_HEIGHT, 0.0],
+                "flat ({x}, {y})"
+            );
+            assert_eq!(
+                depth[i].to_bits(),
+                base.depth[i].to_bits(),
+                "flat ({x}, {y}) depth"
+            );
             flat += 1;
         }
     }
@@ -264,10 +313,15 @@ fn materials_added_replaced_and_removed_with_frames_in_flight() {
     let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
     host.rasterise(&scene.gbuffer_params(&scene.frame_camera(EXTENT.width, EXTENT.height)));
     let base = host.read_gbuffer();
-    host.upload_gbuffer(&gbuffer(&base, &depths, |x, y| region(x, y).map(|r| r as u32)));
-    let mut pass =
-        DisplacementPass::new(ctx.clone(), &mats[0].field, pass_settings(&mats[0].settings))
-            .unwrap();
+    host.upload_gbuffer(&gbuffer(&base, &depths, |x, y| {
+        region(x, y).map(|r| r as u32)
+    }));
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &mats[0].field,
+        pass_settings(&mats[0].settings),
+    )
+    .unwrap();
     pass.set_shadows(dispmap::embed::ShadowSettings {
         mode: dispmap::embed::ShadowMode::Hard,
         ..Default::default()
@@ -288,19 +342,31 @@ fn materials_added_replaced_and_removed_with_frames_in_flight() {
         method: Method::Pyramid,
         ..mats[0].settings
     };
-    pass.set_material_settings(c, MaterialSettings { method: Method::Cone, ..mats[2].settings })
-        .unwrap();
+    pass.set_material_settings(
+        c,
+        MaterialSettings {
+            method: Method::Cone,
+            ..mats[2].settings
+        },
+    )
+    .unwrap();
     run(&mut host, &mut pass);
     pass.set_material_height_map(b, &mats[0].field).unwrap();
     pass.set_material_settings(b, shared).unwrap();
     assert_eq!(pass.map_count(), 2, "b now shares material 0's map");
     run(&mut host, &mut pass);
     pass.remove_material(c).unwrap();
-    assert!(pass.set_material_settings(c, mats[2].settings).is_err(), "a removed handle");
+    assert!(
+        pass.set_material_settings(c, mats[2].settings).is_err(),
+        "a removed handle"
+    );
     run(&mut host, &mut pass);
     let c2 = pass.add_material(&mats[2].field, mats[2].settings).unwrap();
     assert_eq!(c2.index(), c.index(), "the free index is reused");
-    assert!(pass.remove_material(c).is_err(), "the old handle stays refused");
+    assert!(
+        pass.remove_material(c).is_err(),
+        "the old handle stays refused"
+    );
     run(&mut host, &mut pass);
     pass.remove_material(c2).unwrap();
     run(&mut host, &mut pass);

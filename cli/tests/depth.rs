@@ -498,7 +498,13 @@ fn a_box_clips_at_the_displaced_height() {
             FRAGMENT_SAMPLED,
             Access::COMPUTE_STORAGE_WRITE,
         );
-        sync::transition(&ctx, cmd, tangent, FRAGMENT_SAMPLED, Access::COMPUTE_SAMPLED);
+        sync::transition(
+            &ctx,
+            cmd,
+            tangent,
+            FRAGMENT_SAMPLED,
+            Access::COMPUTE_SAMPLED,
+        );
     }
     shot.submit_and_wait(&ctx).unwrap();
     let rgba = read_image(&ctx, &shot, &color, Access::COLOR_ATTACHMENT_WRITE).unwrap();

@@ -11,8 +11,16 @@
 //   normal  R16G16B16A16_SFLOAT  world-space unit normal N (xyz); w = surface id > 0 (a chart
 //           with continuous uvs; 0 = cleared, no geometry). DIG trusts a block only when its
 //           corners share the id.
-//   tangent R16G16B16A16_SFLOAT  world-space unit tangent T along +u (xyz); w = handedness,
-//           B = w * cross(N, T) is the unit bitangent along +v.
+//   tangent R16G16B16A16_SFLOAT  world-space unit tangent T along +u (xyz); w = the material
+//           and the handedness: w = handedness * (material + 1), where material is the
+//           index of a material in the pass's table (DisplacementPass::add_material,
+//           MaterialId::index, 0..1023; f16 holds these integers exactly) and
+//           B = sign(w) * cross(N, T) is the unit bitangent along +v. w = 0 means *not
+//           displaced*: the pass neither traces nor shades the pixel nor writes its
+//           corrected depth, and the depth resolve keeps the host's depth there (clear the
+//           attachment to 0 so that pixels without geometry read as not displaced too).
+//           A G-buffer of one material writes +-1 (material 0), as dispmap_gbuffer_encode
+//           does.
 //   depth   D32_SFLOAT           reverse-Z, cleared to 0: 0 means no geometry.
 //
 // depth_scale is the displacement depth in uv (tile) units: with T and B of unit length a
@@ -45,8 +53,13 @@ struct DispmapSurface {
     uint addressing;    // DISPMAP_ADDRESSING_REPEAT or DISPMAP_ADDRESSING_CLAMP
 };
 
-// Encodes one fragment. Returns false for a back face (discard it).
-bool dispmap_gbuffer_encode(DispmapSurface s, out vec4 ray, out vec4 normal, out vec4 tangent) {
+// The pass's value for a pixel without displacement (tangent.w).
+#define DISPMAP_NOT_DISPLACED 0.0
+
+// Encodes one fragment of material `material` (its index in the pass's table). Returns
+// false for a back face (discard it).
+bool dispmap_gbuffer_encode_material(DispmapSurface s, uint material, out vec4 ray, out vec4 normal,
+                                     out vec4 tangent) {
     vec3 V = normalize(s.world_pos - s.camera_pos);
     vec3 v_ts = vec3(dot(V, s.tangent), dot(V, s.bitangent), dot(V, s.normal));
     ray = vec4(0.0);
@@ -59,8 +72,25 @@ bool dispmap_gbuffer_encode(DispmapSurface s, out vec4 ray, out vec4 normal, out
     vec2 uv0 = s.addressing == DISPMAP_ADDRESSING_REPEAT ? s.uv - floor(s.uv) : s.uv;
     ray = vec4(uv0, P);
     normal = vec4(s.normal, s.surface_id);
-    tangent = vec4(s.tangent, dot(cross(s.normal, s.tangent), s.bitangent) < 0.0 ? -1.0 : 1.0);
+    float handedness = dot(cross(s.normal, s.tangent), s.bitangent) < 0.0 ? -1.0 : 1.0;
+    tangent = vec4(s.tangent, handedness * (float(material) + 1.0));
     return true;
+}
+
+// Encodes one fragment of material 0 (a pass with one material). Returns false for a back
+// face (discard it).
+bool dispmap_gbuffer_encode(DispmapSurface s, out vec4 ray, out vec4 normal, out vec4 tangent) {
+    return dispmap_gbuffer_encode_material(s, 0u, ray, normal, tangent);
+}
+
+// Encodes one fragment of geometry that is not displaced (a character, a pipe): its
+// normal and tangent for the host's own shading, tangent.w = DISPMAP_NOT_DISPLACED, no
+// ray. The pass leaves such pixels as the host drew them.
+void dispmap_gbuffer_encode_flat(vec3 normal_ws, vec3 tangent_ws, float surface_id, out vec4 ray,
+                                 out vec4 normal, out vec4 tangent) {
+    ray = vec4(0.0);
+    normal = vec4(normal_ws, surface_id);
+    tangent = vec4(tangent_ws, DISPMAP_NOT_DISPLACED);
 }
 
 #endif

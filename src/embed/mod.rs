@@ -2,9 +2,10 @@
 //!
 //! The host owns the instance, device, queue, allocator, command buffers and the G-buffer.
 //! It wraps its handles in a [`Context`] with [`Context::from_handles`], builds one
-//! [`DisplacementPass`], and each frame calls [`DisplacementPass::record`], which only
-//! *records* `[upload] -> [pyramid] -> [dig_corners] -> trace -> [shadow] ->
-//! [shade] -> [hit_depth]` into the host's command buffer. On this path dispmap never
+//! [`DisplacementPass`] for all its displaced materials, and each frame calls
+//! [`DisplacementPass::record`] once, which only *records* `[upload] -> [pyramid] ->
+//! [cone] -> classify -> [dig_corners] -> trace -> [shadow] -> [shade] -> [hit_depth]`
+//! into the host's command buffer. On this path dispmap never
 //! creates a device, a command pool or a fence, and never submits: the host submits with
 //! its own fence. This is the one orchestrator of the compute passes: dispmap's own
 //! standalone [`crate::renderer::Renderer`] is a host of it like any engine.
@@ -16,7 +17,11 @@
 //!    extension or limit into an [`Error::Unsupported`] naming it (not a validation
 //!    message later).
 //! 2. [`Context::from_handles`] with the host's handles and `Arc<Mutex<Allocator>>`.
-//! 3. [`DisplacementPass::new`] (pipelines, the height texture, per-slot resources).
+//! 3. [`DisplacementPass::new`] (pipelines, per-slot resources and the first material,
+//!    index 0), then [`DisplacementPass::add_material`] for every other displaced
+//!    material: each has its own height map, method, parameters, depth scale, addressing
+//!    and material maps ([`DisplacementPass::set_material_maps`]); its
+//!    [`MaterialId::index`] is what the G-buffer writes for its pixels.
 //! 4. Per frame: the host renders its G-buffer (formats and channels in
 //!    [`crate::passes::gbuffer`] and `glsl/include/dispmap_gbuffer.glsl`), places the
 //!    entry barriers below, calls [`DisplacementPass::record`], places its own barriers for
@@ -29,7 +34,10 @@
 //!    the eye-relative view-projection ([`crate::scene::FrameCamera::view_proj_eye`]) its
 //!    vertices, rays and hits are bit-identical to the standalone renderer's
 //!    (`examples/host_engine.rs`, `tests/host_engine.rs`).
-//! 5. [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] /
+//! 5. [`DisplacementPass::add_material`] / [`DisplacementPass::remove_material`] /
+//!    [`DisplacementPass::set_material_settings`] /
+//!    [`DisplacementPass::set_material_height_map`] /
+//!    [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] /
 //!    [`DisplacementPass::set_method`] / [`DisplacementPass::set_shadows`] /
 //!    [`DisplacementPass::set_depth_output`] / [`DisplacementPass::set_material`] (albedo
 //!    and normal maps for `shade`) / [`DisplacementPass::set_depth_scale`] any time
@@ -52,14 +60,31 @@
 //! |---|---|---|---|
 //! | G-buffer `ray`, `normal`, `tangent` | host | `SHADER_READ_ONLY_OPTIMAL`, writes visible to `COMPUTE_SHADER` / `SHADER_SAMPLED_READ` | unchanged; last access `COMPUTE_SHADER` sampled read |
 //! | G-buffer `depth` | host | as above (depth aspect) | as above |
-//! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded, earlier accesses finished before `COMPUTE_SHADER` (a WAR dependency) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace), read by `SHADER_STORAGE_READ` (shade) |
-//! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL`, contents discarded, earlier accesses finished before `COMPUTE_SHADER` | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values) |
-//! | height map, pyramid, DIG corner grid | pass | (internal) | (internal; read-only for the host) |
+//! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded, earlier accesses finished before `COMPUTE_SHADER` (a WAR dependency) | `GENERAL`; every pixel written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), read by `SHADER_STORAGE_READ` (shade) |
+//! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL` with the host's colour (kept wherever nothing is displaced), its writes visible to and earlier accesses finished before `COMPUTE_SHADER` storage writes | `GENERAL`; displaced pixels written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values), every other pixel as it entered |
+//! | height maps, pyramids, cone maps, DIG corner grids, tile lists | pass | (internal) | (internal; read-only for the host) |
 //! | visibility (`R16_SFLOAT`, one per slot; only with [`DisplacementPass::set_shadows`] on and a [`ShadeTarget`]) | pass | (internal: discarded by the pass) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (shadow), last read by `SHADER_STORAGE_READ` (shade); read-only for the host ([`DisplacementPass::visibility`]) |
 //! | corrected depth (`R32_SFLOAT`, one per slot; only with [`DisplacementPass::set_depth_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (hit_depth); the host may read it (after its own barrier from that state) and leave it in any layout |
 //!
 //! The pass places every barrier between its own passes, including the hit buffer's
 //! write -> read before `shade` (a global memory barrier, so it needs no `vk::Image`).
+//!
+//! # Materials and the G-buffer
+//!
+//! The G-buffer's `tangent.w` says which material a pixel is: `±(index + 1)` (the sign
+//! is the handedness), 0 = not displaced (`glsl/include/dispmap_gbuffer.glsl`:
+//! `dispmap_gbuffer_encode_material`, `dispmap_gbuffer_encode_flat`). Each frame,
+//! `classify` ([`crate::passes::classify`]) sorts the frame's 8x8 tiles into one list per
+//! material, and every per-material pass (`trace`, `shadow`, `shade`, `hit_depth`) is
+//! one indirect dispatch over its material's tiles with that material's map, method and
+//! depth scale: a frame costs what its displaced pixels cost, not its size times its
+//! materials. Pixels that are not displaced (no geometry, `tangent.w` = 0, an index with
+//! no material in the table) are never traced or shaded. One dispatch per material with
+//! push descriptors, rather than one for all through descriptor indexing: the methods are
+//! different pipelines anyway, push descriptors need no descriptor pools or update-after-
+//! bind, and a material's dispatch costs one indirect dispatch of its tiles (an empty list
+//! dispatches no workgroup). DIG's corner grid is per material; a block with a corner of
+//! another material falls back to the unconstrained search, as at a surface boundary.
 //! Every image it binds must have been created on the context's queue family with
 //! `VK_SHARING_MODE_EXCLUSIVE` and used on that family.
 //!
@@ -108,19 +133,23 @@
 //! [`DisplacementPass::record_with_camera`]'s [`DepthCamera`]: it must be the camera of
 //! the host's G-buffer.
 //!
-//! To make the rest of the host's frame (later geometry, fog, SSAO) meet the displaced
-//! surface, the host writes it into its own `D32_SFLOAT` depth attachment with
+//! The image holds every pixel: displaced ones their corrected depth (each material with
+//! its own depth scale), the others the G-buffer's own depth. To make the rest of the
+//! host's frame (later geometry, fog, SSAO) meet the displaced surface, the host merges it
+//! into its own `D32_SFLOAT` depth attachment (displaced pixels only: the others keep the
+//! attachment's depth) with
 //! [`crate::passes::depth_resolve::DepthResolvePass`] (a graphics pipeline; the host's
 //! device needs `dynamicRendering`, which [`requirements`] does not list), in the same
 //! command buffer after `record`:
 //!
 //! 1. barrier on [`DisplacementPass::hit_depth`]'s image: `GENERAL`, `COMPUTE_SHADER`
 //!    `SHADER_STORAGE_WRITE` -> `SHADER_READ_ONLY_OPTIMAL`, `FRAGMENT_SHADER`
-//!    `SHADER_SAMPLED_READ`; barrier on the host's depth image: (its last access) ->
-//!    `DEPTH_ATTACHMENT_OPTIMAL`, `EARLY/LATE_FRAGMENT_TESTS` depth write (contents
-//!    discarded);
-//! 2. `DepthResolvePass::record(ctx, cmd, image.view, host_depth_view, extent)` (it
-//!    begins and ends its own dynamic rendering);
+//!    `SHADER_SAMPLED_READ`; the G-buffer `tangent` visible to `FRAGMENT_SHADER`
+//!    `SHADER_SAMPLED_READ` (`SHADER_READ_ONLY_OPTIMAL`); barrier on the host's depth
+//!    image: (its last access) -> `DEPTH_ATTACHMENT_OPTIMAL`, `EARLY/LATE_FRAGMENT_TESTS`
+//!    depth read and write (contents kept: the attachment is loaded);
+//! 2. `DepthResolvePass::record(ctx, cmd, image.view, tangent_view, host_depth_view,
+//!    extent)` (it begins and ends its own dynamic rendering);
 //! 3. the host's barrier for what reads its depth next. The pass's image may be left in
 //!    `SHADER_READ_ONLY_OPTIMAL`: the next record of the slot discards it.
 //!
@@ -520,11 +549,18 @@ impl DisplacementPass {
     /// [`DisplacementPass::destroy`]. Frames recorded before the call keep the old
     /// settings. On error (invalid settings, an allocation or pipeline failure) the pass
     /// is unchanged.
-    pub fn set_material_settings(&mut self, id: MaterialId, settings: MaterialSettings) -> Result<()> {
+    pub fn set_material_settings(
+        &mut self,
+        id: MaterialId,
+        settings: MaterialSettings,
+    ) -> Result<()> {
         self.check_alive()?;
         let i = self.entry_index(id)?;
         validate_material(&self.ctx, &settings)?;
-        let old = self.materials[i].as_ref().map(|m| m.settings).unwrap_or(settings);
+        let old = self.materials[i]
+            .as_ref()
+            .map(|m| m.settings)
+            .unwrap_or(settings);
         if settings.addressing != old.addressing {
             return Err(Error::invalid(
                 "addressing",
@@ -854,7 +890,11 @@ impl DisplacementPass {
 
     /// The map table entry for `field` with `settings`' addressing: an existing one with
     /// the same content, or a new one with its upload staged (`true`).
-    fn map_for(&mut self, field: &HeightField, settings: &MaterialSettings) -> Result<(usize, bool)> {
+    fn map_for(
+        &mut self,
+        field: &HeightField,
+        settings: &MaterialSettings,
+    ) -> Result<(usize, bool)> {
         let key = plan::MapKey::of(field, settings.addressing);
         if let Some(i) = self
             .maps

@@ -420,7 +420,12 @@ impl DisplacementPass {
                 images,
             });
         }
-        if resized || self.tiles.first().is_none_or(|t| t.materials() != plan.table) {
+        if resized
+            || self
+                .tiles
+                .first()
+                .is_none_or(|t| t.materials() != plan.table)
+        {
             add.tiles = Some(per_slot(c, frames, |s| {
                 TileLists::new(c, &format!("embed.tiles{s}"), extent, plan.table)
             })?);
@@ -467,7 +472,9 @@ impl DisplacementPass {
             retired.retire(std::mem::replace(&mut self.shade, shade));
         }
         for (i, texture) in add.textures {
-            let Some(map) = &mut self.maps[i] else { continue };
+            let Some(map) = &mut self.maps[i] else {
+                continue;
+            };
             // The mip chain follows level of detail; level 0 (the map) is unchanged.
             let old = std::mem::replace(&mut map.texture, texture);
             if map.pending_fill.is_some() {
@@ -498,7 +505,9 @@ impl DisplacementPass {
             match want {
                 None => retired.retire(self.maps[i].take()),
                 Some(want) => {
-                    let Some(map) = &mut self.maps[i] else { continue };
+                    let Some(map) = &mut self.maps[i] else {
+                        continue;
+                    };
                     let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut map.pyramids)
                         .into_iter()
                         .partition(|p| want.pyramids.contains(&p.value.kind));

@@ -6,16 +6,15 @@
 
 use super::plan::{Fill, MapEntry, MaterialEntry};
 use super::{
-    DepthCamera, DisplacementPass, FrameInputs, MAX_QUERIES, RecordedFrame, ShadeTarget,
-    Timestamps,
+    DepthCamera, DisplacementPass, FrameInputs, MAX_QUERIES, RecordedFrame, ShadeTarget, Timestamps,
 };
 use crate::abi::ShadeParams;
-use crate::method::PyramidKind;
-use crate::passes::classify::{ClassifyInputs, MaterialTiles};
 use crate::error::{Error, Result};
 use crate::gpu::ViewRef;
 use crate::gpu::sync::{self, Access};
+use crate::method::PyramidKind;
 use crate::passes::PassName;
+use crate::passes::classify::{ClassifyInputs, MaterialTiles};
 use crate::passes::hit_depth::HitDepthInputs;
 use crate::passes::shade::ShadeInputs;
 use crate::passes::shadow::{ShadowInputs, ShadowPass, ShadowTrace};
@@ -173,7 +172,13 @@ impl DisplacementPass {
             // image is the slot's, alive until retired after the slot's frames, and may be
             // discarded (the slot contract).
             unsafe {
-                sync::transition(&self.ctx, cmd, image, DISCARD_ANY, Access::COMPUTE_STORAGE_WRITE)
+                sync::transition(
+                    &self.ctx,
+                    cmd,
+                    image,
+                    DISCARD_ANY,
+                    Access::COMPUTE_STORAGE_WRITE,
+                )
             };
         }
         let depth_view = depth_image.map(|(v, _)| v);
@@ -350,7 +355,12 @@ impl DisplacementPass {
             self.retired.retire_for_slot(slot, staging);
         }
 
-        if self.maps.iter().flatten().any(|m| m.pyramids.iter().any(|p| !p.built)) {
+        if self
+            .maps
+            .iter()
+            .flatten()
+            .any(|m| m.pyramids.iter().any(|p| !p.built))
+        {
             let pass = self.pyramid_pass.as_ref();
             // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
             // queries reset by `begin`). In the body (inside this block): each height texture
@@ -401,7 +411,9 @@ impl DisplacementPass {
         unsafe {
             w.scope(ctx, cmd, PassName::Cone, |cmd| {
                 for map in self.maps.iter().flatten().filter(|m| ready(m)) {
-                    let Some(pyramid) = map.pyramid(PyramidKind::Cell) else { continue };
+                    let Some(pyramid) = map.pyramid(PyramidKind::Cell) else {
+                        continue;
+                    };
                     for cone in map.cones.iter().filter(|c| !c.built) {
                         let kind = cone.value.kind;
                         if let Some(pass) = self.cone_passes.iter().find(|p| p.kind == kind) {
@@ -656,8 +668,7 @@ impl DisplacementPass {
                 for (tiles, m, map) in &live {
                     let s = &m.settings;
                     let trace = ShadowTrace::for_method(self.shadows.mode, s.method);
-                    let Some(pass) = self.shadow_passes.iter().find(|p| p.trace() == trace)
-                    else {
+                    let Some(pass) = self.shadow_passes.iter().find(|p| p.trace() == trace) else {
                         return Err(Error::Internal("no shadow pipeline".into()));
                     };
                     let params = ShadowPass::params(

@@ -153,7 +153,6 @@ impl TileLists {
     }
 }
 
-
 /// One material's tiles: what a per-material pass dispatches over.
 #[derive(Clone, Copy, Debug)]
 pub struct MaterialTiles {
@@ -380,4 +379,3 @@ impl ClassifyPass {
         self.depth.destroy(ctx);
     }
 }
-

@@ -224,7 +224,8 @@ impl RayHost {
         self.wait_all();
         let c = &*self.ctx;
         let g = &self.gbuffer;
-        let read = |image: &Image| read_image(c, &self.shot, image, Access::COMPUTE_SAMPLED).unwrap();
+        let read =
+            |image: &Image| read_image(c, &self.shot, image, Access::COMPUTE_SAMPLED).unwrap();
         GBufferTexels {
             ray: bytemuck::cast_slice(&read(&g.ray)).to_vec(),
             depth: bytemuck::cast_slice(&read(&g.depth)).to_vec(),
@@ -239,12 +240,38 @@ impl RayHost {
         let c = &*self.ctx;
         let g = &self.gbuffer;
         let after = Access::COMPUTE_SAMPLED;
-        upload_image(c, &self.shot, &g.ray, bytemuck::cast_slice(&texels.ray), after).unwrap();
-        upload_image(c, &self.shot, &g.depth, bytemuck::cast_slice(&texels.depth), after).unwrap();
-        upload_image(c, &self.shot, &g.normal, bytemuck::cast_slice(&texels.normal), after)
-            .unwrap();
-        upload_image(c, &self.shot, &g.tangent, bytemuck::cast_slice(&texels.tangent), after)
-            .unwrap();
+        upload_image(
+            c,
+            &self.shot,
+            &g.ray,
+            bytemuck::cast_slice(&texels.ray),
+            after,
+        )
+        .unwrap();
+        upload_image(
+            c,
+            &self.shot,
+            &g.depth,
+            bytemuck::cast_slice(&texels.depth),
+            after,
+        )
+        .unwrap();
+        upload_image(
+            c,
+            &self.shot,
+            &g.normal,
+            bytemuck::cast_slice(&texels.normal),
+            after,
+        )
+        .unwrap();
+        upload_image(
+            c,
+            &self.shot,
+            &g.tangent,
+            bytemuck::cast_slice(&texels.tangent),
+            after,
+        )
+        .unwrap();
     }
 
     /// As [`RayHost::submit`] with a `ShadeTarget` whose colour image the host filled with
