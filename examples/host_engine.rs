@@ -22,6 +22,13 @@
 //! eye with the eye-relative view-projection (`FrameCamera::view_proj_eye`), as dispmap's
 //! own G-buffer pass does.
 //!
+//! Materials: one pass, one record per frame for everything. The floor is material 0
+//! (the rocks map, `--method`, exact by default), the cube's sides are material 1 (the
+//! bricks map with `relief`, a marcher, and a deeper displacement), and the cube's top
+//! face is flat geometry (`dispmap_gbuffer_encode_flat`: not displaced; the engine's
+//! colour there, a plain grey clear, stays as it was). The draw's material comes to the
+//! fragment shader in the push constants' `camera_pos.w`.
+//!
 //! Frames: two in flight, each slot with its own G-buffer, hit buffer, colour image,
 //! read-back buffers, command buffer and fence. Slot 0 times the pass into the engine's
 //! own query pool, slot 1 into the pass's own pool. At frame 1 the engine swaps the
@@ -34,7 +41,9 @@
 use anyhow::{Context as _, Result, anyhow, bail, ensure};
 use ash::vk;
 use dispmap::context::{Context, HostHandles};
-use dispmap::embed::{self, DisplacementPass, FrameInputs, PassSettings, ShadeTarget, Timestamps};
+use dispmap::embed::{
+    self, DisplacementPass, FrameInputs, MaterialSettings, PassSettings, ShadeTarget, Timestamps,
+};
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::gbuffer::GBufferViews;
@@ -54,6 +63,10 @@ const FLOOR_VERT_SPV: &[u8] = include_bytes!(concat!(
     "/examples__host_engine_floor.vert.spv"
 ));
 const FRAG_SPV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/examples__host_engine.frag.spv"));
+/// The cube's material index in the pass (the second material added).
+const CUBE_MATERIAL: u32 = 1;
+/// The cube's displacement depth (uv units), deeper than the floor's.
+const CUBE_DEPTH_SCALE: f32 = 0.08;
 const ROCKS: &[u8] = include_bytes!("../assets/heightmaps/rocks_depth.jpg");
 const BRICKS: &[u8] = include_bytes!("../assets/heightmaps/bricks_depth.jpg");
 
@@ -755,7 +768,12 @@ impl Engine {
                             | vk::ImageUsageFlags::SAMPLED,
                     )?,
                     hit: self.image(&n("hits"), embed::HIT_FORMAT, extent, storage)?,
-                    color: self.image(&n("color"), embed::COLOR_FORMAT, extent, storage)?,
+                    color: self.image(
+                        &n("color"),
+                        embed::COLOR_FORMAT,
+                        extent,
+                        storage | vk::ImageUsageFlags::TRANSFER_DST,
+                    )?,
                     hit_readback: readback("hits.readback", pixels * 16)?,
                     normal_readback: readback("normal.readback", pixels * 8)?,
                     color_readback: readback("color.readback", pixels * 4)?,
@@ -810,6 +828,29 @@ impl Engine {
                 frames_in_flight: FRAMES_IN_FLIGHT as u32,
             },
         )?;
+        // The cube's sides: a second displaced material of the same pass.
+        let cube = if o.cube {
+            let added = pass.add_material(
+                &bricks,
+                MaterialSettings {
+                    method: Method::Relief,
+                    params: MethodParams::for_method(Method::Relief),
+                    depth_scale: CUBE_DEPTH_SCALE,
+                    addressing: scene.addressing(),
+                },
+            );
+            match added {
+                Ok(id) => Some(id),
+                Err(e) => {
+                    // SAFETY: nothing was recorded with the pass.
+                    unsafe { pass.destroy() };
+                    return Err(e.into());
+                }
+            }
+        } else {
+            None
+        };
+        debug_assert!(cube.is_none_or(|id| id.index() == CUBE_MATERIAL));
         // SAFETY: frames are recorded, submitted and waited for below; the pass is
         // destroyed after the device is idle, also on an error path.
         let result = unsafe { self.frames(o, &mut pass, &rocks, &bricks) };
@@ -862,7 +903,8 @@ impl Engine {
         // is dispmap's plane; both draws use the eye-relative view-projection.
         let params = EngineParams {
             view_proj: camera.view_proj_eye.to_cols_array(),
-            camera_pos: camera.eye.extend(1.0).to_array(),
+            // w: the draw's material (the floor's: 0).
+            camera_pos: camera.eye.extend(0.0).to_array(),
             world_rect: g.world_rect.to_array(),
             uv_rect: g.uv_rect.to_array(),
             depth_scale: g.depth_scale,
@@ -1027,7 +1069,20 @@ impl Engine {
                 );
                 dev.cmd_draw(cmd, floor_vertex_count, 1, 0, 0);
                 if let Some(vb) = &self.vertices {
-                    // Same layout, so the push constants stay bound.
+                    // Same layout; the cube's material and depth scale in its push
+                    // constants.
+                    let cube = EngineParams {
+                        camera_pos: camera.eye.extend(CUBE_MATERIAL as f32).to_array(),
+                        depth_scale: CUBE_DEPTH_SCALE,
+                        ..params
+                    };
+                    dev.cmd_push_constants(
+                        cmd,
+                        self.layout,
+                        vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                        0,
+                        bytemuck::bytes_of(&cube),
+                    );
                     dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.cube_pipeline);
                     dev.cmd_bind_vertex_buffers(cmd, 0, &[vb.buffer], &[0]);
                     dev.cmd_draw(cmd, self.cube_vertex_count, 1, 0, 0);
@@ -1046,14 +1101,35 @@ impl Engine {
                 storage_write.1,
                 storage_write.2,
             ));
+            // The colour image holds the engine's own colour where nothing is displaced
+            // (here a plain clear: sky and the cube's flat top); the pass writes only the
+            // displaced pixels.
+            let clear_dst = (
+                vk::PipelineStageFlags2::CLEAR,
+                vk::AccessFlags2::TRANSFER_WRITE,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+            );
             entry.push(discard_to(
                 &slot.color,
-                storage_write.0,
-                storage_write.1,
-                storage_write.2,
+                clear_dst.0,
+                clear_dst.1,
+                clear_dst.2,
             ));
-            // SAFETY: as above.
-            unsafe { pipeline_barrier(dev, cmd, &entry) };
+            // SAFETY: as above; the colour image is in TRANSFER_DST_OPTIMAL for the clear,
+            // then in GENERAL with the clear visible to the pass's storage writes.
+            unsafe {
+                pipeline_barrier(dev, cmd, &entry);
+                dev.cmd_clear_color_image(
+                    cmd,
+                    slot.color.image,
+                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                    &vk::ClearColorValue {
+                        float32: [0.5, 0.52, 0.55, 1.0],
+                    },
+                    &[range(vk::ImageAspectFlags::COLOR)],
+                );
+                pipeline_barrier(dev, cmd, &[barrier(&slot.color, clear_dst, storage_write)]);
+            }
             let timestamps = if s == 0 {
                 Timestamps::Host {
                     pool: self.query_pool,

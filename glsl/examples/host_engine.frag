@@ -1,6 +1,7 @@
 #version 460
 // examples/host_engine.rs: the host engine's own G-buffer fragment shader, writing
-// dispmap's channels with the provided include.
+// dispmap's channels with the provided include. The draw's material is camera_pos.w (the
+// floor 0, the cube 1); the cube's top face is flat geometry (not displaced).
 #include "../include/dispmap_gbuffer.glsl"
 #include "host_engine.glsl"
 
@@ -15,9 +16,14 @@ layout(location = 1) out vec4 out_normal;
 layout(location = 2) out vec4 out_tangent;
 
 void main() {
+    uint material = uint(pc.camera_pos.w);
+    if (material != 0u && v_normal.y > 0.5) {
+        dispmap_gbuffer_encode_flat(v_normal.xyz, v_tangent, v_normal.w, out_ray, out_normal, out_tangent);
+        return;
+    }
     DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, v_normal.xyz,
         v_tangent, v_bitangent, v_normal.w, pc.depth_scale, pc.min_cos, pc.addressing);
-    if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {
+    if (!dispmap_gbuffer_encode_material(s, material, out_ray, out_normal, out_tangent)) {
         discard;
     }
 }

@@ -6,7 +6,7 @@
 
 layout(push_constant) uniform EngineParams {
     mat4 view_proj;     // eye-relative world (world - camera_pos) -> clip (view_proj_eye)
-    vec4 camera_pos;    // xyz: eye in world space
+    vec4 camera_pos;    // xyz: eye in world space; w: the draw's material (floor 0, cube 1)
     vec4 world_rect;    // the floor's rectangle (dispmap_plane_vertex)
     vec4 uv_rect;       // uv at its corners
     float depth_scale;

@@ -5,7 +5,7 @@
 //! |---|---|---|
 //! | `ray` | `R32G32B32A32_SFLOAT` | entry `uv0` (tile-local for repeat addressing) and parallax vector `P` |
 //! | `normal` | `R16G16B16A16_SFLOAT` | world normal `N`; `w` = surface id (> 0; 0 where nothing was drawn) |
-//! | `tangent` | `R16G16B16A16_SFLOAT` | world tangent `T = dP/du`, `w` = handedness (`B = w N x T`) |
+//! | `tangent` | `R16G16B16A16_SFLOAT` | world tangent `T = dP/du`, `w` = handedness × (material + 1) (`B = sign(w) N x T`; 0: not displaced) |
 //! | `depth` | `D32_SFLOAT` | reverse-Z depth, cleared to 0: 0 means no geometry |
 //!
 //! The surface id names a piece of geometry whose UVs are continuous (a chart). DIG
