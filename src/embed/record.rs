@@ -15,6 +15,7 @@ use crate::gpu::sync::{self, Access};
 use crate::method::PyramidKind;
 use crate::passes::PassName;
 use crate::passes::classify::{ClassifyInputs, MaterialTiles};
+use crate::passes::dig::CornerRun;
 use crate::passes::hit_depth::HitDepthInputs;
 use crate::passes::shade::ShadeInputs;
 use crate::passes::shadow::{ShadowInputs, ShadowPass, ShadowTrace};
@@ -284,7 +285,7 @@ impl DisplacementPass {
     }
 
     /// The live materials: `(tiles, entry, map)` for each, by index.
-    fn live<'a>(&'a self, slot: u32) -> Vec<(MaterialTiles, &'a MaterialEntry, &'a MapEntry)> {
+    fn live(&self, slot: u32) -> Vec<(MaterialTiles, &MaterialEntry, &MapEntry)> {
         let lists = &self.tiles[slot as usize];
         self.materials
             .iter()
@@ -535,8 +536,10 @@ impl DisplacementPass {
                         inputs.gbuffer,
                         &map.texture,
                         grid,
-                        m.settings.params.steps,
-                        *material,
+                        CornerRun {
+                            steps: m.settings.params.steps,
+                            material: *material,
+                        },
                     );
                 }
             })

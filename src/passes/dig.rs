@@ -46,6 +46,15 @@ const BINDINGS: [vk::DescriptorType; 6] = [
     vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
 ];
 
+/// What one corner dispatch marches: the method's steps, for one material's grid.
+#[derive(Clone, Copy, Debug)]
+pub struct CornerRun {
+    /// Linear steps over the full depth (the method's).
+    pub steps: u32,
+    /// The material whose corners are marched (the others are stored as no surface).
+    pub material: u32,
+}
+
 /// Corner-grid size for a frame and block size.
 pub fn corner_size(frame: [u32; 2], block: [u32; 2]) -> [u32; 2] {
     [
@@ -159,9 +168,9 @@ impl DigCornerPass {
         gbuffer: GBufferViews,
         height: &HeightTexture,
         grid: &CornerGrid,
-        steps: u32,
-        material: u32,
+        run: CornerRun,
     ) {
+        let CornerRun { steps, material } = run;
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray);
         let depth = fetch(gbuffer.depth);
