@@ -38,6 +38,9 @@ layout(push_constant) uniform ClassifyParams {
     uint material_count; // table entries (live or vacant)
     uint tile_capacity;  // entries per material list
     uint flags;          // CLASSIFY_FLAG_*
+    uint pad0;
+    uint pad1;
+    uint pad2;
 } pc;
 
 // Write the hit buffer texels of pixels without displacement (off when the host's hits

@@ -135,6 +135,8 @@ pub struct ClassifyParams {
     pub tile_capacity: u32,
     /// `CLASSIFY_FLAG_*`.
     pub flags: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 /// `GBufferParams` in `glsl/common/gbuffer.glsl`.
@@ -454,6 +456,7 @@ mod tests {
                 ("steps", offset_of!(CornerParams, steps)),
                 ("addressing", offset_of!(CornerParams, addressing)),
                 ("material", offset_of!(CornerParams, material)),
+                ("pad", offset_of!(CornerParams, pad)),
             ],
             size_of::<CornerParams>(),
         );
@@ -537,6 +540,9 @@ mod tests {
                     ("samples", offset_of!(ShadowParams, samples)),
                     ("pyramid_levels", offset_of!(ShadowParams, pyramid_levels)),
                     ("material", offset_of!(ShadowParams, material)),
+                    ("pad0", offset_of!(ShadowParams, pad)),
+                    ("pad1", offset_of!(ShadowParams, pad) + 4),
+                    ("pad2", offset_of!(ShadowParams, pad) + 8),
                 ],
                 size_of::<ShadowParams>(),
             );
@@ -555,6 +561,9 @@ mod tests {
                     ("material_count", offset_of!(ClassifyParams, material_count)),
                     ("tile_capacity", offset_of!(ClassifyParams, tile_capacity)),
                     ("flags", offset_of!(ClassifyParams, flags)),
+                    ("pad0", offset_of!(ClassifyParams, pad)),
+                    ("pad1", offset_of!(ClassifyParams, pad) + 4),
+                    ("pad2", offset_of!(ClassifyParams, pad) + 8),
                 ],
                 size_of::<ClassifyParams>(),
             );

@@ -348,6 +348,7 @@ impl ClassifyPass {
             } else {
                 0
             },
+            pad: [0; 3],
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the update is `args_bytes(materials)` bytes (a multiple of 4, at most
