@@ -34,7 +34,9 @@ layout(push_constant) uniform CornerParams {
     uint steps;
     uint addressing;
     uint material;      // the material whose grid this is
-    uint pad;
+    uint pad0;
+    uint pad1;
+    uint pad2;
 } pc;
 
 #include "tiles.glsl"

@@ -119,8 +119,8 @@ pub struct CornerParams {
     pub addressing: u32,
     /// The material whose grid this is.
     pub material: u32,
-    /// Padding.
-    pub pad: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 /// `ClassifyParams` in `glsl/classify.comp`.
@@ -456,7 +456,9 @@ mod tests {
                 ("steps", offset_of!(CornerParams, steps)),
                 ("addressing", offset_of!(CornerParams, addressing)),
                 ("material", offset_of!(CornerParams, material)),
-                ("pad", offset_of!(CornerParams, pad)),
+                ("pad0", offset_of!(CornerParams, pad)),
+                ("pad1", offset_of!(CornerParams, pad) + 4),
+                ("pad2", offset_of!(CornerParams, pad) + 8),
             ],
             size_of::<CornerParams>(),
         );

@@ -195,7 +195,7 @@ impl DigCornerPass {
             steps,
             addressing: addressing_code(height.addressing),
             material,
-            pad: 0,
+            pad: [0; 3],
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match `BINDINGS` (the pipeline's set 0) and name live views in
