@@ -27,6 +27,11 @@ fn main() -> Result<()> {
     let root = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR")?).join("glsl");
     let out = PathBuf::from(std::env::var("OUT_DIR")?);
     println!("cargo:rerun-if-changed=glsl");
+    // `links = "dispmap"` metadata: a dependent's build script reads the folder of the
+    // host-facing GLSL includes (dispmap_gbuffer.glsl, dispmap_plane.glsl) from
+    // DEP_DISPMAP_INCLUDE, wherever cargo put this crate (path, git or registry).
+    let include = Path::new(&std::env::var("CARGO_MANIFEST_DIR")?).join("glsl/include");
+    println!("cargo:include={}", include.display());
 
     let mut sources = Vec::new();
     collect(&root, &root, &mut sources)?;

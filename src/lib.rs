@@ -129,6 +129,13 @@ pub mod scene;
 pub mod shaders;
 pub mod timing;
 
+// The versions of the crates in dispmap's API (`HostHandles` takes ash handles and an
+// `Arc<Mutex<gpu_allocator::vulkan::Allocator>>`, `ShadeTarget` a `glam::Mat4`): a host
+// names them through these re-exports to use exactly dispmap's.
+pub use ash;
+pub use glam;
+pub use gpu_allocator;
+
 pub use context::{Context, ContextOptions};
 pub use error::{Error, Result};
 pub use heightfield::{Addressing, Convention, HeightField};

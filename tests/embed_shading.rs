@@ -299,7 +299,8 @@ impl Host {
             slot.resolved.destroy(&ctx);
         }
         self.gbuffer_pass.destroy(&ctx);
-        self.resolve.destroy(&ctx);
+        // SAFETY: every frame that recorded the resolve has completed.
+        unsafe { self.resolve.destroy(&ctx) };
     }
 }
 

@@ -69,38 +69,7 @@ fn host_handles_give_the_same_hits_as_standalone() {
     // SAFETY: test code; every handle below is created and destroyed in order.
     unsafe {
         let entry = ash::Entry::load().unwrap();
-        let app = vk::ApplicationInfo::default().api_version(requirements::API_VERSION);
-        let layers = [dispmap::context::VALIDATION_LAYER.as_ptr()];
-        let extensions = [ash::ext::debug_utils::NAME.as_ptr()];
-        let sync = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
-        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&sync);
-        let messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-            .message_severity(
-                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
-            )
-            .message_type(
-                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-            )
-            .pfn_user_callback(Some(engine_messenger));
-        let mut creation_messenger = messenger_info;
-        let instance = entry
-            .create_instance(
-                &vk::InstanceCreateInfo::default()
-                    .application_info(&app)
-                    .enabled_layer_names(&layers)
-                    .enabled_extension_names(&extensions)
-                    .push_next(&mut features)
-                    .push_next(&mut creation_messenger),
-                None,
-            )
-            .unwrap();
-        let debug_utils = ash::ext::debug_utils::Instance::new(&entry, &instance);
-        let messenger = debug_utils
-            .create_debug_utils_messenger(&messenger_info, None)
-            .unwrap();
+        let (instance, debug_utils, messenger) = engine_instance(&entry, requirements::API_VERSION);
         let physical_device = instance
             .enumerate_physical_devices()
             .unwrap()
@@ -187,6 +156,138 @@ fn host_handles_give_the_same_hits_as_standalone() {
         debug_utils.destroy_debug_utils_messenger(messenger, None);
         instance.destroy_instance(None);
         drop(entry);
+        assert_eq!(
+            ENGINE_MESSAGES.load(Ordering::SeqCst),
+            0,
+            "the engine's validation reported warnings or errors"
+        );
+    }
+}
+
+/// The engine's instance at `api_version`, with the validation layer (synchronization
+/// validation on) and its own messenger, also over instance creation.
+///
+/// # Safety
+/// Test code: the caller destroys the messenger, then the instance.
+unsafe fn engine_instance(
+    entry: &ash::Entry,
+    api_version: u32,
+) -> (
+    ash::Instance,
+    ash::ext::debug_utils::Instance,
+    vk::DebugUtilsMessengerEXT,
+) {
+    let app = vk::ApplicationInfo::default().api_version(api_version);
+    let layers = [dispmap::context::VALIDATION_LAYER.as_ptr()];
+    let extensions = [ash::ext::debug_utils::NAME.as_ptr()];
+    let sync = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+    let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&sync);
+    let messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+        )
+        .pfn_user_callback(Some(engine_messenger));
+    let mut creation_messenger = messenger_info;
+    // SAFETY: test code; valid create infos.
+    unsafe {
+        let instance = entry
+            .create_instance(
+                &vk::InstanceCreateInfo::default()
+                    .application_info(&app)
+                    .enabled_layer_names(&layers)
+                    .enabled_extension_names(&extensions)
+                    .push_next(&mut features)
+                    .push_next(&mut creation_messenger),
+                None,
+            )
+            .unwrap();
+        let debug_utils = ash::ext::debug_utils::Instance::new(entry, &instance);
+        let messenger = debug_utils
+            .create_debug_utils_messenger(&messenger_info, None)
+            .unwrap();
+        (instance, debug_utils, messenger)
+    }
+}
+
+/// A Vulkan 1.2 engine (its instance asks for 1.2; the device enables
+/// `VK_KHR_synchronization2`, `VK_KHR_dynamic_rendering` and `VK_KHR_push_descriptor`, with
+/// their features through the KHR structs) gets `Error::Unsupported` naming the 1.3 entry
+/// points dispmap calls, never a panic inside ash at the first record.
+#[test]
+fn a_vulkan_1_2_device_is_refused_by_name() {
+    // SAFETY: test code; every handle below is created and destroyed in order.
+    unsafe {
+        let entry = ash::Entry::load().unwrap();
+        let (instance, debug_utils, messenger) = engine_instance(&entry, vk::API_VERSION_1_2);
+        let physical_device = instance.enumerate_physical_devices().unwrap()[0];
+        let family = instance
+            .get_physical_device_queue_family_properties(physical_device)
+            .iter()
+            .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+            .unwrap() as u32;
+        let exts = [
+            ash::khr::synchronization2::NAME.as_ptr(),
+            ash::khr::dynamic_rendering::NAME.as_ptr(),
+            ash::khr::push_descriptor::NAME.as_ptr(),
+        ];
+        let mut sync2 = vk::PhysicalDeviceSynchronization2FeaturesKHR::default().synchronization2(true);
+        let mut rendering =
+            vk::PhysicalDeviceDynamicRenderingFeaturesKHR::default().dynamic_rendering(true);
+        let queues = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(family)
+            .queue_priorities(&[1.0])];
+        let device = instance
+            .create_device(
+                physical_device,
+                &vk::DeviceCreateInfo::default()
+                    .queue_create_infos(&queues)
+                    .enabled_extension_names(&exts)
+                    .push_next(&mut sync2)
+                    .push_next(&mut rendering),
+                None,
+            )
+            .unwrap();
+        let queue = device.get_device_queue(family, 0);
+        let allocator = Arc::new(Mutex::new(
+            Allocator::new(&AllocatorCreateDesc {
+                instance: instance.clone(),
+                device: device.clone(),
+                physical_device,
+                debug_settings: Default::default(),
+                buffer_device_address: false,
+                allocation_sizes: Default::default(),
+            })
+            .unwrap(),
+        ));
+        let result = Context::from_handles(
+            HostHandles {
+                entry: entry.clone(),
+                instance: instance.clone(),
+                physical_device,
+                device: device.clone(),
+                queue_family_index: family,
+                queue,
+                allocator: allocator.clone(),
+            },
+            true,
+        );
+        let message = match result {
+            Err(dispmap::Error::Unsupported { what, .. }) => what,
+            Err(e) => panic!("expected Unsupported, got {e}"),
+            Ok(_) => panic!("a 1.2 device was accepted"),
+        };
+        assert!(message.contains("vkCmdPipelineBarrier2"), "{message}");
+        eprintln!("refused: {message}");
+        drop(allocator);
+        device.destroy_device(None);
+        debug_utils.destroy_debug_utils_messenger(messenger, None);
+        instance.destroy_instance(None);
         assert_eq!(
             ENGINE_MESSAGES.load(Ordering::SeqCst),
             0,

@@ -620,7 +620,8 @@ fn destroy_all(
     boxes: &mut BoxPipeline,
 ) {
     boxes.destroy(ctx);
-    resolve.destroy(ctx);
+    // SAFETY: the command buffer that recorded the resolve has completed (waited for).
+    unsafe { resolve.destroy(ctx) };
     color.destroy(ctx);
     depth.destroy(ctx);
     shot.destroy(ctx);

@@ -178,7 +178,6 @@ destroy_by_method!(
     crate::passes::background::BackgroundPass,
     crate::passes::classify::ClassifyPass,
     crate::passes::classify::TileLists,
-    crate::passes::depth_resolve::DepthResolvePass,
     crate::passes::cone::ConeMap,
     crate::passes::cone::ConePass,
     crate::passes::dig::CornerGrid,

@@ -52,7 +52,8 @@ impl DepthResolvePass {
         match pass.build(ctx, dev) {
             Ok(()) => Ok(pass),
             Err(e) => {
-                pass.destroy(ctx);
+                // SAFETY: never recorded.
+                unsafe { pass.destroy(ctx) };
                 Err(e)
             }
         }
@@ -176,10 +177,15 @@ impl DepthResolvePass {
         }
     }
 
-    /// Destroys the pipeline, layouts and sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
+    /// Destroys the pipeline, layouts and sampler and nulls their handles (a second call
+    /// does nothing).
+    ///
+    /// # Safety
+    /// No command buffer that recorded this pass is pending (the host waited on the
+    /// fences of every frame that used it, or for the device to idle).
+    pub unsafe fn destroy(&mut self, ctx: &Context) {
         let dev = ctx.device();
-        // SAFETY: caller guarantees no pending use; null handles are ignored.
+        // SAFETY: this function's contract (no pending use); null handles are ignored.
         unsafe {
             dev.destroy_pipeline(self.pipeline, None);
             dev.destroy_pipeline_layout(self.layout, None);

@@ -12,7 +12,13 @@ use std::sync::Arc;
 
 const SIDE: u32 = 64;
 
+/// dispmap's G-buffer include as the build script found it (DEP_DISPMAP_INCLUDE).
+const GBUFFER_GLSL: &str = include_str!(concat!(env!("OUT_DIR"), "/dispmap_gbuffer.glsl"));
+
 fn main() -> Result<(), Box<dyn Error>> {
+    if !GBUFFER_GLSL.contains("dispmap_gbuffer_encode_material") {
+        return Err("DEP_DISPMAP_INCLUDE did not lead to dispmap's G-buffer include".into());
+    }
     let field = HeightField::from_fn(SIDE, SIDE, "downstream bumps", |u, v| {
         let tau = std::f32::consts::TAU;
         0.5 + 0.25 * (3.0 * tau * u).sin() * (2.0 * tau * v).cos()
