@@ -354,7 +354,7 @@ impl Context {
             return Err(Error::Unsupported {
                 device: device_name(&instance, physical_device),
                 what: format!(
-                    "device entry points {} (a Vulkan 1.3 device, created from an instance                      with apiVersion 1.3, with {} enabled)",
+                    "device entry points {} (a Vulkan 1.3 device, created from an instance with apiVersion 1.3, with {} enabled)",
                     missing.join(", "),
                     ash::khr::push_descriptor::NAME.to_string_lossy()
                 ),
@@ -964,6 +964,36 @@ fn version_string(v: u32) -> String {
     )
 }
 
+/// The device-level commands dispmap records or calls, by their Vulkan names: the 1.3 core
+/// ones are absent from a device of a 1.2 instance even when the device supports 1.3 (or
+/// has `VK_KHR_synchronization2` / `VK_KHR_dynamic_rendering`, whose `KHR` aliases dispmap
+/// does not load), and ash would panic on the first call.
+pub const DEVICE_ENTRY_POINTS: &[&CStr] = &[
+    c"vkCmdPipelineBarrier2",
+    c"vkCmdWriteTimestamp2",
+    c"vkCmdBeginRendering",
+    c"vkCmdEndRendering",
+    c"vkQueueSubmit2",
+    c"vkCmdPushDescriptorSetKHR",
+    c"vkCmdDispatchIndirect",
+    c"vkCmdUpdateBuffer",
+];
+
+/// The [`DEVICE_ENTRY_POINTS`] `device` does not provide.
+///
+/// # Safety
+/// `device` is a live device created from `instance`.
+unsafe fn missing_entry_points(instance: &ash::Instance, device: &ash::Device) -> Vec<String> {
+    DEVICE_ENTRY_POINTS
+        .iter()
+        .filter(|name| {
+            // SAFETY: this function's contract; the name is NUL-terminated.
+            unsafe { instance.get_device_proc_addr(device.handle(), name.as_ptr()) }.is_none()
+        })
+        .map(|name| name.to_string_lossy().into_owned())
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1016,34 +1046,4 @@ mod tests {
             assert_eq!(parse_switch(bad), None, "{bad}");
         }
     }
-}
-
-/// The device-level commands dispmap records or calls, by their Vulkan names: the 1.3 core
-/// ones are absent from a device of a 1.2 instance even when the device supports 1.3 (or
-/// has `VK_KHR_synchronization2` / `VK_KHR_dynamic_rendering`, whose `KHR` aliases dispmap
-/// does not load), and ash would panic on the first call.
-pub const DEVICE_ENTRY_POINTS: &[&CStr] = &[
-    c"vkCmdPipelineBarrier2",
-    c"vkCmdWriteTimestamp2",
-    c"vkCmdBeginRendering",
-    c"vkCmdEndRendering",
-    c"vkQueueSubmit2",
-    c"vkCmdPushDescriptorSetKHR",
-    c"vkCmdDispatchIndirect",
-    c"vkCmdUpdateBuffer",
-];
-
-/// The [`DEVICE_ENTRY_POINTS`] `device` does not provide.
-///
-/// # Safety
-/// `device` is a live device created from `instance`.
-unsafe fn missing_entry_points(instance: &ash::Instance, device: &ash::Device) -> Vec<String> {
-    DEVICE_ENTRY_POINTS
-        .iter()
-        .filter(|name| {
-            // SAFETY: this function's contract; the name is NUL-terminated.
-            unsafe { instance.get_device_proc_addr(device.handle(), name.as_ptr()) }.is_none()
-        })
-        .map(|name| name.to_string_lossy().into_owned())
-        .collect()
 }

@@ -236,7 +236,8 @@ fn a_vulkan_1_2_device_is_refused_by_name() {
             ash::khr::dynamic_rendering::NAME.as_ptr(),
             ash::khr::push_descriptor::NAME.as_ptr(),
         ];
-        let mut sync2 = vk::PhysicalDeviceSynchronization2FeaturesKHR::default().synchronization2(true);
+        let mut sync2 =
+            vk::PhysicalDeviceSynchronization2FeaturesKHR::default().synchronization2(true);
         let mut rendering =
             vk::PhysicalDeviceDynamicRenderingFeaturesKHR::default().dynamic_rendering(true);
         let queues = [vk::DeviceQueueCreateInfo::default()
