@@ -175,6 +175,8 @@ pub struct Context {
     messages: Arc<MessageCounter>,
     info: DeviceInfo,
     owns_handles: bool,
+    /// The host's pipeline cache every pipeline is created with (null: none).
+    pipeline_cache: vk::PipelineCache,
     /// Whether this context enabled the Khronos validation layer on its instance.
     validation: bool,
 }
@@ -378,8 +380,29 @@ impl Context {
             messages,
             info,
             owns_handles: false,
+            pipeline_cache: vk::PipelineCache::null(),
             validation: false,
         })
+    }
+
+    /// Creates every later pipeline of this context (those of passes built from now on)
+    /// with the host's `cache`, as engines do to ship warm pipeline caches; the host keeps
+    /// it alive and destroys it after the context (dispmap never destroys it, and only
+    /// reads and writes it inside `vkCreate*Pipelines`).
+    ///
+    /// # Safety
+    /// `cache` is a pipeline cache of this context's device, alive as long as the
+    /// context, and not used by another thread while dispmap creates pipelines
+    /// (`VK_PIPELINE_CACHE_CREATE_EXTERNALLY_SYNCHRONIZED_BIT` caches included) unless it
+    /// was created without that flag, which Vulkan makes thread-safe.
+    pub unsafe fn with_pipeline_cache(mut self, cache: vk::PipelineCache) -> Self {
+        self.pipeline_cache = cache;
+        self
+    }
+
+    /// The pipeline cache pipelines are created with (null: none).
+    pub fn pipeline_cache(&self) -> vk::PipelineCache {
+        self.pipeline_cache
     }
 
     /// Checks a physical device against the [`requirements`]; the error lists what is missing.

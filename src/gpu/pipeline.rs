@@ -70,8 +70,7 @@ impl ComputePipeline {
             .layout(layout)];
         // SAFETY: module and layout are valid; the module was built by build.rs for
         // Vulkan 1.3 and matches the layout (checked by validation in tests).
-        let result =
-            unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        let result = unsafe { dev.create_compute_pipelines(ctx.pipeline_cache(), &info, None) };
         // SAFETY: the module is no longer needed once the pipeline exists.
         unsafe { dev.destroy_shader_module(module, None) };
         let pipeline = result.map_err(|(_, e)| e).vk("vkCreateComputePipelines")?[0];
@@ -387,7 +386,7 @@ pub fn raster_pipeline(ctx: &Context, desc: &RasterDesc) -> Result<vk::Pipeline>
         .push_next(&mut rendering)];
     // SAFETY: every referenced state lives until the call returns; dynamic rendering is
     // enabled on the device (requirements).
-    let result = unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+    let result = unsafe { dev.create_graphics_pipelines(ctx.pipeline_cache(), &info, None) };
     // SAFETY: the modules are not needed after pipeline creation.
     unsafe {
         dev.destroy_shader_module(vert, None);
