@@ -153,6 +153,26 @@ fn camera() -> (Scene, (glam::Mat4, glam::Vec3)) {
     (scene, (cam.view_proj, cam.eye))
 }
 
+/// The test's materials, their depth scales, the camera, the host and its rasterised
+/// G-buffer.
+fn setup(
+    ctx: &Arc<Context>,
+) -> (
+    Vec<Mat>,
+    Vec<f32>,
+    (glam::Mat4, glam::Vec3),
+    RayHost,
+    GBufferTexels,
+) {
+    let mats = materials();
+    let depths = mats.iter().map(|m| m.settings.depth_scale).collect();
+    let (scene, cam) = camera();
+    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
+    host.rasterise(&scene.gbuffer_params(&scene.frame_camera(EXTENT.width, EXTENT.height)));
+    let base = host.read_gbuffer();
+    (mats, depths, cam, host, base)
+}
+
 fn pass_settings(s: &MaterialSettings) -> PassSettings {
     PassSettings {
         method: s.method,
@@ -197,12 +217,7 @@ fn teardown(ctx: Arc<Context>, passes: Vec<DisplacementPass>, host: RayHost) {
 #[test]
 fn three_materials_and_flat_geometry_in_one_record_match_single_material_frames() {
     let ctx = validated_context();
-    let mats = materials();
-    let depths: Vec<f32> = mats.iter().map(|m| m.settings.depth_scale).collect();
-    let (scene, cam) = camera();
-    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
-    host.rasterise(&scene.gbuffer_params(&scene.frame_camera(EXTENT.width, EXTENT.height)));
-    let base = host.read_gbuffer();
+    let (mats, depths, cam, mut host, base) = setup(&ctx);
 
     // The frame with every material in one pass.
     let mut all = DisplacementPass::new(
@@ -307,12 +322,7 @@ fn three_materials_and_flat_geometry_in_one_record_match_single_material_frames(
 #[test]
 fn materials_added_replaced_and_removed_with_frames_in_flight() {
     let ctx = validated_context();
-    let mats = materials();
-    let depths: Vec<f32> = mats.iter().map(|m| m.settings.depth_scale).collect();
-    let (scene, cam) = camera();
-    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
-    host.rasterise(&scene.gbuffer_params(&scene.frame_camera(EXTENT.width, EXTENT.height)));
-    let base = host.read_gbuffer();
+    let (mats, depths, cam, mut host, base) = setup(&ctx);
     host.upload_gbuffer(&gbuffer(&base, &depths, |x, y| {
         region(x, y).map(|r| r as u32)
     }));

@@ -283,50 +283,38 @@ impl RayHost {
         camera: (glam::Mat4, glam::Vec3),
         fill: [u8; 4],
     ) {
-        let ctx = self.ctx.clone();
         let pixels: Vec<[u8; 4]> = vec![fill; self.pixels()];
         self.slots.wait(s);
         upload_image(
-            &ctx,
+            &self.ctx,
             &self.shot,
             &self.colors[s],
             bytemuck::cast_slice(&pixels),
             Access::COMPUTE_STORAGE_WRITE,
         )
         .unwrap();
-        let cmd = self.slots.begin(s);
-        let hit = &self.hits[s];
-        // SAFETY: as in `submit`; the colour image holds the host's fill in GENERAL,
-        // visible to compute-shader storage writes (the upload above, completed).
-        unsafe { sync::transition(&ctx, cmd, hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
-        let inputs = FrameInputs {
-            frame_slot: s as u32,
-            gbuffer: self.gbuffer.views(),
-            hit: hit.view,
-            shade: Some(dispmap::embed::ShadeTarget {
-                color: self.colors[s].view,
-                view_proj: camera.0,
-                camera_pos: camera.1,
-                light_dir: glam::Vec3::new(0.3, 0.8, 0.5).normalize(),
-                light_intensity: 1.0,
-            }),
+        // The colour image holds the host's fill in GENERAL, visible to compute-shader
+        // storage writes (the upload above, completed).
+        let shade = dispmap::embed::ShadeTarget {
+            color: self.colors[s].view,
+            view_proj: camera.0,
+            camera_pos: camera.1,
+            light_dir: glam::Vec3::new(0.3, 0.8, 0.5).normalize(),
+            light_intensity: 1.0,
         };
-        // SAFETY: as in `submit`.
-        unsafe { pass.record(cmd, &inputs, Timestamps::Off) }.unwrap();
-        self.slots.submit(s);
+        self.record_slot(pass, s, Some(shade));
     }
 
     /// The colour image of slot `s` after its last frame (waits for it).
     pub fn colors(&mut self, s: usize) -> Vec<[u8; 4]> {
+        bytemuck::cast_slice::<u8, [u8; 4]>(&self.read_slot(s, false)).to_vec()
+    }
+
+    /// Slot `s`'s hit (or colour) image after its last frame (waits for it).
+    fn read_slot(&mut self, s: usize, hits: bool) -> Vec<u8> {
         self.slots.wait(s);
-        let bytes = read_image(
-            &self.ctx,
-            &self.shot,
-            &self.colors[s],
-            Access::COMPUTE_STORAGE_WRITE,
-        )
-        .unwrap();
-        bytemuck::cast_slice::<u8, [u8; 4]>(&bytes).to_vec()
+        let image = if hits { &self.hits[s] } else { &self.colors[s] };
+        read_image(&self.ctx, &self.shot, image, Access::COMPUTE_STORAGE_WRITE).unwrap()
     }
 
     /// Waits for the frame of slot `s`.
@@ -347,6 +335,17 @@ impl RayHost {
     /// Records `pass` into slot `s` (after waiting for the slot's last frame) and submits
     /// it without waiting.
     pub fn submit(&mut self, pass: &mut DisplacementPass, s: usize) {
+        self.record_slot(pass, s, None);
+    }
+
+    /// Records `pass` into slot `s` (after waiting for the slot's last frame) with
+    /// `shade`, and submits it without waiting.
+    fn record_slot(
+        &mut self,
+        pass: &mut DisplacementPass,
+        s: usize,
+        shade: Option<dispmap::embed::ShadeTarget>,
+    ) {
         let ctx = self.ctx.clone();
         let cmd = self.slots.begin(s);
         let hit = &self.hits[s];
@@ -359,28 +358,21 @@ impl RayHost {
             frame_slot: s as u32,
             gbuffer: self.gbuffer.views(),
             hit: hit.view,
-            shade: None,
+            shade,
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue
         // family; the G-buffer is in SHADER_READ_ONLY_OPTIMAL after its upload or
         // rasterisation (completed: `set_rays` / `rasterise` wait), the hit image in
-        // GENERAL; the views live until the frame completes; the slot contract holds
-        // (`begin` waited) and the buffer is submitted below, in recording order.
+        // GENERAL, a shade target's colour image too (`submit_shaded`); the views live
+        // until the frame completes; the slot contract holds (`begin` waited) and the
+        // buffer is submitted below, in recording order.
         unsafe { pass.record(cmd, &inputs, Timestamps::Off) }.unwrap();
         self.slots.submit(s);
     }
 
     /// The hit buffer of slot `s` after its last frame (waits for it).
     pub fn hits(&mut self, s: usize) -> Vec<[f32; 4]> {
-        self.slots.wait(s);
-        let bytes = read_image(
-            &self.ctx,
-            &self.shot,
-            &self.hits[s],
-            Access::COMPUTE_STORAGE_WRITE,
-        )
-        .unwrap();
-        bytemuck::cast_slice::<u8, [f32; 4]>(&bytes).to_vec()
+        bytemuck::cast_slice::<u8, [f32; 4]>(&self.read_slot(s, true)).to_vec()
     }
 
     /// One frame in slot 0, waited for: its hit buffer.
