@@ -20,7 +20,14 @@ void main() {
     DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, vec3(0.0, 1.0, 0.0),
         vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), SURFACE_ID, pc.depth_scale, pc.min_cos,
         pc.addressing);
-    if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {
+    // camera_pos.w: the drawn object's material index + 1, or 0 for an object that is
+    // not displaced (src/abi.rs GBufferParams; 1 = material 0 for a single object).
+    uint material_plus_one = uint(pc.camera_pos.w);
+    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, out_ray, out_normal,
+                                         out_tangent)) {
         discard;
+    }
+    if (material_plus_one == 0u) {
+        dispmap_gbuffer_encode_flat(s.normal, s.tangent, SURFACE_ID, out_ray, out_normal, out_tangent);
     }
 }

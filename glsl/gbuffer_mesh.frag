@@ -27,8 +27,15 @@ void main() {
     vec3 B = w * cross(N, T);
     DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, N, T, B, v_surface,
         pc.depth_scale, pc.min_cos, pc.addressing);
-    if (!dispmap_gbuffer_encode(s, out_ray, out_normal, out_tangent)) {
+    // camera_pos.w: the drawn object's material index + 1, or 0 for an object that is
+    // not displaced (src/abi.rs GBufferParams; 1 = material 0 for a single object).
+    uint material_plus_one = uint(pc.camera_pos.w);
+    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, out_ray, out_normal,
+                                         out_tangent)) {
         discard;
+    }
+    if (material_plus_one == 0u) {
+        dispmap_gbuffer_encode_flat(s.normal, s.tangent, v_surface, out_ray, out_normal, out_tangent);
     }
     float stretch = clamp(v_stretch, 1.0 / 64.0, 64.0);
     out_ray.zw *= vec2(inversesqrt(stretch), sqrt(stretch));

@@ -148,8 +148,9 @@ pub struct GBufferParams {
     /// The vertex stages transform positions relative to the eye, so a camera far from
     /// the origin keeps full precision near the eye.
     pub view_proj: Mat4,
-    /// Eye position (xyz); `w`: the material this dispatch shades (an integer in f32:
-    /// the block is at the 128 bytes every device allows).
+    /// Eye position (xyz); `w`: the drawn object's material index + 1, or 0 for an
+    /// object that is not displaced (an integer in f32: the block is at the 128 bytes
+    /// every device allows). [`crate::scene::Scene::gbuffer_params`] gives 1 (material 0).
     pub camera_pos: Vec4,
     /// x0, z0, x1, z1 of the quad (or of the plane's grid) on the y = 0 plane.
     pub world_rect: Vec4,

@@ -52,6 +52,10 @@ use ash::vk;
 use glam::Vec3;
 use gpu_allocator::MemoryLocation;
 
+/// The largest surface id a half float holds exactly alongside its neighbours (ids cycle
+/// through `1..=MAX_SURFACE_ID`).
+pub const MAX_SURFACE_ID: u32 = 2048;
+
 /// One vertex, as `glsl/gbuffer_mesh.vert` reads it (binding 0, locations 0 to 5).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -393,6 +397,68 @@ impl Mesh {
             indices,
             label: label.into(),
         })
+    }
+
+    /// The unit quad as a mesh: `[0, 1]` in x and z on `y = 0`, facing `+y`, `u` along
+    /// `+x` and `v` along `+z` (the frame `glsl/gbuffer.frag` gives the generated quad),
+    /// surface id 1. A scene with several objects draws a placed quad with it.
+    pub fn quad() -> Mesh {
+        let (n, t, b) = (Vec3::Y, Vec3::X, Vec3::Z);
+        let vertices = [(0.0f32, 0.0f32), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+            .into_iter()
+            .map(|(u, v)| Vertex {
+                position: [u, 0.0, v],
+                normal: n.to_array(),
+                tangent: t.extend(handedness(n, t, b)).to_array(),
+                uv: [u, v],
+                stretch: 1.0,
+                surface: 1.0,
+            })
+            .collect();
+        Mesh {
+            vertices,
+            indices: vec![0, 1, 2, 0, 2, 3],
+            label: "quad".into(),
+        }
+    }
+
+    /// This mesh moved by `placement` (positions transformed, normals and tangents
+    /// rotated; the scale is uniform, so the stretch and handedness stay) and its surface
+    /// ids shifted by `surface_offset` (cycling through `1..=2048` as the module docs
+    /// say), so that objects of one frame never share a surface id.
+    pub fn placed(&self, placement: &crate::scene::Placement, surface_offset: u32) -> Mesh {
+        let m = placement.matrix();
+        let r = placement.rotation();
+        let vertices = self
+            .vertices
+            .iter()
+            .map(|v| {
+                let t = r * Vec3::from(<[f32; 3]>::try_from(&v.tangent[..3]).unwrap_or_default());
+                let id = (v.surface as u32).max(1) - 1 + surface_offset;
+                Vertex {
+                    position: m.transform_point3(Vec3::from(v.position)).to_array(),
+                    normal: (r * Vec3::from(v.normal)).to_array(),
+                    tangent: t.extend(v.tangent[3]).to_array(),
+                    uv: v.uv,
+                    stretch: v.stretch,
+                    surface: (id % MAX_SURFACE_ID + 1) as f32,
+                }
+            })
+            .collect();
+        Mesh {
+            vertices,
+            indices: self.indices.clone(),
+            label: self.label.clone(),
+        }
+    }
+
+    /// The largest surface id of the mesh (0 for an empty mesh).
+    pub fn max_surface_id(&self) -> u32 {
+        self.vertices
+            .iter()
+            .map(|v| v.surface as u32)
+            .max()
+            .unwrap_or(0)
     }
 
     /// The distinct surface ids of the mesh, sorted.

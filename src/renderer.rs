@@ -20,7 +20,8 @@
 
 use crate::context::Context;
 use crate::embed::{
-    DisplacementPass, FrameInputs, MAX_QUERIES, PassSettings, ShadeTarget, Timestamps,
+    DisplacementPass, FrameInputs, MAX_QUERIES, MaterialId, MaterialSettings, PassSettings,
+    ShadeTarget, Timestamps,
 };
 use crate::error::{Error, Result};
 use crate::gpu::commands::{read_image, upload_image};
@@ -34,11 +35,11 @@ use crate::method::{Method, MethodParams};
 use crate::passes::PassName;
 use crate::passes::background::BackgroundPass;
 use crate::passes::dig::Corner;
-use crate::passes::gbuffer::{GBuffer, GBufferPass, Ray};
+use crate::passes::gbuffer::{GBuffer, GBufferDraw, GBufferPass, Ray};
 use crate::passes::shade::COLOR_FORMAT;
 use crate::passes::shadow::{ShadowSettings, VISIBILITY_FORMAT};
 use crate::passes::trace::{HIT_FORMAT, HitTexel};
-use crate::scene::Scene;
+use crate::scene::{Geometry, Placement, Scene};
 use crate::timing::{QueryPool, ScopeWriter, read_timestamps};
 use ash::vk;
 use std::sync::Arc;
@@ -125,11 +126,89 @@ pub struct Renderer {
     background: BackgroundPass,
     /// The macro geometry's vertex and index buffers (meshes only).
     mesh: Option<MeshBuffers>,
+    /// A frame of several objects ([`Renderer::with_objects`]); `None`: the one geometry
+    /// of the settings.
+    objects: Option<Objects>,
     pass: DisplacementPass,
     /// Whether a frame has written the corrected depth since it was turned on.
     depth_written: bool,
     /// GPU milliseconds of the last build of each one-off map (pyramid, cone map).
     builds: Vec<(PassName, f64)>,
+}
+
+/// The displaced material of one object of [`Renderer::with_objects`].
+#[derive(Clone, Copy, Debug)]
+pub struct ObjectMaterial<'a> {
+    /// Its height map.
+    pub field: &'a HeightField,
+    /// Its method, parameters, depth scale and addressing.
+    pub settings: MaterialSettings,
+    /// Its albedo and normal map (empty: none).
+    pub images: &'a MaterialImages,
+}
+
+/// One object of a frame of several objects ([`Renderer::with_objects`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SceneObject<'a> {
+    /// Its geometry: the tiled plane (which has no placement: `placement` must be the
+    /// default), a quad, a generated mesh or a loaded one.
+    pub geometry: Geometry,
+    /// Where it sits.
+    pub placement: Placement,
+    /// The loaded mesh of [`Geometry::Mesh`] (needed there, ignored elsewhere).
+    pub mesh: Option<&'a Mesh>,
+    /// Its displaced material; `None`: drawn flat (not displaced, shaded by the
+    /// renderer's background pass).
+    pub material: Option<ObjectMaterial<'a>>,
+}
+
+/// Largest number of objects of [`Renderer::with_objects`].
+pub const MAX_OBJECTS: usize = 256;
+
+/// The objects of a frame of several objects: what the G-buffer pass draws.
+struct Objects {
+    /// The meshes' pipeline (the plane's is `Renderer::gbuffer_pass`), when an object
+    /// is not the tiled plane.
+    mesh_pass: Option<GBufferPass>,
+    /// Per object: its vertex buffers (`None`: the tiled plane, drawn by the plane
+    /// pipeline) ...
+    meshes: Vec<Option<MeshBuffers>>,
+    /// ... and its material (`None`: flat).
+    materials: Vec<Option<MaterialId>>,
+    /// The camera's target and orbit distance (`None`: the tiled plane's camera, when a
+    /// plane is among the objects).
+    framing: Option<(glam::Vec3, f32)>,
+}
+
+impl crate::gpu::owned::Destroy for Objects {
+    fn destroy(&mut self, ctx: &Context) {
+        self.mesh_pass.destroy(ctx);
+        self.meshes.destroy(ctx);
+    }
+}
+
+/// The sphere around the objects (each generated or loaded mesh fits the unit sphere
+/// before its placement; the quad spans `[0, 1]²`): its centre and radius.
+fn bounding_sphere(objects: &[SceneObject<'_>]) -> (glam::Vec3, f32) {
+    let spheres: Vec<(glam::Vec3, f32)> = objects
+        .iter()
+        .map(|o| {
+            let p = &o.placement;
+            match o.geometry {
+                Geometry::Quad => (
+                    p.matrix().transform_point3(glam::Vec3::new(0.5, 0.0, 0.5)),
+                    p.scale * std::f32::consts::FRAC_1_SQRT_2,
+                ),
+                _ => (p.position, p.scale),
+            }
+        })
+        .collect();
+    let centre = spheres.iter().map(|s| s.0).sum::<glam::Vec3>() / spheres.len().max(1) as f32;
+    let radius = spheres
+        .iter()
+        .map(|(c, r)| (*c - centre).length() + r)
+        .fold(0.0f32, f32::max);
+    (centre, radius)
 }
 
 /// What a scene brings besides the height field and the settings: a loaded mesh (for
@@ -243,10 +322,241 @@ impl Renderer {
             gbuffer_pass: gbuffer_pass.keep(),
             background: background.keep(),
             mesh: mesh.keep(),
+            objects: None,
             pass,
             depth_written: false,
             builds: Vec::new(),
         })
+    }
+
+    /// A renderer of several objects in one G-buffer: each object drawn with its own
+    /// placement and, when it has a material, that material's index in `tangent.w`, depth
+    /// scale and addressing (the per-draw push constants: `camera_pos.w` carries the
+    /// material, see [`crate::abi::GBufferParams`]); objects without one are drawn flat
+    /// (`tangent.w = 0`) and shaded by the background pass. Mesh vertices are placed on
+    /// the CPU once here (positions transformed, frames rotated, surface ids shifted so
+    /// that no two objects share one). Each displaced object is one material of the pass
+    /// (maps with equal content and addressing are shared by the pass): the first
+    /// displaced object's is the pass's primary material, and `settings`' method,
+    /// parameters, depth scale, addressing and geometry are replaced by its own (so
+    /// [`Renderer::set_method`] and [`Renderer::set_scene`]'s depth scale act on it).
+    /// `settings`' camera orbits the sphere around the objects at the distance that
+    /// frames it, or, with a tiled plane among them, is the plane's camera (the eye
+    /// `height` above the plane, looking at the origin). At least one object needs a
+    /// material.
+    pub fn with_objects(
+        ctx: &Arc<Context>,
+        settings: RenderSettings,
+        objects: &[SceneObject<'_>],
+    ) -> Result<Self> {
+        if objects.is_empty() || objects.len() > MAX_OBJECTS {
+            return Err(Error::invalid(
+                "objects",
+                format!(
+                    "{} objects: a frame takes 1 to {MAX_OBJECTS}",
+                    objects.len()
+                ),
+            ));
+        }
+        let Some((first, primary)) = objects
+            .iter()
+            .find_map(|o| o.material.map(|m| (o.geometry, m)))
+        else {
+            return Err(Error::invalid(
+                "objects",
+                "no object has a height map: at least one must be displaced",
+            ));
+        };
+        let mut settings = settings;
+        settings.method = primary.settings.method;
+        settings.params = primary.settings.params;
+        settings.scene.depth_scale = primary.settings.depth_scale;
+        settings.scene.addressing = Some(primary.settings.addressing);
+        settings.scene.geometry = first;
+        settings.validate()?;
+        let mut placed = Vec::with_capacity(objects.len());
+        let mut surface_offset = 0u32;
+        for (i, o) in objects.iter().enumerate() {
+            let name = |e: Error| match e {
+                Error::InvalidInput { name, message } => {
+                    Error::invalid(format!("object {} {name}", i + 1), message)
+                }
+                other => other,
+            };
+            o.placement.validate().map_err(name)?;
+            let mesh = match o.geometry {
+                Geometry::TiledPlane => {
+                    if o.placement != Placement::default() {
+                        return Err(name(Error::invalid(
+                            "placement",
+                            "the tiled plane has no position, scale or rotation",
+                        )));
+                    }
+                    surface_offset += 1;
+                    None
+                }
+                Geometry::Quad => Some(Mesh::quad()),
+                Geometry::Mesh => Some(
+                    o.mesh
+                        .ok_or_else(|| {
+                            name(Error::invalid(
+                                "mesh",
+                                "geometry 'mesh' needs a loaded mesh",
+                            ))
+                        })?
+                        .clone(),
+                ),
+                g => g.generated_mesh(),
+            };
+            placed.push(mesh.map(|m| {
+                let m = m.placed(&o.placement, surface_offset);
+                surface_offset += m.max_surface_id().max(1);
+                m
+            }));
+            if let Some(m) = &o.material {
+                let max = ctx.info().max_image_dimension_2d;
+                if m.field.width() > max || m.field.height() > max {
+                    return Err(name(Error::invalid(
+                        m.field.label(),
+                        format!("exceeds the device's maxImageDimension2D ({max})"),
+                    )));
+                }
+            }
+        }
+        let extent = settings.extent();
+        let c = &**ctx;
+        let shot = Guard::new(c, OneShot::new(c, "renderer")?);
+        let timestamps = Guard::new(
+            c,
+            QueryPool(crate::timing::timestamp_pool(
+                c,
+                "renderer.timestamps",
+                GBUFFER_QUERIES + MAX_QUERIES,
+            )?),
+        );
+        let (gbuffer, hit, color) = frame_images(c, extent)?;
+        let gbuffer_pass = Guard::new(c, GBufferPass::new(c)?);
+        let mut drawn = Guard::new(
+            c,
+            Objects {
+                mesh_pass: None,
+                meshes: Vec::new(),
+                materials: Vec::new(),
+                framing: None,
+            },
+        );
+        if placed.iter().any(Option::is_some) {
+            drawn.mesh_pass = Some(GBufferPass::new_mesh(c)?);
+        }
+        for mesh in &placed {
+            let buffers = mesh
+                .as_ref()
+                .map(|m| MeshBuffers::upload(c, &shot, m))
+                .transpose()?;
+            drawn.meshes.push(buffers);
+        }
+        drawn.framing = if objects.iter().any(|o| o.geometry == Geometry::TiledPlane) {
+            None
+        } else {
+            let (centre, radius) = bounding_sphere(objects);
+            Some((
+                centre,
+                crate::scene::framing_distance(radius, settings.scene.camera.fov_y_deg),
+            ))
+        };
+        let background = Guard::new(c, BackgroundPass::new(c)?);
+        let mut pass = DisplacementPass::new(
+            ctx.clone(),
+            primary.field,
+            PassSettings {
+                method: primary.settings.method,
+                params: primary.settings.params,
+                depth_scale: primary.settings.depth_scale,
+                addressing: primary.settings.addressing,
+                extent,
+                frames_in_flight: 1,
+            },
+        )?;
+        let mut first_material = true;
+        let mut configure = |pass: &mut DisplacementPass| -> Result<()> {
+            pass.set_shadows(settings.shadows)?;
+            for o in objects {
+                let id = match &o.material {
+                    None => None,
+                    Some(m) if first_material => {
+                        first_material = false;
+                        pass.set_material(m.images)?;
+                        Some(pass.primary())
+                    }
+                    Some(m) => {
+                        let id = pass.add_material(m.field, m.settings)?;
+                        pass.set_material_maps(id, m.images)?;
+                        Some(id)
+                    }
+                };
+                drawn.materials.push(id);
+            }
+            Ok(())
+        };
+        if let Err(e) = configure(&mut pass) {
+            // SAFETY: nothing was recorded with the pass.
+            unsafe { pass.destroy() };
+            return Err(e);
+        }
+        Ok(Renderer {
+            ctx: ctx.clone(),
+            settings,
+            shot: shot.keep(),
+            timestamps: timestamps.keep(),
+            gbuffer: gbuffer.keep(),
+            hit: hit.keep(),
+            color: color.keep(),
+            gbuffer_pass: gbuffer_pass.keep(),
+            background: background.keep(),
+            mesh: None,
+            objects: Some(drawn.keep()),
+            pass,
+            depth_written: false,
+            builds: Vec::new(),
+        })
+    }
+
+    /// The orbit of a renderer of several objects ([`Renderer::with_objects`]): the
+    /// camera's target and distance (world units); `None` for a renderer of one geometry
+    /// or with the tiled plane's camera.
+    pub fn orbit(&self) -> Option<(glam::Vec3, f32)> {
+        self.objects.as_ref().and_then(|o| o.framing)
+    }
+
+    /// Sets the orbit distance of a renderer of several objects that frames them (the
+    /// target stays the centre of the sphere around them). An error for other renderers
+    /// or a distance outside `[1e-3, 1e4]`.
+    pub fn set_orbit_distance(&mut self, distance: f32) -> Result<()> {
+        if !(distance.is_finite() && (1e-3..=1e4).contains(&distance)) {
+            return Err(Error::invalid(
+                "camera-distance",
+                format!("{distance} is outside [1e-3, 1e4]"),
+            ));
+        }
+        match self.objects.as_mut().and_then(|o| o.framing.as_mut()) {
+            Some(framing) => {
+                framing.1 = distance;
+                Ok(())
+            }
+            None => Err(Error::invalid(
+                "camera-distance",
+                "only a frame of several objects without the tiled plane has an orbit",
+            )),
+        }
+    }
+
+    /// The material of each object of [`Renderer::with_objects`] (`None`: flat), in the
+    /// objects' order; one entry, the primary material, for a renderer of one geometry.
+    pub fn object_materials(&self) -> Vec<Option<MaterialId>> {
+        match &self.objects {
+            Some(o) => o.materials.clone(),
+            None => vec![Some(self.pass.primary())],
+        }
     }
 
     /// The G-buffer of the last frame (after [`Renderer::render`]: sampled-readable by
@@ -377,6 +687,7 @@ impl Renderer {
         let ctx = &*self.ctx;
         let (camera, target) = self.frame_target();
         let gbuffer_params = self.settings.scene.gbuffer_params(&camera);
+        let draws = self.object_draws(&camera)?;
         let cmd = self.shot.begin(ctx)?;
         let mut w = ScopeWriter::new(Some(self.timestamps.0), 0, GBUFFER_QUERIES);
         // SAFETY: `cmd` was just begun; the pool is alive with the range.
@@ -396,14 +707,23 @@ impl Renderer {
         // in the attachment layouts (the barriers above); it, the pass and the mesh's
         // buffers live until the submission below has completed.
         unsafe {
-            w.scope(ctx, cmd, PassName::GBuffer, |cmd| match &self.mesh {
-                Some(mesh) => {
-                    self.gbuffer_pass
-                        .record_mesh(ctx, cmd, &self.gbuffer, &gbuffer_params, mesh)
+            w.scope(ctx, cmd, PassName::GBuffer, |cmd| {
+                match (&draws, &self.mesh) {
+                    (Some(draws), _) => {
+                        crate::passes::gbuffer::record_draws(ctx, cmd, &self.gbuffer, draws)
+                    }
+                    (None, Some(mesh)) => self.gbuffer_pass.record_mesh(
+                        ctx,
+                        cmd,
+                        &self.gbuffer,
+                        &gbuffer_params,
+                        mesh,
+                    ),
+                    (None, None) => {
+                        self.gbuffer_pass
+                            .record(ctx, cmd, &self.gbuffer, &gbuffer_params)
+                    }
                 }
-                None => self
-                    .gbuffer_pass
-                    .record(ctx, cmd, &self.gbuffer, &gbuffer_params),
             })
         };
 
@@ -474,10 +794,65 @@ impl Renderer {
             .map(|&(_, ms)| ms)
     }
 
+    /// The draws of a frame of several objects (`None` for one geometry): each object's
+    /// push constants with its material (`camera_pos.w` = index + 1, 0 flat), the
+    /// material's current depth scale and addressing.
+    fn object_draws(
+        &self,
+        camera: &crate::scene::FrameCamera,
+    ) -> Result<Option<Vec<GBufferDraw<'_>>>> {
+        let Some(objects) = &self.objects else {
+            return Ok(None);
+        };
+        let plane = Scene {
+            geometry: Geometry::TiledPlane,
+            ..self.settings.scene
+        }
+        .gbuffer_params(camera);
+        let mesh = Scene {
+            geometry: Geometry::Quad,
+            ..self.settings.scene
+        }
+        .gbuffer_params(camera);
+        let mut draws = Vec::with_capacity(objects.meshes.len());
+        for (buffers, material) in objects.meshes.iter().zip(&objects.materials) {
+            let mut params = if buffers.is_some() { mesh } else { plane };
+            params.camera_pos.w = 0.0;
+            if let Some(id) = material {
+                let m = self.pass.material_settings(*id)?;
+                params.camera_pos.w = (id.index() + 1) as f32;
+                params.depth_scale = m.depth_scale;
+                params.addressing = crate::scene::addressing_code(m.addressing);
+            }
+            let pass = match (buffers, &objects.mesh_pass) {
+                (Some(_), Some(p)) => p,
+                _ => &self.gbuffer_pass,
+            };
+            draws.push(GBufferDraw {
+                pass,
+                params,
+                mesh: buffers.as_ref(),
+            });
+        }
+        Ok(Some(draws))
+    }
+
     /// The frame's camera and what `shade` lights it with.
     fn frame_target(&self) -> (crate::scene::FrameCamera, ShadeTarget) {
         let scene = &self.settings.scene;
-        let camera = scene.frame_camera(self.settings.width, self.settings.height);
+        let (w, h) = (self.settings.width, self.settings.height);
+        let camera = match &self.objects {
+            None => scene.frame_camera(w, h),
+            Some(Objects {
+                framing: Some((target, distance)),
+                ..
+            }) => scene.camera_looking_at(w, h, *target, *distance),
+            Some(_) => Scene {
+                geometry: Geometry::TiledPlane,
+                ..*scene
+            }
+            .frame_camera(w, h),
+        };
         let target = ShadeTarget {
             color: self.color.view,
             view_proj: camera.view_proj,
@@ -642,6 +1017,22 @@ impl Renderer {
         Ok(bytemuck::cast_slice::<u8, f32>(&depth).to_vec())
     }
 
+    /// Each pixel's material index from the last frame's G-buffer (`tangent.w` =
+    /// handedness * (index + 1)): `None` where there is no geometry or the geometry is
+    /// flat (not displaced).
+    pub fn read_materials(&self) -> Result<Vec<Option<u32>>> {
+        let (_, tangent) = self.read_frames()?;
+        let depth = self.read_macro_depth()?;
+        Ok(tangent
+            .iter()
+            .zip(depth)
+            .map(|(t, d)| {
+                let m = t[3].abs().round();
+                (d > 0.0 && m >= 1.0).then(|| m as u32 - 1)
+            })
+            .collect())
+    }
+
     /// The last frame's G-buffer `normal` and `tangent` texels (RGBA16F decoded), row by
     /// row.
     pub fn read_frames(&self) -> Result<TangentFrames> {
@@ -765,6 +1156,7 @@ impl Drop for Renderer {
         // SAFETY: the device is idle: no frame recorded with the pass is pending.
         unsafe { self.pass.destroy() };
         self.mesh.destroy(ctx);
+        self.objects.destroy(ctx);
         self.gbuffer_pass.destroy(ctx);
         self.background.destroy(ctx);
         self.color.destroy(ctx);

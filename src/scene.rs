@@ -270,6 +270,21 @@ impl Scene {
             _ => Vec3::ZERO,
         };
         let distance = self.orbit_distance();
+        self.camera_looking_at(width, height, target, distance)
+    }
+
+    /// The orbit camera of [`Scene::camera`] around `target` at `distance` (world units)
+    /// for a `width x height` frame: what [`Scene::frame_camera`] uses with the
+    /// geometry's target and distance, and a scene of several objects with the sphere
+    /// around them ([`framing_distance`]).
+    pub fn camera_looking_at(
+        &self,
+        width: u32,
+        height: u32,
+        target: Vec3,
+        distance: f32,
+    ) -> FrameCamera {
+        let c = &self.camera;
         let to_eye = direction(c.elevation_deg, c.azimuth_deg);
         let eye = target + distance * to_eye;
         let forward = -to_eye;
@@ -355,6 +370,80 @@ impl Scene {
             frame_size,
             map_size,
             self.depth_scale,
+        )
+    }
+}
+
+/// The orbit distance that frames a sphere of `radius` (world units) with a vertical
+/// field of view of `fov_y_deg` and a small margin: meshes, which fit the unit sphere, are
+/// framed at `framing_distance(1.0, fov)`.
+pub fn framing_distance(radius: f32, fov_y_deg: f32) -> f32 {
+    1.08 * radius / (fov_y_deg.to_radians() / 2.0).sin().max(1e-3)
+}
+
+/// Where an object of a scene with several objects sits: scaled by `scale` (uniform, so
+/// the uv stretch and the depth in units of the local uv scale keep their meaning),
+/// rotated by `rotation_deg` (degrees about the fixed x, then y, then z axis), then moved
+/// to `position`. The generated meshes and loaded meshes fit the unit sphere about the
+/// origin before placement; the quad spans `[0, 1]` in x and z on `y = 0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
+    /// Translation (world units).
+    pub position: Vec3,
+    /// Uniform scale (> 0).
+    pub scale: f32,
+    /// Rotation about the x, y and z axes in that order, degrees.
+    pub rotation_deg: Vec3,
+}
+
+impl Default for Placement {
+    fn default() -> Self {
+        Placement {
+            position: Vec3::ZERO,
+            scale: 1.0,
+            rotation_deg: Vec3::ZERO,
+        }
+    }
+}
+
+impl Placement {
+    /// Checks every number; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        if !self.position.is_finite() || self.position.abs().max_element() > 1e4 {
+            return Err(Error::invalid(
+                "position",
+                format!("{} is outside [-1e4, 1e4] per axis", self.position),
+            ));
+        }
+        if !(self.scale.is_finite() && self.scale >= 1e-3 && self.scale <= 1e4) {
+            return Err(Error::invalid(
+                "scale",
+                format!("{} is outside [1e-3, 1e4]", self.scale),
+            ));
+        }
+        if !self.rotation_deg.is_finite() {
+            return Err(Error::invalid(
+                "rotation",
+                format!("{} is not finite", self.rotation_deg),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The rotation alone.
+    pub fn rotation(&self) -> glam::Quat {
+        let r = self.rotation_deg;
+        glam::Quat::from_rotation_z(r.z.to_radians())
+            * glam::Quat::from_rotation_y(r.y.to_radians())
+            * glam::Quat::from_rotation_x(r.x.to_radians())
+    }
+
+    /// Object to world.
+    pub fn matrix(&self) -> Mat4 {
+        Mat4::from_scale_rotation_translation(
+            Vec3::splat(self.scale),
+            self.rotation(),
+            self.position,
         )
     }
 }

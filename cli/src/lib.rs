@@ -2,7 +2,7 @@
 //! the exact CPU reference ([`reference`](mod@reference)), the error metrics
 //! ([`metrics`]), the measurement of a renderer's frames against the reference
 //! ([`measure`]), the benchmark with its report and plots ([`bench`](mod@bench)), scene files
-//! ([`scene_file`]) and mesh loaders ([`mesh_file`]), heat and interval images
+//! ([`scene_file`], [`scene_objects`]) and mesh loaders ([`mesh_file`]), heat and interval images
 //! ([`heatmap`]), contact sheets and safe output files. The `dispmap` binary
 //! (`src/main.rs`) is built from them. An engine depends on the core crate only.
 
@@ -20,3 +20,4 @@ pub mod metrics;
 pub mod output;
 pub mod reference;
 pub mod scene_file;
+pub mod scene_objects;

@@ -42,6 +42,7 @@ macro_rules! eprintln {
 }
 
 mod console;
+mod render_objects;
 mod view;
 
 #[derive(Parser, Debug)]
@@ -817,6 +818,12 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
             outputs
                 .check(option, path, format)
                 .with_context(|| format!("invalid {option}"))?;
+        }
+    }
+    if let Some(path) = &args.scene {
+        let file = dispmap_cli::scene_file::SceneFile::read(path)?;
+        if file.has_objects() {
+            return render_objects::render(options, args, matches, outputs, &file, path);
         }
     }
     let (field, heightmap_label, settings, assets) = render_inputs(args, matches)?;

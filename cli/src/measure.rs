@@ -166,3 +166,123 @@ impl Measure for Renderer {
         Ok(Compared { error, hits, color })
     }
 }
+
+/// One displaced material of a frame of several objects: its index in the G-buffer
+/// (`tangent.w`), its exact reference and its map geometry.
+pub struct MaterialReference<'a> {
+    /// [`dispmap::embed::MaterialId::index`].
+    pub index: u32,
+    /// The exact reference of its height map and addressing.
+    pub reference: &'a Reference,
+    /// Its map size and depth scale.
+    pub geometry: MapGeometry,
+}
+
+/// The reference of a frame of several objects and which material each pixel shows.
+pub struct ObjectsReference {
+    /// Rays, exact hits and the shaded reference (rays `None` on flat pixels).
+    pub frame: FrameReference,
+    /// Each pixel's position in the materials list (`None`: no geometry or flat).
+    pub pixel_material: Vec<Option<usize>>,
+}
+
+/// [`Measure::reference`] for a renderer of several objects
+/// ([`Renderer::with_objects`]): each pixel's ray is traced in its own material's map
+/// (grouped by the G-buffer's `tangent.w`); flat pixels have no ray. With hard shadows
+/// each material's hits are shaded with their exact visibility in their own map.
+pub fn reference_objects(
+    renderer: &mut Renderer,
+    materials: &[MaterialReference<'_>],
+) -> Result<ObjectsReference> {
+    use rayon::prelude::*;
+    renderer.render()?;
+    let by_index = |index: u32| materials.iter().position(|m| m.index == index);
+    let pixel_material: Vec<Option<usize>> = renderer
+        .read_materials()?
+        .into_iter()
+        .map(|m| m.and_then(by_index))
+        .collect();
+    let rays: Vec<Option<Ray>> = renderer
+        .read_rays()?
+        .into_iter()
+        .zip(&pixel_material)
+        .map(|(ray, m)| ray.filter(|_| m.is_some()))
+        .collect();
+    let hits: Vec<Option<Hit>> = rays
+        .par_iter()
+        .zip(pixel_material.par_iter())
+        .map(|(ray, m)| match (ray, m) {
+            (Some(ray), Some(m)) => materials[*m].reference.intersect(ray),
+            _ => None,
+        })
+        .collect();
+    let texels: Vec<HitTexel> = hits
+        .iter()
+        .map(|h| match h {
+            Some(h) => [h.uv[0] as f32, h.uv[1] as f32, h.height as f32, 0.0],
+            None => [0.0, 0.0, dispmap::abi::NO_HIT_HEIGHT, 0.0],
+        })
+        .collect();
+    let color = if renderer.settings().shadows.mode == ShadowMode::Hard {
+        let (normal, tangent) = renderer.read_frames()?;
+        let light = renderer.settings().scene.light_direction();
+        let mut visibility = vec![1.0f32; hits.len()];
+        for (k, m) in materials.iter().enumerate() {
+            let mine: Vec<Option<Hit>> = hits
+                .iter()
+                .zip(&pixel_material)
+                .map(|(h, p)| h.filter(|_| *p == Some(k)))
+                .collect();
+            let v = crate::reference::reference_visibility(
+                m.reference,
+                &mine,
+                &normal,
+                &tangent,
+                [light.x, light.y, light.z],
+                m.geometry.depth_scale as f32,
+            );
+            for ((out, v), p) in visibility.iter_mut().zip(v).zip(&pixel_material) {
+                if *p == Some(k) {
+                    *out = v;
+                }
+            }
+        }
+        renderer.shade_hits_with(&texels, Some(&visibility))?
+    } else {
+        renderer.shade_hits(&texels)?
+    };
+    Ok(ObjectsReference {
+        frame: FrameReference { rays, hits, color },
+        pixel_material,
+    })
+}
+
+/// The last frame of a renderer of several objects against `reference`: the whole
+/// frame's error (each pixel in its own material's texels) and one [`ErrorMetrics`] per
+/// material of `materials`, in its order (PSNR only for the whole frame).
+pub fn compare_objects(
+    renderer: &Renderer,
+    reference: &ObjectsReference,
+    materials: &[MaterialReference<'_>],
+) -> Result<(Compared, Vec<ErrorMetrics>)> {
+    let hits = renderer.read_hits()?;
+    let color = renderer.read_color()?;
+    let frame = &reference.frame;
+    let pixel = &reference.pixel_material;
+    // Pixels without a material have no ray: their geometry is never asked for.
+    let geometry = |i: usize| materials[pixel[i].unwrap_or(0)].geometry;
+    let mut error = metrics::hit_errors_with(&hits, &frame.hits, &frame.rays, geometry);
+    error.psnr_db = metrics::psnr_rgba8(&color, &frame.color);
+    let per_material = (0..materials.len())
+        .map(|k| {
+            let rays: Vec<Option<Ray>> = frame
+                .rays
+                .iter()
+                .zip(pixel)
+                .map(|(r, p)| r.filter(|_| *p == Some(k)))
+                .collect();
+            metrics::hit_errors(&hits, &frame.hits, &rays, materials[k].geometry)
+        })
+        .collect();
+    Ok((Compared { error, hits, color }, per_material))
+}

@@ -275,6 +275,84 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
     }
 }
 
+/// One displaced material of a frame of several objects, for [`estimate_objects`]: its
+/// map and what its method builds on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MaterialMemory {
+    /// Its height map.
+    pub map: MapSize,
+    /// Its pyramids and cone maps.
+    pub maps: MethodMaps,
+    /// Its DIG block size, when its method is a DIG (a corner grid per frame slot).
+    pub dig_block: Option<[u32; 2]>,
+}
+
+/// Bytes of a DIG corner grid (`R32G32B32A32_SFLOAT` per block corner) of `frame`.
+fn corner_grid_bytes(frame: [u32; 2], block: [u32; 2]) -> u64 {
+    let corners = |side: u32, b: u32| u64::from(side.div_ceil(b.max(1)) + 1);
+    corners(frame[0], block[0]) * corners(frame[1], block[1]) * 16
+}
+
+/// The estimate of rendering `frame` pixels of several objects: **one** set of frame
+/// images, read-backs and reference rays and hits whatever the number of materials
+/// (`extras`' per-pixel parts, counted once), and per material only what it brings: its
+/// height field, the GPU's copy, its method's pyramids and cone maps, its DIG corner grid
+/// and, with the reference, its reference texels and pyramid. Maps are loaded one after
+/// the other, so the load peak is the largest map's on top of the fields before it.
+pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: Extras) -> Estimate {
+    let pixels = u64::from(frame[0]) * u64::from(frame[1]);
+    let per_pixel = FRAME_BYTES_PER_PIXEL
+        + if extras.heatmap {
+            HEATMAP_BYTES_PER_PIXEL
+        } else {
+            0
+        }
+        + if extras.depth {
+            DEPTH_BYTES_PER_PIXEL
+        } else {
+            0
+        };
+    let frame_bytes = pixels * per_pixel;
+    let ref_frame = if extras.reference {
+        pixels * REFERENCE_BYTES_PER_PIXEL
+    } else {
+        0
+    };
+    let (mut fields, mut gpu, mut method_maps, mut grids, mut ref_maps) = (0, 0, 0, 0, 0);
+    let mut load_peak = 0u64;
+    for m in materials {
+        let texels = u64::from(m.map.size[0]) * u64::from(m.map.size[1]);
+        let field = texels * u64::from(m.map.texel_bytes);
+        load_peak = load_peak.max(fields + m.map.load_bytes + field);
+        fields += field;
+        gpu += texels * (GPU_BYTES_PER_TEXEL_BYTE * u64::from(m.map.texel_bytes) + 1);
+        method_maps += m.maps.bytes(m.map.size);
+        grids += m.dig_block.map_or(0, |b| corner_grid_bytes(frame, b));
+        if extras.reference {
+            ref_maps += Reference::memory_bytes(m.map.size[0], m.map.size[1]);
+        }
+    }
+    let render_peak = fields + gpu + method_maps + grids + frame_bytes + ref_maps + ref_frame;
+    let mut parts = vec![("process", BASE_BYTES)];
+    parts.push(("height fields", fields));
+    parts.push(("GPU copies of the maps", gpu));
+    if method_maps > 0 {
+        parts.push(("pyramids and cone maps", method_maps));
+    }
+    if grids > 0 {
+        parts.push(("DIG corner grids", grids));
+    }
+    parts.push(("frame", frame_bytes));
+    if extras.reference {
+        parts.push(("reference texels and pyramids", ref_maps));
+        parts.push(("reference rays and hits", ref_frame));
+    }
+    Estimate {
+        bytes: BASE_BYTES + load_peak.max(render_peak),
+        parts,
+    }
+}
+
 /// Bytes as GiB or MiB with one decimal.
 pub fn human(bytes: u64) -> String {
     if bytes >= 1 << 30 {
@@ -382,6 +460,53 @@ pub fn check(estimate: &Estimate, max: Option<u64>, what: &str) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn materials_share_one_set_of_frame_images() {
+        let map = MapSize {
+            size: [1024, 1024],
+            texel_bytes: 1,
+            load_bytes: 0,
+        };
+        let one = MaterialMemory {
+            map,
+            maps: MethodMaps::of(Method::Exact, false),
+            dig_block: None,
+        };
+        let frame = [640, 360];
+        let extras = Extras {
+            reference: true,
+            ..Extras::default()
+        };
+        let single = estimate(
+            map,
+            frame,
+            Extras {
+                maps: one.maps,
+                ..extras
+            },
+        );
+        let a = estimate_objects(&[one], frame, extras);
+        let b = estimate_objects(&[one, one, one], frame, extras);
+        // One material: the single-object estimate.
+        assert_eq!(a.bytes, single.bytes);
+        // Two more materials add their maps only, not the frame or the reference rays.
+        let per_material = a.bytes
+            - BASE_BYTES
+            - u64::from(frame[0])
+                * u64::from(frame[1])
+                * (FRAME_BYTES_PER_PIXEL + REFERENCE_BYTES_PER_PIXEL);
+        assert_eq!(b.bytes - a.bytes, 2 * per_material);
+        let dig = MaterialMemory {
+            dig_block: Some([4, 4]),
+            ..one
+        };
+        let c = estimate_objects(&[one, dig], frame, extras);
+        assert_eq!(
+            c.bytes - estimate_objects(&[one, one], frame, extras).bytes,
+            161 * 91 * 16
+        );
+    }
 
     #[test]
     fn sizes_parse() {

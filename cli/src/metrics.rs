@@ -94,6 +94,17 @@ pub fn hit_errors(
     rays: &[Option<Ray>],
     geometry: MapGeometry,
 ) -> ErrorMetrics {
+    hit_errors_with(gpu, reference, rays, |_| geometry)
+}
+
+/// [`hit_errors`] where each pixel (by its index) has its own map geometry: a frame of
+/// several materials, each with its own map size and depth scale.
+pub fn hit_errors_with(
+    gpu: &[HitTexel],
+    reference: &[Option<Hit>],
+    rays: &[Option<Ray>],
+    geometry: impl Fn(usize) -> MapGeometry,
+) -> ErrorMetrics {
     debug_assert_eq!(gpu.len(), reference.len(), "hit buffer vs reference");
     debug_assert_eq!(gpu.len(), rays.len(), "hit buffer vs rays");
     let finite = |t: &HitTexel| t.iter().all(|c| c.is_finite());
@@ -102,7 +113,7 @@ pub fn hit_errors(
     let mut artifacts = 0u64;
     let mut distances = Vec::new();
     let mut iterations = Vec::new();
-    for ((texel, reference), ray) in gpu.iter().zip(reference).zip(rays) {
+    for (i, ((texel, reference), ray)) in gpu.iter().zip(reference).zip(rays).enumerate() {
         if ray.is_none() {
             continue;
         }
@@ -117,7 +128,7 @@ pub fn hit_errors(
         let gpu_hit = texel[2] >= 0.0;
         match (gpu_hit, reference) {
             (true, Some(hit)) => {
-                let d = hit_distance_texels(texel, hit, geometry);
+                let d = hit_distance_texels(texel, hit, geometry(i));
                 if d > ARTIFACT_TEXELS {
                     artifacts += 1;
                 }

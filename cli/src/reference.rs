@@ -599,7 +599,8 @@ pub fn reference_visibility(
         .map(|(hit, (n4, t4))| {
             let Some(hit) = hit else { return 1.0 };
             let (n, t) = (unit(*n4), unit(*t4));
-            let w = f64::from(t4[3]);
+            // tangent.w = handedness * (material + 1): its sign is the handedness.
+            let w = f64::from(t4[3]).signum();
             let b = [
                 w * (n[1] * t[2] - n[2] * t[1]),
                 w * (n[2] * t[0] - n[0] * t[2]),

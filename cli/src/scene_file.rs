@@ -28,6 +28,7 @@
 //! azimuth = 0.0           # degrees about the vertical axis
 //! fov = 45.0              # vertical field of view, degrees
 //! height = 0.25           # eye height above the tiled plane, tiles (plane only)
+//! distance = 3.0          # orbit distance of a scene of several objects (default: framed)
 //!
 //! [light]
 //! elevation = 35.0        # degrees
@@ -43,6 +44,13 @@
 //! block = [4, 4]          # dig's block size in pixels
 //! eps = 0.015625          # dig's interval widening (default: 1 / steps)
 //! max_level = 0           # pyramid's coarsest level, or "auto"
+//!
+//! [[object]]              # a scene of several objects (crate::scene_objects), each:
+//! geometry = "cube"       # required: plane | quad | cube | sphere | torus | mesh
+//! position = [0, 0, 0]    # world units; scale = 1.0; rotation = [x, y, z] degrees
+//! [object.heightmap]      # as [heightmap]; absent: the object is drawn flat
+//! [object.method]         # as [method]; absent: the scene's [method]
+//! [object.material]       # as [material]
 //! ```
 
 use crate::bundled;
@@ -83,6 +91,34 @@ pub struct SceneFile {
     pub light: LightKeys,
     /// `[method]`.
     pub method: MethodKeys,
+    /// `[[object]]`: a scene of several objects (none: the one geometry of the keys
+    /// above). See [`ObjectKeys`].
+    pub object: Vec<ObjectKeys>,
+}
+
+/// One `[[object]]` of a scene of several objects: its geometry, placement and, when it
+/// is displaced, its height map, method and material maps.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObjectKeys {
+    /// `plane`, `quad`, `cube`, `sphere`, `torus` or `mesh` (default: `cube`).
+    pub geometry: Option<String>,
+    /// The OBJ or glTF file of `geometry = "mesh"`.
+    pub mesh: Option<PathBuf>,
+    /// `[x, y, z]`, world units (not for the plane).
+    #[serde(deserialize_with = "triple")]
+    pub position: Option<[f32; 3]>,
+    /// Uniform scale (not for the plane).
+    pub scale: Option<f32>,
+    /// `[x, y, z]`: degrees about the x, then y, then z axis (not for the plane).
+    #[serde(deserialize_with = "triple")]
+    pub rotation: Option<[f32; 3]>,
+    /// `[object.heightmap]`; absent: the object is drawn flat (not displaced).
+    pub heightmap: Option<HeightmapKeys>,
+    /// `[object.method]`; absent: the scene's `[method]`.
+    pub method: Option<MethodKeys>,
+    /// `[object.material]` (albedo, normal map).
+    pub material: Option<MaterialKeys>,
 }
 
 /// `[heightmap]`.
@@ -99,6 +135,76 @@ pub struct HeightmapKeys {
     pub depth_scale: Option<f32>,
     /// Addressing.
     pub addressing: Option<Addressing>,
+}
+
+impl HeightmapKeys {
+    /// Checks the keys together (`key` names the table in errors: `heightmap`).
+    pub fn check(&self, key: &str, path: &Path) -> Result<()> {
+        if self.bundled.is_some() && self.path.is_some() {
+            return Err(Error::invalid(
+                format!("{key} in {}", path.display()),
+                "give either `bundled` or `path`, not both",
+            ));
+        }
+        if self.bundled.is_some() && self.convention.is_some() {
+            return Err(Error::invalid(
+                format!("{key}.convention in {}", path.display()),
+                "a bundled map has its own convention; `convention` is for `path`",
+            ));
+        }
+        if self.path.is_some() && self.convention.is_none() {
+            return Err(Error::invalid(
+                format!("{key}.convention in {}", path.display()),
+                "a map given by `path` needs `convention = \"height\"` (white = high) or \
+                 `\"depth\"` (white = deep), as --convention does on the command line",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Where the map comes from (a path relative to `path`'s folder; `key` names the
+    /// table in errors); nothing is read.
+    pub fn source(&self, key: &str, path: &Path) -> MapSource {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        match &self.path {
+            Some(p) => MapSource::File {
+                path: dir.join(p),
+                convention: self.convention.unwrap_or(Convention::Height),
+            },
+            None => MapSource::Bundled {
+                name: self.bundled.clone().unwrap_or_else(|| "rocks".into()),
+                option: format!("{key}.bundled in {}", path.display()),
+            },
+        }
+    }
+}
+
+impl MethodKeys {
+    /// The method (default `relief`) and its parameters with every default filled in
+    /// (`path` names the file in errors).
+    pub fn resolve(&self, path: &Path) -> Result<(Method, MethodParams)> {
+        let m = self;
+        let method = m.name.unwrap_or(Method::Relief);
+        let defaults = MethodParams::for_method(method);
+        let max_level = match &m.max_level {
+            None => defaults.max_level,
+            Some(MaxLevelKey::Level(l)) => MaxLevel::Fixed(*l),
+            Some(MaxLevelKey::Name(s)) => s.parse().map_err(|e| in_file(path, e))?,
+        };
+        Ok((
+            method,
+            MethodParams {
+                steps: m.steps.unwrap_or(defaults.steps),
+                min_steps: m.min_steps.unwrap_or(defaults.min_steps),
+                refine_steps: m.refine_steps.unwrap_or(defaults.refine_steps),
+                segments: m.segments.unwrap_or(defaults.segments),
+                block: m.block.unwrap_or(defaults.block),
+                eps: m.eps.or(defaults.eps),
+                max_level,
+                lod_threshold: m.lod_threshold.or(defaults.lod_threshold),
+            },
+        ))
+    }
 }
 
 /// Which way a normal map's green channel points.
@@ -135,6 +241,9 @@ pub struct CameraKeys {
     pub fov: Option<f32>,
     /// Eye height (plane).
     pub height: Option<f32>,
+    /// Orbit distance of a scene of several objects (default: the distance that frames
+    /// them).
+    pub distance: Option<f32>,
 }
 
 /// `[light]`.
@@ -204,6 +313,20 @@ pub struct LoadedScene {
     pub heightmap: String,
 }
 
+/// An `[x, y, z]` key: exactly three numbers.
+fn triple<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<Option<[f32; 3]>, D::Error> {
+    let values = Vec::<f32>::deserialize(d)?;
+    match values[..] {
+        [x, y, z] => Ok(Some([x, y, z])),
+        _ => Err(serde::de::Error::custom(format!(
+            "expected [x, y, z] (three numbers), found {} number(s): {values:?}",
+            values.len()
+        ))),
+    }
+}
+
 /// A `[width, height]` key: exactly two numbers (serde's fixed-size arrays would let
 /// `[640, 360, 2]` through).
 fn pair<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Option<[u32; 2]>, D::Error> {
@@ -265,6 +388,16 @@ fn in_file(path: &Path, e: Error) -> Error {
 }
 
 impl SceneFile {
+    /// Whether the scene lists objects (`[[object]]`, see [`crate::scene_objects`]).
+    pub fn has_objects(&self) -> bool {
+        !self.object.is_empty()
+    }
+
+    /// Resolves the `[[object]]`s ([`crate::scene_objects::specs`]) only to check them.
+    fn check_objects(&self, path: &Path) -> Result<()> {
+        crate::scene_objects::specs(self, path).map(drop)
+    }
+
     /// Parses TOML text; errors name `path` and, for an unknown key, the key.
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         toml::from_str(text).map_err(|e| {
@@ -296,29 +429,13 @@ impl SceneFile {
         let geometry = self.geometry().map_err(|e| in_file(path, e))?;
         let c = Camera::default();
         let l = Light::default();
-        let m = &self.method;
-        let method = m.name.unwrap_or(Method::Relief);
-        let defaults = MethodParams::for_method(method);
-        let max_level = match &m.max_level {
-            None => defaults.max_level,
-            Some(MaxLevelKey::Level(l)) => MaxLevel::Fixed(*l),
-            Some(MaxLevelKey::Name(s)) => s.parse().map_err(|e| in_file(path, e))?,
-        };
+        let (method, params) = self.method.resolve(path)?;
         let [width, height] = self.size.unwrap_or(DEFAULT_SIZE);
         let settings = RenderSettings {
             width,
             height,
             method,
-            params: MethodParams {
-                steps: m.steps.unwrap_or(defaults.steps),
-                min_steps: m.min_steps.unwrap_or(defaults.min_steps),
-                refine_steps: m.refine_steps.unwrap_or(defaults.refine_steps),
-                segments: m.segments.unwrap_or(defaults.segments),
-                block: m.block.unwrap_or(defaults.block),
-                eps: m.eps.or(defaults.eps),
-                max_level,
-                lod_threshold: m.lod_threshold.or(defaults.lod_threshold),
-            },
+            params,
             scene: Scene {
                 geometry,
                 depth_scale: self
@@ -361,24 +478,13 @@ impl SceneFile {
                 "`mesh` is only read with geometry = \"mesh\"",
             ));
         }
-        let h = &self.heightmap;
-        if h.bundled.is_some() && h.path.is_some() {
+        self.heightmap.check("heightmap", path)?;
+        if !self.object.is_empty() {
+            self.check_objects(path)?;
+        } else if self.camera.distance.is_some() {
             return Err(Error::invalid(
-                format!("heightmap in {}", path.display()),
-                "give either `bundled` or `path`, not both",
-            ));
-        }
-        if h.bundled.is_some() && h.convention.is_some() {
-            return Err(Error::invalid(
-                format!("heightmap.convention in {}", path.display()),
-                "a bundled map has its own convention; `convention` is for `path`",
-            ));
-        }
-        if h.path.is_some() && h.convention.is_none() {
-            return Err(Error::invalid(
-                format!("heightmap.convention in {}", path.display()),
-                "a map given by `path` needs `convention = \"height\"` (white = high) or \
-                 `\"depth\"` (white = deep), as --convention does on the command line",
+                format!("camera.distance in {}", path.display()),
+                "only a scene of several objects ([[object]]) has an orbit distance",
             ));
         }
         Ok(settings)
@@ -387,18 +493,7 @@ impl SceneFile {
     /// Where the scene's height map comes from (a path relative to `path`'s folder);
     /// nothing is read.
     pub fn heightmap_source(&self, path: &Path) -> MapSource {
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let h = &self.heightmap;
-        match &h.path {
-            Some(p) => MapSource::File {
-                path: dir.join(p),
-                convention: h.convention.unwrap_or(Convention::Height),
-            },
-            None => MapSource::Bundled {
-                name: h.bundled.clone().unwrap_or_else(|| "rocks".into()),
-                option: format!("heightmap.bundled in {}", path.display()),
-            },
-        }
+        self.heightmap.source("heightmap", path)
     }
 
     /// Loads the scene's mesh (when `with_mesh`: a command line that overrides the

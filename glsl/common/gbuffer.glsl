@@ -6,7 +6,7 @@
 
 layout(push_constant) uniform GBufferParams {
     mat4 view_proj;     // eye-relative world (world - camera_pos) -> clip (reverse-Z, Vulkan y down)
-    vec4 camera_pos;    // xyz: eye in world space
+    vec4 camera_pos;    // xyz: eye in world space; w: material index + 1 (0: not displaced)
     vec4 world_rect;    // x0, z0, x1, z1 of the quad (or the plane's grid) on y = 0
     vec4 uv_rect;       // u0, v0, u1, v1 at the rectangle's corners
     float depth_scale;  // displacement depth in tile (UV) units

@@ -278,67 +278,13 @@ impl GBufferPass {
         params: &GBufferParams,
         mesh: Option<&crate::mesh::MeshBuffers>,
     ) {
-        let extent = target.ray.extent;
-        let color_attachments: Vec<_> = target
-            .colors()
-            .iter()
-            .map(|image| {
-                vk::RenderingAttachmentInfo::default()
-                    .image_view(image.view)
-                    .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-                    .load_op(vk::AttachmentLoadOp::CLEAR)
-                    .store_op(vk::AttachmentStoreOp::STORE)
-                    .clear_value(vk::ClearValue {
-                        color: vk::ClearColorValue { float32: [0.0; 4] },
-                    })
-            })
-            .collect();
-        let depth_attachment = vk::RenderingAttachmentInfo::default()
-            .image_view(target.depth.view)
-            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
-            .load_op(vk::AttachmentLoadOp::CLEAR)
-            .store_op(vk::AttachmentStoreOp::STORE)
-            .clear_value(vk::ClearValue {
-                depth_stencil: vk::ClearDepthStencilValue {
-                    depth: 0.0,
-                    stencil: 0,
-                },
-            });
-        let area = crate::gpu::pipeline::frame_area(extent);
-        let rendering = vk::RenderingInfo::default()
-            .render_area(area)
-            .layer_count(1)
-            .color_attachments(&color_attachments)
-            .depth_attachment(&depth_attachment);
-        let dev = ctx.device();
-        // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
-        // size of attachments `Image::new` created (non-zero, within
-        // `maxImageDimension2D`), which the viewport limits cover.
-        unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
-        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the attachments are alive and in the layouts documented above (the
-        // caller's barriers); a mesh's buffers are alive and match the mesh pipeline's
-        // vertex input (`MeshBuffers` holds `Vertex`es and `u32` indices).
-        unsafe {
-            dev.cmd_begin_rendering(cmd, &rendering);
-            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
-            dev.cmd_push_constants(
-                cmd,
-                self.layout,
-                vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
-                0,
-                bytemuck::bytes_of(params),
-            );
-            match mesh {
-                Some(m) => {
-                    dev.cmd_bind_vertex_buffers(cmd, 0, &[m.vertices.raw], &[0]);
-                    dev.cmd_bind_index_buffer(cmd, m.indices.raw, 0, vk::IndexType::UINT32);
-                    dev.cmd_draw_indexed(cmd, m.index_count, 1, 0, 0, 0);
-                }
-                None => dev.cmd_draw(cmd, params.vertex_count(), 1, 0, 0),
-            }
-            dev.cmd_end_rendering(cmd);
-        }
+        let draw = GBufferDraw {
+            pass: self,
+            params: *params,
+            mesh,
+        };
+        // SAFETY: this function's # Safety contract is `record_draws`'s for one draw.
+        unsafe { record_draws(ctx, cmd, target, std::slice::from_ref(&draw)) };
     }
 
     /// Destroys the pipeline. The GPU must be done with it.
@@ -349,5 +295,96 @@ impl GBufferPass {
             ctx.device().destroy_pipeline_layout(self.layout, None);
         }
         self.pipeline = vk::Pipeline::null();
+    }
+}
+
+/// One object of [`record_draws`]: the pipeline (the plane's, [`GBufferPass::new`], with
+/// no mesh; the meshes', [`GBufferPass::new_mesh`], with one), its push constants (each
+/// object its own material in `camera_pos.w`, depth scale and addressing) and its mesh.
+pub struct GBufferDraw<'a> {
+    /// The pipeline.
+    pub pass: &'a GBufferPass,
+    /// The object's push constants.
+    pub params: GBufferParams,
+    /// The object's vertex and index buffers (mesh pipeline only).
+    pub mesh: Option<&'a crate::mesh::MeshBuffers>,
+}
+
+/// Records the G-buffer pass of several objects: clears the G-buffer once and draws every
+/// object in order into it (one rendering instance; the depth test keeps the nearest).
+///
+/// # Safety
+/// As [`GBufferPass::record`] for `target`; every draw's pass and mesh buffers stay alive
+/// until the command buffer has executed, and a draw has a mesh exactly when its pass is
+/// the mesh pipeline.
+pub unsafe fn record_draws(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    target: &GBuffer,
+    draws: &[GBufferDraw<'_>],
+) {
+    let extent = target.ray.extent;
+    let color_attachments: Vec<_> = target
+        .colors()
+        .iter()
+        .map(|image| {
+            vk::RenderingAttachmentInfo::default()
+                .image_view(image.view)
+                .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .clear_value(vk::ClearValue {
+                    color: vk::ClearColorValue { float32: [0.0; 4] },
+                })
+        })
+        .collect();
+    let depth_attachment = vk::RenderingAttachmentInfo::default()
+        .image_view(target.depth.view)
+        .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+        .load_op(vk::AttachmentLoadOp::CLEAR)
+        .store_op(vk::AttachmentStoreOp::STORE)
+        .clear_value(vk::ClearValue {
+            depth_stencil: vk::ClearDepthStencilValue {
+                depth: 0.0,
+                stencil: 0,
+            },
+        });
+    let area = crate::gpu::pipeline::frame_area(extent);
+    let rendering = vk::RenderingInfo::default()
+        .render_area(area)
+        .layer_count(1)
+        .color_attachments(&color_attachments)
+        .depth_attachment(&depth_attachment);
+    let dev = ctx.device();
+    // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
+    // size of attachments `Image::new` created (non-zero, within
+    // `maxImageDimension2D`), which the viewport limits cover.
+    unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
+    // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+    // pass; the attachments are alive and in the layouts documented above (the
+    // caller's barriers); a mesh's buffers are alive and match the mesh pipeline's
+    // vertex input (`MeshBuffers` holds `Vertex`es and `u32` indices).
+    unsafe {
+        dev.cmd_begin_rendering(cmd, &rendering);
+        for draw in draws {
+            debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
+            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
+            dev.cmd_push_constants(
+                cmd,
+                draw.pass.layout,
+                vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                0,
+                bytemuck::bytes_of(&draw.params),
+            );
+            match draw.mesh {
+                Some(m) => {
+                    dev.cmd_bind_vertex_buffers(cmd, 0, &[m.vertices.raw], &[0]);
+                    dev.cmd_bind_index_buffer(cmd, m.indices.raw, 0, vk::IndexType::UINT32);
+                    dev.cmd_draw_indexed(cmd, m.index_count, 1, 0, 0, 0);
+                }
+                None => dev.cmd_draw(cmd, draw.params.vertex_count(), 1, 0, 0),
+            }
+        }
+        dev.cmd_end_rendering(cmd);
     }
 }

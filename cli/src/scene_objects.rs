@@ -1,0 +1,330 @@
+//! Scenes of several objects: a scene file's `[[object]]` array resolved (every default
+//! filled, nothing read: [`specs`]) and loaded (height maps, meshes, material maps:
+//! [`load`]) into what [`dispmap::renderer::Renderer::with_objects`] draws.
+//!
+//! Each object has its own `geometry` (required), placement (`position`, `scale`,
+//! `rotation`; the tiled plane has none) and either an `[object.heightmap]` (its keys and
+//! defaults as the scene's `[heightmap]`), with an optional `[object.method]` (default:
+//! the scene's `[method]`) and `[object.material]`, or no height map: drawn flat. With
+//! `[[object]]` the scene's own `geometry`, `mesh`, `[heightmap]` and `[material]` are
+//! refused (they belong to an object); `size`, `[camera]`, `[light]` and `[method]` (the
+//! objects' default) stay the scene's.
+
+use crate::scene_file::{GreenAxis, MapSource, MaterialKeys, SceneFile};
+use dispmap::embed::MaterialSettings;
+use dispmap::error::{Error, Result};
+use dispmap::heightfield::HeightField;
+use dispmap::material::{self, MaterialImages};
+use dispmap::mesh::Mesh;
+use dispmap::renderer::{ObjectMaterial, SceneObject};
+use dispmap::scene::{Geometry, Placement, Scene};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+/// One object of a scene, resolved (nothing read).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectSpec {
+    /// Its geometry.
+    pub geometry: Geometry,
+    /// Its placement.
+    pub placement: Placement,
+    /// The mesh file of `geometry = "mesh"` (relative to the scene's folder, joined).
+    pub mesh: Option<PathBuf>,
+    /// Its displacement; `None`: flat.
+    pub material: Option<MaterialSpec>,
+}
+
+/// The displacement of one object, resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialSpec {
+    /// Where its height map comes from.
+    pub source: MapSource,
+    /// Method, parameters, depth scale, addressing.
+    pub settings: MaterialSettings,
+    /// Its albedo and normal map keys.
+    pub maps: MaterialKeys,
+}
+
+/// One object loaded.
+pub struct LoadedObject {
+    /// What the file says.
+    pub spec: ObjectSpec,
+    /// The height map (displaced objects).
+    pub field: Option<HeightField>,
+    /// The loaded mesh (`geometry = "mesh"`).
+    pub mesh: Option<Mesh>,
+    /// The material maps.
+    pub images: MaterialImages,
+}
+
+/// Names the object and the file in an error about one of its values.
+fn in_object(path: &Path, index: usize, e: Error) -> Error {
+    match e {
+        Error::InvalidInput { name, message } => Error::invalid(
+            format!("object {} {name} in {}", index + 1, path.display()),
+            message,
+        ),
+        other => other,
+    }
+}
+
+/// Resolves `file`'s objects (`path` is the scene file, for errors and relative paths).
+/// Errors name the object (1-based), the key and the file.
+pub fn specs(file: &SceneFile, path: &Path) -> Result<Vec<ObjectSpec>> {
+    let refuse = |key: &str, given: bool| -> Result<()> {
+        if given {
+            return Err(Error::invalid(
+                format!("{key} in {}", path.display()),
+                "a scene with [[object]] gives it per object",
+            ));
+        }
+        Ok(())
+    };
+    refuse("geometry", file.geometry.is_some())?;
+    refuse("mesh", file.mesh.is_some())?;
+    refuse("heightmap", file.heightmap != Default::default())?;
+    refuse("material", file.material != Default::default())?;
+    if file.object.len() > dispmap::renderer::MAX_OBJECTS {
+        return Err(Error::invalid(
+            format!("object in {}", path.display()),
+            format!(
+                "{} objects: a scene takes at most {}",
+                file.object.len(),
+                dispmap::renderer::MAX_OBJECTS
+            ),
+        ));
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut out = Vec::with_capacity(file.object.len());
+    for (i, o) in file.object.iter().enumerate() {
+        let err = |e: Error| in_object(path, i, e);
+        let geometry: Geometry = o
+            .geometry
+            .as_deref()
+            .ok_or_else(|| {
+                Error::invalid(
+                    "geometry",
+                    "every object needs one: plane, quad, cube, sphere, torus or mesh",
+                )
+            })
+            .and_then(str::parse)
+            .map_err(err)?;
+        match (geometry, &o.mesh) {
+            (Geometry::Mesh, None) => {
+                return Err(err(Error::invalid(
+                    "mesh",
+                    "geometry = \"mesh\" needs the `mesh` key (an OBJ or glTF file)",
+                )));
+            }
+            (g, Some(_)) if g != Geometry::Mesh => {
+                return Err(err(Error::invalid(
+                    "mesh",
+                    "`mesh` is only read with geometry = \"mesh\"",
+                )));
+            }
+            _ => {}
+        }
+        let placed = o.position.is_some() || o.scale.is_some() || o.rotation.is_some();
+        if geometry == Geometry::TiledPlane && placed {
+            return Err(err(Error::invalid(
+                "position",
+                "the tiled plane has no position, scale or rotation",
+            )));
+        }
+        let placement = Placement {
+            position: Vec3::from(o.position.unwrap_or([0.0; 3])),
+            scale: o.scale.unwrap_or(1.0),
+            rotation_deg: Vec3::from(o.rotation.unwrap_or([0.0; 3])),
+        };
+        placement.validate().map_err(err)?;
+        let material = match &o.heightmap {
+            None => {
+                if o.method.is_some() || o.material.is_some() {
+                    return Err(err(Error::invalid(
+                        "heightmap",
+                        "[object.method] and [object.material] need [object.heightmap] \
+                         (an object without one is drawn flat)",
+                    )));
+                }
+                None
+            }
+            Some(h) => {
+                let key = format!("object {} heightmap", i + 1);
+                h.check(&key, path)?;
+                let (method, params) = o.method.as_ref().unwrap_or(&file.method).resolve(path)?;
+                params.validate().map_err(err)?;
+                let depth_scale = h.depth_scale.unwrap_or(Scene::default().depth_scale);
+                // The scene's own checks of a depth scale (its range).
+                Scene {
+                    depth_scale,
+                    ..Scene::default()
+                }
+                .validate()
+                .map_err(err)?;
+                Some(MaterialSpec {
+                    source: h.source(&key, path),
+                    settings: MaterialSettings {
+                        method,
+                        params,
+                        depth_scale,
+                        addressing: h.addressing.unwrap_or_else(|| geometry.addressing()),
+                    },
+                    maps: o.material.clone().unwrap_or_default(),
+                })
+            }
+        };
+        out.push(ObjectSpec {
+            geometry,
+            placement,
+            mesh: o.mesh.as_ref().map(|m| dir.join(m)),
+            material,
+        });
+    }
+    if !out.iter().any(|o| o.material.is_some()) {
+        return Err(Error::invalid(
+            format!("object in {}", path.display()),
+            "no object has a [object.heightmap]: at least one must be displaced",
+        ));
+    }
+    Ok(out)
+}
+
+/// Loads the albedo and normal map of `keys` (paths relative to `dir`).
+pub fn load_images(keys: &MaterialKeys, dir: &Path) -> Result<MaterialImages> {
+    let green_up = keys.normal_map_green.unwrap_or(GreenAxis::Up) == GreenAxis::Up;
+    Ok(MaterialImages {
+        albedo: match &keys.albedo {
+            Some(p) => Some(material::load_albedo(&dir.join(p))?),
+            None => None,
+        },
+        normal_map: match &keys.normal_map {
+            Some(p) => Some(material::load_normal_map(&dir.join(p), green_up)?),
+            None => None,
+        },
+    })
+}
+
+/// Loads every object's height map, mesh and material maps (`path`: the scene file).
+pub fn load(specs: Vec<ObjectSpec>, path: &Path) -> Result<Vec<LoadedObject>> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    specs
+        .into_iter()
+        .map(|spec| {
+            let mesh = match &spec.mesh {
+                Some(m) => Some(crate::mesh_file::load(m)?),
+                None => None,
+            };
+            let (field, images) = match &spec.material {
+                Some(m) => (Some(m.source.load()?), load_images(&m.maps, dir)?),
+                None => (None, MaterialImages::default()),
+            };
+            Ok(LoadedObject {
+                spec,
+                field,
+                mesh,
+                images,
+            })
+        })
+        .collect()
+}
+
+/// The objects as the renderer takes them.
+pub fn scene_objects(objects: &[LoadedObject]) -> Vec<SceneObject<'_>> {
+    objects
+        .iter()
+        .map(|o| SceneObject {
+            geometry: o.spec.geometry,
+            placement: o.spec.placement,
+            mesh: o.mesh.as_ref(),
+            material: match (&o.spec.material, &o.field) {
+                (Some(m), Some(field)) => Some(ObjectMaterial {
+                    field,
+                    settings: m.settings,
+                    images: &o.images,
+                }),
+                _ => None,
+            },
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Vec<ObjectSpec>> {
+        let path = Path::new("dir/multi.toml");
+        let file = SceneFile::parse(text, path)?;
+        file.settings(path)?;
+        specs(&file, path)
+    }
+
+    #[test]
+    fn objects_take_their_own_maps_methods_and_placement() {
+        let objects = parse(
+            "[method]\nname = \"pom\"\n\
+             [[object]]\ngeometry = \"cube\"\nposition = [1, 0, 2]\nscale = 0.5\nrotation = [0, 45, 0]\n\
+             [object.heightmap]\nbundled = \"bricks\"\ndepth_scale = 0.05\n\
+             [object.method]\nname = \"exact\"\n\
+             [[object]]\ngeometry = \"sphere\"\n\
+             [object.heightmap]\nbundled = \"rocks\"\n\
+             [[object]]\ngeometry = \"torus\"\n",
+        )
+        .unwrap();
+        assert_eq!(objects.len(), 3);
+        let cube = objects[0].material.as_ref().unwrap();
+        assert_eq!(cube.settings.method, dispmap::Method::Exact);
+        assert_eq!(cube.settings.depth_scale, 0.05);
+        assert_eq!(cube.settings.addressing, dispmap::Addressing::Clamp);
+        assert_eq!(objects[0].placement.position, Vec3::new(1.0, 0.0, 2.0));
+        assert_eq!(objects[0].placement.scale, 0.5);
+        // The scene's [method] is the default of an object without its own.
+        let sphere = objects[1].material.as_ref().unwrap();
+        assert_eq!(sphere.settings.method, dispmap::Method::Pom);
+        assert_eq!(sphere.settings.addressing, dispmap::Addressing::Repeat);
+        assert!(objects[2].material.is_none());
+    }
+
+    #[test]
+    fn bad_objects_name_the_object_the_key_and_the_file() {
+        for (text, what) in [
+            ("[[object]]\n[object.heightmap]\n", "object 1 geometry"),
+            (
+                "[[object]]\ngeometry = \"plane\"\nscale = 2\n[object.heightmap]\n",
+                "object 1 position",
+            ),
+            ("[[object]]\ngeometry = \"cube\"\n", "at least one"),
+            (
+                "[[object]]\ngeometry = \"cube\"\n[object.heightmap]\n\
+                 [[object]]\ngeometry = \"cube\"\nscale = -1\n",
+                "object 2 scale",
+            ),
+            (
+                "[[object]]\ngeometry = \"cube\"\n[object.method]\nname = \"exact\"\n",
+                "object 1 heightmap",
+            ),
+            (
+                "[[object]]\ngeometry = \"cube\"\nposition = [1, 2]\n[object.heightmap]\n",
+                "three numbers",
+            ),
+            (
+                "geometry = \"cube\"\n[[object]]\ngeometry = \"cube\"\n[object.heightmap]\n",
+                "per object",
+            ),
+            (
+                "[[object]]\ngeometry = \"cube\"\n[object.heightmap]\npath = \"x.png\"\n",
+                "object 1 heightmap.convention",
+            ),
+            (
+                "[[object]]\ngeometry = \"cube\"\n[object.heightmap]\ndepth_scale = -1\n",
+                "object 1 depth-scale",
+            ),
+        ] {
+            let err = parse(text).unwrap_err().to_string();
+            assert!(
+                err.contains(what) && err.contains("multi.toml"),
+                "{what}: {err}"
+            );
+        }
+    }
+}
