@@ -187,6 +187,39 @@ impl crate::gpu::owned::Destroy for Objects {
     }
 }
 
+/// `settings` as a renderer of several objects keeps them: the method, parameters,
+/// depth scale, addressing and geometry of its primary material (`geometry` and
+/// `material`: the first displaced object's).
+fn objects_settings(
+    mut settings: RenderSettings,
+    geometry: Geometry,
+    material: &MaterialSettings,
+) -> RenderSettings {
+    settings.method = material.method;
+    settings.params = material.params;
+    settings.scene.depth_scale = material.depth_scale;
+    settings.scene.addressing = Some(material.addressing);
+    settings.scene.geometry = geometry;
+    settings
+}
+
+impl SceneAssets {
+    /// `settings` as [`Renderer::with_assets`] keeps them with these assets: unchanged
+    /// for one geometry; for several objects, with the first displaced object's
+    /// geometry, method, parameters, depth scale and addressing (its material is the
+    /// pass's primary one).
+    pub fn settings(&self, settings: RenderSettings) -> RenderSettings {
+        match self
+            .objects
+            .iter()
+            .find_map(|o| o.material.as_ref().map(|m| (o.geometry, m.1)))
+        {
+            Some((geometry, material)) => objects_settings(settings, geometry, &material),
+            None => settings,
+        }
+    }
+}
+
 /// The sphere around the objects (each generated or loaded mesh fits the unit sphere
 /// before its placement; the quad spans `[0, 1]²`): its centre and radius.
 fn bounding_sphere(objects: &[SceneObject<'_>]) -> (glam::Vec3, f32) {
@@ -220,6 +253,45 @@ pub struct SceneAssets {
     pub mesh: Option<Mesh>,
     /// Albedo and normal map.
     pub material: MaterialImages,
+    /// A scene of several objects: when not empty, [`Renderer::with_assets`] draws these
+    /// ([`Renderer::with_objects`]) instead of the one geometry (its field, mesh and
+    /// maps are then unused).
+    pub objects: Vec<ObjectAssets>,
+    /// The orbit distance of a scene of several objects
+    /// ([`Renderer::set_orbit_distance`]); `None`: the distance that frames them.
+    pub orbit_distance: Option<f32>,
+}
+
+/// One object of a scene of several objects, owned ([`SceneAssets::objects`]).
+#[derive(Clone, Debug)]
+pub struct ObjectAssets {
+    /// Its geometry.
+    pub geometry: Geometry,
+    /// Where it sits.
+    pub placement: Placement,
+    /// The loaded mesh of [`Geometry::Mesh`].
+    pub mesh: Option<Mesh>,
+    /// Its displacement (`None`: flat): height map, settings, material maps.
+    pub material: Option<(HeightField, MaterialSettings, MaterialImages)>,
+}
+
+impl ObjectAssets {
+    /// The object as [`Renderer::with_objects`] takes it.
+    pub fn as_object(&self) -> SceneObject<'_> {
+        SceneObject {
+            geometry: self.geometry,
+            placement: self.placement,
+            mesh: self.mesh.as_ref(),
+            material: self
+                .material
+                .as_ref()
+                .map(|(field, settings, images)| ObjectMaterial {
+                    field,
+                    settings: *settings,
+                    images,
+                }),
+        }
+    }
 }
 
 impl Renderer {
@@ -238,6 +310,14 @@ impl Renderer {
         settings: RenderSettings,
         assets: &SceneAssets,
     ) -> Result<Self> {
+        if !assets.objects.is_empty() {
+            let objects: Vec<_> = assets.objects.iter().map(ObjectAssets::as_object).collect();
+            let mut renderer = Self::with_objects(ctx, settings, &objects)?;
+            if let Some(distance) = assets.orbit_distance {
+                renderer.set_orbit_distance(distance)?;
+            }
+            return Ok(renderer);
+        }
         settings.validate()?;
         let geometry = settings.scene.geometry;
         let mesh = match (geometry.generated_mesh(), &assets.mesh) {
@@ -367,12 +447,7 @@ impl Renderer {
                 "no object has a height map: at least one must be displaced",
             ));
         };
-        let mut settings = settings;
-        settings.method = primary.settings.method;
-        settings.params = primary.settings.params;
-        settings.scene.depth_scale = primary.settings.depth_scale;
-        settings.scene.addressing = Some(primary.settings.addressing);
-        settings.scene.geometry = first;
+        let settings = objects_settings(settings, first, &primary.settings);
         settings.validate()?;
         let mut placed = Vec::with_capacity(objects.len());
         let mut surface_offset = 0u32;

@@ -695,6 +695,11 @@ fn render_inputs(
         }
         Some(scene_path) => {
             let file = SceneFile::read(scene_path)?;
+            if file.has_objects() {
+                let (field, label, settings, assets, _) =
+                    render_objects::inputs(args, matches, &file, scene_path)?;
+                return Ok((field, label, settings, assets));
+            }
             let mut settings = file.settings(scene_path)?;
             args.common.override_scene(
                 &mut settings,

@@ -4,18 +4,18 @@
 //! beside one entry per material (`materials`), each traced against its own map.
 
 use crate::{ErrorSummary, Iterations, NO_PIXELS, RenderArgs, finish, timings_line};
-use anyhow::{Result, bail};
+use anyhow::{Context as _, Result, bail};
 use clap::ArgMatches;
 use clap::parser::ValueSource;
 use dispmap::context::{Context, ContextOptions};
 use dispmap::heightfield::HeightField;
 use dispmap::passes::shadow::ShadowMode;
-use dispmap::renderer::Renderer;
+use dispmap::renderer::{ObjectAssets, RenderSettings, Renderer, SceneAssets};
 use dispmap_cli::measure::{self, MaterialReference, Measure as _};
 use dispmap_cli::metrics::MapGeometry;
 use dispmap_cli::reference::Reference;
 use dispmap_cli::scene_file::{MapSource, SceneFile};
-use dispmap_cli::scene_objects::{self, LoadedObject, MaterialSpec};
+use dispmap_cli::scene_objects::{self, MaterialSpec, ObjectSpec};
 use dispmap_cli::{heatmap, memory, output};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -84,17 +84,27 @@ struct MaterialMetrics {
     mean_iterations: Option<f64>,
 }
 
-/// `render --scene FILE` where FILE has `[[object]]`s (`outputs` already checked).
-pub fn render(
-    options: &ContextOptions,
+/// `render`'s inputs of a scene of several objects (`render` and `view`): refuses the
+/// flags the objects set themselves, applies the others to the scene's settings, checks
+/// the memory bound before any map is read, loads the objects. Returns the first
+/// displaced object's map and name (the renderer's primary material), the settings, the
+/// assets with the objects, and the objects as resolved.
+pub fn inputs(
     args: &RenderArgs,
     matches: &ArgMatches,
-    mut outputs: output::Outputs,
     file: &SceneFile,
     path: &Path,
-) -> Result<()> {
+) -> Result<(
+    HeightField,
+    String,
+    RenderSettings,
+    SceneAssets,
+    Vec<ObjectSpec>,
+)> {
     for id in PER_OBJECT_FLAGS {
-        if matches.value_source(id) == Some(ValueSource::CommandLine) {
+        if matches.try_contains_id(id).unwrap_or(false)
+            && matches.value_source(id) == Some(ValueSource::CommandLine)
+        {
             bail!(
                 "invalid --{}: {} lists objects, each with its own; set it per object in \
                  the scene file",
@@ -160,7 +170,7 @@ pub fn render(
             MapSource::File { path, .. } => {
                 memory::MapSize::from_header(&HeightField::probe(path)?)
             }
-            // The bundled maps are at most 1025² 16-bit: counted once loaded, below.
+            // The bundled maps are at most 1025² 16-bit: counted exactly once loaded.
             MapSource::Bundled { .. } => memory::MapSize {
                 size: [1025, 1025],
                 texel_bytes: 2,
@@ -169,23 +179,54 @@ pub fn render(
         });
     }
     check(&headers)?;
-    let objects = scene_objects::load(specs.clone(), path)?;
+    let objects = scene_objects::load(&specs, path)?;
     let loaded: Vec<_> = objects
         .iter()
-        .filter_map(|o| o.field.as_ref().map(memory::MapSize::loaded))
+        .filter_map(|o| o.material.as_ref().map(|m| memory::MapSize::loaded(&m.0)))
         .collect();
     check(&loaded)?;
+    let (field, label) = objects
+        .iter()
+        .zip(&specs)
+        .find_map(|(o, s)| {
+            Some((
+                o.material.as_ref()?.0.clone(),
+                s.material.as_ref()?.source.label(),
+            ))
+        })
+        .context("no displaced object")?;
+    if let Some(d) = file.camera.distance
+        && !(d.is_finite() && (1e-3..=1e4).contains(&d))
+    {
+        bail!(
+            "invalid camera.distance in {}: {d} is outside [1e-3, 1e4]",
+            path.display()
+        );
+    }
+    let assets = SceneAssets {
+        objects,
+        orbit_distance: file.camera.distance,
+        ..SceneAssets::default()
+    };
+    let settings = assets.settings(settings);
+    Ok((field, label, settings, assets, specs))
+}
+
+/// `render --scene FILE` where FILE has `[[object]]`s (`outputs` already checked).
+pub fn render(
+    options: &ContextOptions,
+    args: &RenderArgs,
+    matches: &ArgMatches,
+    mut outputs: output::Outputs,
+    file: &SceneFile,
+    path: &Path,
+) -> Result<()> {
+    let (field, _, settings, assets, specs) = inputs(args, matches, file, path)?;
     let ctx = Arc::new(Context::headless(options)?);
     {
-        let mut renderer =
-            Renderer::with_objects(&ctx, settings, &scene_objects::scene_objects(&objects))?;
+        let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
-        if let Some(distance) = file.camera.distance {
-            renderer
-                .set_orbit_distance(distance)
-                .map_err(|e| anyhow::anyhow!("camera.distance in {}: {e}", path.display()))?;
-        }
-        let materials = displaced(&renderer, &objects);
+        let materials = displaced(&renderer, &assets.objects, &specs);
         let references: Vec<Reference> = materials
             .iter()
             .map(|d| Reference::new(d.field, d.spec.settings.addressing))
@@ -267,7 +308,7 @@ pub fn render(
             let s = renderer.settings();
             let report = ObjectsMetrics {
                 scene: path.display().to_string(),
-                objects: objects.len(),
+                objects: specs.len(),
                 width,
                 height,
                 frames: args.common.frames,
@@ -328,14 +369,18 @@ struct Displaced<'a> {
 }
 
 /// The displaced objects, in the scene's order.
-fn displaced<'a>(renderer: &Renderer, objects: &'a [LoadedObject]) -> Vec<Displaced<'a>> {
+fn displaced<'a>(
+    renderer: &Renderer,
+    objects: &'a [ObjectAssets],
+    specs: &'a [ObjectSpec],
+) -> Vec<Displaced<'a>> {
     renderer
         .object_materials()
         .into_iter()
-        .zip(objects)
+        .zip(objects.iter().zip(specs))
         .enumerate()
-        .filter_map(|(i, (id, o))| match (id, &o.spec.material, &o.field) {
-            (Some(id), Some(spec), Some(field)) => Some(Displaced {
+        .filter_map(|(i, (id, (o, s)))| match (id, &s.material, &o.material) {
+            (Some(id), Some(spec), Some((field, _, _))) => Some(Displaced {
                 index: id.index(),
                 object: i + 1,
                 spec,

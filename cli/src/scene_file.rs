@@ -515,7 +515,12 @@ impl SceneFile {
                 None => None,
             },
         };
-        Ok(SceneAssets { mesh, material })
+        Ok(SceneAssets {
+            mesh,
+            material,
+            objects: Vec::new(),
+            orbit_distance: None,
+        })
     }
 
     /// Resolves the scene: fills the defaults and loads the height map, mesh and maps

@@ -13,10 +13,8 @@
 use crate::scene_file::{GreenAxis, MapSource, MaterialKeys, SceneFile};
 use dispmap::embed::MaterialSettings;
 use dispmap::error::{Error, Result};
-use dispmap::heightfield::HeightField;
 use dispmap::material::{self, MaterialImages};
-use dispmap::mesh::Mesh;
-use dispmap::renderer::{ObjectMaterial, SceneObject};
+use dispmap::renderer::ObjectAssets;
 use dispmap::scene::{Geometry, Placement, Scene};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -43,18 +41,6 @@ pub struct MaterialSpec {
     pub settings: MaterialSettings,
     /// Its albedo and normal map keys.
     pub maps: MaterialKeys,
-}
-
-/// One object loaded.
-pub struct LoadedObject {
-    /// What the file says.
-    pub spec: ObjectSpec,
-    /// The height map (displaced objects).
-    pub field: Option<HeightField>,
-    /// The loaded mesh (`geometry = "mesh"`).
-    pub mesh: Option<Mesh>,
-    /// The material maps.
-    pub images: MaterialImages,
 }
 
 /// Names the object and the file in an error about one of its values.
@@ -204,46 +190,27 @@ pub fn load_images(keys: &MaterialKeys, dir: &Path) -> Result<MaterialImages> {
     })
 }
 
-/// Loads every object's height map, mesh and material maps (`path`: the scene file).
-pub fn load(specs: Vec<ObjectSpec>, path: &Path) -> Result<Vec<LoadedObject>> {
+/// Loads every object's height map, mesh and material maps (`path`: the scene file),
+/// in the order of `specs`.
+pub fn load(specs: &[ObjectSpec], path: &Path) -> Result<Vec<ObjectAssets>> {
     let dir = path.parent().unwrap_or(Path::new("."));
     specs
-        .into_iter()
+        .iter()
         .map(|spec| {
             let mesh = match &spec.mesh {
                 Some(m) => Some(crate::mesh_file::load(m)?),
                 None => None,
             };
-            let (field, images) = match &spec.material {
-                Some(m) => (Some(m.source.load()?), load_images(&m.maps, dir)?),
-                None => (None, MaterialImages::default()),
+            let material = match &spec.material {
+                Some(m) => Some((m.source.load()?, m.settings, load_images(&m.maps, dir)?)),
+                None => None,
             };
-            Ok(LoadedObject {
-                spec,
-                field,
+            Ok(ObjectAssets {
+                geometry: spec.geometry,
+                placement: spec.placement,
                 mesh,
-                images,
+                material,
             })
-        })
-        .collect()
-}
-
-/// The objects as the renderer takes them.
-pub fn scene_objects(objects: &[LoadedObject]) -> Vec<SceneObject<'_>> {
-    objects
-        .iter()
-        .map(|o| SceneObject {
-            geometry: o.spec.geometry,
-            placement: o.spec.placement,
-            mesh: o.mesh.as_ref(),
-            material: match (&o.spec.material, &o.field) {
-                (Some(m), Some(field)) => Some(ObjectMaterial {
-                    field,
-                    settings: m.settings,
-                    images: &o.images,
-                }),
-                _ => None,
-            },
         })
         .collect()
 }

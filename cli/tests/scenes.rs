@@ -510,6 +510,7 @@ fn albedo_and_normal_maps_shade_the_hits() {
         let assets = SceneAssets {
             mesh: None,
             material,
+            ..SceneAssets::default()
         };
         let mut renderer = Renderer::with_assets(&ctx, &field, s, &assets).unwrap();
         renderer.render().unwrap();
