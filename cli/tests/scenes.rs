@@ -92,7 +92,31 @@ fn every_scene_file_renders() {
     assert!(files.len() >= 4, "{files:?}");
     let ctx = validated_context();
     for path in &files {
-        let mut loaded = scene_file::load(path).unwrap_or_else(|e| panic!("{e}"));
+        let file = scene_file::SceneFile::read(path).unwrap_or_else(|e| panic!("{e}"));
+        let mut loaded = if file.has_objects() {
+            // A scene of several objects: its objects in the assets, the first displaced
+            // one's map as the field.
+            let settings = file.settings(path).unwrap();
+            let specs = dispmap_cli::scene_objects::specs(&file, path).unwrap();
+            let objects = dispmap_cli::scene_objects::load(&specs, path).unwrap();
+            let field = objects
+                .iter()
+                .find_map(|o| o.material.as_ref().map(|m| m.0.clone()))
+                .unwrap();
+            let assets = SceneAssets {
+                objects,
+                ..SceneAssets::default()
+            };
+            scene_file::LoadedScene {
+                path: path.clone(),
+                settings: assets.settings(settings),
+                field,
+                assets,
+                heightmap: String::new(),
+            }
+        } else {
+            scene_file::load(path).unwrap_or_else(|e| panic!("{e}"))
+        };
         loaded.settings.width = 192;
         loaded.settings.height = 108;
         let mut renderer =
@@ -787,4 +811,97 @@ fn gltf_meshes_load_with_their_node_transforms() {
 
 fn bytemuck_f32(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Issue 22: `render --scene` of the committed scene of several objects (three displaced
+/// materials with different maps, depth scales and methods, among them `exact` and the
+/// marchers `relief` and `secant`, and two flat objects) writes one metrics entry per
+/// material, each traced against its own map: `exact`'s material has no artifact, every
+/// material shows, and the flat objects are on screen but never compared. Validation on.
+#[test]
+fn a_scene_of_several_objects_has_per_material_metrics() {
+    let dir = scratch("objects");
+    let (png, json) = (dir.join("objects.png"), dir.join("objects.json"));
+    let scene = root().join("scenes/materials.toml");
+    let out = Command::new(env!("CARGO_BIN_EXE_dispmap"))
+        .env("DISPMAP_VALIDATION", "1")
+        .args(["render", "--scene"])
+        .arg(&scene)
+        .args(["--size", "192x108", "--frames", "1"])
+        .arg("--out")
+        .arg(&png)
+        .arg("--metrics")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("Validation"), "{stderr}");
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    eprintln!("{v:#}");
+    let materials = v["materials"].as_array().unwrap();
+    let methods: Vec<&str> = materials
+        .iter()
+        .map(|m| m["method"].as_str().unwrap())
+        .collect();
+    assert_eq!(methods, ["relief", "exact", "secant"]);
+    let maps: Vec<&str> = materials
+        .iter()
+        .map(|m| m["heightmap"].as_str().unwrap())
+        .collect();
+    assert_eq!(maps, ["rocks", "bricks", "mountains"]);
+    let mut pixels = 0;
+    for m in materials {
+        let n = m["pixels"].as_u64().unwrap();
+        assert!(n > 500, "{m}");
+        assert!(m["artifact_fraction"].as_f64().is_some(), "{m}");
+        pixels += n;
+    }
+    // Every displaced pixel belongs to one material.
+    assert_eq!(v["error"]["compared_pixels"].as_u64().unwrap(), pixels);
+    assert_eq!(v["nonfinite_pixels"], 0);
+    let exact = &materials[1];
+    assert_eq!(exact["artifact_fraction"].as_f64().unwrap(), 0.0, "{exact}");
+    assert!(exact["max_texels"].as_f64().unwrap() < 0.05, "{exact}");
+    assert!(materials[0]["artifact_fraction"].as_f64().unwrap() < 0.01);
+    assert!(v["timings_ms"]["classify"].as_f64().is_some());
+
+    // The flat torus and sphere are on screen: geometry without a material.
+    let ctx = validated_context();
+    {
+        let file = scene_file::SceneFile::read(&scene).unwrap();
+        let specs = dispmap_cli::scene_objects::specs(&file, &scene).unwrap();
+        assert_eq!(specs.iter().filter(|o| o.material.is_none()).count(), 2);
+        let objects = dispmap_cli::scene_objects::load(&specs, &scene).unwrap();
+        let field = objects[0].material.as_ref().unwrap().0.clone();
+        let mut settings = file.settings(&scene).unwrap();
+        (settings.width, settings.height) = (192, 108);
+        let assets = SceneAssets {
+            objects,
+            orbit_distance: file.camera.distance,
+            ..SceneAssets::default()
+        };
+        let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets).unwrap();
+        renderer.render().unwrap();
+        let materials = renderer.read_materials().unwrap();
+        let depth = renderer.read_macro_depth().unwrap();
+        let flat = materials
+            .iter()
+            .zip(&depth)
+            .filter(|(m, d)| m.is_none() && **d > 0.0)
+            .count();
+        assert!(flat > 300, "{flat} flat pixels");
+        // Flat pixels get the pass's "not displaced" hit, and a colour of their own.
+        let hits = renderer.read_hits().unwrap();
+        for ((m, d), h) in materials.iter().zip(&depth).zip(&hits) {
+            if m.is_none() && *d > 0.0 {
+                assert_eq!(h[2], dispmap::embed::NOT_DISPLACED_HEIGHT);
+            }
+        }
+        let ids: Vec<u32> = materials.iter().flatten().copied().collect();
+        for k in 0..3 {
+            assert!(ids.contains(&k), "material {k} not on screen");
+        }
+    }
+    finish(ctx);
 }
