@@ -416,7 +416,9 @@ impl Renderer {
     /// (`tangent.w = 0`) and shaded by the background pass. Mesh vertices are placed on
     /// the CPU once here (positions transformed, frames rotated, surface ids shifted so
     /// that no two objects share one). Each displaced object is one material of the pass
-    /// (maps with equal content and addressing are shared by the pass): the first
+    /// (maps with equal content and addressing are shared by the pass), except that
+    /// objects given the very same `field` and `images` (the same references) and equal
+    /// settings share one material: the first
     /// displaced object's is the pass's primary material, and `settings`' method,
     /// parameters, depth scale, addressing and geometry are replaced by its own (so
     /// [`Renderer::set_method`] and [`Renderer::set_scene`]'s depth scale act on it).
@@ -555,9 +557,23 @@ impl Renderer {
         let mut first_material = true;
         let mut configure = |pass: &mut DisplacementPass| -> Result<()> {
             pass.set_shadows(settings.shadows)?;
-            for o in objects {
+            for (i, o) in objects.iter().enumerate() {
+                // An object given the very same map, settings and maps as an earlier one
+                // shares its material.
+                let same = |a: &ObjectMaterial<'_>, b: &ObjectMaterial<'_>| {
+                    std::ptr::eq(a.field, b.field)
+                        && a.settings == b.settings
+                        && std::ptr::eq(a.images, b.images)
+                };
+                let shared = o.material.as_ref().and_then(|m| {
+                    objects[..i]
+                        .iter()
+                        .zip(&drawn.materials)
+                        .find_map(|(e, id)| e.material.as_ref().filter(|e| same(e, m)).and(*id))
+                });
                 let id = match &o.material {
                     None => None,
+                    Some(_) if shared.is_some() => shared,
                     Some(m) if first_material => {
                         first_material = false;
                         pass.set_material(m.images)?;

@@ -145,6 +145,10 @@ struct BenchArgs {
     /// memory available].
     #[arg(long, value_name = "BYTES", value_parser = memory::parse_bytes)]
     max_memory: Option<u64>,
+    /// The material-table numbers (several materials in one frame, a tenth of the
+    /// frame displaced): `on` or `off`.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    materials: String,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -1136,6 +1140,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         sizes: bench::parse_sizes(&args.sizes)?,
         size_steps: args.size_steps,
         shadows: args.shadows,
+        materials: args.materials == "on",
         ..bench::BenchConfig::default()
     };
     config.validate()?;
@@ -1325,6 +1330,19 @@ fn print_bench_summary(results: &bench::BenchResults) {
                 b(Method::Relief)
             );
         }
+    }
+    if let Some(m) = &results.materials {
+        println!(
+            "materials: (a) together / alone trace {:.3} ({:.3}-{:.3}, bound 1.1); (b) {:.1}% \
+             displaced / fully displaced pass {:.3} ({:.3}-{:.3}, bound 0.2)",
+            m.disjoint_ratio.min,
+            m.disjoint_ratio.lo,
+            m.disjoint_ratio.hi,
+            100.0 * m.tenth_share,
+            m.tenth_ratio.min,
+            m.tenth_ratio.lo,
+            m.tenth_ratio.hi
+        );
     }
 }
 

@@ -147,10 +147,24 @@ fn library_sweep_writes_every_output() {
         "(pareto_rocks.png)",
         "(sizes.png)",
         "dispmap bench (test)",
+        "## Several materials in one pass",
+        "| (a) together / sum alone |",
         &device,
     ] {
         assert!(md.contains(needle), "report.md lacks '{needle}'");
     }
+    // The material-table numbers (issue 22): finite, positive, the tenth's share measured.
+    let m = results.materials.as_ref().unwrap();
+    assert_eq!(m.alone.len(), 3);
+    for t in [
+        m.disjoint_ratio,
+        m.tenth_ratio,
+        m.full_pass,
+        m.combined_trace,
+    ] {
+        assert!(t.min.is_finite() && t.min > 0.0 && t.lo <= t.hi, "{t:?}");
+    }
+    assert!((0.05..0.2).contains(&m.tenth_share), "{}", m.tenth_share);
     // One table line per run of the map.
     let run_lines = md
         .lines()

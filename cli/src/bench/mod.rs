@@ -53,6 +53,7 @@
 //! Timings on lavapipe are CPU timings: compare ratios within one run, never absolute
 //! numbers across runs.
 
+pub mod materials;
 pub mod plot;
 pub mod report;
 
@@ -238,6 +239,9 @@ pub struct BenchConfig {
     /// Self-shadowing of every run (`--shadows`, default off): when on, the `shadow`
     /// pass is timed (`shadow_ms`) and counted in `total_ms`, not in `method_ms`.
     pub shadows: dispmap::passes::shadow::ShadowMode,
+    /// The material-table numbers ([`materials`], `--materials`, default on): six small
+    /// renderers over the same `K R` frames.
+    pub materials: bool,
 }
 
 impl Default for BenchConfig {
@@ -254,6 +258,7 @@ impl Default for BenchConfig {
             size_steps: DEFAULT_SIZE_STEPS,
             scene: protocol_scene(),
             shadows: dispmap::passes::shadow::ShadowMode::Off,
+            materials: true,
         }
     }
 }
@@ -674,6 +679,8 @@ pub struct BenchResults {
     pub started: SystemTime,
     /// Wall-clock duration of the sweep.
     pub wall: Duration,
+    /// The material-table numbers, when they ran ([`BenchConfig::materials`]).
+    pub materials: Option<materials::MaterialsBench>,
 }
 
 /// The sweep's progress, reported after each unit of work.
@@ -691,6 +698,9 @@ pub struct Progress {
 
 /// Progress weight of one frame of a method without a step count.
 pub const NO_STEPS_WEIGHT: u64 = 100;
+
+/// Renderers of the material-table numbers ([`materials`]).
+const MATERIALS_RENDERERS: u64 = 6;
 
 /// Progress weight of one reference frame (CPU intersection).
 pub const REFERENCE_WEIGHT: u64 = 150;
@@ -775,6 +785,11 @@ fn total_weight(config: &BenchConfig, maps: usize, size_sweep: bool) -> u64 {
         .sum::<u64>()
         + refs;
     per_map * maps as u64
+        + if config.materials {
+            MATERIALS_RENDERERS * run_weight(Some(64), frames_rendered(config))
+        } else {
+            0
+        }
         + if size_sweep {
             per_size * config.sizes.len() as u64
         } else {
@@ -877,8 +892,22 @@ pub fn run(
             rows.extend(sweep.run(&runs, &mut tracker)?.0);
         }
     }
+    let materials = if config.materials {
+        let per_pass = MATERIALS_RENDERERS * run_weight(Some(64), frames_rendered(&config))
+            / u64::from(config.repeat);
+        Some(materials::run(
+            ctx,
+            config.frame,
+            config.frames,
+            config.repeat,
+            &mut |r| tracker.advance(per_pass, format!("materials (pass {r}/{})", config.repeat)),
+        )?)
+    } else {
+        None
+    };
     let info = ctx.info();
     Ok(BenchResults {
+        materials,
         maps: maps.iter().map(|m| map_info(&m.name, &m.field)).collect(),
         size_source: size_info,
         device: info.name.clone(),

@@ -451,6 +451,9 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     }
     shadow_section(&mut s, results);
     size_section(&mut s, results);
+    if let Some(m) = &results.materials {
+        s.push_str(&super::materials::markdown(m, c.frame));
+    }
     let _ = writeln!(
         s,
         "\n## How to read the equal-error tables\n\n\
