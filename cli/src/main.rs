@@ -1333,15 +1333,18 @@ fn print_bench_summary(results: &bench::BenchResults) {
     }
     if let Some(m) = &results.materials {
         println!(
-            "materials: (a) together / alone trace {:.3} ({:.3}-{:.3}, bound 1.1); (b) {:.1}% \
-             displaced / fully displaced pass {:.3} ({:.3}-{:.3}, bound 0.2)",
+            "materials: (a) together / alone trace {:.3} ({:.3}-{:.3}; medians {:.3}; bound \
+             1.1); (b) {:.1}% displaced / fully displaced pass {:.3} ({:.3}-{:.3}; medians \
+             {:.3}; bound 0.2)",
             m.disjoint_ratio.min,
             m.disjoint_ratio.lo,
             m.disjoint_ratio.hi,
+            m.disjoint_median_ratio,
             100.0 * m.tenth_share,
             m.tenth_ratio.min,
             m.tenth_ratio.lo,
-            m.tenth_ratio.hi
+            m.tenth_ratio.hi,
+            m.tenth_median_ratio
         );
     }
 }
