@@ -257,9 +257,6 @@ pub struct SceneAssets {
     /// ([`Renderer::with_objects`]) instead of the one geometry (its field, mesh and
     /// maps are then unused).
     pub objects: Vec<ObjectAssets>,
-    /// The orbit distance of a scene of several objects
-    /// ([`Renderer::set_orbit_distance`]); `None`: the distance that frames them.
-    pub orbit_distance: Option<f32>,
 }
 
 /// One object of a scene of several objects, owned ([`SceneAssets::objects`]).
@@ -312,11 +309,7 @@ impl Renderer {
     ) -> Result<Self> {
         if !assets.objects.is_empty() {
             let objects: Vec<_> = assets.objects.iter().map(ObjectAssets::as_object).collect();
-            let mut renderer = Self::with_objects(ctx, settings, &objects)?;
-            if let Some(distance) = assets.orbit_distance {
-                renderer.set_orbit_distance(distance)?;
-            }
-            return Ok(renderer);
+            return Self::with_objects(ctx, settings, &objects);
         }
         settings.validate()?;
         let geometry = settings.scene.geometry;
@@ -422,8 +415,8 @@ impl Renderer {
     /// displaced object's is the pass's primary material, and `settings`' method,
     /// parameters, depth scale, addressing and geometry are replaced by its own (so
     /// [`Renderer::set_method`] and [`Renderer::set_scene`]'s depth scale act on it).
-    /// `settings`' camera orbits the sphere around the objects at the distance that
-    /// frames it, or, with a tiled plane among them, is the plane's camera (the eye
+    /// `settings`' camera orbits the centre of the sphere around the objects at its
+    /// [`crate::scene::Camera::distance`] or else the distance that frames the sphere, or, with a tiled plane among them, is the plane's camera (the eye
     /// `height` above the plane, looking at the origin). At least one object needs a
     /// material.
     pub fn with_objects(
@@ -610,35 +603,6 @@ impl Renderer {
             depth_written: false,
             builds: Vec::new(),
         })
-    }
-
-    /// The orbit of a renderer of several objects ([`Renderer::with_objects`]): the
-    /// camera's target and distance (world units); `None` for a renderer of one geometry
-    /// or with the tiled plane's camera.
-    pub fn orbit(&self) -> Option<(glam::Vec3, f32)> {
-        self.objects.as_ref().and_then(|o| o.framing)
-    }
-
-    /// Sets the orbit distance of a renderer of several objects that frames them (the
-    /// target stays the centre of the sphere around them). An error for other renderers
-    /// or a distance outside `[1e-3, 1e4]`.
-    pub fn set_orbit_distance(&mut self, distance: f32) -> Result<()> {
-        if !(distance.is_finite() && (1e-3..=1e4).contains(&distance)) {
-            return Err(Error::invalid(
-                "camera-distance",
-                format!("{distance} is outside [1e-3, 1e4]"),
-            ));
-        }
-        match self.objects.as_mut().and_then(|o| o.framing.as_mut()) {
-            Some(framing) => {
-                framing.1 = distance;
-                Ok(())
-            }
-            None => Err(Error::invalid(
-                "camera-distance",
-                "only a frame of several objects without the tiled plane has an orbit",
-            )),
-        }
     }
 
     /// The material of each object of [`Renderer::with_objects`] (`None`: flat), in the
@@ -937,7 +901,9 @@ impl Renderer {
             Some(Objects {
                 framing: Some((target, distance)),
                 ..
-            }) => scene.camera_looking_at(w, h, *target, *distance),
+            }) => {
+                scene.camera_looking_at(w, h, *target, scene.camera.distance.unwrap_or(*distance))
+            }
             Some(_) => Scene {
                 geometry: Geometry::TiledPlane,
                 ..*scene

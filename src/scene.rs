@@ -264,7 +264,6 @@ impl Scene {
 
     /// Eye and view-projection for a `width x height` frame.
     pub fn frame_camera(&self, width: u32, height: u32) -> FrameCamera {
-        let c = &self.camera;
         let target = match self.geometry {
             Geometry::Quad => Vec3::new(0.5, 0.0, 0.5),
             _ => Vec3::ZERO,

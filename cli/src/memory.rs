@@ -297,8 +297,9 @@ fn corner_grid_bytes(frame: [u32; 2], block: [u32; 2]) -> u64 {
 /// images, read-backs and reference rays and hits whatever the number of materials
 /// (`extras`' per-pixel parts, counted once), and per material only what it brings: its
 /// height field, the GPU's copy, its method's pyramids and cone maps, its DIG corner grid
-/// and, with the reference, its reference texels and pyramid. Maps are loaded one after
-/// the other, so the load peak is the largest map's on top of the fields before it.
+/// and, with the reference, its reference texels and pyramid; and the objects' meshes
+/// (`extras.mesh`, their sizes summed). Maps are loaded one after the other, so the load
+/// peak is the largest map's on top of the fields before it (and the meshes').
 pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: Extras) -> Estimate {
     let pixels = u64::from(frame[0]) * u64::from(frame[1]);
     let per_pixel = FRAME_BYTES_PER_PIXEL
@@ -332,9 +333,16 @@ pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: E
             ref_maps += Reference::memory_bytes(m.map.size[0], m.map.size[1]);
         }
     }
-    let render_peak = fields + gpu + method_maps + grids + frame_bytes + ref_maps + ref_frame;
+    // The meshes (`extras.mesh`: their sizes summed) are read beside the maps.
+    let load_peak = load_peak + extras.mesh.load_bytes();
+    let mesh_render = extras.mesh.render_bytes();
+    let render_peak =
+        fields + gpu + method_maps + grids + frame_bytes + ref_maps + ref_frame + mesh_render;
     let mut parts = vec![("process", BASE_BYTES)];
     parts.push(("height fields", fields));
+    if mesh_render > 0 {
+        parts.push(("meshes", mesh_render));
+    }
     parts.push(("GPU copies of the maps", gpu));
     if method_maps > 0 {
         parts.push(("pyramids and cone maps", method_maps));

@@ -118,6 +118,14 @@ pub fn inputs(
         .override_scene(&mut settings, file, None, matches);
     settings.validate()?;
     let specs = scene_objects::specs(file, path)?;
+    // Every mesh's size, summed (each measured before it is loaded).
+    let mut meshes = memory::MeshSize::default();
+    for m in specs.iter().filter_map(|o| o.mesh.as_ref()) {
+        let size = dispmap_cli::mesh_file::measure(m)?;
+        meshes.file_bytes += size.file_bytes;
+        meshes.vertices += size.vertices;
+        meshes.triangles += size.triangles;
+    }
     // The memory bound before any map is read (a file's header gives its size; a bundled
     // map is measured once loaded).
     let check = |sizes: &[memory::MapSize]| {
@@ -141,6 +149,7 @@ pub fn inputs(
             .collect();
         let frame = [settings.width, settings.height];
         let extras = memory::Extras {
+            mesh: meshes,
             reference: args.metrics.is_some(),
             heatmap: args.heatmap.is_some(),
             depth: args.depth_out.is_some(),
@@ -195,17 +204,8 @@ pub fn inputs(
             ))
         })
         .context("no displaced object")?;
-    if let Some(d) = file.camera.distance
-        && !(d.is_finite() && (1e-3..=1e4).contains(&d))
-    {
-        bail!(
-            "invalid camera.distance in {}: {d} is outside [1e-3, 1e4]",
-            path.display()
-        );
-    }
     let assets = SceneAssets {
         objects,
-        orbit_distance: file.camera.distance,
         ..SceneAssets::default()
     };
     let settings = assets.settings(settings);

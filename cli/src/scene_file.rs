@@ -28,7 +28,7 @@
 //! azimuth = 0.0           # degrees about the vertical axis
 //! fov = 45.0              # vertical field of view, degrees
 //! height = 0.25           # eye height above the tiled plane, tiles (plane only)
-//! distance = 3.0          # orbit distance of a scene of several objects (default: framed)
+//! distance = 3.0          # orbit distance, world units (not the plane; default: framed)
 //!
 //! [light]
 //! elevation = 35.0        # degrees
@@ -241,8 +241,8 @@ pub struct CameraKeys {
     pub fov: Option<f32>,
     /// Eye height (plane).
     pub height: Option<f32>,
-    /// Orbit distance of a scene of several objects (default: the distance that frames
-    /// them).
+    /// Orbit distance of the quad, a mesh or a scene of several objects (world units;
+    /// default: the distance that frames them; the tiled plane's follows from `height`).
     pub distance: Option<f32>,
 }
 
@@ -447,7 +447,7 @@ impl SceneFile {
                     azimuth_deg: self.camera.azimuth.unwrap_or(c.azimuth_deg),
                     fov_y_deg: self.camera.fov.unwrap_or(c.fov_y_deg),
                     height: self.camera.height.unwrap_or(c.height),
-                    distance: None,
+                    distance: self.camera.distance,
                 },
                 light: Light {
                     elevation_deg: self.light.elevation.unwrap_or(l.elevation_deg),
@@ -481,11 +481,6 @@ impl SceneFile {
         self.heightmap.check("heightmap", path)?;
         if !self.object.is_empty() {
             self.check_objects(path)?;
-        } else if self.camera.distance.is_some() {
-            return Err(Error::invalid(
-                format!("camera.distance in {}", path.display()),
-                "only a scene of several objects ([[object]]) has an orbit distance",
-            ));
         }
         Ok(settings)
     }
@@ -519,7 +514,6 @@ impl SceneFile {
             mesh,
             material,
             objects: Vec::new(),
-            orbit_distance: None,
         })
     }
 

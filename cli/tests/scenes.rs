@@ -878,7 +878,6 @@ fn a_scene_of_several_objects_has_per_material_metrics() {
         (settings.width, settings.height) = (192, 108);
         let assets = SceneAssets {
             objects,
-            orbit_distance: file.camera.distance,
             ..SceneAssets::default()
         };
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets).unwrap();

@@ -183,6 +183,7 @@ pub fn run(
         scene: Scene {
             camera: Camera {
                 elevation_deg: 90.0,
+                distance: Some(CAMERA_DISTANCE),
                 ..Camera::default()
             },
             ..Scene::default()
@@ -203,7 +204,6 @@ pub fn run(
     let mut renderers = Vec::new();
     for objects in &scenes {
         let mut r = Renderer::with_objects(ctx, settings, objects)?;
-        r.set_orbit_distance(CAMERA_DISTANCE)?;
         r.render()?; // warm-up: pipelines, pyramids
         renderers.push(r);
     }
