@@ -1154,6 +1154,14 @@ impl Viewer {
             eprintln!("error overlay: already computing");
             return Ok(());
         }
+        if !state.assets.objects.is_empty() {
+            // One reference map here; `render --metrics` traces each material's own.
+            eprintln!(
+                "error overlay: not available for a scene of several objects (use render \
+                 --metrics: one entry per material)"
+            );
+            return Ok(());
+        }
         // The rays and hits of the last rendered frame (the current inputs).
         let rays = self.left.read_rays()?;
         let mut sides = vec![(
