@@ -340,16 +340,7 @@ impl Renderer {
         let extent = settings.extent();
         let c = &**ctx;
         // Built in order; a failure destroys what the guards hold.
-        let shot = Guard::new(c, OneShot::new(c, "renderer")?);
-        let timestamps = Guard::new(
-            c,
-            QueryPool(crate::timing::timestamp_pool(
-                c,
-                "renderer.timestamps",
-                GBUFFER_QUERIES + MAX_QUERIES,
-            )?),
-        );
-        let (gbuffer, hit, color) = frame_images(c, extent)?;
+        let host = HostParts::new(c, extent)?;
         let gbuffer_pass = Guard::new(
             c,
             if mesh.is_some() {
@@ -360,10 +351,9 @@ impl Renderer {
         );
         let mesh = Guard::new(
             c,
-            mesh.map(|m| MeshBuffers::upload(c, &shot, &m))
+            mesh.map(|m| MeshBuffers::upload(c, &host.shot, &m))
                 .transpose()?,
         );
-        let background = Guard::new(c, BackgroundPass::new(c)?);
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             field,
@@ -384,22 +374,7 @@ impl Renderer {
             unsafe { pass.destroy() };
             return Err(e);
         }
-        Ok(Renderer {
-            ctx: ctx.clone(),
-            settings,
-            shot: shot.keep(),
-            timestamps: timestamps.keep(),
-            gbuffer: gbuffer.keep(),
-            hit: hit.keep(),
-            color: color.keep(),
-            gbuffer_pass: gbuffer_pass.keep(),
-            background: background.keep(),
-            mesh: mesh.keep(),
-            objects: None,
-            pass,
-            depth_written: false,
-            builds: Vec::new(),
-        })
+        Ok(host.keep(ctx, settings, gbuffer_pass.keep(), mesh.keep(), None, pass))
     }
 
     /// A renderer of several objects in one G-buffer: each object drawn with its own
@@ -495,16 +470,7 @@ impl Renderer {
         }
         let extent = settings.extent();
         let c = &**ctx;
-        let shot = Guard::new(c, OneShot::new(c, "renderer")?);
-        let timestamps = Guard::new(
-            c,
-            QueryPool(crate::timing::timestamp_pool(
-                c,
-                "renderer.timestamps",
-                GBUFFER_QUERIES + MAX_QUERIES,
-            )?),
-        );
-        let (gbuffer, hit, color) = frame_images(c, extent)?;
+        let host = HostParts::new(c, extent)?;
         let gbuffer_pass = Guard::new(c, GBufferPass::new(c)?);
         let mut drawn = Guard::new(
             c,
@@ -521,7 +487,7 @@ impl Renderer {
         for mesh in &placed {
             let buffers = mesh
                 .as_ref()
-                .map(|m| MeshBuffers::upload(c, &shot, m))
+                .map(|m| MeshBuffers::upload(c, &host.shot, m))
                 .transpose()?;
             drawn.meshes.push(buffers);
         }
@@ -534,7 +500,6 @@ impl Renderer {
                 crate::scene::framing_distance(radius, settings.scene.camera.fov_y_deg),
             ))
         };
-        let background = Guard::new(c, BackgroundPass::new(c)?);
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             primary.field,
@@ -587,22 +552,14 @@ impl Renderer {
             unsafe { pass.destroy() };
             return Err(e);
         }
-        Ok(Renderer {
-            ctx: ctx.clone(),
+        Ok(host.keep(
+            ctx,
             settings,
-            shot: shot.keep(),
-            timestamps: timestamps.keep(),
-            gbuffer: gbuffer.keep(),
-            hit: hit.keep(),
-            color: color.keep(),
-            gbuffer_pass: gbuffer_pass.keep(),
-            background: background.keep(),
-            mesh: None,
-            objects: Some(drawn.keep()),
+            gbuffer_pass.keep(),
+            None,
+            Some(drawn.keep()),
             pass,
-            depth_written: false,
-            builds: Vec::new(),
-        })
+        ))
     }
 
     /// The material of each object of [`Renderer::with_objects`] (`None`: flat), in the
@@ -1221,6 +1178,71 @@ impl Drop for Renderer {
         self.gbuffer.destroy(ctx);
         self.timestamps.destroy(ctx);
         self.shot.destroy(ctx);
+    }
+}
+
+/// What both constructors build for the renderer as a host, each guarded until
+/// [`HostParts::keep`] assembles the renderer: the one-shot, the timestamp pool, the
+/// frame-sized images and the background pass.
+struct HostParts<'c> {
+    shot: Guard<'c, OneShot>,
+    timestamps: Guard<'c, QueryPool>,
+    gbuffer: Guard<'c, GBuffer>,
+    hit: Guard<'c, Image>,
+    color: Guard<'c, Image>,
+    background: Guard<'c, BackgroundPass>,
+}
+
+impl<'c> HostParts<'c> {
+    /// Builds them in order; a failure destroys what was built.
+    fn new(c: &'c Context, extent: vk::Extent2D) -> Result<Self> {
+        let shot = Guard::new(c, OneShot::new(c, "renderer")?);
+        let timestamps = Guard::new(
+            c,
+            QueryPool(crate::timing::timestamp_pool(
+                c,
+                "renderer.timestamps",
+                GBUFFER_QUERIES + MAX_QUERIES,
+            )?),
+        );
+        let (gbuffer, hit, color) = frame_images(c, extent)?;
+        let background = Guard::new(c, BackgroundPass::new(c)?);
+        Ok(HostParts {
+            shot,
+            timestamps,
+            gbuffer,
+            hit,
+            color,
+            background,
+        })
+    }
+
+    /// The renderer of these parts and the rest.
+    fn keep(
+        self,
+        ctx: &Arc<Context>,
+        settings: RenderSettings,
+        gbuffer_pass: GBufferPass,
+        mesh: Option<MeshBuffers>,
+        objects: Option<Objects>,
+        pass: DisplacementPass,
+    ) -> Renderer {
+        Renderer {
+            ctx: ctx.clone(),
+            settings,
+            shot: self.shot.keep(),
+            timestamps: self.timestamps.keep(),
+            gbuffer: self.gbuffer.keep(),
+            hit: self.hit.keep(),
+            color: self.color.keep(),
+            gbuffer_pass,
+            background: self.background.keep(),
+            mesh,
+            objects,
+            pass,
+            depth_written: false,
+            builds: Vec::new(),
+        }
     }
 }
 
