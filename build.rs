@@ -13,13 +13,13 @@
 //!   named `<path>[NAME]`; a pass that needs a binding only sometimes picks the variant
 //!   instead of binding a placeholder.
 //!
-//! Debian 12's split shaderc packages need extra link directives for this build script;
-//! the build-dependency `build-support/shaderc-link` emits them (see its `src/lib.rs`),
-//! so no `.cargo/config.toml` is needed, here or in a crate that depends on dispmap.
+//! shaderc is the `shaderc` crate with no features, so that this build-dependency changes
+//! nothing in a host's own `shaderc` (cargo unifies their features). How it links is the
+//! system's: on Debian 12, `scripts/setup-debian.sh` completes Debian's split shaderc for
+//! every crate's build script (docs/embedding.md, "Depending on the core crate"); no
+//! `.cargo/config.toml` is needed, here or in a crate that depends on dispmap.
 
 use anyhow::{Context, Result, bail};
-// Link-only: its build script adds the glslang and SPIRV-Tools libraries (see the docs above).
-use dispmap_shaderc_link as _;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# A crate outside this repository that depends on dispmap by path must build
-# (dispmap's build script links shaderc through its build-dependencies, with no
-# .cargo/config.toml) and render. This copies the template scripts/downstream/ to a fresh
-# folder outside the checkout, points it at this checkout, checks that no cargo config
-# in that folder or above it could help the build, builds it and runs it: one 64x64
-# frame with validation on, failing on any validation message or non-finite output.
+# A host engine outside this repository that depends on dispmap by path and compiles its
+# own G-buffer shaders with `shaderc` in its own build.rs (including dispmap's
+# dispmap_gbuffer.glsl through DEP_DISPMAP_INCLUDE) must build with no .cargo/config.toml
+# (after ./scripts/setup-debian.sh on Debian 12) and render. This copies the template
+# scripts/downstream/ to a fresh folder outside the checkout, points it at this checkout,
+# checks that no cargo config in that folder or above it could help the build, builds it
+# and runs it: one 64x64 frame, the host's G-buffer draw and dispmap's pass in its
+# command buffer, with validation on, failing on any validation message, non-finite
+# output or hit that differs from the standalone renderer's.
 #
 # The build reuses target/downstream (CARGO_TARGET_DIR) so that later runs are quick, and
 # starts from the checkout's Cargo.lock so that it builds the versions the checkout tests.
