@@ -5,9 +5,11 @@
 # (after ./scripts/setup-debian.sh on Debian 12) and render. This copies the template
 # scripts/downstream/ to a fresh folder outside the checkout, points it at this checkout,
 # checks that no cargo config in that folder or above it could help the build, builds it
-# and runs it: one 64x64 frame, the host's G-buffer draw and dispmap's pass in its
-# command buffer, with validation on, failing on any validation message, non-finite
-# output or hit that differs from the standalone renderer's.
+# and runs it: one 64x64 frame of the host's own 16-bit texels (the crate depends on
+# dispmap with default-features = false: the lean core without file decoders), the
+# host's G-buffer draw and dispmap's pass in its command buffer, with validation on,
+# failing on any validation message, non-finite output or hit that differs from the
+# standalone renderer's.
 #
 # The build reuses target/downstream (CARGO_TARGET_DIR) so that later runs are quick, and
 # starts from the checkout's Cargo.lock so that it builds the versions the checkout tests.
@@ -80,6 +82,12 @@ echo "downstream-check: building $scratch (dispmap = $root, target dir $CARGO_TA
 cargo build
 compiled=$(cargo tree --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
 normal=$(cargo tree -e normal --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
-echo "downstream-check: the downstream build compiled $compiled packages ($normal in its normal dependency graph, the scratch crate included)"
+core=$(cargo tree -p dispmap -e normal --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
+echo "downstream-check: the downstream build compiled $compiled packages ($normal in its normal dependency graph, the scratch crate included; dispmap's: $core)"
+# The crate depends on the lean core (default-features = false): no decoder may be in it.
+if cargo tree -p dispmap -e normal,features --prefix none | grep -E '^(image|exr|png|zune-jpeg) |feature "decode"'; then
+    echo "downstream-check: the scratch crate's dispmap has its file decoders (above); it must build the core without them" >&2
+    exit 1
+fi
 cargo run --quiet
 echo "downstream-check: ok"

@@ -8,7 +8,9 @@
 //!   `(T along +u, B along +v, N)`; it replaces the normal derived from the height field.
 //!   Since `v` grows *down* the image (the height map's row 0 is `v = 0`), green must point
 //!   down the image; most tools write green up (the OpenGL convention), so
-//!   [`load_normal_map`] flips green unless told the map is green-down (DirectX).
+//!   `load_normal_map` (the `decode` feature) flips green unless told the map is
+//!   green-down (DirectX); a host handing over its texels ([`RgbaMap::new`]) flips it
+//!   itself.
 //! * **Presence without a flag.** Maps are uploaded with alpha 0. The shade pass binds the
 //!   height texture instead of a missing map (`R8`/`R16`/`R32F` sample with alpha 1), so
 //!   `alpha < 0.5` tells the shader a map is present: no push-constant change, and the
@@ -22,19 +24,92 @@ use crate::gpu::sync::Access;
 use crate::gpu::{Buffer, HeightTexture, Image};
 use crate::heightfield::Addressing;
 use ash::vk;
-use image::RgbaImage;
-use std::path::Path;
 
-/// The maps of a material, decoded (RGBA8, alpha ignored).
+/// An RGBA8 map the shade pass samples: `width x height` texels of four bytes (R, G, B,
+/// A; alpha is ignored), row by row from row 0 (`v = 0`), tightly packed. Built from
+/// texels the caller holds ([`RgbaMap::new`], no file decoding) or, with the `decode`
+/// feature, from a file (`load_albedo`, `load_normal_map`) or an
+/// `image::RgbaImage` (`From`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RgbaMap {
+    width: u32,
+    height: u32,
+    texels: Vec<u8>,
+}
+
+impl RgbaMap {
+    /// A map of `width x height` texels from `texels` (4 bytes each: R, G, B, A, rows
+    /// tightly packed). `label` names the map in the error when the size is empty or
+    /// does not match the byte count.
+    pub fn new(width: u32, height: u32, texels: Vec<u8>, label: &str) -> Result<Self> {
+        let expected = (width as usize)
+            .checked_mul(height as usize)
+            .and_then(|n| n.checked_mul(4));
+        if width == 0 || height == 0 || expected != Some(texels.len()) {
+            return Err(Error::invalid(
+                label,
+                format!(
+                    "{} bytes do not make a {width}x{height} RGBA8 map (4 bytes per texel)",
+                    texels.len()
+                ),
+            ));
+        }
+        Ok(RgbaMap {
+            width,
+            height,
+            texels,
+        })
+    }
+
+    /// Width in texels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in texels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The texels, 4 bytes each, row by row.
+    pub fn texels(&self) -> &[u8] {
+        &self.texels
+    }
+
+    /// Texel `(x, y)` as `[r, g, b, a]`; `None` outside the map.
+    pub fn texel(&self, x: u32, y: u32) -> Option<[u8; 4]> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        let k = 4 * (y as usize * self.width as usize + x as usize);
+        self.texels[k..k + 4].try_into().ok()
+    }
+}
+
+#[cfg(feature = "decode")]
+impl From<image::RgbaImage> for RgbaMap {
+    /// The image's texels as they are (an empty image gives an empty map, which the
+    /// upload refuses naming the map).
+    fn from(image: image::RgbaImage) -> Self {
+        RgbaMap {
+            width: image.width(),
+            height: image.height(),
+            texels: image.into_raw(),
+        }
+    }
+}
+
+/// The maps of a material (RGBA8, alpha ignored).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MaterialImages {
     /// The albedo in sRGB.
-    pub albedo: Option<RgbaImage>,
+    pub albedo: Option<RgbaMap>,
     /// The tangent-space normal map with green along `+v` (down the image).
-    pub normal_map: Option<RgbaImage>,
+    pub normal_map: Option<RgbaMap>,
 }
 
-fn load_rgba(path: &Path) -> Result<RgbaImage> {
+#[cfg(feature = "decode")]
+fn load_rgba(path: &std::path::Path) -> Result<RgbaMap> {
     let bytes = crate::heightfield::read_checked(path)?;
     crate::heightfield::png_palette_complete(&bytes).map_err(|message| Error::Image {
         path: path.to_owned(),
@@ -70,24 +145,27 @@ fn load_rgba(path: &Path) -> Result<RgbaImage> {
             message: "empty image".into(),
         });
     }
-    Ok(image.to_rgba8())
+    Ok(image.to_rgba8().into())
 }
 
-/// Loads an albedo map (PNG or JPEG, sRGB).
-pub fn load_albedo(path: &Path) -> Result<RgbaImage> {
+/// Loads an albedo map (PNG or JPEG, sRGB). Needs the `decode` feature.
+#[cfg(feature = "decode")]
+pub fn load_albedo(path: &std::path::Path) -> Result<RgbaMap> {
     load_rgba(path)
 }
 
 /// Loads a tangent-space normal map; `green_up`: the file's green points up the image
-/// (OpenGL convention, flipped here), else down (DirectX convention, kept).
-pub fn load_normal_map(path: &Path, green_up: bool) -> Result<RgbaImage> {
-    let mut image = load_rgba(path)?;
+/// (OpenGL convention, flipped here), else down (DirectX convention, kept). Needs the
+/// `decode` feature.
+#[cfg(feature = "decode")]
+pub fn load_normal_map(path: &std::path::Path, green_up: bool) -> Result<RgbaMap> {
+    let mut map = load_rgba(path)?;
     if green_up {
-        for p in image.pixels_mut() {
-            p.0[1] = 255 - p.0[1];
+        for texel in map.texels.chunks_exact_mut(4) {
+            texel[1] = 255 - texel[1];
         }
     }
-    Ok(image)
+    Ok(map)
 }
 
 /// The uploaded maps and their sampler.
@@ -216,11 +294,14 @@ impl MaterialStaging {
 
 fn create_map(
     ctx: &Context,
-    map: &RgbaImage,
+    map: &RgbaMap,
     format: vk::Format,
     name: &str,
 ) -> Result<(Image, Buffer)> {
     let max = ctx.info().max_image_dimension_2d;
+    if map.width() == 0 || map.height() == 0 {
+        return Err(Error::invalid(name, "the map has no texels"));
+    }
     if map.width() > max || map.height() > max {
         return Err(Error::invalid(
             name,
@@ -231,7 +312,7 @@ fn create_map(
             ),
         ));
     }
-    let mut bytes = map.as_raw().clone();
+    let mut bytes = map.texels().to_vec();
     for texel in bytes.chunks_exact_mut(4) {
         texel[3] = 0; // alpha 0 marks a present map
     }
@@ -251,4 +332,31 @@ fn create_map(
     );
     let staging = staging_for(ctx, &image, &bytes)?;
     Ok((image.keep(), staging))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rgba_maps_from_texels() {
+        let map = RgbaMap::new(2, 1, vec![1, 2, 3, 4, 5, 6, 7, 8], "albedo").unwrap();
+        assert_eq!((map.width(), map.height()), (2, 1));
+        assert_eq!(map.texel(1, 0), Some([5, 6, 7, 8]));
+        assert_eq!(map.texel(2, 0), None);
+        for (w, h, bytes) in [(2, 2, 12), (0, 1, 0), (u32::MAX, u32::MAX, 4)] {
+            match RgbaMap::new(w, h, vec![0; bytes], "wall albedo") {
+                Err(Error::InvalidInput { name, message }) => {
+                    assert_eq!(name, "wall albedo");
+                    assert_eq!(
+                        message,
+                        format!(
+                            "{bytes} bytes do not make a {w}x{h} RGBA8 map (4 bytes per texel)"
+                        )
+                    );
+                }
+                other => panic!("expected InvalidInput, got {other:?}"),
+            }
+        }
+    }
 }

@@ -490,7 +490,8 @@ fn albedo_and_normal_maps_shade_the_hits() {
     let mut s = object_settings(Geometry::Quad, Method::Exact);
     s.scene.camera.elevation_deg = 90.0;
     let map = |rgb: [u8; 3]| {
-        image::RgbaImage::from_pixel(8, 8, image::Rgba([rgb[0], rgb[1], rgb[2], 255]))
+        dispmap::material::RgbaMap::new(8, 8, [rgb[0], rgb[1], rgb[2], 255].repeat(64), "map")
+            .unwrap()
     };
     let dir = scratch("normal-map");
     let file = dir.join("green.png");
@@ -499,11 +500,11 @@ fn albedo_and_normal_maps_shade_the_hits() {
         .unwrap();
     let green_map = |up: bool| dispmap::material::load_normal_map(&file, up).unwrap();
     assert_eq!(
-        green_map(true).get_pixel(0, 0).0[1],
+        green_map(true).texel(0, 0).unwrap()[1],
         0,
         "green up is flipped to +v"
     );
-    assert_eq!(green_map(false).get_pixel(0, 0).0[1], 255);
+    assert_eq!(green_map(false).texel(0, 0).unwrap()[1], 255);
     let mut frames = Vec::new();
     for material in [
         MaterialImages::default(),

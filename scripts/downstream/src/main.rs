@@ -1,4 +1,5 @@
-//! A host outside dispmap's repository, depending on it by path: it must build with no
+//! A host outside dispmap's repository, depending on its lean core by path (no default
+//! features: no file decoders; the height map is the host's texels): it must build with no
 //! `.cargo/config.toml` while compiling its own G-buffer shaders with `shaderc` in its
 //! `build.rs` (including `dispmap_gbuffer.glsl` and `dispmap_plane.glsl` from
 //! DEP_DISPMAP_INCLUDE), then render one small frame with the validation layer on: its
@@ -19,6 +20,7 @@ use dispmap::gpu::commands::read_image;
 use dispmap::gpu::pipeline::{RasterDesc, frame_area, raster_pipeline, set_frame_viewport};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
+use dispmap::heightfield::Texels;
 use dispmap::passes::gbuffer::GBuffer;
 use dispmap::shaders::Shader;
 use dispmap::{
@@ -257,10 +259,20 @@ impl Host {
 }
 
 fn main() -> Result<()> {
-    let field = HeightField::from_fn(SIDE, SIDE, "downstream bumps", |u, v| {
-        let tau = std::f32::consts::TAU;
-        0.5 + 0.25 * (3.0 * tau * u).sin() * (2.0 * tau * v).cos()
-    })?;
+    // The host's own texels (16-bit heights, as an engine that loads its textures
+    // itself hands them over): dispmap is built without its file decoders.
+    let heights: Vec<u16> = (0..SIDE * SIDE)
+        .map(|k| {
+            let (u, v) = (
+                (k % SIDE) as f32 / SIDE as f32,
+                (k / SIDE) as f32 / SIDE as f32,
+            );
+            let tau = std::f32::consts::TAU;
+            let h = 0.5 + 0.25 * (3.0 * tau * u).sin() * (2.0 * tau * v).cos();
+            (h * 65535.0).round() as u16
+        })
+        .collect();
+    let field = HeightField::from_texels(SIDE, SIDE, Texels::R16(heights), "downstream bumps")?;
     let scene = Scene::default();
 
     // A validated headless context (the device: DISPMAP_DEVICE, else the best one;
