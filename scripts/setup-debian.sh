@@ -50,7 +50,11 @@ fi
 
 # shaderc's link description (see above). Debian's folder is where libshaderc-dev put
 # its archive (/usr/lib/<multiarch>).
-combined=$(dpkg-query -L libshaderc-dev | grep '/libshaderc_combined\.a$' | head -n 1)
+combined=$(dpkg-query -L libshaderc-dev | grep -m 1 '/libshaderc_combined\.a$' || true)
+if [ -z "$combined" ] || [ ! -f "$combined" ]; then
+    echo "libshaderc-dev lists no libshaderc_combined.a: not the Debian 12 layout this script knows" >&2
+    exit 1
+fi
 libdir=$(dirname "$combined")
 if [ ! -f "$libdir/libglslang.a" ]; then
     # Not the split layout this completes: leave shaderc as the system describes it.
