@@ -84,6 +84,13 @@ compiled=$(cargo tree --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
 normal=$(cargo tree -e normal --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
 core=$(cargo tree -p dispmap -e normal --prefix none | sed 's/ (\*)$//' | sort -u | wc -l)
 echo "downstream-check: the downstream build compiled $compiled packages ($normal in its normal dependency graph, the scratch crate included; dispmap's: $core)"
+# The host's own shaderc is built with the features the host asked for and no more:
+# cargo unifies a build-dependency's features, so one that dispmap turned on would change
+# how the host's build script links (docs/embedding.md).
+if cargo tree -e features --prefix none -i shaderc-sys | grep -E '^shaderc-sys feature "(prefer-static-linking|build-from-source)"'; then
+    echo "downstream-check: dispmap turns on a shaderc feature (above) in the host's shaderc" >&2
+    exit 1
+fi
 # The crate depends on the lean core (default-features = false): no decoder may be in it.
 if cargo tree -p dispmap -e normal,features --prefix none | grep -E '^(image|exr|png|zune-jpeg) |feature "decode"'; then
     echo "downstream-check: the scratch crate's dispmap has its file decoders (above); it must build the core without them" >&2
