@@ -5,6 +5,7 @@
 #   vulkan-validationlayers VK_LAYER_KHRONOS_validation (tests run with it on)
 #   libshaderc-dev          shaderc for build.rs (with glslang-dev and spirv-tools, whose
 #                           static libraries shaderc needs; see "shaderc" below)
+#   pkg-config              how shaderc-sys finds shaderc (and the description below)
 #   xvfb                    an X server without a screen: the viewer's test (`dispmap view`)
 #   libxcursor1 libxi6 libxkbcommon-x11-0
 #                           what the viewer's window library (winit) loads at run time on X11
@@ -28,7 +29,7 @@
 # commands and fails. Running it again changes nothing.
 set -euo pipefail
 
-packages=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools xvfb libxcursor1 libxi6 libxkbcommon-x11-0)
+packages=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools pkg-config xvfb libxcursor1 libxi6 libxkbcommon-x11-0)
 missing=()
 for p in "${packages[@]}"; do
     if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
