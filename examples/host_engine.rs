@@ -1155,6 +1155,7 @@ impl Engine {
                     light_dir: light,
                     light_intensity: scene.light.intensity,
                 }),
+                motion: None,
             };
             // SAFETY: `cmd` is recording outside a render pass, for the context's queue
             // family; the views are the slot's, in the entry states set above; the slot's

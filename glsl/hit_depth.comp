@@ -1,20 +1,19 @@
 #version 460
 // hit_depth: the corrected depth of the displaced surface. For each pixel with a hit, the
-// hit's world position is the entry point on the macro surface (unprojected from the
-// G-buffer depth with the inverse view-projection) moved along the tangent frame by the
-// hit's offset from the entry,
-//     p_hit = p_entry + T du + B dv - N (1 - h) depth_scale,   (du, dv) = hit.uv - uv0,
-// (uv and depth_scale are both in tile units, and T, B are unit vectors: one tile is one
-// world unit along them; glsl/include/dispmap_gbuffer.glsl), and its reverse-Z clip depth
-// z / w is written to an R32_SFLOAT image. Positions are offsets from the eye (the
-// matrices are view_proj * translation(eye) and its inverse, src/passes/hit_depth.rs), so
-// a far pixel's small depth never cancels large world coordinates. For a traced hit p_hit lies on the pixel's
-// view ray (the tangent-space ray is the view ray), so the depth is that of the displaced
-// surface seen through the pixel. Pixels without a hit (no geometry, or a clamp-addressed
-// ray that left the decal, which the shade pass draws as background) get 0, the cleared
-// reverse-Z depth at infinity: nothing is there, so whatever lies behind must show.
+// hit's position is the entry point on the macro surface (unprojected from the G-buffer
+// depth) moved along the tangent frame by the hit's offset from the entry
+// (glsl/include/dispmap_displace.glsl, the code hosts and the `motion` pass use too), and
+// its reverse-Z clip depth z / w is written to an R32_SFLOAT image. Positions are offsets
+// from the eye (the matrices are view_proj * translation(eye) and its inverse,
+// src/passes/hit_depth.rs), so a far pixel's small depth never cancels large world
+// coordinates. For a traced hit p_hit lies on the pixel's view ray, so the depth is that
+// of the displaced surface seen through the pixel. Pixels without a hit (no geometry, or a
+// clamp-addressed ray that left the decal, which the shade pass draws as background) get
+// 0, the cleared reverse-Z depth at infinity: nothing is there, so whatever lies behind
+// must show.
 // Bindings: src/passes/hit_depth.rs; push constants: src/abi.rs HitDepthParams.
 #include "frame.glsl"
+#include "include/dispmap_displace.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
@@ -50,17 +49,12 @@ void main() {
         imageStore(u_hit_depth, pixel, vec4(0.0));
         return;
     }
-    // The entry point (as an offset from the eye): the pixel centre at the rasterised depth.
-    vec2 ndc = (vec2(pixel) + 0.5) / vec2(pc.frame_size) * 2.0 - 1.0;
-    vec4 entry_h = pc.inv_eye_clip * vec4(ndc, depth, 1.0);
-    vec3 entry = entry_h.xyz / entry_h.w;
+    vec3 entry = dispmap_entry_eye_rel(pc.inv_eye_clip, vec2(pixel) + 0.5, vec2(pc.frame_size),
+                                       depth);
     vec2 uv0 = texelFetch(u_ray, pixel, 0).xy;
     vec3 N = texelFetch(u_normal, pixel, 0).xyz;
     vec4 t4 = texelFetch(u_tangent, pixel, 0);
-    vec3 T = t4.xyz;
-    vec3 B = handedness(t4.w) * cross(N, T);
-    vec2 duv = hit.xy - uv0;
-    vec3 p = entry + T * duv.x + B * duv.y - N * ((1.0 - hit.z) * pc.depth_scale);
+    vec3 p = dispmap_displaced_eye_rel(entry, hit, uv0, N, t4.xyz, t4.w, pc.depth_scale);
     float z = dot(pc.clip_z_row, vec4(p, 1.0));
     float w = dot(pc.clip_w_row, vec4(p, 1.0));
     // w > 0 for every point beyond the entry along the view ray; keep the macro depth

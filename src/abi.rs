@@ -250,6 +250,29 @@ pub struct HitDepthParams {
     pub material: u32,
 }
 
+/// `MotionParams` in `glsl/motion.comp` (built by `MotionParams::new` in
+/// `src/passes/motion.rs`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct MotionParams {
+    /// Clip to eye-relative world of the current frame (`inverse(view_proj *
+    /// translation(eye))`): unprojects the G-buffer depth to the entry point.
+    pub inv_eye_clip: Mat4,
+    /// Row 0 of `previous view_proj * translation(eye)`: the previous frame's clip `x` of
+    /// an offset from the current eye.
+    pub prev_x_row: Vec4,
+    /// Row 1 of the same matrix (clip `y`).
+    pub prev_y_row: Vec4,
+    /// Row 3 of the same matrix (clip `w`).
+    pub prev_w_row: Vec4,
+    /// Frame size in pixels.
+    pub frame_size: [u32; 2],
+    /// Displacement depth in tile units.
+    pub depth_scale: f32,
+    /// Bits 0-15: the material this dispatch resolves; bits 16-31: the motion flags.
+    pub material: u32,
+}
+
 /// `ShadowParams` in `glsl/shadow.comp`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -522,6 +545,27 @@ mod tests {
             size_of::<HitDepthParams>(),
         );
         assert_eq!(size_of::<HitDepthParams>(), 112);
+    }
+
+    #[test]
+    fn motion_params_layout() {
+        for shader in [&shaders::MOTION_COMP, &shaders::MOTION_COMP_WIDE] {
+            check(
+                shader,
+                "MotionParams",
+                &[
+                    ("inv_eye_clip", offset_of!(MotionParams, inv_eye_clip)),
+                    ("prev_x_row", offset_of!(MotionParams, prev_x_row)),
+                    ("prev_y_row", offset_of!(MotionParams, prev_y_row)),
+                    ("prev_w_row", offset_of!(MotionParams, prev_w_row)),
+                    ("frame_size", offset_of!(MotionParams, frame_size)),
+                    ("depth_scale", offset_of!(MotionParams, depth_scale)),
+                    ("material", offset_of!(MotionParams, material)),
+                ],
+                size_of::<MotionParams>(),
+            );
+        }
+        assert_eq!(size_of::<MotionParams>(), 128);
     }
 
     #[test]

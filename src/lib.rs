@@ -85,7 +85,7 @@
 //!         frames_in_flight: 2,
 //!     })?;
 //!     // 4. Each frame: record into the host's command buffer (the host submits it).
-//!     let inputs = FrameInputs { frame_slot: 0, gbuffer, hit, shade: None };
+//!     let inputs = FrameInputs { frame_slot: 0, gbuffer, hit, shade: None, motion: None };
 //!     // SAFETY: `cmd`, the views and the slot follow `record`'s documented contract.
 //!     let recorded = unsafe { pass.record(cmd, &inputs, Timestamps::Owned)? };
 //!     // ... the host's barriers, vkQueueSubmit2, its fence; then per-pass times:

@@ -20,8 +20,8 @@
 
 use crate::context::Context;
 use crate::embed::{
-    DisplacementPass, FrameInputs, MAX_QUERIES, MaterialId, MaterialSettings, PassSettings,
-    ShadeTarget, Timestamps,
+    DepthCamera, DisplacementPass, FrameInputs, MAX_QUERIES, MaterialId, MaterialSettings,
+    MotionSettings, PassSettings, ShadeTarget, Timestamps,
 };
 use crate::error::{Error, Result};
 use crate::gpu::commands::{read_image, upload_image};
@@ -34,6 +34,7 @@ use crate::mesh::{Mesh, MeshBuffers};
 use crate::method::{Method, MethodParams};
 use crate::passes::PassName;
 use crate::passes::background::BackgroundPass;
+use crate::passes::camera_motion::{CAMERA_MOTION_FORMAT, CameraMotion};
 use crate::passes::dig::Corner;
 use crate::passes::gbuffer::{GBuffer, GBufferDraw, GBufferPass, Ray};
 use crate::passes::shade::COLOR_FORMAT;
@@ -132,6 +133,8 @@ pub struct Renderer {
     pass: DisplacementPass,
     /// Whether a frame has written the corrected depth since it was turned on.
     depth_written: bool,
+    /// The motion output (`None`: off).
+    motion: Option<CameraMotion>,
     /// GPU milliseconds of the last build of each one-off map (pyramid, cone map).
     builds: Vec<(PassName, f64)>,
 }
@@ -612,6 +615,9 @@ impl Renderer {
         }
         let c = &*self.ctx;
         let (gbuffer, hit, color) = frame_images(c, extent)?;
+        if let Some(m) = &mut self.motion {
+            m.resize(c, extent)?;
+        }
         self.pass.resize(extent)?;
         let mut old = (
             std::mem::replace(&mut self.gbuffer, gbuffer.keep()),
@@ -693,6 +699,48 @@ impl Renderer {
         Ok(())
     }
 
+    /// Turns the motion output on or off. On, every later [`Renderer::render`] writes the
+    /// motion of every pixel (pixels, previous minus current position: the renderer's
+    /// static world through the camera of the frame before, which is the frame's own for
+    /// the first frame) into an `R32G32_SFLOAT` image: its `camera_motion` pass writes the
+    /// macro surface's, then the pass's `motion` stage (source
+    /// [`crate::embed::MotionSource::Surface`]) corrects the displaced pixels.
+    pub fn set_motion_output(&mut self, on: bool) -> Result<()> {
+        let c = &*self.ctx;
+        match (on, &mut self.motion) {
+            (true, None) => {
+                let motion = Guard::new(c, CameraMotion::new(c, self.settings.extent())?);
+                self.pass.set_motion_output(Some(MotionSettings {
+                    format: CAMERA_MOTION_FORMAT,
+                    ..MotionSettings::default()
+                }))?;
+                self.motion = Some(motion.keep());
+            }
+            (false, Some(_)) => {
+                self.pass.set_motion_output(None)?;
+                // Every frame of this renderer was waited for.
+                self.motion.destroy(c);
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The last frame's motion vectors (pixels, previous minus current), row by row;
+    /// `None` when the output is off or no frame has been rendered with it.
+    pub fn read_motion(&self) -> Result<Option<Vec<[f32; 2]>>> {
+        let Some(m) = self.motion.as_ref().filter(|m| m.previous.is_some()) else {
+            return Ok(None);
+        };
+        let bytes = read_image(
+            &self.ctx,
+            &self.shot,
+            &m.image,
+            Access::COMPUTE_STORAGE_WRITE,
+        )?;
+        Ok(Some(bytemuck::cast_slice::<u8, [f32; 2]>(&bytes).to_vec()))
+    }
+
     /// Renders one frame and returns its per-pass GPU times (one-off passes included
     /// when this frame ran them).
     pub fn render(&mut self) -> Result<PassTimes> {
@@ -762,7 +810,17 @@ impl Renderer {
         // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
         // (the barriers above).
         unsafe { self.record_background(cmd, &target) };
-        let inputs = self.frame_inputs(Some(target));
+        let mut inputs = self.frame_inputs(Some(target));
+        let current = DepthCamera {
+            view_proj: target.view_proj,
+            eye: target.camera_pos,
+        };
+        if let Some(m) = &self.motion {
+            // SAFETY: `cmd` is recording outside a render pass and submitted (and waited
+            // for) below; the G-buffer depth is sampled-readable (the entry barriers); the
+            // image's previous frame was waited for.
+            inputs.motion = Some(unsafe { m.record(ctx, cmd, self.gbuffer.depth.view, current) });
+        }
         // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
         // submitted below; the views are the renderer's, in the entry states; one slot,
         // whose previous frame was waited for; the pool has the queries after the
@@ -779,6 +837,9 @@ impl Renderer {
         };
         self.shot.submit_and_wait(ctx)?;
         self.depth_written |= self.pass.depth_output();
+        if let Some(m) = &mut self.motion {
+            m.previous = Some(current);
+        }
         let scopes: Vec<_> = w.scopes.iter().chain(&frame.timestamps).copied().collect();
         // SAFETY: the pool is alive and the frame completed (waited for above).
         let times = unsafe { read_timestamps(ctx, &scopes)? };
@@ -922,6 +983,7 @@ impl Renderer {
             gbuffer: self.gbuffer.views(),
             hit: self.hit.view,
             shade,
+            motion: None,
         }
     }
 
@@ -1173,6 +1235,7 @@ impl Drop for Renderer {
         self.objects.destroy(ctx);
         self.gbuffer_pass.destroy(ctx);
         self.background.destroy(ctx);
+        self.motion.destroy(ctx);
         self.color.destroy(ctx);
         self.hit.destroy(ctx);
         self.gbuffer.destroy(ctx);
@@ -1241,6 +1304,7 @@ impl<'c> HostParts<'c> {
             objects,
             pass,
             depth_written: false,
+            motion: None,
             builds: Vec::new(),
         }
     }

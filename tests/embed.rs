@@ -125,6 +125,7 @@ impl Host {
             gbuffer: g.views(),
             hit: slot.hit.view,
             shade: None,
+            motion: None,
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue family;
         // the views are alive until the frame completes (replaced only after its fence),

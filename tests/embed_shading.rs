@@ -194,6 +194,7 @@ impl Host {
             gbuffer: g.views(),
             hit: slot.hit.view,
             shade: (output == Output::Shaded).then_some(shade),
+            motion: None,
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue family;
         // the views are alive until the frame completes, in the entry layouts above; the
@@ -834,6 +835,7 @@ fn depth_output_without_a_camera_is_a_clear_error() {
         gbuffer: slot.gbuffer.views(),
         hit: slot.hit.view,
         shade: None,
+        motion: None,
     };
     // SAFETY: as in `Host::frame`; the record is refused before recording anything.
     let err = unsafe { pass.record(cmd, &inputs, Timestamps::Off) }

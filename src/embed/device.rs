@@ -10,8 +10,8 @@ use std::ffi::CStr;
 
 /// Timestamp queries one [`DisplacementPass::record`](super::DisplacementPass::record) writes at most: a begin/end pair
 /// for each of `upload`, `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`,
-/// `shade` and `hit_depth`.
-pub const MAX_QUERIES: u32 = 18;
+/// `shade`, `hit_depth` and `motion`.
+pub const MAX_QUERIES: u32 = 20;
 
 /// Largest `frames_in_flight` a pass accepts.
 pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;
@@ -246,6 +246,7 @@ mod tests {
         let largest = [
             std::mem::size_of::<crate::abi::ShadowParams>(),
             std::mem::size_of::<crate::abi::HitDepthParams>(),
+            std::mem::size_of::<crate::abi::MotionParams>(),
             std::mem::size_of::<crate::abi::TraceParams>(),
         ];
         assert!(

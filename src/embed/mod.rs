@@ -187,6 +187,9 @@ pub use crate::abi::{MAX_MATERIALS, NOT_DISPLACED_HEIGHT};
 pub use crate::passes::PassName;
 pub use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, RAY_FORMAT};
 pub use crate::passes::hit_depth::HIT_DEPTH_FORMAT;
+pub use crate::passes::motion::{
+    MOTION_FORMATS, MotionDirection, MotionSettings, MotionSource, MotionUnits,
+};
 pub use crate::passes::shade::COLOR_FORMAT;
 pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
 pub use crate::passes::trace::HIT_FORMAT;
@@ -237,6 +240,20 @@ pub struct FrameInputs {
     pub hit: vk::ImageView,
     /// Shade the hits into a colour image (`None`: the host shades from the hit buffer).
     pub shade: Option<ShadeTarget>,
+    /// The host's motion image and previous camera: required while the motion output is
+    /// on ([`DisplacementPass::set_motion_output`]), refused while it is off.
+    pub motion: Option<FrameMotion>,
+}
+
+/// The motion output's inputs of one frame ([`crate::passes::motion`] documents the
+/// contract).
+#[derive(Clone, Copy, Debug)]
+pub struct FrameMotion {
+    /// The host's motion image (one of [`MOTION_FORMATS`], the format of the pass's
+    /// [`MotionSettings`], `STORAGE` usage, the frame's size), read and written in place.
+    pub image: vk::ImageView,
+    /// The camera the host drew its previous frame with (world to clip and eye).
+    pub previous: DepthCamera,
 }
 
 /// Where [`DisplacementPass::record`] writes its timestamps.
@@ -364,6 +381,10 @@ pub struct DisplacementPass {
     depth: Option<plan::DepthParts>,
     /// Whether the corrected depth is requested.
     depth_on: bool,
+    /// The motion pass (`None` when off).
+    motion: Option<crate::passes::motion::MotionPass>,
+    /// The motion output as requested.
+    motion_on: Option<MotionSettings>,
     /// The frame size the frame-sized resources were built for.
     built_extent: vk::Extent2D,
     query_pool: Option<vk::QueryPool>,
@@ -411,6 +432,8 @@ impl DisplacementPass {
             visibility: Vec::new(),
             depth: None,
             depth_on: false,
+            motion: None,
+            motion_on: None,
             built_extent: vk::Extent2D::default(),
             query_pool: None,
             slot_scopes: vec![Vec::new(); settings.frames_in_flight as usize],
@@ -745,6 +768,32 @@ impl DisplacementPass {
         self.depth.is_some()
     }
 
+    /// Turns the motion output on with `settings` (builds the `motion` pipeline for the
+    /// settings' image format; every later record then writes the motion of each
+    /// displaced pixel into [`FrameInputs::motion`]'s image, after `hit_depth`) or off
+    /// (`None`; retires it). [`crate::passes::motion`] documents the image's contract,
+    /// the units, and the approximation for moving objects. Needs no GPU idle. On error
+    /// (a format that is not one of [`MOTION_FORMATS`] or that the device cannot store
+    /// to, a pipeline failure) the pass is unchanged.
+    pub fn set_motion_output(&mut self, settings: Option<MotionSettings>) -> Result<()> {
+        self.check_alive()?;
+        if let Some(m) = &settings {
+            m.validate(&self.ctx)?;
+        }
+        let old = self.motion_on;
+        self.motion_on = settings;
+        if let Err(e) = self.sync() {
+            self.motion_on = old;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// The motion output's settings (`None`: off).
+    pub fn motion_output(&self) -> Option<MotionSettings> {
+        self.motion_on
+    }
+
     /// The corrected depth of `frame_slot` (`R32_SFLOAT`, reverse-Z clip depth of each
     /// displaced pixel's hit, 0 without one, and the G-buffer's own depth for every other
     /// pixel; [`crate::passes::hit_depth`]); `None` when the output is off. After a record
@@ -829,6 +878,7 @@ impl DisplacementPass {
         self.materials.destroy(ctx);
         self.maps.destroy(ctx);
         self.depth.destroy(ctx);
+        self.motion.destroy(ctx);
         self.visibility.destroy(ctx);
         self.tiles.destroy(ctx);
         self.shadow_passes.destroy(ctx);

@@ -16,6 +16,7 @@
 //! | DIG corner grids | (material, block, extent) | the material is a DIG method |
 //! | `shadow` pipelines, visibility images | (query), extent | self-shadowing on |
 //! | corrected-depth pipeline and images | extent | the corrected depth on |
+//! | motion pipeline | image format | the motion output on |
 //! | tile lists | (table size, extent) | always |
 //!
 //! A new preparation pass needs a key here, a constructor and a build stage in
@@ -33,6 +34,7 @@ use crate::passes::classify::TileLists;
 use crate::passes::cone::{ConeMap, ConePass};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::hit_depth::HitDepthPass;
+use crate::passes::motion::MotionPass;
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
 use crate::passes::shadow::{ShadowPass, ShadowTrace};
@@ -209,6 +211,7 @@ pub(super) struct Plan {
     shadow_traces: Vec<ShadowTrace>,
     shadowed_shade: bool,
     depth: bool,
+    motion: Option<vk::Format>,
     /// Entries of the tile lists (the material table's size, at least 1).
     table: u32,
 }
@@ -234,6 +237,7 @@ struct Additions {
     corners: Vec<(usize, Vec<CornerGrid>)>,
     visibility: Option<Vec<Image>>,
     depth: Option<DepthParts>,
+    motion: Option<MotionPass>,
     tiles: Option<Vec<TileLists>>,
 }
 
@@ -259,6 +263,7 @@ impl Destroy for Additions {
         }
         self.visibility.destroy(ctx);
         self.depth.destroy(ctx);
+        self.motion.destroy(ctx);
         self.tiles.destroy(ctx);
     }
 }
@@ -284,6 +289,7 @@ impl DisplacementPass {
             corners: vec![None; self.materials.len()],
             shadowed_shade: self.shadows.is_on(),
             depth: self.depth_on,
+            motion: self.motion_on.map(|m| m.format),
             table: (self.materials.len() as u32).max(1),
             ..Plan::default()
         };
@@ -420,6 +426,11 @@ impl DisplacementPass {
                 images,
             });
         }
+        if let Some(format) = plan.motion
+            && self.motion.as_ref().is_none_or(|m| m.format != format)
+        {
+            add.motion = Some(MotionPass::new(c, format)?);
+        }
         if resized
             || self
                 .tiles
@@ -542,6 +553,12 @@ impl DisplacementPass {
         }
         if !plan.depth {
             retired.retire(self.depth.take());
+        }
+        if let Some(m) = add.motion {
+            retired.retire(self.motion.replace(m));
+        }
+        if plan.motion.is_none() {
+            retired.retire(self.motion.take());
         }
         if let Some(t) = add.tiles {
             retired.retire(std::mem::replace(&mut self.tiles, t));

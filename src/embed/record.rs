@@ -17,6 +17,7 @@ use crate::passes::PassName;
 use crate::passes::classify::{ClassifyInputs, MaterialTiles};
 use crate::passes::dig::CornerRun;
 use crate::passes::hit_depth::HitDepthInputs;
+use crate::passes::motion::MotionInputs;
 use crate::passes::shade::ShadeInputs;
 use crate::passes::shadow::{ShadowInputs, ShadowPass, ShadowTrace};
 use crate::passes::trace::TraceInputs;
@@ -161,6 +162,30 @@ impl DisplacementPass {
                  record_with_camera",
             ));
         }
+        match (&self.motion, &inputs.motion) {
+            (Some(_), None) => {
+                return Err(Error::invalid(
+                    "motion",
+                    "the motion output is on: FrameInputs::motion must give the motion image \
+                     and the previous camera",
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(Error::invalid(
+                    "motion",
+                    "FrameInputs::motion is given but the motion output is off \
+                     (set_motion_output)",
+                ));
+            }
+            (Some(_), Some(_)) if camera.is_none() => {
+                return Err(Error::invalid(
+                    "motion output",
+                    "the motion vectors need the frame's camera: pass a ShadeTarget or use \
+                     record_with_camera",
+                ));
+            }
+            _ => {}
+        }
         // SAFETY: this function's contract is `begin`'s.
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
         let slot = inputs.frame_slot;
@@ -192,7 +217,7 @@ impl DisplacementPass {
             self.record_corners(cmd, &mut w, inputs);
             self.record_trace(cmd, &mut w, inputs)?;
         }
-        if inputs.shade.is_some() || self.depth.is_some() {
+        if inputs.shade.is_some() || self.depth.is_some() || self.motion.is_some() {
             // The hit buffer stays in GENERAL: a memory barrier orders trace's writes
             // before the reads of shadow, shade and hit_depth.
             let hit_barrier = [vk::MemoryBarrier2::default()
@@ -218,7 +243,10 @@ impl DisplacementPass {
             // memory barrier above, recorded whenever the depth output is on), the image
             // in `GENERAL` for storage writes (the transition above, `classify`'s exit
             // barrier).
-            unsafe { self.record_hit_depth(cmd, &mut w, inputs, &camera) };
+            unsafe {
+                self.record_hit_depth(cmd, &mut w, inputs, &camera);
+                self.record_motion(cmd, &mut w, inputs, &camera);
+            }
         }
         Ok(self.finish(slot, w, timestamps))
     }
@@ -800,6 +828,59 @@ impl DisplacementPass {
                             hit: inputs.hit,
                             gbuffer: inputs.gbuffer,
                             hit_depth: image.view_ref(),
+                            tiles: *tiles,
+                        },
+                        &params,
+                    );
+                }
+            })
+        };
+    }
+
+    /// Records `motion` (with the motion output on): one dispatch per live material,
+    /// writing the host's motion image in place.
+    ///
+    /// # Safety
+    /// As [`DisplacementPass::record`]; the hits are visible to compute-shader storage
+    /// reads (the barrier after `trace`), and the host's motion image is in `GENERAL`, its
+    /// writes visible to compute-shader storage reads and writes (the entry contract).
+    unsafe fn record_motion(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        w: &mut ScopeWriter,
+        inputs: &FrameInputs,
+        camera: &DepthCamera,
+    ) {
+        let ctx = &*self.ctx;
+        let (Some(pass), Some(frame), Some(settings)) =
+            (&self.motion, &inputs.motion, &self.motion_on)
+        else {
+            return;
+        };
+        let e = self.frame.extent;
+        let live = self.live(inputs.frame_slot);
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the hits are visible
+        // to storage reads and the motion image is in `GENERAL` with the host's writes
+        // visible (this function's contract), the G-buffer in its entry state.
+        unsafe {
+            w.scope(ctx, cmd, PassName::Motion, |cmd| {
+                for (tiles, m, _) in &live {
+                    let params = crate::abi::MotionParams::new(
+                        camera.view_proj,
+                        camera.eye,
+                        frame.previous.view_proj,
+                        [e.width, e.height],
+                        m.settings.depth_scale,
+                        settings,
+                    );
+                    pass.record(
+                        ctx,
+                        cmd,
+                        MotionInputs {
+                            hit: inputs.hit,
+                            gbuffer: inputs.gbuffer,
+                            motion: frame.image,
                             tiles: *tiles,
                         },
                         &params,

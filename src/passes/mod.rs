@@ -1,19 +1,21 @@
 //! The passes of a frame, one file each: `gbuffer` (graphics), `pyramid` (the min-reduce
 //! chain), `dig` (the DIG corner pass), `trace` (the method), `shadow` (optional
 //! self-shadowing) and `shade`; on request `hit_depth` (the corrected depth of the
-//! displaced surface) and `depth_resolve` (graphics: that depth into a depth
+//! displaced surface), `motion` (the motion vectors of displaced pixels) and `depth_resolve` (graphics: that depth into a depth
 //! attachment). Every pass only records into a command buffer it is given; the one
 //! orchestrator, [`crate::embed::DisplacementPass`], places the barriers between the
 //! compute passes (`src/embed/record.rs`, one method per stage), and its host (an engine,
 //! or [`crate::renderer::Renderer`]) the G-buffer's and the entry barriers.
 
 pub mod background;
+pub mod camera_motion;
 pub mod classify;
 pub mod cone;
 pub mod depth_resolve;
 pub mod dig;
 pub mod gbuffer;
 pub mod hit_depth;
+pub mod motion;
 pub mod pyramid;
 pub mod shade;
 pub mod shadow;
@@ -70,11 +72,13 @@ pub enum PassName {
     Shade,
     /// The corrected depth of the displaced surface.
     HitDepth,
+    /// The motion vectors of the displaced pixels.
+    Motion,
 }
 
 impl PassName {
     /// Every pass, in recording order.
-    pub const ALL: [PassName; 10] = [
+    pub const ALL: [PassName; 11] = [
         PassName::GBuffer,
         PassName::Upload,
         PassName::Pyramid,
@@ -85,10 +89,11 @@ impl PassName {
         PassName::Shadow,
         PassName::Shade,
         PassName::HitDepth,
+        PassName::Motion,
     ];
 
     /// The name in reports, metrics files and debug labels (`gbuffer`, `upload`,
-    /// `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`).
+    /// `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`, `motion`).
     pub fn as_str(self) -> &'static str {
         match self {
             PassName::GBuffer => "gbuffer",
@@ -101,6 +106,7 @@ impl PassName {
             PassName::Shadow => "shadow",
             PassName::Shade => "shade",
             PassName::HitDepth => "hit_depth",
+            PassName::Motion => "motion",
         }
     }
 

@@ -359,6 +359,7 @@ impl RayHost {
             gbuffer: self.gbuffer.views(),
             hit: hit.view,
             shade,
+            motion: None,
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue
         // family; the G-buffer is in SHADER_READ_ONLY_OPTIMAL after its upload or

@@ -1,0 +1,107 @@
+#version 460
+// motion: the screen motion of each displaced pixel, written into the host's motion image
+// in place (src/passes/motion.rs documents the contract). For a pixel with a hit, p_hit
+// is the displaced point seen through the pixel and p_entry the macro surface point under
+// it (glsl/include/dispmap_displace.glsl, the code of hit_depth and of hosts), both as
+// offsets from the current eye; prev_px(p) is a point's position in pixels under the
+// previous frame's view-projection. The motion in pixels (previous minus current) is
+//   source CAMERA:   prev_px(p_hit) - pixel centre            (a static world: exact)
+//   source SURFACE:  m_entry + prev_px(p_hit) - prev_px(p_entry),
+// where m_entry is the macro surface's motion the host wrote at the pixel (its G-buffer
+// pass): for a static surface the two agree; for a moving one the displacement offset is
+// taken as moving with the entry point, unrotated (the approximation src/passes/motion.rs
+// measures). It is stored in the host's units and direction (flags). Pixels of other
+// materials, without displacement or without a hit keep the image's value.
+// Bindings: src/passes/motion.rs; push constants: src/abi.rs MotionParams.
+// An R32G32_SFLOAT image with the WIDE variant, R16G16_SFLOAT without.
+// dispmap-variant: WIDE
+#include "frame.glsl"
+#include "include/dispmap_displace.glsl"
+
+layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
+
+layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
+layout(set = 0, binding = 1) uniform sampler2D u_ray;
+layout(set = 0, binding = 2) uniform sampler2D u_depth;
+layout(set = 0, binding = 3) uniform sampler2D u_normal;
+layout(set = 0, binding = 4) uniform sampler2D u_tangent;
+#ifdef WIDE
+layout(set = 0, binding = 5, rg32f) uniform image2D u_motion;
+#else
+layout(set = 0, binding = 5, rg16f) uniform image2D u_motion;
+#endif
+
+layout(push_constant) uniform MotionParams {
+    mat4 inv_eye_clip;  // clip -> offset from the current eye (the current frame)
+    vec4 prev_x_row;    // rows 0, 1 and 3 of previous view_proj * translation(current eye):
+    vec4 prev_y_row;    // an offset from the current eye -> the previous frame's clip x,
+    vec4 prev_w_row;    // y and w
+    uvec2 frame_size;   // pixels
+    float depth_scale;  // displacement depth in tile units
+    uint material;      // bits 0-15: the material; 16-31: MOTION_* flags
+} pc;
+
+// Flags (src/passes/motion.rs: MotionParams::new).
+#define MOTION_SURFACE 0x10000u  // add the host's macro motion (source SURFACE)
+#define MOTION_UV 0x20000u       // units: pixels / frame size
+#define MOTION_NDC 0x40000u      // units: 2 * pixels / frame size
+#define MOTION_TO_CURRENT 0x80000u  // current minus previous (else previous minus current)
+
+#define DISPMAP_TILE_PASS
+#include "tiles.glsl"
+
+// The previous frame's pixel position of an offset from the current eye; false behind
+// the previous eye.
+bool prev_pixel(vec3 p, out vec2 px) {
+    vec4 q = vec4(p, 1.0);
+    float w = dot(pc.prev_w_row, q);
+    vec2 ndc = vec2(dot(pc.prev_x_row, q), dot(pc.prev_y_row, q)) / w;
+    px = (ndc * 0.5 + 0.5) * vec2(pc.frame_size);
+    return w > 0.0;
+}
+
+void main() {
+    ivec2 pixel;
+    if (!material_pixel(pc.material & 0xFFFFu, pc.frame_size, pixel)) {
+        return;
+    }
+    float depth = texelFetch(u_depth, pixel, 0).r;
+    vec4 hit = imageLoad(u_hit, pixel);
+    if (depth <= 0.0 || hit.z < 0.0) {
+        return;
+    }
+    vec2 centre = vec2(pixel) + 0.5;
+    vec3 entry = dispmap_entry_eye_rel(pc.inv_eye_clip, centre, vec2(pc.frame_size), depth);
+    vec2 uv0 = texelFetch(u_ray, pixel, 0).xy;
+    vec3 N = texelFetch(u_normal, pixel, 0).xyz;
+    vec4 t4 = texelFetch(u_tangent, pixel, 0);
+    vec3 p = dispmap_displaced_eye_rel(entry, hit, uv0, N, t4.xyz, t4.w, pc.depth_scale);
+
+    // Pixels -> the host's units and direction, and back.
+    vec2 to_units = (pc.material & MOTION_UV) != 0u    ? 1.0 / vec2(pc.frame_size)
+                    : (pc.material & MOTION_NDC) != 0u ? 2.0 / vec2(pc.frame_size)
+                                                       : vec2(1.0);
+    if ((pc.material & MOTION_TO_CURRENT) != 0u) {
+        to_units = -to_units;
+    }
+    vec2 hit_prev;
+    if (!prev_pixel(p, hit_prev)) {
+        // Behind the previous eye: no previous position (the surface's motion, or 0).
+        if ((pc.material & MOTION_SURFACE) == 0u) {
+            imageStore(u_motion, pixel, vec4(0.0));
+        }
+        return;
+    }
+    vec2 motion;
+    if ((pc.material & MOTION_SURFACE) != 0u) {
+        vec2 entry_prev;
+        if (!prev_pixel(entry, entry_prev)) {
+            return;
+        }
+        vec2 m_entry = imageLoad(u_motion, pixel).xy / to_units;
+        motion = m_entry + (hit_prev - entry_prev);
+    } else {
+        motion = hit_prev - centre;
+    }
+    imageStore(u_motion, pixel, vec4(motion * to_units, 0.0, 0.0));
+}

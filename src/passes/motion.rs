@@ -1,0 +1,320 @@
+//! The `motion` pass: the screen motion of each displaced pixel, written in place into the
+//! host's motion-vector image (the one its TAA, TSR, DLSS or FSR reads), so that displaced
+//! pixels move as the displaced surface does rather than as the flat macro surface under
+//! them (`glsl/motion.comp`).
+//!
+//! # Contract
+//!
+//! * **The image**: the host's, `R16G16_SFLOAT` or `R32G32_SFLOAT` ([`MOTION_FORMATS`]),
+//!   `STORAGE` usage, the frame's size; `GENERAL` on entry with the host's writes visible
+//!   to `COMPUTE_SHADER` `SHADER_STORAGE_READ | SHADER_STORAGE_WRITE`; on exit `GENERAL`,
+//!   displaced pixels written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`, every other pixel
+//!   as it entered (flat geometry, the sky, pixels of a material without a hit).
+//! * **Units and direction** ([`MotionSettings`]): pixels, uv (pixels / frame size) or
+//!   Vulkan NDC (2 × uv), +y down as the framebuffer; previous minus current position
+//!   (where the surface seen at the pixel was in the previous frame: DLSS's and FSR's
+//!   default) or its opposite.
+//! * **The previous camera**: the host gives the previous frame's view-projection (world to
+//!   clip) and eye ([`crate::embed::FrameMotion`]); the current camera is the frame's
+//!   ([`crate::embed::ShadeTarget`] or [`crate::embed::DepthCamera`]), the one its G-buffer
+//!   was drawn with.
+//! * **Source** ([`MotionSource`]):
+//!   - `Camera`: the world is static at displaced pixels. Motion = `prev_px(p_hit) -
+//!     centre`: exact (the displaced point `p_hit` seen through the pixel, projected with
+//!     the previous camera). The image's contents at displaced pixels are ignored. With a
+//!     jittered projection the result includes the jitter difference, as any motion
+//!     computed from the two matrices does.
+//!   - `Surface`: the image holds the macro surface's motion `m_entry` at every pixel (the
+//!     host's G-buffer pass writes it, as an engine's velocity buffer does), and the pass
+//!     adds the displacement's parallax under the previous camera: `m_entry +
+//!     prev_px(p_hit) - prev_px(p_entry)`. For a static surface this equals `Camera`'s
+//!     (up to the image's precision); the jitter cancels in the difference. For a moving
+//!     object it takes the displacement offset `p_hit - p_entry` as moving with the entry
+//!     point *without rotating*: the error is the object's rotation in the frame times the
+//!     offset's length (at most `depth_scale` plus the hit's lateral reach in tiles),
+//!     projected (`tests/motion.rs` measures it), and a second-order term of the
+//!     translation.
+//!
+//! `p_hit` and `p_entry` come from `glsl/include/dispmap_displace.glsl`, the same code as
+//! the corrected depth's (`hit_depth`).
+//!
+//! Bindings (set 0, push descriptors), mirrored by `glsl/motion.comp`:
+//!
+//! | binding | resource | layout on entry |
+//! |---|---|---|
+//! | 0 | hit buffer (storage, read) | `GENERAL` |
+//! | 1 | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 2 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 3 | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 4 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | 5 | the host's motion image (storage, read and written) | `GENERAL` |
+//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+
+use crate::abi::MotionParams;
+use crate::context::Context;
+use crate::error::{Error, Result};
+use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::passes::classify::{MaterialTiles, TILES_BINDING};
+use crate::passes::gbuffer::GBufferViews;
+use crate::shaders;
+use ash::vk;
+use glam::{DMat4, Mat4, Vec3};
+
+/// The formats the motion image may have.
+pub const MOTION_FORMATS: [vk::Format; 2] = [vk::Format::R16G16_SFLOAT, vk::Format::R32G32_SFLOAT];
+
+/// The units of the motion image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum MotionUnits {
+    /// Framebuffer pixels.
+    #[default]
+    Pixels,
+    /// Pixels divided by the frame size (uv of the frame).
+    Uv,
+    /// Vulkan NDC: twice the uv (+y down).
+    Ndc,
+}
+
+/// Which way the motion points.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum MotionDirection {
+    /// Previous minus current position: from the pixel to where its surface was (DLSS's
+    /// and FSR's default).
+    #[default]
+    ToPrevious,
+    /// Current minus previous position.
+    ToCurrent,
+}
+
+/// What the motion of a displaced pixel is built from (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum MotionSource {
+    /// A static world: the previous camera alone (the image's contents at displaced
+    /// pixels are ignored).
+    Camera,
+    /// The macro surface's motion the host wrote into the image, plus the displacement's
+    /// parallax (moving objects; the offset taken as unrotated).
+    #[default]
+    Surface,
+}
+
+/// How the motion output writes the host's image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MotionSettings {
+    /// The image's format (one of [`MOTION_FORMATS`]).
+    pub format: vk::Format,
+    /// The units of its values.
+    pub units: MotionUnits,
+    /// Their direction.
+    pub direction: MotionDirection,
+    /// Static world or the host's surface motion.
+    pub source: MotionSource,
+}
+
+impl Default for MotionSettings {
+    /// `R16G16_SFLOAT`, pixels, previous minus current, the host's surface motion.
+    fn default() -> Self {
+        MotionSettings {
+            format: vk::Format::R16G16_SFLOAT,
+            units: MotionUnits::default(),
+            direction: MotionDirection::default(),
+            source: MotionSource::default(),
+        }
+    }
+}
+
+impl MotionSettings {
+    /// Checks the format (one of [`MOTION_FORMATS`], with storage support on `ctx`'s
+    /// device: `R32G32_SFLOAT` storage is not mandatory in Vulkan).
+    pub fn validate(&self, ctx: &Context) -> Result<()> {
+        if !MOTION_FORMATS.contains(&self.format) {
+            return Err(Error::invalid(
+                "motion format",
+                format!("{:?} is not one of {MOTION_FORMATS:?}", self.format),
+            ));
+        }
+        let needed = vk::FormatFeatureFlags::STORAGE_IMAGE;
+        if !ctx.format_features(self.format).contains(needed) {
+            return Err(Error::Unsupported {
+                device: ctx.info().name.clone(),
+                what: format!("{:?} with {needed:?} (the motion image)", self.format),
+            });
+        }
+        Ok(())
+    }
+
+    /// The flags of `MotionParams::material` (bits 16-31, `glsl/motion.comp`).
+    fn flags(&self) -> u32 {
+        let mut f = 0;
+        if self.source == MotionSource::Surface {
+            f |= 0x1_0000;
+        }
+        f |= match self.units {
+            MotionUnits::Pixels => 0,
+            MotionUnits::Uv => 0x2_0000,
+            MotionUnits::Ndc => 0x4_0000,
+        };
+        if self.direction == MotionDirection::ToCurrent {
+            f |= 0x8_0000;
+        }
+        f
+    }
+}
+
+const BINDINGS: [vk::DescriptorType; 6] = [
+    vk::DescriptorType::STORAGE_IMAGE,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    vk::DescriptorType::STORAGE_IMAGE,
+];
+
+fn bindings() -> Vec<(u32, vk::DescriptorType)> {
+    let mut b = crate::gpu::pipeline::numbered(&BINDINGS);
+    b.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
+    b
+}
+
+/// The images the pass reads and writes (layouts in the module docs).
+#[derive(Clone, Copy)]
+pub struct MotionInputs {
+    /// The hit buffer (read).
+    pub hit: vk::ImageView,
+    /// The G-buffer (ray, depth, normal and tangent are read).
+    pub gbuffer: GBufferViews,
+    /// The host's motion image (read and written in place).
+    pub motion: vk::ImageView,
+    /// The material and its tiles.
+    pub tiles: MaterialTiles,
+}
+
+impl MotionParams {
+    /// The push constants for a frame drawn with `view_proj` from `eye` whose previous
+    /// frame was drawn with `prev_view_proj` (world to clip), for a material of
+    /// `depth_scale` tile units, written as `settings` says.
+    ///
+    /// Composed in f64 and eye-relative (as [`crate::abi::HitDepthParams::new`]): the
+    /// previous matrix is `prev_view_proj * translation(eye)`, applied to offsets from the
+    /// current eye, so neither frame's large world coordinates cancel in f32.
+    pub fn new(
+        view_proj: Mat4,
+        eye: Vec3,
+        prev_view_proj: Mat4,
+        frame_size: [u32; 2],
+        depth_scale: f32,
+        settings: &MotionSettings,
+    ) -> Self {
+        let to_eye = DMat4::from_translation(eye.as_dvec3());
+        let inv = (view_proj.as_dmat4() * to_eye).inverse();
+        let prev = prev_view_proj.as_dmat4() * to_eye;
+        MotionParams {
+            inv_eye_clip: inv.as_mat4(),
+            prev_x_row: prev.row(0).as_vec4(),
+            prev_y_row: prev.row(1).as_vec4(),
+            prev_w_row: prev.row(3).as_vec4(),
+            frame_size,
+            depth_scale,
+            material: settings.flags(),
+        }
+    }
+}
+
+/// The motion pass of one image format.
+pub struct MotionPass {
+    pipeline: FetchPipeline,
+    /// The format its pipeline writes.
+    pub format: vk::Format,
+}
+
+impl MotionPass {
+    /// Builds the pipeline for a motion image of `format` (one of [`MOTION_FORMATS`]).
+    pub fn new(ctx: &Context, format: vk::Format) -> Result<Self> {
+        let (name, shader) = if format == vk::Format::R32G32_SFLOAT {
+            ("motion_rg32f", &shaders::MOTION_COMP_WIDE)
+        } else {
+            ("motion", &shaders::MOTION_COMP)
+        };
+        Ok(MotionPass {
+            pipeline: FetchPipeline::new(
+                ctx,
+                name,
+                shader,
+                &bindings(),
+                std::mem::size_of::<MotionParams>() as u32,
+            )?,
+            format,
+        })
+    }
+
+    /// Records the dispatch over the material's tiles.
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * `inputs`' views belong to that device and have the formats and usages of the
+    ///   module docs (the motion image of this pass's format); all have the frame's size.
+    /// * When the command buffer executes, the images are in the layouts of the module
+    ///   docs: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   reads; the G-buffer in `SHADER_READ_ONLY_OPTIMAL`, its writes visible to
+    ///   compute-shader sampled reads; the motion image in `GENERAL`, its writes visible
+    ///   to compute-shader storage reads and writes; the tile list written by a `classify`
+    ///   recorded before in the same command buffer.
+    /// * The images behind `inputs` and this pass stay alive until the command buffer has
+    ///   executed.
+    pub unsafe fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: MotionInputs,
+        params: &MotionParams,
+    ) {
+        let MotionInputs {
+            hit,
+            gbuffer,
+            motion,
+            tiles,
+        } = inputs;
+        let hits = storage_view(hit);
+        let fetch = |view| self.pipeline.fetch_view(view);
+        let ray = fetch(gbuffer.ray);
+        let depth = fetch(gbuffer.depth);
+        let normal = fetch(gbuffer.normal);
+        let tangent = fetch(gbuffer.tangent);
+        let out = storage_view(motion);
+        let writes = [
+            image_write(0, BINDINGS[0], &hits),
+            image_write(1, BINDINGS[1], &ray),
+            image_write(2, BINDINGS[2], &depth),
+            image_write(3, BINDINGS[3], &normal),
+            image_write(4, BINDINGS[4], &tangent),
+            image_write(5, BINDINGS[5], &out),
+        ];
+        let push = MotionParams {
+            material: (params.material & !0xFFFF) | tiles.material,
+            ..*params
+        };
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the writes match `bindings()` (the pipeline's set 0) and name live views in
+        // the layouts of the module docs; the push constants are the `MotionParams` the
+        // layout was built with (the material in their low bits); the pipeline lives as
+        // long as this pass; the list is the classification's.
+        unsafe {
+            tiles.dispatch(
+                ctx,
+                cmd,
+                &self.pipeline.pipeline,
+                &writes,
+                bytemuck::bytes_of(&push),
+            )
+        };
+    }
+
+    /// Destroys the pipeline and sampler. The GPU must be done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+    }
+}
