@@ -6,12 +6,15 @@
 // offsets from the current eye; prev_px(p) is a point's position in pixels under the
 // previous frame's view-projection. The motion in pixels (previous minus current) is
 //   source CAMERA:   prev_px(p_hit) - pixel centre            (a static world: exact)
-//   source SURFACE:  m_entry + prev_px(p_hit) - prev_px(p_entry),
-// where m_entry is the macro surface's motion the host wrote at the pixel (its G-buffer
-// pass): for a static surface the two agree; for a moving one the displacement offset is
-// taken as moving with the entry point, unrotated (the approximation src/passes/motion.rs
-// measures). It is stored in the host's units and direction (flags). Pixels of other
-// materials, without displacement or without a hit keep the image's value.
+//   source SURFACE:  prev_px(p_hit + t) - pixel centre,
+// where t is the surface's own move since the previous frame: the host wrote the macro
+// surface's motion m_entry at the pixel (its G-buffer pass); m_entry minus the camera's
+// motion of the entry, prev_px(p_entry) - centre, is the surface's own screen motion, taken
+// as a translation at constant previous view depth (exact for a static surface, where it
+// is 0, and for a translation parallel to the image plane; the approximation
+// src/passes/motion.rs measures for rotations and moves in depth). It is stored in the
+// host's units and direction (flags). Pixels of other materials, without displacement or
+// without a hit keep the image's value.
 // Bindings: src/passes/motion.rs; push constants: src/abi.rs MotionParams.
 // An R32G32_SFLOAT image with the WIDE variant, R16G16_SFLOAT without.
 // dispmap-variant: WIDE
@@ -92,16 +95,26 @@ void main() {
         }
         return;
     }
-    vec2 motion;
+    vec2 motion = hit_prev - centre;
     if ((pc.material & MOTION_SURFACE) != 0u) {
+        // The surface's own motion: the host's motion of the entry minus the camera's.
         vec2 entry_prev;
         if (!prev_pixel(entry, entry_prev)) {
             return;
         }
-        vec2 m_entry = imageLoad(u_motion, pixel).xy / to_units;
-        motion = m_entry + (hit_prev - entry_prev);
-    } else {
-        motion = hit_prev - centre;
+        vec2 own = imageLoad(u_motion, pixel).xy / to_units - (entry_prev - centre);
+        // As a translation t of the surface at constant previous view depth (clip w):
+        // rows x, y of the previous clip matrix move by own (in NDC) * w, row w by 0.
+        mat3 rows = transpose(mat3(pc.prev_x_row.xyz, pc.prev_y_row.xyz, pc.prev_w_row.xyz));
+        float w = dot(pc.prev_w_row, vec4(entry, 1.0));
+        if (abs(determinant(rows)) > 0.0) {
+            vec3 t = inverse(rows) * vec3(2.0 * own / vec2(pc.frame_size) * w, 0.0);
+            // The displaced point moved with its surface.
+            if (!prev_pixel(p + t, hit_prev)) {
+                return;
+            }
+            motion = hit_prev - centre;
+        }
     }
     imageStore(u_motion, pixel, vec4(motion * to_units, 0.0, 0.0));
 }

@@ -47,6 +47,7 @@ pub fn texel_size(format: vk::Format) -> Option<u32> {
         vk::Format::R16_UNORM | vk::Format::R16_SFLOAT => 2,
         vk::Format::R32_SFLOAT
         | vk::Format::D32_SFLOAT
+        | vk::Format::R16G16_SFLOAT
         | vk::Format::R8G8B8A8_UNORM
         | vk::Format::R8G8B8A8_SRGB => 4,
         vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_SFLOAT => 8,

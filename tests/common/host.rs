@@ -338,6 +338,20 @@ impl RayHost {
         self.record_slot(pass, s, None);
     }
 
+    /// Records `pass` into slot `s` with the corrected depth's and the motion's camera
+    /// (`record_with_camera`) and `motion` (its image in `GENERAL`, the host's writes
+    /// visible to compute-shader storage reads and writes, e.g. after `upload_image`), and
+    /// submits it without waiting.
+    pub fn submit_with_motion(
+        &mut self,
+        pass: &mut DisplacementPass,
+        s: usize,
+        camera: dispmap::embed::DepthCamera,
+        motion: dispmap::embed::FrameMotion,
+    ) {
+        self.record_slot_with(pass, s, None, Some((camera, motion)));
+    }
+
     /// Records `pass` into slot `s` (after waiting for the slot's last frame) with
     /// `shade`, and submits it without waiting.
     fn record_slot(
@@ -345,6 +359,17 @@ impl RayHost {
         pass: &mut DisplacementPass,
         s: usize,
         shade: Option<dispmap::embed::ShadeTarget>,
+    ) {
+        self.record_slot_with(pass, s, shade, None);
+    }
+
+    /// [`RayHost::record_slot`], with a camera and motion inputs when given.
+    fn record_slot_with(
+        &mut self,
+        pass: &mut DisplacementPass,
+        s: usize,
+        shade: Option<dispmap::embed::ShadeTarget>,
+        motion: Option<(dispmap::embed::DepthCamera, dispmap::embed::FrameMotion)>,
     ) {
         let ctx = self.ctx.clone();
         let cmd = self.slots.begin(s);
@@ -359,15 +384,24 @@ impl RayHost {
             gbuffer: self.gbuffer.views(),
             hit: hit.view,
             shade,
-            motion: None,
+            motion: motion.map(|(_, m)| m),
         };
         // SAFETY: `cmd` is recording outside a render pass on the context's queue
         // family; the G-buffer is in SHADER_READ_ONLY_OPTIMAL after its upload or
         // rasterisation (completed: `set_rays` / `rasterise` wait), the hit image in
-        // GENERAL, a shade target's colour image too (`submit_shaded`); the views live
+        // GENERAL, a shade target's colour image too (`submit_shaded`), a motion image
+        // with the host's writes visible (`submit_with_motion`'s contract); the views live
         // until the frame completes; the slot contract holds (`begin` waited) and the
         // buffer is submitted below, in recording order.
-        unsafe { pass.record(cmd, &inputs, Timestamps::Off) }.unwrap();
+        let recorded = unsafe {
+            match motion {
+                Some((camera, _)) => {
+                    pass.record_with_camera(cmd, &inputs, &camera, Timestamps::Off)
+                }
+                None => pass.record(cmd, &inputs, Timestamps::Off),
+            }
+        };
+        recorded.unwrap();
         self.slots.submit(s);
     }
 
