@@ -248,6 +248,8 @@ struct EngineImage {
     view: vk::ImageView,
     allocation: Option<Allocation>,
     aspect: vk::ImageAspectFlags,
+    /// What the pass checks of an image it writes (format, size, usage).
+    host: embed::HostView,
 }
 
 /// A buffer and its memory.
@@ -524,6 +526,12 @@ impl Engine {
                 view,
                 allocation: Some(allocation),
                 aspect,
+                host: embed::HostView {
+                    view,
+                    format,
+                    extent,
+                    usage,
+                },
             })
         }
     }
@@ -1147,9 +1155,9 @@ impl Engine {
                     depth: slot.depth.view,
                     extent,
                 },
-                hit: slot.hit.view,
+                hit: slot.hit.host,
                 shade: Some(ShadeTarget {
-                    color: slot.color.view,
+                    color: slot.color.host,
                     view_proj: camera.view_proj,
                     camera_pos: camera.eye,
                     light_dir: light,

@@ -69,6 +69,13 @@
 //!     gbuffer: GBufferViews,
 //!     hit: vk::ImageView,
 //! ) -> dispmap::Result<()> {
+//!     // The hit buffer as the pass checks it (format, size, usage: a wrong one is refused).
+//!     let hit = embed::HostView {
+//!         view: hit,
+//!         format: embed::HIT_FORMAT,
+//!         extent: gbuffer.extent,
+//!         usage: vk::ImageUsageFlags::STORAGE,
+//!     };
 //!     // 1. The device has what the pass needs (an error naming what is missing).
 //!     // SAFETY: the host's physical device was enumerated from its live instance.
 //!     unsafe { embed::check_physical_device(&handles.instance, handles.physical_device)? };

@@ -929,7 +929,7 @@ impl Renderer {
             .frame_camera(w, h),
         };
         let target = ShadeTarget {
-            color: self.color.view,
+            color: self.color.host_view(),
             view_proj: camera.view_proj,
             camera_pos: camera.eye,
             light_dir: scene.light_direction(),
@@ -981,7 +981,7 @@ impl Renderer {
         FrameInputs {
             frame_slot: 0,
             gbuffer: self.gbuffer.views(),
-            hit: self.hit.view,
+            hit: self.hit.host_view(),
             shade,
             motion: None,
         }

@@ -123,7 +123,7 @@ impl Host {
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: g.views(),
-            hit: slot.hit.view,
+            hit: slot.hit.host_view(),
             shade: None,
             motion: None,
         };

@@ -183,7 +183,7 @@ impl Host {
         // SAFETY: as above, for the slot's hit and colour images.
         unsafe { sync::record(&ctx, cmd, &entry) };
         let shade = ShadeTarget {
-            color: slot.color.view,
+            color: slot.color.host_view(),
             view_proj: camera.view_proj,
             camera_pos: camera.eye,
             light_dir: light.truncate(),
@@ -192,7 +192,7 @@ impl Host {
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: g.views(),
-            hit: slot.hit.view,
+            hit: slot.hit.host_view(),
             shade: (output == Output::Shaded).then_some(shade),
             motion: None,
         };
@@ -833,7 +833,7 @@ fn depth_output_without_a_camera_is_a_clear_error() {
     let inputs = FrameInputs {
         frame_slot: 0,
         gbuffer: slot.gbuffer.views(),
-        hit: slot.hit.view,
+        hit: slot.hit.host_view(),
         shade: None,
         motion: None,
     };

@@ -549,7 +549,7 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
         0,
         now,
         FrameMotion {
-            image: motion_image.view,
+            image: motion_image.host_view(),
             previous: now,
         },
     );

@@ -166,6 +166,7 @@ pub use device::{
 
 use crate::context::Context;
 use crate::error::{Error, Result};
+pub use crate::gpu::HostView;
 use crate::gpu::Image;
 use crate::gpu::owned::{Destroy, Guard, RetireQueue};
 use crate::heightfield::{Addressing, HeightField};
@@ -217,8 +218,9 @@ pub struct PassSettings {
 /// What `shade` needs to light the hits (only when the host wants dispmap's colour).
 #[derive(Clone, Copy, Debug)]
 pub struct ShadeTarget {
-    /// The colour image view (`R8G8B8A8_UNORM`, storage usage; see the module table).
-    pub color: vk::ImageView,
+    /// The colour image (`R8G8B8A8_UNORM`, `STORAGE` usage, the frame's size; see the
+    /// module table).
+    pub color: HostView,
     /// World to clip of the frame (the inverse gives each pixel's view ray).
     pub view_proj: Mat4,
     /// Eye position, world space.
@@ -236,8 +238,9 @@ pub struct FrameInputs {
     pub frame_slot: u32,
     /// The host's G-buffer views; `extent` must equal the pass's.
     pub gbuffer: GBufferViews,
-    /// The hit buffer view this frame writes (`R32G32B32A32_SFLOAT`, storage usage).
-    pub hit: vk::ImageView,
+    /// The hit buffer this frame writes (`R32G32B32A32_SFLOAT`, `STORAGE` usage, the
+    /// frame's size).
+    pub hit: HostView,
     /// Shade the hits into a colour image (`None`: the host shades from the hit buffer).
     pub shade: Option<ShadeTarget>,
     /// The host's motion image and previous camera: required while the motion output is
@@ -249,9 +252,9 @@ pub struct FrameInputs {
 /// contract).
 #[derive(Clone, Copy, Debug)]
 pub struct FrameMotion {
-    /// The host's motion image (one of [`MOTION_FORMATS`], the format of the pass's
-    /// [`MotionSettings`], `STORAGE` usage, the frame's size), read and written in place.
-    pub image: vk::ImageView,
+    /// The host's motion image (the format of the pass's [`MotionSettings`], one of
+    /// [`MOTION_FORMATS`]; `STORAGE` usage; the frame's size), read and written in place.
+    pub image: HostView,
     /// The camera the host drew its previous frame with (world to clip and eye).
     pub previous: DepthCamera,
 }

@@ -284,6 +284,22 @@ impl DisplacementPass {
                 ),
             ));
         }
+        let storage = vk::ImageUsageFlags::STORAGE;
+        inputs
+            .hit
+            .check("hit", &[crate::passes::trace::HIT_FORMAT], storage, extent)?;
+        if let Some(shade) = &inputs.shade {
+            shade.color.check(
+                "color",
+                &[crate::passes::shade::COLOR_FORMAT],
+                storage,
+                extent,
+            )?;
+        }
+        if let (Some(m), Some(settings)) = (&inputs.motion, &self.motion_on) {
+            m.image
+                .check("motion", &[settings.format], storage, extent)?;
+        }
         let (pool, first) = match timestamps {
             Timestamps::Off => (None, 0),
             Timestamps::Owned => (Some(self.owned_pool()?), slot * MAX_QUERIES),
@@ -491,7 +507,7 @@ impl DisplacementPass {
             depth: inputs.gbuffer.depth,
             tangent: inputs.gbuffer.tangent,
             hit: ViewRef {
-                view: inputs.hit,
+                view: inputs.hit.view,
                 extent: self.frame.extent,
             },
             write_hits,
@@ -601,7 +617,7 @@ impl DisplacementPass {
     ) -> Result<()> {
         let ctx = &*self.ctx;
         let hit = ViewRef {
-            view: inputs.hit,
+            view: inputs.hit.view,
             extent: self.frame.extent,
         };
         let slot = inputs.frame_slot as usize;
@@ -712,7 +728,7 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         ShadowInputs {
-                            hit: inputs.hit,
+                            hit: inputs.hit.view,
                             gbuffer: inputs.gbuffer,
                             height: &map.texture,
                             pyramid: map.pyramid(PyramidKind::Cell),
@@ -769,12 +785,12 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         ShadeInputs {
-                            hit: inputs.hit,
+                            hit: inputs.hit.view,
                             gbuffer: inputs.gbuffer,
                             height: &map.texture,
                             material: m.shading.as_ref(),
                             color: ViewRef {
-                                view: target.color,
+                                view: target.color.view,
                                 extent: self.frame.extent,
                             },
                             visibility,
@@ -825,7 +841,7 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         HitDepthInputs {
-                            hit: inputs.hit,
+                            hit: inputs.hit.view,
                             gbuffer: inputs.gbuffer,
                             hit_depth: image.view_ref(),
                             tiles: *tiles,
@@ -878,9 +894,9 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         MotionInputs {
-                            hit: inputs.hit,
+                            hit: inputs.hit.view,
                             gbuffer: inputs.gbuffer,
-                            motion: frame.image,
+                            motion: frame.image.view,
                             tiles: *tiles,
                         },
                         &params,

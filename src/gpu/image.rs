@@ -18,6 +18,8 @@ pub struct Image {
     pub extent: vk::Extent2D,
     /// Number of mip levels.
     pub mip_levels: u32,
+    /// The usage it was created with.
+    pub usage: vk::ImageUsageFlags,
     allocation: Option<Allocation>,
     name: String,
 }
@@ -30,6 +32,58 @@ pub struct ViewRef {
     pub view: vk::ImageView,
     /// Size of the viewed mip level.
     pub extent: vk::Extent2D,
+}
+
+/// A host image the displacement pass writes ([`crate::embed::FrameInputs`]'s hit buffer,
+/// [`crate::embed::ShadeTarget`]'s colour image, [`crate::embed::FrameMotion`]'s motion
+/// image), with what the pass checks before it records anything: a Vulkan view does not
+/// say its image's format, size or usage, and a storage image of the wrong format is
+/// written without an error or a validation message. The host fills it from its own
+/// `VkImageCreateInfo` (the view must show the whole of mip level 0, in `format`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HostView {
+    /// The image view.
+    pub view: vk::ImageView,
+    /// The view's format.
+    pub format: vk::Format,
+    /// The image's size (mip level 0).
+    pub extent: vk::Extent2D,
+    /// The image's usage flags.
+    pub usage: vk::ImageUsageFlags,
+}
+
+impl HostView {
+    /// Checks the image named `name` against what the pass needs: one of `formats`, the
+    /// `usage` flags, the frame's `extent`; the error names the image and the mismatch.
+    pub fn check(
+        &self,
+        name: &str,
+        formats: &[vk::Format],
+        usage: vk::ImageUsageFlags,
+        extent: vk::Extent2D,
+    ) -> crate::error::Result<()> {
+        let invalid = |m: String| Err(crate::error::Error::invalid(name, m));
+        if self.view == vk::ImageView::null() {
+            return invalid("a null image view".into());
+        }
+        if !formats.contains(&self.format) {
+            let wanted = match formats {
+                [one] => format!("{one:?}"),
+                many => format!("one of {many:?}"),
+            };
+            return invalid(format!("format {:?}; the pass needs {wanted}", self.format));
+        }
+        if !self.usage.contains(usage) {
+            return invalid(format!("usage {:?} lacks {usage:?}", self.usage));
+        }
+        if self.extent != extent {
+            return invalid(format!(
+                "extent {}x{} differs from the pass's {}x{}",
+                self.extent.width, self.extent.height, extent.width, extent.height
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// The aspect a view of `format` covers.
@@ -144,6 +198,7 @@ impl Image {
             format,
             extent,
             mip_levels,
+            usage,
             allocation: Some(allocation),
             name: name.into(),
         })
@@ -180,6 +235,16 @@ impl Image {
         ViewRef {
             view: self.view,
             extent: self.extent,
+        }
+    }
+
+    /// Its view as a host image of the embedding API (view, format, size and usage).
+    pub fn host_view(&self) -> HostView {
+        HostView {
+            view: self.view,
+            format: self.format,
+            extent: self.extent,
+            usage: self.usage,
         }
     }
 

@@ -15,5 +15,5 @@ pub mod sync;
 pub use buffer::Buffer;
 pub use commands::OneShot;
 pub use height_texture::HeightTexture;
-pub use image::{Image, ViewRef};
+pub use image::{HostView, Image, ViewRef};
 pub use pipeline::ComputePipeline;

@@ -177,7 +177,7 @@ impl CameraMotion {
             );
         }
         FrameMotion {
-            image: self.image.view,
+            image: self.image.host_view(),
             previous,
         }
     }

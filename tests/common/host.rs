@@ -296,7 +296,7 @@ impl RayHost {
         // The colour image holds the host's fill in GENERAL, visible to compute-shader
         // storage writes (the upload above, completed).
         let shade = dispmap::embed::ShadeTarget {
-            color: self.colors[s].view,
+            color: self.colors[s].host_view(),
             view_proj: camera.0,
             camera_pos: camera.1,
             light_dir: glam::Vec3::new(0.3, 0.8, 0.5).normalize(),
@@ -382,7 +382,7 @@ impl RayHost {
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: self.gbuffer.views(),
-            hit: hit.view,
+            hit: hit.host_view(),
             shade,
             motion: motion.map(|(_, m)| m),
         };

@@ -1,0 +1,179 @@
+//! The host images the pass writes (hit buffer, colour, motion) are checked before
+//! anything is recorded: a wrong format, a smaller size or a missing `STORAGE` usage is
+//! refused with an error naming the image, and motion inputs must match the motion
+//! output's state. Vulkan itself would not say: a storage image of the wrong format is
+//! written without an error or a validation message (issue 23). After the refusals the
+//! pass records a valid frame; validation on throughout.
+
+mod common;
+
+use ash::vk;
+use common::{asset_map, finish, validated_context};
+use dispmap::embed::{
+    COLOR_FORMAT, DepthCamera, DisplacementPass, FrameInputs, FrameMotion, HIT_FORMAT, HostView,
+    MotionSettings, PassSettings, ShadeTarget, Timestamps,
+};
+use dispmap::error::Error;
+use dispmap::gpu::sync::{self, Access};
+use dispmap::gpu::{Image, OneShot};
+use dispmap::heightfield::{Addressing, Convention};
+use dispmap::method::{Method, MethodParams};
+use dispmap::passes::gbuffer::GBuffer;
+use glam::{Mat4, Vec3};
+
+const EXTENT: vk::Extent2D = vk::Extent2D {
+    width: 32,
+    height: 16,
+};
+
+/// The name and message of an `InvalidInput` error.
+fn refused(result: dispmap::Result<impl std::fmt::Debug>) -> (String, String) {
+    match result {
+        Err(Error::InvalidInput { name, message }) => (name, message),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+}
+
+#[test]
+fn wrong_host_images_are_refused_by_name() {
+    let ctx = validated_context();
+    let c = &*ctx;
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let storage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC;
+    let image = |name: &str, format: vk::Format, extent: vk::Extent2D| {
+        Image::new(c, name, format, extent, 1, storage).unwrap()
+    };
+    let mut gbuffer = GBuffer::new(c, EXTENT).unwrap();
+    let mut hit = image("hit", HIT_FORMAT, EXTENT);
+    let mut half_hit = image("hit16", vk::Format::R16G16B16A16_SFLOAT, EXTENT);
+    let mut small_hit = image(
+        "small_hit",
+        HIT_FORMAT,
+        vk::Extent2D {
+            width: 16,
+            height: 16,
+        },
+    );
+    let mut motion32 = image("motion32", vk::Format::R32G32_SFLOAT, EXTENT);
+    let mut shot = OneShot::new(c, "test").unwrap();
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &field,
+        PassSettings {
+            method: Method::Relief,
+            params: MethodParams::for_method(Method::Relief),
+            depth_scale: 0.1,
+            addressing: Addressing::Repeat,
+            extent: EXTENT,
+            frames_in_flight: 1,
+        },
+    )
+    .unwrap();
+    let inputs = FrameInputs {
+        frame_slot: 0,
+        gbuffer: gbuffer.views(),
+        hit: hit.host_view(),
+        shade: None,
+        motion: None,
+    };
+    let camera = DepthCamera {
+        view_proj: Mat4::IDENTITY,
+        eye: Vec3::ZERO,
+    };
+    let cmd = shot.begin(c).unwrap();
+    // SAFETY (every record below): `cmd` is recording outside a render pass on the
+    // context's queue family and submitted below; each call is refused before it records
+    // anything (the assertions), so no image is accessed.
+    let mut record = |inputs: &FrameInputs| unsafe {
+        pass.record_with_camera(cmd, inputs, &camera, Timestamps::Off)
+    };
+
+    let (name, message) = refused(record(&FrameInputs {
+        hit: half_hit.host_view(),
+        ..inputs
+    }));
+    assert_eq!(name, "hit");
+    assert!(message.contains("R16G16B16A16_SFLOAT"), "{message}");
+    let (name, message) = refused(record(&FrameInputs {
+        hit: small_hit.host_view(),
+        ..inputs
+    }));
+    assert_eq!(name, "hit");
+    assert!(message.contains("16x16"), "{message}");
+    let (name, message) = refused(record(&FrameInputs {
+        hit: HostView {
+            usage: vk::ImageUsageFlags::SAMPLED,
+            ..hit.host_view()
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "hit");
+    assert!(message.contains("STORAGE"), "{message}");
+    let shaded = |color: HostView| FrameInputs {
+        shade: Some(ShadeTarget {
+            color,
+            view_proj: Mat4::IDENTITY,
+            camera_pos: Vec3::ZERO,
+            light_dir: Vec3::Y,
+            light_intensity: 1.0,
+        }),
+        ..inputs
+    };
+    // An HDR colour target where the pass writes sRGB-encoded RGBA8.
+    let (name, message) = refused(record(&shaded(half_hit.host_view())));
+    assert_eq!(name, "color");
+    assert!(message.contains(&format!("{COLOR_FORMAT:?}")), "{message}");
+
+    // Motion inputs follow the output's state and format.
+    let with_motion = |image: HostView| FrameInputs {
+        motion: Some(FrameMotion {
+            image,
+            previous: camera,
+        }),
+        ..inputs
+    };
+    let (name, _) = refused(record(&with_motion(motion32.host_view())));
+    assert_eq!(name, "motion", "motion inputs while the output is off");
+    pass.set_motion_output(Some(MotionSettings::default()))
+        .unwrap();
+    // SAFETY: as above.
+    let mut record = |inputs: &FrameInputs| unsafe {
+        pass.record_with_camera(cmd, inputs, &camera, Timestamps::Off)
+    };
+    let (name, _) = refused(record(&inputs));
+    assert_eq!(name, "motion", "no motion inputs while the output is on");
+    let (name, message) = refused(record(&with_motion(motion32.host_view())));
+    assert_eq!(name, "motion");
+    assert!(message.contains("R16G16_SFLOAT"), "{message}");
+    pass.set_motion_output(None).unwrap();
+
+    // The refusals changed nothing: a valid frame records and runs.
+    // SAFETY: `cmd` is recording (above); the G-buffer is discarded into the sampled
+    // layout and the hit image into GENERAL for storage writes (barriers below).
+    unsafe {
+        let entry = gbuffer.barriers(
+            (Access::UNDEFINED, Access::COMPUTE_SAMPLED),
+            (Access::UNDEFINED, Access::COMPUTE_SAMPLED),
+        );
+        sync::record(c, cmd, &entry);
+        sync::transition(
+            c,
+            cmd,
+            &hit,
+            Access::UNDEFINED,
+            Access::COMPUTE_STORAGE_WRITE,
+        );
+        pass.record(cmd, &inputs, Timestamps::Off).unwrap();
+    }
+    shot.submit_and_wait(c).unwrap();
+
+    // SAFETY: the one submission completed.
+    unsafe { pass.destroy() };
+    drop(pass);
+    for i in [&mut hit, &mut half_hit, &mut small_hit, &mut motion32] {
+        i.destroy(c);
+    }
+    gbuffer.destroy(c);
+    shot.destroy(c);
+    finish(ctx);
+}
