@@ -4,7 +4,8 @@
 //! It wraps its handles in a [`Context`] with [`Context::from_handles`], builds one
 //! [`DisplacementPass`] for all its displaced materials, and each frame calls
 //! [`DisplacementPass::record`] once, which only *records* `[upload] -> [pyramid] ->
-//! [cone] -> classify -> [dig_corners] -> trace -> [shadow] -> [shade] -> [hit_depth]`
+//! [cone] -> classify -> [dig_corners] -> trace -> [shadow] -> [shade] -> [hit_depth] ->
+//! [motion]`
 //! into the host's command buffer. On this path dispmap never
 //! creates a device, a command pool or a fence, and never submits: the host submits with
 //! its own fence. This is the one orchestrator of the compute passes: dispmap's own
@@ -39,7 +40,8 @@
 //!    [`DisplacementPass::set_material_height_map`] /
 //!    [`DisplacementPass::set_height_map`] / [`DisplacementPass::resize`] /
 //!    [`DisplacementPass::set_method`] / [`DisplacementPass::set_shadows`] /
-//!    [`DisplacementPass::set_depth_output`] / [`DisplacementPass::set_material`] (albedo
+//!    [`DisplacementPass::set_depth_output`] / [`DisplacementPass::set_motion_output`] /
+//!    [`DisplacementPass::set_material`] (albedo
 //!    and normal maps for `shade`) / [`DisplacementPass::set_depth_scale`] any time
 //!    between records, with frames in
 //!    flight (what they replace is retired, see below; for `resize` the host's images of
@@ -47,10 +49,14 @@
 //!    depth are off after `new` and nothing of them is built until they are turned on.
 //!    To shade hits of its own (e.g. exact reference hits) exactly as a frame shades the
 //!    method's, a host records [`DisplacementPass::record_shading`] instead of `record`.
-//! 6. With the corrected depth on: after `record`, the host reads
+//! 6. With the motion output on ([`DisplacementPass::set_motion_output`]): every record
+//!    gets [`FrameInputs::motion`] (the host's motion image and its previous frame's
+//!    camera) and writes the displaced pixels' motion into that image in place (see
+//!    "Motion vectors" below).
+//! 7. With the corrected depth on: after `record`, the host reads
 //!    [`DisplacementPass::hit_depth`] of the frame's slot, e.g. to write it into its own
 //!    `D32_SFLOAT` attachment (see "Corrected depth" below).
-//! 7. After the device is idle (or every fence of a frame recorded with the pass has
+//! 8. After the device is idle (or every fence of a frame recorded with the pass has
 //!    signalled): [`DisplacementPass::destroy`], then drop the context, then the host
 //!    destroys its own objects.
 //!
@@ -62,6 +68,7 @@
 //! | G-buffer `depth` | host | as above (depth aspect) | as above |
 //! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded: the host's image barrier has `oldLayout = UNDEFINED`, `newLayout = GENERAL`, `srcStageMask`/`srcAccessMask` its last access, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` (the layout transition must be ordered before the pass's writes: a barrier without a destination access is a write-after-write hazard to synchronization validation) | `GENERAL`; every pixel written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), read by `SHADER_STORAGE_READ` (shade) |
 //! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL` with the host's colour (kept wherever nothing is displaced): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values), every other pixel as it entered |
+//! | motion (`R16G16_SFLOAT` or `R32G32_SFLOAT` as [`MotionSettings::format`], `STORAGE`; only with [`DisplacementPass::set_motion_output`] on) | host | `GENERAL` with the host's motion of every pixel (source `Surface`; any contents for `Camera`): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_READ \| SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels with a hit written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`, every other pixel as it entered |
 //! | height maps, pyramids, cone maps, DIG corner grids, tile lists | pass | (internal) | (internal; read-only for the host) |
 //! | visibility (`R16_SFLOAT`, one per slot; only with [`DisplacementPass::set_shadows`] on and a [`ShadeTarget`]) | pass | (internal: discarded by the pass) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (shadow), last read by `SHADER_STORAGE_READ` (shade); read-only for the host ([`DisplacementPass::visibility`]) |
 //! | corrected depth (`R32_SFLOAT`, one per slot; only with [`DisplacementPass::set_depth_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (hit_depth); the host may read it (after its own barrier from that state) and leave it in any layout |
@@ -154,6 +161,24 @@
 //!    `SHADER_READ_ONLY_OPTIMAL`: the next record of the slot discards it.
 //!
 //! The host builds `DepthResolvePass::new(&ctx)` once and destroys it itself.
+//!
+//! # Motion vectors
+//!
+//! TAA, TSR, DLSS and FSR need each pixel's screen motion, and a displaced pixel moves as
+//! the displaced surface does, not as the flat macro surface under it (at 1 degree of
+//! elevation and a 1.7-degree camera turn the flat motion is up to 35 pixels off on the
+//! method scenes; `tests/motion.rs`). [`DisplacementPass::set_motion_output`] with
+//! [`MotionSettings`] makes every record run `motion` last: for each displaced pixel with
+//! a hit it writes the motion of the displaced point into the host's own motion image
+//! ([`FrameMotion::image`]), in place, in the host's units and direction; every other
+//! pixel keeps the host's value. The previous camera is [`FrameMotion::previous`]; the
+//! current one is the frame's ([`ShadeTarget`] or [`DisplacementPass::record_with_camera`]).
+//! [`crate::passes::motion`] documents the formulas: exact for a static world (source
+//! `Camera`, or `Surface` where the host's motion is the camera's), and for a surface
+//! moving on its own (source `Surface`) exact for translations parallel to the image
+//! plane, with a measured error for turning surfaces. The displaced point comes from
+//! `glsl/include/dispmap_displace.glsl`, which a host's own shaders can include
+//! (`DEP_DISPMAP_INCLUDE`) for the same point: the corrected depth uses it too.
 
 mod device;
 mod plan;
