@@ -4,23 +4,31 @@
 //! `build.rs` (including `dispmap_gbuffer.glsl` and `dispmap_plane.glsl` from
 //! DEP_DISPMAP_INCLUDE), then render one small frame with the validation layer on: its
 //! own G-buffer draw, then dispmap's `DisplacementPass` recorded into its command buffer.
-//! Exits non-zero on any validation message, any non-finite hit texel, or hits that
-//! differ from dispmap's standalone `Renderer`'s (the host draws the same floor with the
-//! same include, so they must be bit-identical).
+//! The pass runs with the corrected depth and the motion vectors on, over two frames of a
+//! camera turning by 1.7 degrees: the host merges the depth into its own depth attachment
+//! with `DepthResolvePass`, and the pass writes the displaced pixels' motion into the
+//! host's `R16G16_SFLOAT` motion image (source `Camera`: the host's world is static; it
+//! clears the image, having no sky pass of its own). Exits non-zero on any validation
+//! message, any non-finite output, hits or corrected depths that differ from dispmap's
+//! standalone `Renderer`'s (the host draws the same floor with the same include, so they
+//! must be bit-identical), motion more than 0.01 px (plus the half float's rounding) from
+//! the renderer's, or a merged depth attachment that differs from the corrected depth
+//! (which holds the G-buffer's own depth where nothing is displaced).
 //!
 //! Built and run by `scripts/downstream-check.sh`.
 
 use dispmap::abi::GBufferParams;
 use dispmap::ash::vk;
 use dispmap::embed::{
-    DEPTH_FORMAT, DisplacementPass, FRAME_FORMAT, FrameInputs, HIT_FORMAT, PassSettings,
-    RAY_FORMAT, Timestamps,
+    DEPTH_FORMAT, DepthCamera, DisplacementPass, FRAME_FORMAT, FrameInputs, FrameMotion,
+    HIT_FORMAT, MotionSettings, MotionSource, PassSettings, RAY_FORMAT, Timestamps,
 };
 use dispmap::gpu::commands::read_image;
 use dispmap::gpu::pipeline::{RasterDesc, frame_area, raster_pipeline, set_frame_viewport};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::Texels;
+use dispmap::passes::depth_resolve::DepthResolvePass;
 use dispmap::passes::gbuffer::GBuffer;
 use dispmap::shaders::Shader;
 use dispmap::{
@@ -33,6 +41,10 @@ type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
 const SIDE: u32 = 64;
 const METHOD: Method = Method::Relief;
+/// The camera's turn between the two frames (degrees of azimuth).
+const TURN_DEG: f32 = 1.7;
+/// The host's motion image.
+const MOTION_FORMAT: vk::Format = vk::Format::R16G16_SFLOAT;
 
 /// The host's G-buffer shaders, compiled by its build script.
 const GBUFFER_VERT: Shader = Shader {
@@ -53,8 +65,28 @@ struct Host {
     pipeline: vk::Pipeline,
     gbuffer: GBuffer,
     hit: Image,
+    motion: Image,
     pass: DisplacementPass,
+    resolve: DepthResolvePass,
     shot: OneShot,
+}
+
+/// What one frame leaves: hits, corrected depth, merged depth attachment, motion.
+struct Frame {
+    hits: Vec<[f32; 4]>,
+    corrected: Vec<f32>,
+    merged: Vec<f32>,
+    motion: Vec<[f32; 2]>,
+}
+
+/// Little-endian texels of `n` channels of 4 bytes.
+fn f32s<const N: usize>(bytes: &[u8]) -> Vec<[f32; N]> {
+    bytes
+        .chunks_exact(4 * N)
+        .map(|t| {
+            std::array::from_fn(|i| f32::from_le_bytes(t[4 * i..4 * i + 4].try_into().unwrap()))
+        })
+        .collect()
 }
 
 impl Host {
@@ -97,7 +129,17 @@ impl Host {
             1,
             vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
         )?;
-        let pass = DisplacementPass::new(
+        let motion = Image::new(
+            &ctx,
+            "downstream.motion",
+            MOTION_FORMAT,
+            extent,
+            1,
+            vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::TRANSFER_SRC
+                | vk::ImageUsageFlags::TRANSFER_DST,
+        )?;
+        let mut pass = DisplacementPass::new(
             ctx.clone(),
             field,
             PassSettings {
@@ -109,6 +151,13 @@ impl Host {
                 frames_in_flight: 1,
             },
         )?;
+        pass.set_depth_output(true)?;
+        pass.set_motion_output(Some(MotionSettings {
+            format: MOTION_FORMAT,
+            source: MotionSource::Camera,
+            ..MotionSettings::default()
+        }))?;
+        let resolve = DepthResolvePass::new(&ctx)?;
         let shot = OneShot::new(&ctx, "downstream")?;
         Ok(Host {
             ctx,
@@ -117,13 +166,16 @@ impl Host {
             pipeline,
             gbuffer,
             hit,
+            motion,
             pass,
+            resolve,
             shot,
         })
     }
 
     /// Records one frame into `cmd`: the G-buffer draw (`params`: the floor and camera),
-    /// the pass's entry barriers, the pass.
+    /// the motion image cleared, the pass's entry barriers, the pass (with `camera` and
+    /// the `previous` frame's), the corrected depth merged into the G-buffer's depth.
     ///
     /// # Safety
     /// `cmd` is this host's command buffer, recording; no earlier frame is in flight.
@@ -131,6 +183,8 @@ impl Host {
         &mut self,
         cmd: vk::CommandBuffer,
         params: &GBufferParams,
+        camera: DepthCamera,
+        previous: DepthCamera,
     ) -> Result<()> {
         let ctx = &*self.ctx;
         let dev = ctx.device();
@@ -195,8 +249,28 @@ impl Host {
             dev.cmd_draw(cmd, params.vertex_count(), 1, 0, 0);
             dev.cmd_end_rendering(cmd);
         }
+        // The host's motion of its static world is the pass's job where it displaces;
+        // the host has no sky pass, so the rest of the image is cleared.
+        let clear_write = Access {
+            stage: vk::PipelineStageFlags2::CLEAR,
+            access: vk::AccessFlags2::TRANSFER_WRITE,
+            layout: vk::ImageLayout::GENERAL,
+        };
+        // SAFETY: `cmd` is recording outside a render pass; no frame is in flight, so the
+        // motion image may be discarded; it has TRANSFER_DST usage.
+        unsafe {
+            sync::transition(ctx, cmd, &self.motion, Access::UNDEFINED, clear_write);
+            dev.cmd_clear_color_image(
+                cmd,
+                self.motion.raw,
+                vk::ImageLayout::GENERAL,
+                &vk::ClearColorValue { float32: [0.0; 4] },
+                &[self.motion.range()],
+            );
+        }
         // The pass's entry (dispmap::embed's table): the G-buffer sampled by compute
-        // shaders, the hit buffer discarded into GENERAL for its storage writes.
+        // shaders, the hit buffer discarded into GENERAL for its storage writes, the
+        // motion image's clear visible to the pass's storage reads and writes.
         let mut barriers = g.barriers(
             (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
             (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
@@ -207,40 +281,126 @@ impl Host {
             Access::UNDEFINED,
             Access::COMPUTE_STORAGE_WRITE,
         ));
+        barriers.push(sync::image_barrier(
+            self.motion.raw,
+            self.motion.range(),
+            clear_write,
+            Access {
+                access: vk::AccessFlags2::SHADER_STORAGE_READ
+                    | vk::AccessFlags2::SHADER_STORAGE_WRITE,
+                ..Access::COMPUTE_STORAGE_WRITE
+            },
+        ));
         // SAFETY: `cmd` is recording outside a render pass; the images are alive.
         unsafe { sync::record(ctx, cmd, &barriers) };
         let inputs = FrameInputs {
             frame_slot: 0,
             gbuffer: g.views(),
-            hit: self.hit.view,
+            hit: self.hit.host_view(),
             shade: None,
+            motion: Some(FrameMotion {
+                image: self.motion.host_view(),
+                previous,
+            }),
         };
         // SAFETY: the images are in the entry layouts and accesses above; slot 0 has no
         // frame in flight; the host submits this command buffer to the context's queue.
-        unsafe { self.pass.record(cmd, &inputs, Timestamps::Off) }?;
+        unsafe {
+            self.pass
+                .record_with_camera(cmd, &inputs, &camera, Timestamps::Off)
+        }?;
+        // The corrected depth into the host's depth attachment (dispmap::embed's
+        // "Corrected depth"): the pass's image and the tangent read by the resolve's
+        // fragment shader, the G-buffer depth (read by the pass) as its attachment.
+        let depth = self.pass.hit_depth(0).ok_or("the corrected depth is on")?;
+        let fragment_sampled = Access {
+            stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
+            ..Access::COMPUTE_SAMPLED
+        };
+        let to_resolve = [
+            sync::image_barrier(
+                depth.raw,
+                depth.range(),
+                Access::COMPUTE_STORAGE_WRITE,
+                fragment_sampled,
+            ),
+            sync::image_barrier(
+                g.tangent.raw,
+                g.tangent.range(),
+                Access::COMPUTE_SAMPLED,
+                fragment_sampled,
+            ),
+            sync::image_barrier(
+                g.depth.raw,
+                g.depth.range(),
+                Access::COMPUTE_SAMPLED,
+                Access::DEPTH_ATTACHMENT_WRITE,
+            ),
+        ];
+        // SAFETY: `cmd` is recording outside a render pass; the barriers put the three
+        // images in the states `DepthResolvePass::record` needs; all live until the frame
+        // completes (`render` waits).
+        unsafe {
+            sync::record(ctx, cmd, &to_resolve);
+            self.resolve.record(
+                ctx,
+                cmd,
+                depth.view,
+                g.tangent.view,
+                g.depth.view,
+                self.extent,
+            );
+        }
         Ok(())
     }
 
-    /// Renders one frame and reads its hit buffer back.
-    fn render(&mut self, params: &GBufferParams) -> Result<Vec<[f32; 4]>> {
+    /// Renders one frame and reads back its hits, corrected and merged depth and motion.
+    fn render(
+        &mut self,
+        params: &GBufferParams,
+        camera: DepthCamera,
+        previous: DepthCamera,
+    ) -> Result<Frame> {
         let cmd = self.shot.begin(&self.ctx)?;
         // SAFETY: the host's command buffer, just begun; `submit_and_wait` waited for
         // the previous frame.
-        unsafe { self.record_frame(cmd, params) }?;
+        unsafe { self.record_frame(cmd, params, camera, previous) }?;
         self.shot.submit_and_wait(&self.ctx)?;
-        // The pass leaves the hit buffer in GENERAL after its storage writes.
-        let bytes = read_image(
-            &self.ctx,
-            &self.shot,
+        let (ctx, shot) = (&self.ctx, &self.shot);
+        // The pass leaves the hit buffer and the motion in GENERAL after its storage
+        // writes; the corrected depth was last sampled by the resolve; the merged depth
+        // last written as the resolve's attachment.
+        let hits = f32s::<4>(&read_image(
+            ctx,
+            shot,
             &self.hit,
             Access::COMPUTE_STORAGE_WRITE,
-        )?;
-        Ok(bytes
-            .chunks_exact(16)
+        )?);
+        let depth = self.pass.hit_depth(0).ok_or("the corrected depth is on")?;
+        let fragment_sampled = Access {
+            stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
+            ..Access::COMPUTE_SAMPLED
+        };
+        let corrected = f32s::<1>(&read_image(ctx, shot, depth, fragment_sampled)?);
+        let merged = f32s::<1>(&read_image(
+            ctx,
+            shot,
+            &self.gbuffer.depth,
+            Access::DEPTH_ATTACHMENT_WRITE,
+        )?);
+        let halves = read_image(ctx, shot, &self.motion, Access::COMPUTE_STORAGE_WRITE)?;
+        let motion = halves
+            .chunks_exact(4)
             .map(|t| {
-                std::array::from_fn(|i| f32::from_le_bytes(t[4 * i..4 * i + 4].try_into().unwrap()))
+                std::array::from_fn(|i| half::f16::from_le_bytes([t[2 * i], t[2 * i + 1]]).to_f32())
             })
-            .collect())
+            .collect();
+        Ok(Frame {
+            hits,
+            corrected: corrected.into_iter().map(|[d]| d).collect(),
+            merged: merged.into_iter().map(|[d]| d).collect(),
+            motion,
+        })
     }
 
     /// Destroys the pass and the host's objects.
@@ -249,11 +409,13 @@ impl Host {
         unsafe {
             self.ctx.device().device_wait_idle().ok();
             self.pass.destroy();
+            self.resolve.destroy(&self.ctx);
             self.ctx.device().destroy_pipeline(self.pipeline, None);
             self.ctx.device().destroy_pipeline_layout(self.layout, None);
         }
         self.gbuffer.destroy(&self.ctx);
         self.hit.destroy(&self.ctx);
+        self.motion.destroy(&self.ctx);
         self.shot.destroy(&self.ctx);
     }
 }
@@ -287,15 +449,41 @@ fn main() -> Result<()> {
     let device = ctx.info().name.clone();
     let messages = ctx.messages().clone();
 
-    let camera = scene.frame_camera(SIDE, SIDE);
-    let params = scene.gbuffer_params(&camera);
+    // Two frames: the camera turns between them (the second frame's motion is checked).
+    let turned = Scene {
+        camera: dispmap::scene::Camera {
+            azimuth_deg: scene.camera.azimuth_deg + TURN_DEG,
+            ..scene.camera
+        },
+        ..scene
+    };
+    let depth_camera = |s: &Scene| {
+        let c = s.frame_camera(SIDE, SIDE);
+        DepthCamera {
+            view_proj: c.view_proj,
+            eye: c.eye,
+        }
+    };
+    let (first, second) = (depth_camera(&scene), depth_camera(&turned));
     let mut host = Host::new(ctx.clone(), &field, &scene)?;
-    let rendered = host.render(&params);
+    let rendered = host
+        .render(
+            &scene.gbuffer_params(&scene.frame_camera(SIDE, SIDE)),
+            first,
+            first,
+        )
+        .and_then(|_| {
+            host.render(
+                &turned.gbuffer_params(&turned.frame_camera(SIDE, SIDE)),
+                second,
+                first,
+            )
+        });
     host.destroy();
-    let hits = rendered?;
+    let frame = rendered?;
 
-    // The standalone renderer of the same scene: the reference.
-    let reference = {
+    // The standalone renderer of the same two frames: the reference.
+    let (reference, ref_depth, ref_motion) = {
         let settings = RenderSettings {
             width: SIDE,
             height: SIDE,
@@ -305,27 +493,73 @@ fn main() -> Result<()> {
             shadows: Default::default(),
         };
         let mut renderer = Renderer::new(&ctx, &field, settings)?;
+        renderer.set_depth_output(true)?;
+        renderer.set_motion_output(true)?;
         renderer.render()?;
-        renderer.read_hits()?
+        renderer.set_scene(turned)?;
+        renderer.render()?;
+        (
+            renderer.read_hits()?,
+            renderer.read_depth()?.ok_or("the renderer's depth is on")?,
+            renderer
+                .read_motion()?
+                .ok_or("the renderer's motion is on")?,
+        )
     };
     // Destroy the device too: the validation layer reports leaked objects there.
     let ctx = Arc::into_inner(ctx).ok_or("something still holds the context")?;
     drop(ctx);
 
+    let hits = &frame.hits;
     let non_finite = hits
         .iter()
-        .filter(|t| !t.iter().all(|x| x.is_finite()))
+        .flatten()
+        .chain(&frame.corrected)
+        .chain(&frame.merged)
+        .chain(frame.motion.iter().flatten())
+        .filter(|x| !x.is_finite())
         .count();
-    let hit = hits.iter().filter(|t| t[2] >= 0.0).count();
+    let displaced: Vec<usize> = (0..hits.len()).filter(|&i| hits[i][2] >= 0.0).collect();
     let differ = hits
         .iter()
         .zip(&reference)
         .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
         .count();
+    let depth_differ = frame
+        .corrected
+        .iter()
+        .zip(&ref_depth)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    // The corrected depth holds the G-buffer's own depth where nothing is displaced, so
+    // the merged attachment must equal it everywhere.
+    let merged_wrong = frame
+        .merged
+        .iter()
+        .zip(&frame.corrected)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    let motion_error = displaced
+        .iter()
+        .map(|&i| {
+            let (m, r) = (frame.motion[i], ref_motion[i]);
+            let error = ((m[0] - r[0]).powi(2) + (m[1] - r[1]).powi(2)).sqrt();
+            // The half float's rounding of the host's image.
+            error - (r[0].abs() + r[1].abs()) / 1024.0
+        })
+        .fold(0.0f32, f32::max);
+    let moved = displaced
+        .iter()
+        .filter(|&&i| ref_motion[i][0].abs() + ref_motion[i][1].abs() > 0.1)
+        .count();
     println!(
-        "downstream: {SIDE}x{SIDE} frame on {device} with the host's own G-buffer shaders: \
-         {hit} of {} pixels hit, {non_finite} non-finite, {differ} differ from the \
-         standalone renderer's; validation: {} errors, {} warnings",
+        "downstream: {SIDE}x{SIDE} frames on {device} with the host's own G-buffer shaders \
+         and depth and motion on: {} of {} pixels hit, {non_finite} non-finite, {differ} \
+         hits and {depth_differ} corrected depths differ from the standalone renderer's, \
+         {merged_wrong} merged depths differ from the corrected depth, motion within \
+         {motion_error:.5} px (beyond the half float's rounding) of the renderer's ({moved} \
+         pixels moved by more than 0.1 px); validation: {} errors, {} warnings",
+        displaced.len(),
         hits.len(),
         messages.errors(),
         messages.warnings()
@@ -340,13 +574,23 @@ fn main() -> Result<()> {
         .into());
     }
     if non_finite > 0 {
-        return Err(format!("{non_finite} hit texels are not finite").into());
+        return Err(format!("{non_finite} output texels are not finite").into());
     }
-    if hit == 0 {
-        return Err("no pixel hit the surface".into());
+    if displaced.is_empty() || moved == 0 {
+        return Err("no pixel hit the surface, or nothing moved".into());
     }
-    if differ > 0 {
-        return Err(format!("{differ} hit texels differ from the standalone renderer's").into());
+    if differ > 0 || depth_differ > 0 {
+        return Err(format!(
+            "{differ} hits and {depth_differ} corrected depths differ from the standalone \
+             renderer's"
+        )
+        .into());
+    }
+    if merged_wrong > 0 {
+        return Err(format!("{merged_wrong} merged depths are not the corrected depth").into());
+    }
+    if motion_error > 0.01 {
+        return Err(format!("motion {motion_error} px from the renderer's").into());
     }
     if messages.errors() > 0 || messages.warnings() > 0 {
         // dispmap logs each message through the `log` crate; this crate installs no
