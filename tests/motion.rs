@@ -53,38 +53,55 @@ fn settings(elevation: f32) -> RenderSettings {
     }
 }
 
-/// A camera in f64, from the documented conventions (docs/design.md, "Camera and frame").
+/// A camera of a `size` frame in f64, from the documented conventions (docs/design.md,
+/// "Camera and frame").
 struct CpuCamera {
     eye: DVec3,
     view_proj: DMat4,
     inv_view_proj: DMat4,
+    /// Frame size in pixels.
+    size: DVec2,
+    /// Pixels per unit of the image plane at distance 1 (vertical).
+    focal_px: f64,
 }
 
 impl CpuCamera {
-    fn new(scene: &Scene) -> Self {
-        let cam = scene.frame_camera(WIDTH, HEIGHT);
+    fn new(scene: &Scene, width: u32, height: u32) -> Self {
+        let cam = scene.frame_camera(width, height);
         let view_proj = cam.view_proj.as_dmat4();
+        let half_fov = f64::from(scene.camera.fov_y_deg).to_radians() / 2.0;
         CpuCamera {
             eye: cam.eye.as_dvec3(),
             view_proj,
             inv_view_proj: view_proj.inverse(),
+            size: DVec2::new(f64::from(width), f64::from(height)),
+            focal_px: f64::from(height) / 2.0 / half_fov.tan(),
         }
+    }
+
+    /// The centre of pixel `i` (row by row).
+    fn centre(&self, i: usize) -> DVec2 {
+        let w = self.size.x as usize;
+        DVec2::new((i % w) as f64 + 0.5, (i / w) as f64 + 0.5)
     }
 
     /// The unit direction through the point `px` of the frame (pixels).
     fn direction(&self, px: DVec2) -> DVec3 {
-        let ndc = px / DVec2::new(f64::from(WIDTH), f64::from(HEIGHT)) * 2.0 - 1.0;
+        let ndc = px / self.size * 2.0 - 1.0;
         let p = self.inv_view_proj * DVec4::new(ndc.x, ndc.y, 0.5, 1.0);
         ((p.truncate() / p.w) - self.eye).normalize()
+    }
+
+    /// The reverse-Z depth of a world point.
+    fn depth(&self, p: DVec3) -> f64 {
+        let c = self.view_proj * p.extend(1.0);
+        c.z / c.w
     }
 
     /// Where a world point is drawn (pixels); `None` behind the eye.
     fn project(&self, p: DVec3) -> Option<DVec2> {
         let c = self.view_proj * p.extend(1.0);
-        (c.w > 0.0).then(|| {
-            (DVec2::new(c.x, c.y) / c.w * 0.5 + 0.5)
-                * DVec2::new(f64::from(WIDTH), f64::from(HEIGHT))
-        })
+        (c.w > 0.0).then(|| (DVec2::new(c.x, c.y) / c.w * 0.5 + 0.5) * self.size)
     }
 }
 
@@ -136,10 +153,7 @@ fn reprojection_errors(
         if hit[2] < 0.0 || !hit[2].is_finite() {
             continue;
         }
-        let centre = DVec2::new(
-            (i % WIDTH as usize) as f64 + 0.5,
-            (i / WIDTH as usize) as f64 + 0.5,
-        );
+        let centre = b.centre(i);
         let p = hit_point(b, centre, *hit, depth);
         if !visible(a, reference, p, depth, texels) {
             continue;
@@ -153,22 +167,16 @@ fn reprojection_errors(
 /// The flat surface's motion (what a host without the pass's motion would use): the
 /// macro entry point under each pixel centre, from the G-buffer depth, projected by the
 /// previous camera; in f64.
-fn macro_motion(depth: &[f32], view_proj: DMat4, prev_view_proj: DMat4) -> Vec<[f64; 2]> {
-    let inv = view_proj.inverse();
-    let size = DVec2::new(f64::from(WIDTH), f64::from(HEIGHT));
+fn macro_motion(depth: &[f32], camera: &CpuCamera, previous: &CpuCamera) -> Vec<[f64; 2]> {
     depth
         .iter()
         .enumerate()
         .map(|(i, &z)| {
-            let centre = DVec2::new(
-                (i % WIDTH as usize) as f64 + 0.5,
-                (i / WIDTH as usize) as f64 + 0.5,
-            );
-            let ndc = centre / size * 2.0 - 1.0;
-            let x = inv * DVec4::new(ndc.x, ndc.y, f64::from(z), 1.0);
-            let c = prev_view_proj * x;
-            let prev = (DVec2::new(c.x, c.y) / c.w * 0.5 + 0.5) * size;
-            let m = prev - centre;
+            let centre = camera.centre(i);
+            let ndc = centre / camera.size * 2.0 - 1.0;
+            let x = camera.inv_view_proj * DVec4::new(ndc.x, ndc.y, f64::from(z), 1.0);
+            let c = previous.view_proj * x;
+            let m = (DVec2::new(c.x, c.y) / c.w * 0.5 + 0.5) * previous.size - centre;
             [m.x, m.y]
         })
         .collect()
@@ -213,11 +221,11 @@ fn camera_turn(name: &str, field: &HeightField) -> Vec<(f32, Stats, Stats)> {
             let depth = f64::from(scene.depth_scale);
             renderer.set_scene(scene).unwrap();
             renderer.render().unwrap();
-            let a = CpuCamera::new(&scene);
+            let a = CpuCamera::new(&scene, WIDTH, HEIGHT);
             scene.camera.azimuth_deg += TURN_DEG;
             renderer.set_scene(scene).unwrap();
             renderer.render().unwrap();
-            let b = CpuCamera::new(&scene);
+            let b = CpuCamera::new(&scene, WIDTH, HEIGHT);
             let hits = renderer.read_hits().unwrap();
             let motion: Vec<[f64; 2]> = renderer
                 .read_motion()
@@ -230,11 +238,7 @@ fn camera_turn(name: &str, field: &HeightField) -> Vec<(f32, Stats, Stats)> {
                 motion.iter().flatten().all(|v| v.is_finite()),
                 "{name} at {elevation}: a non-finite motion vector"
             );
-            let flat = macro_motion(
-                &renderer.read_macro_depth().unwrap(),
-                b.view_proj,
-                a.view_proj,
-            );
+            let flat = macro_motion(&renderer.read_macro_depth().unwrap(), &b, &a);
             let displaced = hits.iter().filter(|h| h[2] >= 0.0).count();
             let scale = (depth, texels);
             let pass = stats(
@@ -344,7 +348,7 @@ fn half(x: f64) -> u16 {
 /// the G-buffer contract (glsl/include/dispmap_gbuffer.glsl), and each covered pixel's
 /// macro entry point (world).
 fn object_gbuffer(
-    camera: &CpuCamera2,
+    camera: &CpuCamera,
     place: &Placement,
 ) -> (common::host::GBufferTexels, Vec<Option<DVec3>>) {
     let n = (OBJ_W * OBJ_H) as usize;
@@ -361,10 +365,7 @@ fn object_gbuffer(
     // tangent.w = handedness * (material 0 + 1), B = handedness * cross(N, T).
     let handedness = normal.cross(tangent).dot(bitangent).signum();
     for (i, entry) in entries.iter_mut().enumerate() {
-        let px = DVec2::new(
-            (i % OBJ_W as usize) as f64 + 0.5,
-            (i / OBJ_W as usize) as f64 + 0.5,
-        );
+        let px = camera.centre(i);
         let d = camera.direction(px);
         let denom = d.dot(normal);
         if denom >= 0.0 {
@@ -401,49 +402,6 @@ fn object_gbuffer(
     (g, entries)
 }
 
-/// A camera of an `OBJ_W x OBJ_H` frame in f64.
-struct CpuCamera2 {
-    eye: DVec3,
-    view_proj: DMat4,
-    inv_view_proj: DMat4,
-    focal_px: f64,
-}
-
-impl CpuCamera2 {
-    fn new(scene: &Scene) -> Self {
-        let cam = scene.frame_camera(OBJ_W, OBJ_H);
-        let view_proj = cam.view_proj.as_dmat4();
-        CpuCamera2 {
-            eye: cam.eye.as_dvec3(),
-            view_proj,
-            inv_view_proj: view_proj.inverse(),
-            focal_px: f64::from(OBJ_H)
-                / 2.0
-                / (f64::from(scene.camera.fov_y_deg).to_radians() / 2.0).tan(),
-        }
-    }
-
-    fn size() -> DVec2 {
-        DVec2::new(f64::from(OBJ_W), f64::from(OBJ_H))
-    }
-
-    fn direction(&self, px: DVec2) -> DVec3 {
-        let ndc = px / Self::size() * 2.0 - 1.0;
-        let p = self.inv_view_proj * DVec4::new(ndc.x, ndc.y, 0.5, 1.0);
-        ((p.truncate() / p.w) - self.eye).normalize()
-    }
-
-    fn depth(&self, p: DVec3) -> f64 {
-        let c = self.view_proj * p.extend(1.0);
-        c.z / c.w
-    }
-
-    fn project(&self, p: DVec3) -> DVec2 {
-        let c = self.view_proj * p.extend(1.0);
-        (DVec2::new(c.x, c.y) / c.w * 0.5 + 0.5) * Self::size()
-    }
-}
-
 /// The patch turns by `turn_deg` about a tilted axis and slides between two frames of a
 /// still camera; the host's macro motion is exact (f64) and the pass adds the
 /// displacement's parallax. Returns, per displaced pixel, the pass's error against the
@@ -468,7 +426,7 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
         },
         ..Scene::default()
     };
-    let camera = CpuCamera2::new(&scene);
+    let camera = CpuCamera::new(&scene, OBJ_W, OBJ_H);
     let frame = scene.frame_camera(OBJ_W, OBJ_H);
     let tilt = DQuat::from_rotation_x(0.25);
     let axis = DVec3::new(0.4, 1.0, 0.3).normalize();
@@ -493,11 +451,11 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
         .enumerate()
         .map(|(i, e)| {
             let Some(e) = e else { return [0; 2] };
-            let px = DVec2::new(
-                (i % OBJ_W as usize) as f64 + 0.5,
-                (i / OBJ_W as usize) as f64 + 0.5,
-            );
-            let m = camera.project(prev.to_world(cur.to_local(*e))) - px;
+            let px = camera.centre(i);
+            let m = camera
+                .project(prev.to_world(cur.to_local(*e)))
+                .expect("in front")
+                - px;
             [half(m.x), half(m.y)]
         })
         .collect();
@@ -571,17 +529,14 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
         if hit[2] < 0.0 {
             continue;
         }
-        let px = DVec2::new(
-            (i % OBJ_W as usize) as f64 + 0.5,
-            (i / OBJ_W as usize) as f64 + 0.5,
-        );
+        let px = camera.centre(i);
         let l = cur.to_local(*e);
         let local_hit = DVec3::new(
             f64::from(hit[0]) + l.x.floor(),
             -(1.0 - f64::from(hit[2])) * OBJ_DEPTH,
             f64::from(hit[1]) + l.z.floor(),
         );
-        let exact = camera.project(prev.to_world(local_hit)) - px;
+        let exact = camera.project(prev.to_world(local_hit)).expect("in front") - px;
         let m = written[i].map(|b| f64::from(half::f16::from_bits(b).to_f32()));
         let error = (DVec2::new(m[0], m[1]) - exact).length();
         // The bound: the offset d = p_hit - p_entry turns by the object's rotation, and
@@ -592,7 +547,7 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
         let moved = (prev.to_world(l) - *e).length();
         let geometric = camera.focal_px / dist * (turn * d + 2.0 * d * moved / dist);
         let rounding = 2.0 * exact.length() * 2f64.powi(-11) + 1e-3;
-        let flat = (camera.project(prev.to_world(l)) - px - exact).length();
+        let flat = (camera.project(prev.to_world(l)).expect("in front") - px - exact).length();
         out.push((error, 1.5 * geometric + rounding, flat));
     }
     assert!(

@@ -5,17 +5,8 @@
 //! depth at infinity, so geometry behind them shows; [`crate::passes::depth_resolve`]
 //! copies the image into a `D32_SFLOAT` depth attachment.
 //!
-//! Bindings (set 0, push descriptors), mirrored by `glsl/hit_depth.comp`:
-//!
-//! | binding | resource | layout on entry |
-//! |---|---|---|
-//! | 0 | hit buffer (storage, read) | `GENERAL` |
-//! | 1 | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 3 | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 4 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 5 | corrected depth (`R32_SFLOAT` storage, written) | `GENERAL` |
-//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//! Bindings: [`crate::passes::hit_resolve`] (binding 5: the corrected depth,
+//! `R32_SFLOAT` storage, written).
 //!
 //! One dispatch resolves one material's pixels (a workgroup per tile of its list, the
 //! material's `depth_scale`); `classify` writes the others' (the G-buffer's own depth:
@@ -25,30 +16,15 @@ use crate::abi::HitDepthParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::ViewRef;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
-use crate::passes::classify::{MaterialTiles, TILES_BINDING};
+use crate::passes::classify::MaterialTiles;
 use crate::passes::gbuffer::GBufferViews;
+use crate::passes::hit_resolve::{HitResolvePipeline, ResolveViews};
 use crate::shaders;
 use ash::vk;
 use glam::{DMat4, Mat4, Vec3};
 
 /// Format of the corrected-depth image.
 pub const HIT_DEPTH_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
-
-const BINDINGS: [vk::DescriptorType; 6] = [
-    vk::DescriptorType::STORAGE_IMAGE,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::STORAGE_IMAGE,
-];
-
-fn bindings() -> Vec<(u32, vk::DescriptorType)> {
-    let mut b = crate::gpu::pipeline::numbered(&BINDINGS);
-    b.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
-    b
-}
 
 /// The images the pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
@@ -88,18 +64,17 @@ impl HitDepthParams {
 
 /// The corrected-depth pass.
 pub struct HitDepthPass {
-    pipeline: FetchPipeline,
+    pipeline: HitResolvePipeline,
 }
 
 impl HitDepthPass {
     /// Builds the pipeline.
     pub fn new(ctx: &Context) -> Result<Self> {
         Ok(HitDepthPass {
-            pipeline: FetchPipeline::new(
+            pipeline: HitResolvePipeline::new(
                 ctx,
                 "hit_depth",
                 &shaders::HIT_DEPTH_COMP,
-                &bindings(),
                 std::mem::size_of::<HitDepthParams>() as u32,
             )?,
         })
@@ -133,36 +108,23 @@ impl HitDepthPass {
             hit_depth,
             tiles,
         } = inputs;
-        let hits = storage_view(hit);
-        let fetch = |view| self.pipeline.fetch_view(view);
-        let ray = fetch(gbuffer.ray);
-        let depth = fetch(gbuffer.depth);
-        let normal = fetch(gbuffer.normal);
-        let tangent = fetch(gbuffer.tangent);
-        let out = storage_view(hit_depth.view);
-        let writes = [
-            image_write(0, BINDINGS[0], &hits),
-            image_write(1, BINDINGS[1], &ray),
-            image_write(2, BINDINGS[2], &depth),
-            image_write(3, BINDINGS[3], &normal),
-            image_write(4, BINDINGS[4], &tangent),
-            image_write(5, BINDINGS[5], &out),
-        ];
-        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the writes match `bindings()` (the pipeline's set 0) and name live views in
-        // the layouts of the module's table; the push constants are the `HitDepthParams`
-        // the layout was built with (its material set here); the pipeline lives as long as
-        // this pass; the list is the classification's (this function's contract).
         let push = HitDepthParams {
             material: tiles.material,
             ..*params
         };
+        // SAFETY: this function's # Safety contract is `HitResolvePipeline::record`'s (the
+        // corrected depth as its output), with the `HitDepthParams` the pipeline was built
+        // with (its material set here).
         unsafe {
-            tiles.dispatch(
+            self.pipeline.record(
                 ctx,
                 cmd,
-                &self.pipeline.pipeline,
-                &writes,
+                ResolveViews {
+                    hit,
+                    gbuffer,
+                    out: hit_depth.view,
+                },
+                tiles,
                 bytemuck::bytes_of(&push),
             )
         };

@@ -15,6 +15,7 @@ pub mod depth_resolve;
 pub mod dig;
 pub mod gbuffer;
 pub mod hit_depth;
+pub mod hit_resolve;
 pub mod motion;
 pub mod pyramid;
 pub mod shade;

@@ -48,24 +48,15 @@
 //! `p_hit` and `p_entry` come from `glsl/include/dispmap_displace.glsl`, the same code as
 //! the corrected depth's (`hit_depth`).
 //!
-//! Bindings (set 0, push descriptors), mirrored by `glsl/motion.comp`:
-//!
-//! | binding | resource | layout on entry |
-//! |---|---|---|
-//! | 0 | hit buffer (storage, read) | `GENERAL` |
-//! | 1 | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 3 | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 4 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 5 | the host's motion image (storage, read and written) | `GENERAL` |
-//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//! Bindings: [`crate::passes::hit_resolve`] (binding 5: the host's motion image, storage,
+//! read and written).
 
 use crate::abi::MotionParams;
 use crate::context::Context;
 use crate::error::{Error, Result};
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
-use crate::passes::classify::{MaterialTiles, TILES_BINDING};
+use crate::passes::classify::MaterialTiles;
 use crate::passes::gbuffer::GBufferViews;
+use crate::passes::hit_resolve::{HitResolvePipeline, ResolveViews};
 use crate::shaders;
 use ash::vk;
 use glam::{DMat4, Mat4, Vec3};
@@ -174,21 +165,6 @@ impl MotionSettings {
     }
 }
 
-const BINDINGS: [vk::DescriptorType; 6] = [
-    vk::DescriptorType::STORAGE_IMAGE,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::STORAGE_IMAGE,
-];
-
-fn bindings() -> Vec<(u32, vk::DescriptorType)> {
-    let mut b = crate::gpu::pipeline::numbered(&BINDINGS);
-    b.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
-    b
-}
-
 /// The images the pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct MotionInputs {
@@ -235,7 +211,7 @@ impl MotionParams {
 
 /// The motion pass of one image format.
 pub struct MotionPass {
-    pipeline: FetchPipeline,
+    pipeline: HitResolvePipeline,
     /// The format its pipeline writes.
     pub format: vk::Format,
 }
@@ -249,11 +225,10 @@ impl MotionPass {
             ("motion", &shaders::MOTION_COMP)
         };
         Ok(MotionPass {
-            pipeline: FetchPipeline::new(
+            pipeline: HitResolvePipeline::new(
                 ctx,
                 name,
                 shader,
-                &bindings(),
                 std::mem::size_of::<MotionParams>() as u32,
             )?,
             format,
@@ -288,36 +263,23 @@ impl MotionPass {
             motion,
             tiles,
         } = inputs;
-        let hits = storage_view(hit);
-        let fetch = |view| self.pipeline.fetch_view(view);
-        let ray = fetch(gbuffer.ray);
-        let depth = fetch(gbuffer.depth);
-        let normal = fetch(gbuffer.normal);
-        let tangent = fetch(gbuffer.tangent);
-        let out = storage_view(motion);
-        let writes = [
-            image_write(0, BINDINGS[0], &hits),
-            image_write(1, BINDINGS[1], &ray),
-            image_write(2, BINDINGS[2], &depth),
-            image_write(3, BINDINGS[3], &normal),
-            image_write(4, BINDINGS[4], &tangent),
-            image_write(5, BINDINGS[5], &out),
-        ];
         let push = MotionParams {
             material: (params.material & !0xFFFF) | tiles.material,
             ..*params
         };
-        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the writes match `bindings()` (the pipeline's set 0) and name live views in
-        // the layouts of the module docs; the push constants are the `MotionParams` the
-        // layout was built with (the material in their low bits); the pipeline lives as
-        // long as this pass; the list is the classification's.
+        // SAFETY: this function's # Safety contract is `HitResolvePipeline::record`'s (the
+        // motion image as its output, read and written), with the `MotionParams` the
+        // pipeline was built with (the material in their low bits).
         unsafe {
-            tiles.dispatch(
+            self.pipeline.record(
                 ctx,
                 cmd,
-                &self.pipeline.pipeline,
-                &writes,
+                ResolveViews {
+                    hit,
+                    gbuffer,
+                    out: motion,
+                },
+                tiles,
                 bytemuck::bytes_of(&push),
             )
         };
