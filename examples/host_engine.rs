@@ -1149,10 +1149,10 @@ impl Engine {
             let inputs = FrameInputs {
                 frame_slot: s as u32,
                 gbuffer: GBufferViews {
-                    ray: slot.ray.view,
-                    normal: slot.normal.view,
-                    tangent: slot.tangent.view,
-                    depth: slot.depth.view,
+                    ray: slot.ray.host,
+                    normal: slot.normal.host,
+                    tangent: slot.tangent.host,
+                    depth: slot.depth.host,
                     extent,
                 },
                 hit: slot.hit.host,

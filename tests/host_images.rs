@@ -1,6 +1,6 @@
-//! The host images the pass writes (hit buffer, colour, motion) are checked before
-//! anything is recorded: a wrong format, a smaller size or a missing `STORAGE` usage is
-//! refused with an error naming the image, and motion inputs must match the motion
+//! The host images the pass reads and writes (the G-buffer, hit buffer, colour, motion)
+//! are checked before anything is recorded: a wrong format, a smaller size or a missing
+//! usage is refused with an error naming the image, and motion inputs must match the motion
 //! output's state. Vulkan itself would not say: a storage image of the wrong format is
 //! written without an error or a validation message (issue 23). After the refusals the
 //! pass records a valid frame; validation on throughout.
@@ -18,7 +18,7 @@ use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::{Addressing, Convention};
 use dispmap::method::{Method, MethodParams};
-use dispmap::passes::gbuffer::GBuffer;
+use dispmap::passes::gbuffer::{GBuffer, GBufferViews};
 use glam::{Mat4, Vec3};
 
 const EXTENT: vk::Extent2D = vk::Extent2D {
@@ -109,6 +109,33 @@ fn wrong_host_images_are_refused_by_name() {
     }));
     assert_eq!(name, "hit");
     assert!(message.contains("STORAGE"), "{message}");
+    // The G-buffer: a half-float ray image (uv0 would lose its bits) and a depth view
+    // without SAMPLED usage.
+    let views = gbuffer.views();
+    let (name, message) = refused(record(&FrameInputs {
+        gbuffer: GBufferViews {
+            ray: HostView {
+                format: vk::Format::R16G16B16A16_SFLOAT,
+                ..views.ray
+            },
+            ..views
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "gbuffer.ray");
+    assert!(message.contains("R32G32B32A32_SFLOAT"), "{message}");
+    let (name, message) = refused(record(&FrameInputs {
+        gbuffer: GBufferViews {
+            depth: HostView {
+                usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+                ..views.depth
+            },
+            ..views
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "gbuffer.depth");
+    assert!(message.contains("SAMPLED"), "{message}");
     let shaded = |color: HostView| FrameInputs {
         shade: Some(ShadeTarget {
             color,

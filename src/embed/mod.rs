@@ -73,6 +73,12 @@
 //! | visibility (`R16_SFLOAT`, one per slot; only with [`DisplacementPass::set_shadows`] on and a [`ShadeTarget`]) | pass | (internal: discarded by the pass) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (shadow), last read by `SHADER_STORAGE_READ` (shade); read-only for the host ([`DisplacementPass::visibility`]) |
 //! | corrected depth (`R32_SFLOAT`, one per slot; only with [`DisplacementPass::set_depth_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (hit_depth); the host may read it (after its own barrier from that state) and leave it in any layout |
 //!
+//! Every host image comes as a [`HostView`] (view, format, size, usage): `record` checks
+//! each against this table and the pass's frame size before it records anything, and
+//! refuses a mismatch with [`Error::InvalidInput`] naming the image (`gbuffer.ray`, `hit`,
+//! `color`, `motion`, ...). A view's format is not visible to Vulkan's validation of a
+//! storage write, so a wrong one would otherwise render garbage without a message.
+//!
 //! The pass places every barrier between its own passes, including the hit buffer's
 //! write -> read before `shade` (a global memory barrier, so it needs no `vk::Image`).
 //!

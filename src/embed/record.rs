@@ -284,6 +284,7 @@ impl DisplacementPass {
                 ),
             ));
         }
+        inputs.gbuffer.check(extent)?;
         let storage = vk::ImageUsageFlags::STORAGE;
         inputs
             .hit
@@ -504,8 +505,8 @@ impl DisplacementPass {
         let mut live: Vec<bool> = self.materials.iter().map(Option::is_some).collect();
         live.resize(lists.materials() as usize, false);
         let classify = ClassifyInputs {
-            depth: inputs.gbuffer.depth,
-            tangent: inputs.gbuffer.tangent,
+            depth: inputs.gbuffer.depth.view,
+            tangent: inputs.gbuffer.tangent.view,
             hit: ViewRef {
                 view: inputs.hit.view,
                 extent: self.frame.extent,

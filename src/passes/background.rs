@@ -60,9 +60,9 @@ impl BackgroundPass {
     ) {
         let fetch = |view| self.pipeline.fetch_view(view);
         let (depth, normal, tangent) = (
-            fetch(gbuffer.depth),
-            fetch(gbuffer.normal),
-            fetch(gbuffer.tangent),
+            fetch(gbuffer.depth.view),
+            fetch(gbuffer.normal.view),
+            fetch(gbuffer.tangent.view),
         );
         let out = storage_view(color.view);
         let writes = [

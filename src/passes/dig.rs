@@ -172,12 +172,12 @@ impl DigCornerPass {
     ) {
         let CornerRun { steps, material } = run;
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
-        let ray = fetch(gbuffer.ray);
-        let depth = fetch(gbuffer.depth);
-        let normal = fetch(gbuffer.normal);
+        let ray = fetch(gbuffer.ray.view);
+        let depth = fetch(gbuffer.depth.view);
+        let normal = fetch(gbuffer.normal.view);
         let heights = [height.descriptor()];
         let corners = storage(&grid.image);
-        let tangent = fetch(gbuffer.tangent);
+        let tangent = fetch(gbuffer.tangent.view);
         let writes = [
             image_write(0, BINDINGS[0], &ray),
             image_write(1, BINDINGS[1], &depth),

@@ -21,9 +21,9 @@
 use crate::abi::GBufferParams;
 use crate::context::Context;
 use crate::error::{Result, VkContext};
-use crate::gpu::Image;
 use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
 use crate::gpu::sync::{self, Access};
+use crate::gpu::{HostView, Image};
 use crate::shaders;
 use ash::vk;
 
@@ -44,19 +44,36 @@ pub const FRAME_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 
 /// The views of a G-buffer the compute passes read (dispmap's own [`GBuffer`] or a host
-/// engine's images with the same formats and meaning, see the module docs).
+/// engine's images with the same formats and meaning, see the module docs), each with the
+/// format, size and usage the pass checks ([`GBufferViews::check`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GBufferViews {
-    /// `uv0.xy, P.xy` (`R32G32B32A32_SFLOAT`).
-    pub ray: vk::ImageView,
-    /// World normal, `w` = surface id (`R16G16B16A16_SFLOAT`).
-    pub normal: vk::ImageView,
-    /// World tangent, `w` = handedness (`R16G16B16A16_SFLOAT`).
-    pub tangent: vk::ImageView,
-    /// Reverse-Z depth, 0 = no geometry (`D32_SFLOAT`, depth aspect).
-    pub depth: vk::ImageView,
+    /// `uv0.xy, P.xy` ([`RAY_FORMAT`]).
+    pub ray: HostView,
+    /// World normal, `w` = surface id ([`FRAME_FORMAT`]).
+    pub normal: HostView,
+    /// World tangent, `w` = handedness and material ([`FRAME_FORMAT`]).
+    pub tangent: HostView,
+    /// Reverse-Z depth, 0 = no geometry ([`DEPTH_FORMAT`], a depth-aspect view).
+    pub depth: HostView,
     /// Frame size in pixels (every image's size).
     pub extent: vk::Extent2D,
+}
+
+impl GBufferViews {
+    /// Checks each image's format, `SAMPLED` usage and size against the contract and
+    /// `extent` (the pass's frame size); the error names the image (`gbuffer.ray`, ...).
+    pub fn check(&self, extent: vk::Extent2D) -> crate::error::Result<()> {
+        let sampled = vk::ImageUsageFlags::SAMPLED;
+        self.ray
+            .check("gbuffer.ray", &[RAY_FORMAT], sampled, extent)?;
+        self.normal
+            .check("gbuffer.normal", &[FRAME_FORMAT], sampled, extent)?;
+        self.tangent
+            .check("gbuffer.tangent", &[FRAME_FORMAT], sampled, extent)?;
+        self.depth
+            .check("gbuffer.depth", &[DEPTH_FORMAT], sampled, extent)
+    }
 }
 
 /// The G-buffer images of one frame size.
@@ -97,10 +114,10 @@ impl GBuffer {
     /// The views the compute passes bind.
     pub fn views(&self) -> GBufferViews {
         GBufferViews {
-            ray: self.ray.view,
-            normal: self.normal.view,
-            tangent: self.tangent.view,
-            depth: self.depth.view,
+            ray: self.ray.host_view(),
+            normal: self.normal.host_view(),
+            tangent: self.tangent.host_view(),
+            depth: self.depth.host_view(),
             extent: self.ray.extent,
         }
     }

@@ -87,10 +87,10 @@ impl HitResolvePipeline {
         let ResolveViews { hit, gbuffer, out } = views;
         let hits = storage_view(hit);
         let fetch = |view| self.pipeline.fetch_view(view);
-        let ray = fetch(gbuffer.ray);
-        let depth = fetch(gbuffer.depth);
-        let normal = fetch(gbuffer.normal);
-        let tangent = fetch(gbuffer.tangent);
+        let ray = fetch(gbuffer.ray.view);
+        let depth = fetch(gbuffer.depth.view);
+        let normal = fetch(gbuffer.normal.view);
+        let tangent = fetch(gbuffer.tangent.view);
         let out = storage_view(out);
         let writes = [
             image_write(0, BINDINGS[0], &hits),

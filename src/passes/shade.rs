@@ -169,9 +169,9 @@ impl ShadePass {
             (false, _) => None,
         };
         let hits = storage_view(hit);
-        let normal = self.pipeline.fetch_view(gbuffer.normal);
-        let tangent = self.pipeline.fetch_view(gbuffer.tangent);
-        let depth = self.pipeline.fetch_view(gbuffer.depth);
+        let normal = self.pipeline.fetch_view(gbuffer.normal.view);
+        let tangent = self.pipeline.fetch_view(gbuffer.tangent.view);
+        let depth = self.pipeline.fetch_view(gbuffer.depth.view);
         let heights = [height.descriptor()];
         let colors = storage_view(color.view);
         let [albedo, normal_map] = crate::material::MaterialTextures::descriptors(material, height);

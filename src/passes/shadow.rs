@@ -335,12 +335,12 @@ impl ShadowPass {
             (ShadowTrace::Sampled, _) => None,
         };
         let hits = storage_view(hit);
-        let normal = self.pipeline.fetch_view(gbuffer.normal);
-        let tangent = self.pipeline.fetch_view(gbuffer.tangent);
+        let normal = self.pipeline.fetch_view(gbuffer.normal.view);
+        let tangent = self.pipeline.fetch_view(gbuffer.tangent.view);
         let heights = [height.descriptor()];
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let out = storage_view(visibility.view);
-        let depth = self.pipeline.fetch_view(gbuffer.depth);
+        let depth = self.pipeline.fetch_view(gbuffer.depth.view);
         let mut writes = vec![
             image_write(0, STORAGE, &hits),
             image_write(1, SAMPLED, &normal),

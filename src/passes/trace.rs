@@ -177,8 +177,8 @@ impl TracePass {
             (false, _) => None,
         };
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
-        let ray = fetch(gbuffer.ray);
-        let depth = fetch(gbuffer.depth);
+        let ray = fetch(gbuffer.ray.view);
+        let depth = fetch(gbuffer.depth.view);
         let heights = [if params.lod_threshold.is_some() {
             height.descriptor_lod()
         } else {
@@ -187,8 +187,8 @@ impl TracePass {
         let hits = storage_view(hit.view);
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
-        let normal = fetch(gbuffer.normal);
-        let tangent = fetch(gbuffer.tangent);
+        let normal = fetch(gbuffer.normal.view);
+        let tangent = fetch(gbuffer.tangent.view);
         let mut writes = vec![
             image_write(0, SAMPLED, &ray),
             image_write(1, SAMPLED, &depth),
