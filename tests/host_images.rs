@@ -151,6 +151,14 @@ fn wrong_host_images_are_refused_by_name() {
     assert_eq!(name, "color");
     assert!(message.contains(&format!("{COLOR_FORMAT:?}")), "{message}");
 
+    // A camera that would write NaN colour, depths or motion.
+    let mut nan_camera = shaded(hit.host_view());
+    if let Some(t) = &mut nan_camera.shade {
+        t.view_proj = Mat4::from_cols_array(&[f32::NAN; 16]);
+    }
+    let (name, _) = refused(record(&nan_camera));
+    assert_eq!(name, "camera");
+
     // Motion inputs follow the output's state and format.
     let with_motion = |image: HostView| FrameInputs {
         motion: Some(FrameMotion {
@@ -172,6 +180,12 @@ fn wrong_host_images_are_refused_by_name() {
     let (name, message) = refused(record(&with_motion(motion32.host_view())));
     assert_eq!(name, "motion");
     assert!(message.contains("R16G16_SFLOAT"), "{message}");
+    let mut nan_previous = with_motion(motion32.host_view());
+    if let Some(m) = &mut nan_previous.motion {
+        m.previous.eye = Vec3::splat(f32::INFINITY);
+    }
+    let (name, _) = refused(record(&nan_previous));
+    assert_eq!(name, "motion.previous");
     pass.set_motion_output(None).unwrap();
 
     // The refusals changed nothing: a valid frame records and runs.

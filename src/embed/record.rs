@@ -155,6 +155,22 @@ impl DisplacementPass {
             }),
             None => camera,
         };
+        // A non-finite or singular camera would write NaN depths or motion.
+        let cameras = camera.iter().map(|c| ("camera", c)).chain(
+            inputs
+                .motion
+                .iter()
+                .map(|m| ("motion.previous", &m.previous)),
+        );
+        for (name, c) in cameras {
+            let finite = c.view_proj.is_finite() && c.eye.is_finite();
+            if !finite || c.view_proj.determinant() == 0.0 {
+                return Err(Error::invalid(
+                    name,
+                    "the view-projection and eye must be finite and the matrix invertible",
+                ));
+            }
+        }
         if self.depth.is_some() && camera.is_none() {
             return Err(Error::invalid(
                 "depth output",
