@@ -67,6 +67,21 @@ pub const TRACE_FLAG_AUTO_LEVEL: u32 = 1;
 /// mapping at `TraceParams::lod_threshold` (Tatarchuk 2006), for every method.
 pub const TRACE_FLAG_LOD: u32 = 2;
 
+/// `ForwardParams` in `glsl/forward/forward.glsl`: the forward pass's step counts (a
+/// uniform buffer, [`crate::passes::forward`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ForwardParams {
+    /// Linear steps over the full depth (`pom`: `n_max`).
+    pub steps: u32,
+    /// `relief`: binary-search steps after the linear march.
+    pub refine_steps: u32,
+    /// `pom`: `n_min`.
+    pub min_steps: u32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
+}
+
 /// `PyramidParams` in `glsl/pyramid.comp`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -433,6 +448,31 @@ mod tests {
             size_of::<TraceParams>(),
         );
         assert_eq!(size_of::<TraceParams>(), 80);
+    }
+
+    #[test]
+    fn forward_params_layout() {
+        for shader in [&shaders::FORWARD_RELIEF_FRAG, &shaders::FORWARD_POM_FRAG] {
+            check(
+                shader,
+                "ForwardParams",
+                &[
+                    ("steps", offset_of!(ForwardParams, steps)),
+                    ("refine_steps", offset_of!(ForwardParams, refine_steps)),
+                    ("min_steps", offset_of!(ForwardParams, min_steps)),
+                    ("pad", offset_of!(ForwardParams, pad)),
+                ],
+                size_of::<ForwardParams>(),
+            );
+            // The fragment stage reads the G-buffer's push constants as its vertex stage
+            // does.
+            assert_eq!(
+                block_offsets(&shader.words().unwrap(), "GBufferParams"),
+                block_offsets(&shaders::GBUFFER_VERT.words().unwrap(), "GBufferParams"),
+                "{}",
+                shader.name
+            );
+        }
     }
 
     #[test]

@@ -189,6 +189,36 @@ impl Method {
         }
     }
 
+    /// The fragment shader of the method's forward path ([`crate::passes::forward`]: the
+    /// march inside the G-buffer pass, as engines run relief mapping and POM): `relief`
+    /// and `pom`; `None` for the others.
+    pub fn forward_shader(self) -> Option<Shader> {
+        match self {
+            Method::Relief => Some(shaders::FORWARD_RELIEF_FRAG),
+            Method::Pom => Some(shaders::FORWARD_POM_FRAG),
+            _ => None,
+        }
+    }
+
+    /// Whether the method is in the default method lists: `dispmap bench`'s default
+    /// `--methods` and map-size sweep, and the `demo`'s table. Every method stays
+    /// available by name. `cone-exact` is out: it has `exact`'s accuracy at 1.2x to 2.7x
+    /// `exact`'s time on every bundled map, on lavapipe and on an H100 (BENCHMARKS.md,
+    /// docs/cones.md), so a default list would show a method nobody should pick.
+    pub fn in_defaults(self) -> bool {
+        !matches!(self, Method::ConeExact)
+    }
+
+    /// The methods of the default lists ([`Method::in_defaults`]), in [`Method::ALL`]'s
+    /// order.
+    pub fn defaults() -> Vec<Method> {
+        Method::ALL
+            .iter()
+            .copied()
+            .filter(|m| m.in_defaults())
+            .collect()
+    }
+
     /// The most loop iterations one invocation of the method's passes can run with
     /// `params`, when the parameters alone bound it: the trace pass per pixel and, for
     /// the DIG methods, the corner pass per corner (the larger). `None` for `bump` (no

@@ -18,6 +18,8 @@
 //! read-back helpers use exactly those states. The renderer keeps one frame slot and
 //! waits for each frame, so what the pass retires is destroyed by the next frame.
 
+mod forward;
+
 use crate::context::Context;
 use crate::embed::{
     DepthCamera, DisplacementPass, FrameInputs, MAX_QUERIES, MaterialId, MaterialSettings,
@@ -137,6 +139,10 @@ pub struct Renderer {
     motion: Option<CameraMotion>,
     /// GPU milliseconds of the last build of each one-off map (pyramid, cone map).
     builds: Vec<(PassName, f64)>,
+    /// The forward path ([`Renderer::enable_forward`]), once enabled.
+    forward: Option<forward::Forward>,
+    /// Whether the last frame wrote the G-buffer's rays (a forward frame does not).
+    rays_written: bool,
 }
 
 /// The displaced material of one object of [`Renderer::with_objects`].
@@ -629,6 +635,7 @@ impl Renderer {
         old.destroy(c);
         self.settings = settings;
         self.depth_written = false;
+        self.rays_written = false;
         Ok(())
     }
 
@@ -840,9 +847,25 @@ impl Renderer {
         if let Some(m) = &mut self.motion {
             m.previous = Some(current);
         }
-        let scopes: Vec<_> = w.scopes.iter().chain(&frame.timestamps).copied().collect();
-        // SAFETY: the pool is alive and the frame completed (waited for above).
-        let times = unsafe { read_timestamps(ctx, &scopes)? };
+        self.rays_written = true;
+        self.frame_times(&w, &frame)
+    }
+
+    /// The per-pass times of a completed frame (the renderer's scopes, then the pass's),
+    /// and the builds it ran kept for [`Renderer::build_ms`].
+    fn frame_times(
+        &mut self,
+        own: &ScopeWriter,
+        frame: &crate::embed::RecordedFrame,
+    ) -> Result<PassTimes> {
+        let scopes: Vec<_> = own
+            .scopes
+            .iter()
+            .chain(&frame.timestamps)
+            .copied()
+            .collect();
+        // SAFETY: the pool is alive and the frame completed (the caller waited for it).
+        let times = unsafe { read_timestamps(&self.ctx, &scopes)? };
         for &(name, ms) in &times {
             if matches!(name, PassName::Pyramid | PassName::Cone) {
                 self.builds.retain(|(n, _)| *n != name);
@@ -1059,8 +1082,17 @@ impl Renderer {
         Ok(Some(bytemuck::cast_slice::<u8, f32>(&bytes).to_vec()))
     }
 
-    /// Each pixel's ray from the last frame's G-buffer (`None` where there is no geometry).
+    /// Each pixel's ray from the last frame's G-buffer (`None` where there is no
+    /// geometry). An error after a forward frame ([`Renderer::render_forward`] writes no
+    /// rays) or before the first frame.
     pub fn read_rays(&self) -> Result<Vec<Option<Ray>>> {
+        if !self.rays_written {
+            return Err(Error::invalid(
+                "rays",
+                "the last frame wrote no rays (none rendered yet, or a forward frame): \
+                 render a frame with Renderer::render first",
+            ));
+        }
         let ray = read_image(
             &self.ctx,
             &self.shot,
@@ -1233,6 +1265,7 @@ impl Drop for Renderer {
         unsafe { self.pass.destroy() };
         self.mesh.destroy(ctx);
         self.objects.destroy(ctx);
+        self.forward.destroy(ctx);
         self.gbuffer_pass.destroy(ctx);
         self.background.destroy(ctx);
         self.motion.destroy(ctx);
@@ -1306,6 +1339,8 @@ impl<'c> HostParts<'c> {
             depth_written: false,
             motion: None,
             builds: Vec::new(),
+            forward: None,
+            rays_written: false,
         }
     }
 }
@@ -1325,7 +1360,9 @@ fn frame_images(
             HIT_FORMAT,
             extent,
             1,
+            // COLOR_ATTACHMENT: the forward path writes it from its fragment shader.
             vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::COLOR_ATTACHMENT
                 | vk::ImageUsageFlags::TRANSFER_SRC
                 | vk::ImageUsageFlags::TRANSFER_DST,
         )?,

@@ -182,6 +182,7 @@ destroy_by_method!(
     crate::passes::cone::ConePass,
     crate::passes::dig::CornerGrid,
     crate::passes::dig::DigCornerPass,
+    crate::passes::forward::ForwardPass,
     crate::passes::gbuffer::GBuffer,
     crate::passes::gbuffer::GBufferPass,
     crate::passes::hit_depth::HitDepthPass,

@@ -1,7 +1,9 @@
 //! The passes of a frame, one file each: `gbuffer` (graphics), `pyramid` (the min-reduce
 //! chain), `dig` (the DIG corner pass), `trace` (the method), `shadow` (optional
-//! self-shadowing) and `shade`; on request `hit_depth` (the corrected depth of the
-//! displaced surface), `motion` (the motion vectors of displaced pixels) and `depth_resolve` (graphics: that depth into a depth
+//! self-shadowing) and `shade`; the `forward` pass (graphics: the G-buffer with relief
+//! mapping or POM in its fragment shader, as engines do; the benchmark's yardstick); on
+//! request `hit_depth` (the corrected depth of the displaced surface), `motion` (the
+//! motion vectors of displaced pixels) and `depth_resolve` (graphics: that depth into a depth
 //! attachment). Every pass only records into a command buffer it is given; the one
 //! orchestrator, [`crate::embed::DisplacementPass`], places the barriers between the
 //! compute passes (`src/embed/record.rs`, one method per stage), and its host (an engine,
@@ -13,6 +15,7 @@ pub mod classify;
 pub mod cone;
 pub mod depth_resolve;
 pub mod dig;
+pub mod forward;
 pub mod gbuffer;
 pub mod hit_depth;
 pub mod hit_resolve;

@@ -1,0 +1,316 @@
+//! The `forward` pass: what engines do with relief mapping and POM. Bevy, Godot, Unity
+//! and Unreal evaluate the marcher in the fragment shader that writes their G-buffer; this
+//! pass is that, for the benchmark's yardstick of dispmap's deferred frame (G-buffer,
+//! classify, trace, shade): one raster pass whose fragment shader
+//! (`glsl/forward/relief.frag`, `glsl/forward/pom.frag`) encodes the fragment as the
+//! G-buffer pass does and marches its ray at once, writing the hit where the deferred
+//! G-buffer writes the ray.
+//!
+//! | attachment | format | contents |
+//! |---|---|---|
+//! | hit | `R32G32B32A32_SFLOAT` ([`crate::passes::trace::HIT_FORMAT`]) | the hit buffer's texel: hit `u`, `v`, height, iterations (cleared to a miss, `NO_HIT_HEIGHT`) |
+//! | normal, tangent | `R16G16B16A16_SFLOAT` | the G-buffer's (see [`crate::passes::gbuffer`]) |
+//! | depth | `D32_SFLOAT` | the G-buffer's reverse-Z depth |
+//!
+//! The hit attachment is the hit buffer itself, in `GENERAL` (a colour attachment may be
+//! in `GENERAL`), so the frame's shading reads it as it reads the trace's hits
+//! ([`crate::embed::DisplacementPass::record_shading`]). The G-buffer's `ray` attachment
+//! is not written: nothing after the forward pass reads it.
+//!
+//! Bindings (set 0, push descriptors): 0 the height field (the map's own texture, its
+//! sampler: bilinear, the map's addressing), 1 the step counts
+//! ([`crate::abi::ForwardParams`], a uniform buffer the pass owns: the G-buffer's push
+//! constants, [`GBufferParams`], already take the 128 bytes every device guarantees).
+//! The vertex stage is the G-buffer's (`glsl/gbuffer.vert`): the plane or the quad.
+//!
+//! The marchers are the compute trace's code with the same inputs, so the forward hits
+//! are the deferred hits: bit for bit on lavapipe (`tests/forward.rs`). A compiler is free
+//! to contract or reorder the two pipelines' floating-point operations differently (no
+//! `precise` anywhere), so on another driver a ray may differ in its last bits and a march
+//! sample flip, moving that pixel's hit by up to a step.
+
+use crate::abi::{ForwardParams, GBufferParams, NO_HIT_HEIGHT};
+use crate::context::Context;
+use crate::error::{Error, Result, VkContext};
+use crate::gpu::owned::Guard;
+use crate::gpu::pipeline::{RasterDesc, image_write, raster_pipeline};
+use crate::gpu::{Buffer, HeightTexture, Image};
+use crate::method::{Method, MethodParams};
+use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, GBuffer};
+use crate::passes::trace::HIT_FORMAT;
+use crate::shaders;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// The graphics pipeline of one method's forward pass and its parameter buffer.
+pub struct ForwardPass {
+    method: Method,
+    pipeline: vk::Pipeline,
+    layout: vk::PipelineLayout,
+    set_layout: vk::DescriptorSetLayout,
+    params: Buffer,
+}
+
+/// Writes the step counts of `params` into `buffer` (host-visible, host-coherent: the
+/// submission that follows makes the write visible to the device).
+fn write_params(buffer: &mut Buffer, params: &MethodParams) -> Result<()> {
+    let value = ForwardParams {
+        steps: params.steps,
+        refine_steps: params.refine_steps,
+        min_steps: params.min_steps,
+        pad: 0,
+    };
+    let mapped = buffer
+        .mapped_mut()
+        .ok_or_else(|| Error::invalid("forward parameters", "the buffer is not mapped"))?;
+    mapped.copy_from_slice(bytemuck::bytes_of(&value));
+    Ok(())
+}
+
+impl ForwardPass {
+    /// Builds the pipeline of `method` (one with a forward shader,
+    /// [`Method::forward_shader`]); the step counts are `params`'.
+    pub fn new(ctx: &Context, method: Method, params: &MethodParams) -> Result<Self> {
+        let frag = method.forward_shader().ok_or_else(|| {
+            Error::invalid(
+                "method",
+                format!(
+                    "{method} has no forward path (the G-buffer pass runs {})",
+                    Method::ALL
+                        .iter()
+                        .filter(|m| m.forward_shader().is_some())
+                        .map(|m| m.name())
+                        .collect::<Vec<_>>()
+                        .join(" or ")
+                ),
+            )
+        })?;
+        let dev = ctx.device();
+        let name = format!("forward[{method}]");
+        let mut params_buffer = Guard::new(
+            ctx,
+            Buffer::new(
+                ctx,
+                &format!("{name}.params"),
+                std::mem::size_of::<ForwardParams>() as u64,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                MemoryLocation::CpuToGpu,
+            )?,
+        );
+        write_params(&mut params_buffer, params)?;
+        let bindings = [
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(0)
+                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(1)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+        ];
+        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
+            .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+            .bindings(&bindings);
+        // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
+        let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
+            .vk("vkCreateDescriptorSetLayout")?;
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
+            .size(std::mem::size_of::<GBufferParams>() as u32)];
+        let set_layouts = [set_layout];
+        let layout_info = vk::PipelineLayoutCreateInfo::default()
+            .set_layouts(&set_layouts)
+            .push_constant_ranges(&ranges);
+        // SAFETY: valid device and set layout.
+        let layout = match unsafe { dev.create_pipeline_layout(&layout_info, None) }
+            .vk("vkCreatePipelineLayout")
+        {
+            Ok(l) => l,
+            Err(e) => {
+                // SAFETY: created above, unused.
+                unsafe { dev.destroy_descriptor_set_layout(set_layout, None) };
+                return Err(e);
+            }
+        };
+        let pipeline = raster_pipeline(
+            ctx,
+            &RasterDesc {
+                vert: &shaders::GBUFFER_VERT,
+                frag: &frag,
+                layout,
+                vertex_bindings: &[],
+                vertex_attributes: &[],
+                depth_compare: vk::CompareOp::GREATER,
+                color_formats: &[HIT_FORMAT, FRAME_FORMAT, FRAME_FORMAT],
+                depth_format: DEPTH_FORMAT,
+                name: &format!("{name}.pipeline"),
+            },
+        );
+        let pipeline = match pipeline {
+            Ok(p) => p,
+            Err(e) => {
+                // SAFETY: created above, unused.
+                unsafe {
+                    dev.destroy_pipeline_layout(layout, None);
+                    dev.destroy_descriptor_set_layout(set_layout, None);
+                }
+                return Err(e);
+            }
+        };
+        ctx.set_name(layout, &format!("{name}.layout"));
+        ctx.set_name(set_layout, &format!("{name}.set_layout"));
+        Ok(ForwardPass {
+            method,
+            pipeline,
+            layout,
+            set_layout,
+            params: params_buffer.keep(),
+        })
+    }
+
+    /// The method this pass runs.
+    pub fn method(&self) -> Method {
+        self.method
+    }
+
+    /// Writes the step counts of `params` (`steps`, `refine_steps`, `min_steps`) into the
+    /// parameter buffer, which every recorded frame reads when it executes: the GPU must
+    /// be done with the frames recorded before (the caller waits for them).
+    pub fn set_params(&mut self, params: &MethodParams) -> Result<()> {
+        write_params(&mut self.params, params)
+    }
+
+    /// Records the pass: clears the hit, normal, tangent and depth attachments and draws
+    /// the plane or the quad of `params` (the G-buffer pass's draw,
+    /// [`crate::passes::gbuffer::GBufferPass::record`]) with the marcher in the fragment
+    /// shader.
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * When the command buffer executes: `hit` (an [`HIT_FORMAT`] image of the
+    ///   G-buffer's size with `COLOR_ATTACHMENT` usage) is in `GENERAL`, `target`'s normal
+    ///   and tangent in `COLOR_ATTACHMENT_OPTIMAL` and its depth in
+    ///   `DEPTH_ATTACHMENT_OPTIMAL`, earlier accesses ordered before the attachment writes
+    ///   (the contents are cleared); `height` is in `SHADER_READ_ONLY_OPTIMAL` with its
+    ///   writes visible to fragment-shader sampled reads; the GPU is done with the frames
+    ///   recorded before the last [`ForwardPass::set_params`].
+    /// * `target`, `hit`, `height` and this pass stay alive until the command buffer has
+    ///   executed.
+    pub unsafe fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        target: &GBuffer,
+        hit: &Image,
+        height: &HeightTexture,
+        params: &GBufferParams,
+    ) {
+        let extent = target.ray.extent;
+        let attachment = |view: vk::ImageView, layout: vk::ImageLayout, clear: [f32; 4]| {
+            vk::RenderingAttachmentInfo::default()
+                .image_view(view)
+                .image_layout(layout)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .clear_value(vk::ClearValue {
+                    color: vk::ClearColorValue { float32: clear },
+                })
+        };
+        let colors = [
+            attachment(
+                hit.view,
+                vk::ImageLayout::GENERAL,
+                [0.0, 0.0, NO_HIT_HEIGHT, 0.0],
+            ),
+            attachment(
+                target.normal.view,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                [0.0; 4],
+            ),
+            attachment(
+                target.tangent.view,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                [0.0; 4],
+            ),
+        ];
+        let depth = vk::RenderingAttachmentInfo::default()
+            .image_view(target.depth.view)
+            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+            .load_op(vk::AttachmentLoadOp::CLEAR)
+            .store_op(vk::AttachmentStoreOp::STORE)
+            .clear_value(vk::ClearValue {
+                depth_stencil: vk::ClearDepthStencilValue {
+                    depth: 0.0,
+                    stencil: 0,
+                },
+            });
+        let rendering = vk::RenderingInfo::default()
+            .render_area(crate::gpu::pipeline::frame_area(extent))
+            .layer_count(1)
+            .color_attachments(&colors)
+            .depth_attachment(&depth);
+        let heights = [height.descriptor()];
+        let buffers = [vk::DescriptorBufferInfo {
+            buffer: self.params.raw,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }];
+        let writes = [
+            image_write(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, &heights),
+            vk::WriteDescriptorSet::default()
+                .dst_binding(1)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .buffer_info(&buffers),
+        ];
+        let dev = ctx.device();
+        // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
+        // size of attachments `Image::new` created (non-zero, within
+        // `maxImageDimension2D`), which the viewport limits cover.
+        unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the attachments and the height texture are alive and in the layouts
+        // named above (the caller's barriers); the writes match set 0's layout (binding
+        // 0 a combined image sampler, 1 a uniform buffer the pass owns); the push
+        // constants are the layout's range; the plane pipeline draws without vertex
+        // buffers.
+        unsafe {
+            dev.cmd_begin_rendering(cmd, &rendering);
+            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+            ctx.push_descriptor().cmd_push_descriptor_set(
+                cmd,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.layout,
+                0,
+                &writes,
+            );
+            dev.cmd_push_constants(
+                cmd,
+                self.layout,
+                vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                0,
+                bytemuck::bytes_of(params),
+            );
+            dev.cmd_draw(cmd, params.vertex_count(), 1, 0, 0);
+            dev.cmd_end_rendering(cmd);
+        }
+    }
+
+    /// Destroys the pipeline, its layouts and the parameter buffer. The GPU must be done
+    /// with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        let dev = ctx.device();
+        // SAFETY: caller guarantees no pending use; null handles are ignored.
+        unsafe {
+            dev.destroy_pipeline(self.pipeline, None);
+            dev.destroy_pipeline_layout(self.layout, None);
+            dev.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+        self.pipeline = vk::Pipeline::null();
+        self.layout = vk::PipelineLayout::null();
+        self.set_layout = vk::DescriptorSetLayout::null();
+        self.params.destroy(ctx);
+    }
+}

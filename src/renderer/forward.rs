@@ -1,0 +1,280 @@
+//! The renderer's forward frame: what engines do with relief mapping and POM, beside
+//! dispmap's deferred frame, for the benchmark ([`crate::passes::forward`]).
+//!
+//! [`Renderer::render_forward`] records, in place of the G-buffer pass and the pass's
+//! `classify -> trace -> shade`:
+//!
+//! 1. the G-buffer's `normal`, `tangent` and `depth`: discarded -> attachment layouts;
+//!    the hit buffer: discarded -> `GENERAL` for colour-attachment writes; the `ray`
+//!    image: discarded -> `SHADER_READ_ONLY_OPTIMAL` (not written: the pass's views stay
+//!    in their entry layouts); the forward height texture, on the first forward frame:
+//!    visible to fragment-shader sampled reads;
+//! 2. the `forward` pass in the renderer's `gbuffer` scope: the G-buffer and the hits
+//!    from one fragment shader;
+//! 3. the pass's entry barriers (the hit buffer: colour-attachment writes -> compute
+//!    storage reads), the background, and [`DisplacementPass::record_shading`]:
+//!    `classify -> [shadow] -> shade` on those hits, as the deferred frame shades its
+//!    trace's.
+//!
+//! So a forward frame's times are `gbuffer` (the raster pass with the march), `classify`
+//! and `shade`, a deferred frame's `gbuffer`, `classify`, `trace` and `shade`: the same
+//! shading, the same attachments but the ray, which the forward frame does not need.
+//!
+//! [`DisplacementPass::record_shading`]: crate::embed::DisplacementPass::record_shading
+
+use super::{DISCARD, GBUFFER_QUERIES, PassTimes, Renderer};
+use crate::embed::Timestamps;
+use crate::error::{Error, Result};
+use crate::gpu::HeightTexture;
+use crate::gpu::owned::Destroy;
+use crate::gpu::sync::{self, Access};
+use crate::heightfield::HeightField;
+use crate::passes::PassName;
+use crate::passes::forward::ForwardPass;
+use crate::timing::ScopeWriter;
+use ash::vk;
+
+/// The forward path's own resources: the map's texture (an engine owns its textures;
+/// the pass's are internal to it) and one pipeline per method used so far.
+pub(super) struct Forward {
+    height: HeightTexture,
+    passes: Vec<ForwardPass>,
+    /// Whether a forward frame has made the texture visible to fragment shaders.
+    height_visible: bool,
+}
+
+impl Destroy for Forward {
+    fn destroy(&mut self, ctx: &crate::context::Context) {
+        self.height.destroy(ctx);
+        self.passes.destroy(ctx);
+    }
+}
+
+/// The hit buffer written as a colour attachment in `GENERAL` (the forward pass).
+const HIT_ATTACHMENT_WRITE: Access = Access {
+    layout: vk::ImageLayout::GENERAL,
+    ..Access::COLOR_ATTACHMENT_WRITE
+};
+
+/// Sampled by fragment shaders (the forward pass's height texture).
+const FRAGMENT_SAMPLED: Access = Access {
+    stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
+    ..Access::COMPUTE_SAMPLED
+};
+
+impl Renderer {
+    /// Enables [`Renderer::render_forward`]: uploads `field`, which must be the map this
+    /// renderer was built with (the forward pass samples its own copy, as an engine's
+    /// G-buffer shader samples the engine's texture; the size and format are checked).
+    /// Only for a renderer of the tiled plane or the quad (the G-buffer pass's own
+    /// geometry), not of a mesh or of several objects. Calling it again replaces the
+    /// copy.
+    pub fn enable_forward(&mut self, field: &HeightField) -> Result<()> {
+        if self.objects.is_some() || self.mesh.is_some() {
+            return Err(Error::invalid(
+                "forward",
+                "the forward path draws the tiled plane or the quad, not a mesh or several \
+                 objects",
+            ));
+        }
+        let size = self.pass.map_size();
+        if [field.width(), field.height()] != size {
+            return Err(Error::invalid(
+                field.label(),
+                format!(
+                    "{}x{} is not the renderer's map ({}x{}): the forward path needs the same \
+                     map",
+                    field.width(),
+                    field.height(),
+                    size[0],
+                    size[1]
+                ),
+            ));
+        }
+        let ctx = &*self.ctx;
+        let height = HeightTexture::upload(
+            ctx,
+            &self.shot,
+            field,
+            self.settings.scene.addressing(),
+            false,
+        )?;
+        let mut old = self.forward.replace(Forward {
+            height,
+            passes: Vec::new(),
+            height_visible: false,
+        });
+        // Every frame of this renderer was waited for: nothing reads the old copy.
+        old.destroy(ctx);
+        Ok(())
+    }
+
+    /// Renders one forward frame (module docs: the method's march in the G-buffer pass,
+    /// then the same shading as [`Renderer::render`]) and returns its per-pass GPU times.
+    /// Needs [`Renderer::enable_forward`] and a method with a forward path (`relief`,
+    /// `pom`: [`crate::method::Method::forward_shader`]); refused with level of detail
+    /// (the forward pass samples level 0 only) and with the corrected-depth or the motion
+    /// output on (the forward frame has neither stage). The hits are the deferred frame's
+    /// ([`crate::passes::forward`]); [`Renderer::read_rays`] has no rays after it.
+    pub fn render_forward(&mut self) -> Result<PassTimes> {
+        let method = self.settings.method;
+        let params = self.settings.params;
+        if params.lod_threshold.is_some() {
+            return Err(Error::invalid(
+                "lod-threshold",
+                "the forward path samples the map's level 0 only: turn level of detail off",
+            ));
+        }
+        if self.pass.depth_output() {
+            return Err(Error::invalid(
+                "depth output",
+                "the forward frame has no corrected depth: turn the output off",
+            ));
+        }
+        if self.motion.is_some() {
+            return Err(Error::invalid(
+                "motion output",
+                "the forward frame has no motion vectors: turn the output off",
+            ));
+        }
+        let ctx = self.ctx.clone();
+        let ctx = &*ctx;
+        let (camera, target) = self.frame_target();
+        let gbuffer_params = self.settings.scene.gbuffer_params(&camera);
+        let forward = self.forward.as_mut().ok_or_else(|| {
+            Error::invalid(
+                "forward",
+                "the forward path is not enabled (Renderer::enable_forward)",
+            )
+        })?;
+        let index = match forward.passes.iter().position(|p| p.method() == method) {
+            Some(i) => i,
+            None => {
+                forward.passes.push(ForwardPass::new(ctx, method, &params)?);
+                forward.passes.len() - 1
+            }
+        };
+        // Every earlier frame was waited for: nothing reads the parameter buffer.
+        forward.passes[index].set_params(&params)?;
+
+        let cmd = self.shot.begin(ctx)?;
+        let mut w = ScopeWriter::new(Some(self.timestamps.0), 0, GBUFFER_QUERIES);
+        // SAFETY: `cmd` was just begun; the pool is alive with the range.
+        unsafe { w.reset(ctx, cmd) };
+        let g = &self.gbuffer;
+        let mut to_attachments: Vec<_> = [&g.normal, &g.tangent]
+            .iter()
+            .map(|i| sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE))
+            .collect();
+        to_attachments.extend([
+            sync::image_barrier(
+                g.depth.raw,
+                g.depth.range(),
+                DISCARD,
+                Access::DEPTH_ATTACHMENT_WRITE,
+            ),
+            sync::image_barrier(g.ray.raw, g.ray.range(), DISCARD, Access::COMPUTE_SAMPLED),
+            sync::image_barrier(
+                self.hit.raw,
+                self.hit.range(),
+                DISCARD,
+                HIT_ATTACHMENT_WRITE,
+            ),
+        ]);
+        if !forward.height_visible {
+            // The upload left the texture visible to compute shaders only.
+            let h = &forward.height.image;
+            to_attachments.push(sync::image_barrier(
+                h.raw,
+                h.range(),
+                Access::COMPUTE_SAMPLED,
+                FRAGMENT_SAMPLED,
+            ));
+        }
+        // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
+        // context's queue family) and is submitted and waited for below, while the images
+        // live; their previous frame was waited for, so the contents may be discarded; the
+        // G-buffer and the hit buffer have attachment usage (`GBuffer::new`,
+        // `frame_images`); the height texture is in `SHADER_READ_ONLY_OPTIMAL` since its
+        // upload.
+        unsafe { sync::record(ctx, cmd, &to_attachments) };
+        let pass = &forward.passes[index];
+        let (hit, height) = (&self.hit, &forward.height);
+        // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
+        // above (the scope's contract). In the body: the hit buffer is in `GENERAL`, the
+        // normal and tangent in `COLOR_ATTACHMENT_OPTIMAL`, the depth in
+        // `DEPTH_ATTACHMENT_OPTIMAL` and the height texture visible to fragment-shader
+        // reads (the barriers above, or the first forward frame's); the parameter buffer
+        // was written after every earlier frame completed; everything lives until the
+        // submission below has completed.
+        unsafe {
+            w.scope(ctx, cmd, PassName::GBuffer, |cmd| {
+                pass.record(ctx, cmd, g, hit, height, &gbuffer_params)
+            })
+        };
+        let mut entry = vec![
+            sync::image_barrier(
+                g.normal.raw,
+                g.normal.range(),
+                Access::COLOR_ATTACHMENT_WRITE,
+                Access::COMPUTE_SAMPLED,
+            ),
+            sync::image_barrier(
+                g.tangent.raw,
+                g.tangent.range(),
+                Access::COLOR_ATTACHMENT_WRITE,
+                Access::COMPUTE_SAMPLED,
+            ),
+            sync::image_barrier(
+                g.depth.raw,
+                g.depth.range(),
+                Access::DEPTH_ATTACHMENT_WRITE,
+                Access::COMPUTE_SAMPLED,
+            ),
+            sync::image_barrier(
+                self.hit.raw,
+                self.hit.range(),
+                HIT_ATTACHMENT_WRITE,
+                Access::COMPUTE_STORAGE_READ,
+            ),
+        ];
+        entry.push(sync::image_barrier(
+            self.color.raw,
+            self.color.range(),
+            DISCARD,
+            Access::COMPUTE_STORAGE_WRITE,
+        ));
+        // SAFETY: `cmd` is recording outside a render pass (begun above, submitted
+        // below); the attachments were written by the scope above; the colour image is
+        // the renderer's and its previous frame was waited for, so it may be discarded.
+        unsafe { sync::record(ctx, cmd, &entry) };
+        // SAFETY: `cmd` is recording outside a render pass and submitted below; the
+        // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
+        // (the barriers above).
+        unsafe { self.record_background(cmd, &target) };
+        let inputs = self.frame_inputs(Some(target));
+        // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
+        // submitted below; the G-buffer views are in the entry states (the `ray` image
+        // too, discarded: nothing reads it); the hits were written by the forward pass and
+        // made visible to compute-shader storage reads (the barrier above); one slot,
+        // whose previous frame was waited for; the pool has the queries after the
+        // G-buffer's.
+        let frame = unsafe {
+            self.pass.record_shading(
+                cmd,
+                &inputs,
+                None,
+                Timestamps::Host {
+                    pool: self.timestamps.0,
+                    first_query: GBUFFER_QUERIES,
+                },
+            )?
+        };
+        self.shot.submit_and_wait(ctx)?;
+        if let Some(f) = self.forward.as_mut() {
+            f.height_visible = true;
+        }
+        self.rays_written = false;
+        self.frame_times(&w, &frame)
+    }
+}
