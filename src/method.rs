@@ -570,6 +570,19 @@ mod tests {
     }
 
     #[test]
+    fn default_lists_and_forward_paths() {
+        let defaults = Method::defaults();
+        assert_eq!(defaults.len(), Method::ALL.len() - 1);
+        assert!(!defaults.contains(&Method::ConeExact));
+        let forward: Vec<Method> = Method::ALL
+            .iter()
+            .copied()
+            .filter(|m| m.forward_shader().is_some())
+            .collect();
+        assert_eq!(forward, [Method::Relief, Method::Pom]);
+    }
+
+    #[test]
     fn loop_limits_refuse_what_lavapipe_would_cut_short() {
         let p = |steps, segments, eps| MethodParams {
             steps,

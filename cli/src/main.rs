@@ -110,9 +110,10 @@ struct BenchArgs {
         value_name = "LIST"
     )]
     steps: String,
-    /// Methods, comma-separated, or `all`: bump, linear, relief, pom, secant, dig,
-    /// dig-guarded, pyramid, exact, cone, cone-exact, relaxed-cone.
-    #[arg(long, default_value = "all", value_name = "LIST")]
+    /// Methods, comma-separated, `all`, or `default` (every method but cone-exact, which
+    /// is slower than exact on every bundled map: docs/cones.md): bump, linear, relief,
+    /// pom, secant, dig, dig-guarded, pyramid, exact, cone, cone-exact, relaxed-cone.
+    #[arg(long, default_value = "default", value_name = "LIST")]
     methods: String,
     /// Bundled maps (rocks, bricks, mountains), comma-separated, or `none`.
     #[arg(long, default_value = "rocks,bricks,mountains", value_name = "LIST")]
@@ -149,6 +150,10 @@ struct BenchArgs {
     /// frame displaced): `on` or `off`.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     materials: String,
+    /// The forward path: every relief and pom run again with the march in the G-buffer
+    /// pass (what engines do), its whole frame beside the deferred frame: `on` or `off`.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    forward: String,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -991,12 +996,14 @@ fn timings_line(timings: &[(String, f64)]) -> String {
 
 fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
     args.common.check()?;
+    // The default methods ([`Method::in_defaults`]: cone-exact is available by name only).
+    let methods = Method::defaults();
     // Every method's settings are checked before anything is printed or created.
-    for &method in Method::ALL {
+    for &method in &methods {
         validate_settings(&args.common.settings(method))?;
     }
     let field = bundled::rocks()?;
-    let first = args.common.settings(Method::ALL[0]);
+    let first = args.common.settings(methods[0]);
     memory::check(
         &memory::estimate(
             memory::MapSize::loaded(&field),
@@ -1004,7 +1011,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             memory::Extras {
                 reference: true,
                 // One method at a time, the previous one's maps retired: at most all.
-                maps: memory::MethodMaps::together(Method::ALL),
+                maps: memory::MethodMaps::together(&methods),
                 ..memory::Extras::default()
             },
         ),
@@ -1034,7 +1041,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         args.common.frames
     );
     {
-        let first = args.common.settings(Method::ALL[0]);
+        let first = args.common.settings(methods[0]);
         let mut renderer = Renderer::new(&ctx, &field, first)?;
         let reference = Reference::new(&field, first.scene.addressing());
         let frame_ref = renderer.reference(&reference)?;
@@ -1046,11 +1053,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             rgba: frame_ref.color.clone(),
         }];
         // The method column as wide as the longest name.
-        let w = Method::ALL
-            .iter()
-            .map(|m| m.name().len())
-            .max()
-            .unwrap_or(6);
+        let w = methods.iter().map(|m| m.name().len()).max().unwrap_or(6);
         println!(
             "\n{:<w$} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>10} {:>10} {:>9}",
             "method",
@@ -1064,7 +1067,7 @@ fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
             "artifact%",
             "PSNR dB"
         );
-        for &method in Method::ALL {
+        for &method in &methods {
             let settings = args.common.settings(method);
             renderer.set_method(method, settings.params)?;
             let m = renderer.measure(&frame_ref, args.common.frames)?;
@@ -1141,6 +1144,7 @@ fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Result<()> {
         size_steps: args.size_steps,
         shadows: args.shadows,
         materials: args.materials == "on",
+        forward: args.forward == "on",
         ..bench::BenchConfig::default()
     };
     config.validate()?;

@@ -104,7 +104,49 @@ fn library_sweep_writes_every_output() {
         .collect();
     assert_eq!(main.len(), 4);
     assert_eq!(sizes.len(), 6);
+    // The forward path (on by default): relief's two settings again, forward.
+    let forward: Vec<_> = results
+        .rows
+        .iter()
+        .filter(|r| r.sweep == Sweep::Forward)
+        .collect();
+    let settings: Vec<(&str, Option<u32>)> = forward
+        .iter()
+        .map(|r| (r.method.as_str(), r.steps))
+        .collect();
+    assert_eq!(settings, [("relief", Some(16)), ("relief", Some(32))]);
+    for f in &forward {
+        // No trace pass; the method time is the G-buffer pass with the march.
+        assert_eq!(f.trace_ms, 0.0, "{f:?}");
+        assert!(
+            f.method_ms > 0.0 && f.method_ms >= f.gbuffer_ms * 0.999,
+            "{f:?}"
+        );
+        let deferred = main
+            .iter()
+            .find(|r| r.method == f.method && r.steps == f.steps)
+            .unwrap();
+        // The same hits (bit for bit on lavapipe: tests/forward.rs), so the same errors.
+        if device.contains("llvmpipe") {
+            assert_eq!(f.forward_differing_pixels, Some(0), "{f:?}");
+            assert_eq!(f.artifact_fraction, deferred.artifact_fraction);
+            assert_eq!(f.iterations_mean, deferred.iterations_mean);
+        }
+    }
+    assert_eq!(results.pass_medians.len(), results.rows.len());
     for r in &results.rows {
+        assert!(
+            r.total_median_lo_ms <= r.total_median_ms && r.total_median_ms <= r.total_median_hi_ms,
+            "{r:?}"
+        );
+        assert_eq!(
+            r.forward_differing_pixels.is_some(),
+            r.sweep == Sweep::Forward,
+            "{r:?}"
+        );
+        if r.sweep == Sweep::Forward {
+            continue;
+        }
         assert!(r.trace_ms > 0.0 && r.method_ms >= r.trace_ms, "{r:?}");
         assert!(r.total_ms >= r.method_ms, "{r:?}");
         assert_eq!(r.nonfinite_pixels, 0, "{r:?}");
@@ -148,6 +190,9 @@ fn library_sweep_writes_every_output() {
         "(sizes.png)",
         "dispmap bench (test)",
         "## Several materials in one pass",
+        "## The deferred frame against what engines do (the forward path)",
+        "`dig` at equal error",
+        "At DIG's equal-error point",
         "| (a) together / sum alone |",
         &device,
     ] {
@@ -215,7 +260,8 @@ fn cli_bench_writes_every_output() {
     assert!(out.status.success(), "{stderr}");
     assert!(!stderr.contains("Validation"), "{stderr}");
     let rows = read_csv(&dir.join("results.csv"));
-    // bump once, pom twice; 2 sizes x (pyramid, exact, cone-exact, dig, pom).
+    // bump once, pom twice (and twice forward); 2 sizes x (pyramid, exact, dig, pom): the
+    // default size methods leave cone-exact out.
     let methods: Vec<(&str, Option<u32>)> = rows
         .iter()
         .filter(|r| r.sweep == Sweep::Methods)
@@ -225,10 +271,9 @@ fn cli_bench_writes_every_output() {
         methods,
         [("bump", None), ("pom", Some(8)), ("pom", Some(16))]
     );
-    assert_eq!(
-        rows.iter().filter(|r| r.sweep == Sweep::MapSize).count(),
-        10
-    );
+    assert_eq!(rows.iter().filter(|r| r.sweep == Sweep::MapSize).count(), 8);
+    assert!(rows.iter().all(|r| r.method != "cone-exact"));
+    assert_eq!(rows.iter().filter(|r| r.sweep == Sweep::Forward).count(), 2);
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("## rocks") && md.contains("## Map-size sweep"));
     assert!(

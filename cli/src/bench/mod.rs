@@ -43,16 +43,31 @@
 //!   per-pixel counts (mean and p99 over covered pixels, averaged over the error
 //!   frames); for the DIG methods `corner_iterations` adds the corner pass's fetches per
 //!   covered pixel.
+//! * **Forward path** (`--forward on`, the default): what engines do with relief
+//!   mapping and POM, the marcher in the G-buffer pass's fragment shader
+//!   ([`dispmap::passes::forward`], [`Renderer::render_forward`]). Every `relief` and
+//!   `pom` run of the methods sweep is run a second time that way, by the same renderer,
+//!   interleaved with the others frame by frame (rows of [`Sweep::Forward`]). A forward
+//!   frame is `gbuffer` (the raster pass with the march), `classify` and `shade`; its
+//!   *method time* is that `gbuffer` pass. Its hits are compared with the deferred run's
+//!   of the same frame (`forward_differing_pixels`), and the report compares whole frames:
+//!   the deferred frame of `dig` and `exact` against the forward frames of `relief` and
+//!   `pom` at 150 steps and at equal error ([`compare`]).
 //! * **Map-size sweep.** One map (rocks by default) resampled to each `--sizes` side
 //!   (Catmull-Rom, keeping the map's precision), and `pyramid`, `exact`, `cone-exact`,
 //!   `dig` and `pom` run at one setting (`size_steps`) with the same frames, the pyramid
 //!   and cone-map builds reported apart from the trace.
+//!
+//! Beside the minima every time has its **median** over every frame, and the lowest and
+//! highest per-pass median (`*_median_lo_ms`, `*_median_hi_ms`); the report's ratios of
+//! medians carry the range of their per-pass ratios ([`PassMedians`]).
 //!
 //! [`run`] does the sweep and returns [`BenchResults`]; [`write_outputs`] writes
 //! `results.csv`, `report.md`, `pareto_<map>.png`, `sizes.png` and the heat maps.
 //! Timings on lavapipe are CPU timings: compare ratios within one run, never absolute
 //! numbers across runs.
 
+pub mod compare;
 pub mod materials;
 pub mod plot;
 pub mod report;
@@ -90,14 +105,8 @@ pub const DEFAULT_STEPS: [u32; 10] = [10, 15, 20, 25, 35, 50, 75, 100, 125, 150]
 /// Map sides of the map-size sweep (the pyramid paper's Fig. 21).
 pub const DEFAULT_SIZES: [u32; 4] = [256, 512, 1024, 2048];
 
-/// Methods timed in the map-size sweep.
-pub const SIZE_METHODS: [Method; 5] = [
-    Method::Pyramid,
-    Method::Exact,
-    Method::ConeExact,
-    Method::Dig,
-    Method::Pom,
-];
+/// Methods timed in the map-size sweep (default methods only, [`Method::in_defaults`]).
+pub const SIZE_METHODS: [Method; 4] = [Method::Pyramid, Method::Exact, Method::Dig, Method::Pom];
 
 /// The setting of the map-size sweep.
 pub const DEFAULT_SIZE_STEPS: u32 = 100;
@@ -226,7 +235,8 @@ pub struct BenchConfig {
     pub error_frames: Option<u32>,
     /// Quality settings (`--steps`), ascending.
     pub steps: Vec<u32>,
-    /// Methods (`--methods`), in [`Method::ALL`] order.
+    /// Methods (`--methods`), in [`Method::ALL`] order; by default
+    /// [`Method::defaults`].
     pub methods: Vec<Method>,
     /// Map sides of the map-size sweep (`--sizes`), ascending; empty: no sweep.
     pub sizes: Vec<u32>,
@@ -242,6 +252,9 @@ pub struct BenchConfig {
     /// The material-table numbers ([`materials`], `--materials`, default on): six small
     /// renderers over the same `K R` frames.
     pub materials: bool,
+    /// The forward path (`--forward`, default on): every run of a method with one
+    /// ([`Method::forward_shader`]: `relief`, `pom`) is also run forward (module docs).
+    pub forward: bool,
 }
 
 impl Default for BenchConfig {
@@ -252,13 +265,14 @@ impl Default for BenchConfig {
             repeat: DEFAULT_REPEAT,
             error_frames: None,
             steps: DEFAULT_STEPS.to_vec(),
-            methods: Method::ALL.to_vec(),
+            methods: Method::defaults(),
             sizes: DEFAULT_SIZES.to_vec(),
             size_methods: SIZE_METHODS.to_vec(),
             size_steps: DEFAULT_SIZE_STEPS,
             scene: protocol_scene(),
             shadows: dispmap::passes::shadow::ShadowMode::Off,
             materials: true,
+            forward: true,
         }
     }
 }
@@ -368,6 +382,16 @@ impl BenchConfig {
         }
     }
 
+    /// The forward runs (module docs): each `relief` and `pom` setting of the methods
+    /// sweep, when [`BenchConfig::forward`] is on.
+    pub fn forward_methods(&self) -> Vec<Method> {
+        self.methods
+            .iter()
+            .copied()
+            .filter(|m| self.forward && m.forward_shader().is_some())
+            .collect()
+    }
+
     /// The setting whose heat maps are written: the largest `--steps`.
     pub fn heatmap_steps(&self) -> u32 {
         self.steps
@@ -434,10 +458,12 @@ pub fn parse_steps(s: &str) -> Result<Vec<u32>> {
     })
 }
 
-/// Parses `--methods` (`relief,pom,dig`, or `all`).
+/// Parses `--methods` (`relief,pom,dig`, `all`, or `default`: [`Method::defaults`]).
 pub fn parse_methods(s: &str) -> Result<Vec<Method>> {
-    if s.trim() == "all" {
-        return Ok(Method::ALL.to_vec());
+    match s.trim() {
+        "all" => return Ok(Method::ALL.to_vec()),
+        "default" => return Ok(Method::defaults()),
+        _ => {}
     }
     parse_list("--methods", s, |item| {
         item.parse::<Method>().map_err(|e| match e {
@@ -526,6 +552,9 @@ pub enum Sweep {
     Methods,
     /// One map resampled to several sizes.
     MapSize,
+    /// The methods sweep's `relief` and `pom` runs again, forward: the march in the
+    /// G-buffer pass (module docs).
+    Forward,
 }
 
 /// One run: a (map, method, setting, frame set), as one row of `results.csv`. Times are
@@ -557,7 +586,8 @@ pub struct RunRow {
     /// The frames (azimuths and error frames) in words.
     pub frame_set: String,
     /// G-buffer pass (every `*_ms` time below is the minimum over the `frames` frames of
-    /// the `repeat` passes unless it says median).
+    /// the `repeat` passes unless it says median); forward rows: the raster pass with the
+    /// march.
     pub gbuffer_ms: f64,
     /// The pyramid's build (once per map and pyramid kind; the fastest of `repeat`
     /// builds by as many renderers), if the method uses one.
@@ -571,14 +601,15 @@ pub struct RunRow {
     pub cone_build_ms: Option<f64>,
     /// DIG corner pass, DIG methods only.
     pub dig_corners_ms: Option<f64>,
-    /// Trace pass.
+    /// Trace pass (0 in forward rows: none).
     pub trace_ms: f64,
     /// Shade pass.
     pub shade_ms: f64,
     /// Self-shadowing pass (`--shadows` on only).
     pub shadow_ms: Option<f64>,
-    /// The method's time, per-frame `dig_corners + trace`: the minimum over every frame
-    /// of every pass, the statistic the speed-ups and plots use.
+    /// The method's time, per-frame `dig_corners + trace` (forward rows: the `gbuffer`
+    /// pass, which runs the march): the minimum over every frame of every pass, the
+    /// statistic the speed-ups and plots use.
     pub method_ms: f64,
     /// Its median over every frame of every pass.
     pub method_median_ms: f64,
@@ -591,6 +622,14 @@ pub struct RunRow {
     pub total_ms: f64,
     /// Per-frame total, median.
     pub total_median_ms: f64,
+    /// The lowest per-pass median of the method time.
+    pub method_median_lo_ms: f64,
+    /// The highest per-pass median of the method time.
+    pub method_median_hi_ms: f64,
+    /// The lowest per-pass median of the per-frame total.
+    pub total_median_lo_ms: f64,
+    /// The highest per-pass median of the per-frame total.
+    pub total_median_hi_ms: f64,
     /// Mean per-pixel iterations of the trace pass.
     pub iterations_mean: f64,
     /// p99 per-pixel iterations of the trace pass.
@@ -615,6 +654,9 @@ pub struct RunRow {
     pub psnr_db: f64,
     /// Non-finite hit texels summed over the error frames (must be 0).
     pub nonfinite_pixels: u64,
+    /// Forward rows: hit texels that differ (bit for bit) from the deferred run's of the
+    /// same method and setting on the same frame, summed over the error frames.
+    pub forward_differing_pixels: Option<u64>,
 }
 
 impl RunRow {
@@ -622,6 +664,17 @@ impl RunRow {
     pub fn method(&self) -> Option<Method> {
         self.method.parse().ok()
     }
+}
+
+/// The medians of one run's times, one per pass of the repeat (pass order): what the
+/// spread of a ratio of medians is read from (the ratio per pass, both sides measured in
+/// the same interleaved pass).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PassMedians {
+    /// The method time's median per pass.
+    pub method: Vec<f64>,
+    /// The per-frame total's median per pass.
+    pub total: Vec<f64>,
 }
 
 /// An RGBA8 image produced by the sweep (heat maps, interval maps).
@@ -673,6 +726,8 @@ pub struct BenchResults {
     pub size_source: Option<MapInfo>,
     /// One row per run, methods sweep first.
     pub rows: Vec<RunRow>,
+    /// Per row (same order), the per-pass medians of its times.
+    pub pass_medians: Vec<PassMedians>,
     /// Heat maps and interval maps.
     pub images: Vec<NamedImage>,
     /// When the sweep started.
@@ -769,6 +824,7 @@ fn total_weight(config: &BenchConfig, maps: usize, size_sweep: bool) -> u64 {
     let per_map: u64 = config
         .methods
         .iter()
+        .chain(&config.forward_methods())
         .flat_map(|&m| config.settings_of(m))
         .map(|s| run_weight(s, frames_rendered(config)))
         .sum::<u64>()
@@ -850,9 +906,10 @@ pub fn run(
         sink: progress,
     };
     let mut rows = Vec::new();
+    let mut pass_medians = Vec::new();
     let mut images = Vec::new();
     let heat_steps = config.heatmap_steps();
-    let runs: Vec<RunSpec> = config
+    let mut runs: Vec<RunSpec> = config
         .methods
         .iter()
         .flat_map(|&method| {
@@ -863,13 +920,26 @@ pub fn run(
                     method,
                     steps,
                     heat: steps.is_none_or(|s| s == heat_steps),
+                    forward: false,
                 })
         })
         .collect();
+    // The forward runs, interleaved with the others in every frame (after them).
+    for method in config.forward_methods() {
+        for steps in config.settings_of(method) {
+            runs.push(RunSpec {
+                method,
+                steps,
+                heat: false,
+                forward: true,
+            });
+        }
+    }
     for map in maps {
         let sweep = MapSweep::new(ctx, &config, map, Sweep::Methods, &mut tracker)?;
-        let (r, imgs) = sweep.run(&runs, &mut tracker)?;
+        let (r, p, imgs) = sweep.run(&runs, &mut tracker)?;
         rows.extend(r);
+        pass_medians.extend(p);
         images.extend(imgs);
     }
     let mut size_info = None;
@@ -886,10 +956,13 @@ pub fn run(
                     method,
                     steps: has_steps(method).then_some(config.size_steps),
                     heat: false,
+                    forward: false,
                 })
                 .collect();
             let sweep = MapSweep::new(ctx, &config, &spec, Sweep::MapSize, &mut tracker)?;
-            rows.extend(sweep.run(&runs, &mut tracker)?.0);
+            let (r, p, _) = sweep.run(&runs, &mut tracker)?;
+            rows.extend(r);
+            pass_medians.extend(p);
         }
     }
     let materials = if config.materials {
@@ -915,6 +988,7 @@ pub fn run(
         api_version: info.api_version.clone(),
         config,
         rows,
+        pass_medians,
         images,
         started,
         wall: clock.elapsed(),
@@ -939,6 +1013,8 @@ struct RunSpec {
     steps: Option<u32>,
     /// Write the heat map (and DIG's interval map) of frame 0.
     heat: bool,
+    /// The forward path ([`Sweep::Forward`]).
+    forward: bool,
 }
 
 /// What a run has measured so far.
@@ -948,15 +1024,18 @@ struct RunAccumulator {
     passes: Vec<(PassName, Vec<f64>)>,
     /// Every frame's method time (`dig_corners + trace`), with its repeat pass.
     method_ms: Vec<(u32, f64)>,
-    /// Every frame's total (without the one-off passes).
-    total_ms: Vec<f64>,
+    /// Every frame's total (without the one-off passes), with its repeat pass.
+    total_ms: Vec<(u32, f64)>,
     errors: Vec<ErrorMetrics>,
+    /// Forward runs: hit texels differing from the deferred run's, per error frame.
+    forward_differing: Vec<u64>,
     corner_iterations: Vec<f64>,
     lockstep: Vec<[f64; 2]>,
 }
 
 impl RunAccumulator {
-    fn add_times(&mut self, times: &[(PassName, f64)], pass: u32) {
+    /// Adds a frame's times; `forward`: the method runs in the G-buffer pass.
+    fn add_times(&mut self, times: &[(PassName, f64)], pass: u32, forward: bool) {
         let mut frame_method = 0.0;
         let mut frame_total = 0.0;
         for &(name, ms) in times {
@@ -964,7 +1043,12 @@ impl RunAccumulator {
                 continue;
             }
             frame_total += ms;
-            if name == PassName::Trace || name == PassName::DigCorners {
+            let method_pass = if forward {
+                name == PassName::GBuffer
+            } else {
+                name == PassName::Trace || name == PassName::DigCorners
+            };
+            if method_pass {
                 frame_method += ms;
             }
             match self.passes.iter_mut().find(|(n, _)| *n == name) {
@@ -973,7 +1057,7 @@ impl RunAccumulator {
             }
         }
         self.method_ms.push((pass, frame_method));
-        self.total_ms.push(frame_total);
+        self.total_ms.push((pass, frame_total));
     }
 
     /// The robust time of a pass: its minimum over every frame of every pass.
@@ -1003,6 +1087,23 @@ impl RunAccumulator {
             min_of(per_pass.iter().copied()),
             per_pass.iter().copied().fold(0.0, f64::max),
         )
+    }
+
+    /// The per-pass medians of the method time and of the per-frame total.
+    fn pass_medians(&self) -> PassMedians {
+        let per_pass = |values: &[(u32, f64)]| -> Vec<f64> {
+            let passes = values.iter().map(|&(p, _)| p).max().map_or(0, |p| p + 1);
+            (0..passes)
+                .map(|p| {
+                    let v: Vec<f64> = values.iter().filter(|m| m.0 == p).map(|m| m.1).collect();
+                    dispmap::timing::median(&v)
+                })
+                .collect()
+        };
+        PassMedians {
+            method: per_pass(&self.method_ms),
+            total: per_pass(&self.total_ms),
+        }
     }
 
     fn mean(&self, get: fn(&ErrorMetrics) -> f64) -> f64 {
@@ -1069,12 +1170,13 @@ impl<'a> MapSweep<'a> {
     }
 
     /// Times every run over the frames (interleaved, see the type's docs) and measures
-    /// their errors; returns one row per run, in order, and the heat and interval maps.
+    /// their errors; returns one row per run, in order, their per-pass medians, and the
+    /// heat and interval maps. A forward run uses the renderer of its method.
     fn run(
         &self,
         runs: &[RunSpec],
         tracker: &mut Tracker<'_>,
-    ) -> Result<(Vec<RunRow>, Vec<NamedImage>)> {
+    ) -> Result<(Vec<RunRow>, Vec<PassMedians>, Vec<NamedImage>)> {
         let config = self.config;
         // One renderer per method; each gets one untimed warm-up frame (first use of its
         // pipelines; it builds the pyramid, whose time is kept).
@@ -1087,6 +1189,11 @@ impl<'a> MapSweep<'a> {
             settings.params = protocol_params(run.steps);
             let mut renderer = Renderer::new(self.ctx, self.field, settings)?;
             renderer.render()?;
+            if runs.iter().any(|r| r.forward && r.method == run.method) {
+                renderer.enable_forward(self.field)?;
+                // The forward pipeline's first use, untimed like the deferred one's.
+                renderer.render_forward()?;
+            }
             let mut builds = Builds::of(&renderer);
             // The builds run once per renderer: `repeat` renderers give `repeat` builds,
             // of which the fastest is kept (the same statistic as every other time).
@@ -1101,6 +1208,11 @@ impl<'a> MapSweep<'a> {
         }
         let mut acc: Vec<RunAccumulator> = runs.iter().map(|_| RunAccumulator::default()).collect();
         let mut images = Vec::new();
+        // The deferred hits of the current error frame, for the forward runs' comparison.
+        let mut deferred_hits: std::collections::HashMap<
+            (Method, Option<u32>),
+            Vec<metrics::HitTexel>,
+        > = std::collections::HashMap::new();
         let mut next_ref = 0;
         for (pass, f) in (0..config.repeat).flat_map(|p| (0..config.frames).map(move |f| (p, f))) {
             // The references are measured in the first pass only.
@@ -1118,18 +1230,23 @@ impl<'a> MapSweep<'a> {
                     .expect("a renderer per method was made above");
                 renderer.set_method(run.method, protocol_params(run.steps))?;
                 renderer.set_scene(config.frame_scene(f))?;
-                let times = renderer.render()?;
-                acc.add_times(&times, pass);
+                let times = if run.forward {
+                    renderer.render_forward()?
+                } else {
+                    renderer.render()?
+                };
+                acc.add_times(&times, pass, run.forward);
                 if let Some(reference) = reference {
-                    let img = self.measure(renderer, run, f, reference, acc)?;
+                    let img = self.measure(renderer, run, f, reference, acc, &mut deferred_hits)?;
                     images.extend(img);
                 }
                 tracker.advance(
                     run.steps.map_or(NO_STEPS_WEIGHT, u64::from),
                     format!(
-                        "{} {} {} (frame {}/{}, pass {}/{})",
+                        "{} {}{} {} (frame {}/{}, pass {}/{})",
                         self.name,
                         run.method,
+                        if run.forward { " forward" } else { "" },
                         run.steps.map_or("-".to_owned(), |s| s.to_string()),
                         f + 1,
                         config.frames,
@@ -1150,11 +1267,14 @@ impl<'a> MapSweep<'a> {
                 self.row(run, acc, builds)
             })
             .collect();
-        Ok((rows, images))
+        let medians = acc.iter().map(RunAccumulator::pass_medians).collect();
+        Ok((rows, medians, images))
     }
 
     /// Measures the last frame of `renderer` against `reference` into `acc`; returns the
-    /// heat and interval maps when the run wants them and `f` is frame 0.
+    /// heat and interval maps when the run wants them and `f` is frame 0. A deferred
+    /// run's hits are kept in `deferred` when a forward run of its method and setting
+    /// follows; a forward run's are compared with them.
     fn measure(
         &self,
         renderer: &Renderer,
@@ -1162,6 +1282,7 @@ impl<'a> MapSweep<'a> {
         f: u32,
         reference: &FrameReference,
         acc: &mut RunAccumulator,
+        deferred: &mut std::collections::HashMap<(Method, Option<u32>), Vec<metrics::HitTexel>>,
     ) -> Result<Vec<NamedImage>> {
         let frame = self.config.frame;
         let Compared {
@@ -1169,6 +1290,21 @@ impl<'a> MapSweep<'a> {
             hits,
             color: _,
         } = renderer.compare_last(reference)?;
+        let key = (run.method, run.steps);
+        if run.forward {
+            let bits = |t: &metrics::HitTexel| t.map(f32::to_bits);
+            let differing = match deferred.get(&key) {
+                Some(d) if d.len() == hits.len() => hits
+                    .iter()
+                    .zip(d)
+                    .filter(|(a, b)| bits(a) != bits(b))
+                    .count(),
+                _ => hits.len(),
+            };
+            acc.forward_differing.push(differing as u64);
+        } else if self.config.forward_methods().contains(&run.method) {
+            deferred.insert(key, hits.clone());
+        }
         let covered = heatmap::coverage(&hits, Some(&reference.rays));
         acc.lockstep.push([
             lockstep_iterations(&hits, &covered, frame[0], [8, 1]),
@@ -1198,8 +1334,22 @@ impl<'a> MapSweep<'a> {
     fn row(&self, run: &RunSpec, acc: &RunAccumulator, builds: Builds) -> RunRow {
         let config = self.config;
         let (method_ms, method_median_ms, method_lo_ms, method_hi_ms) = acc.method_stats();
+        let medians = acc.pass_medians();
+        let range = |v: &[f64]| {
+            (
+                min_of(v.iter().copied()),
+                v.iter().copied().fold(0.0, f64::max),
+            )
+        };
+        let (method_median_lo_ms, method_median_hi_ms) = range(&medians.method);
+        let (total_median_lo_ms, total_median_hi_ms) = range(&medians.total);
+        let totals: Vec<f64> = acc.total_ms.iter().map(|&(_, ms)| ms).collect();
         RunRow {
-            sweep: self.sweep,
+            sweep: if run.forward {
+                Sweep::Forward
+            } else {
+                self.sweep
+            },
             map: self.name.clone(),
             map_width: self.field.width(),
             map_height: self.field.height(),
@@ -1230,8 +1380,12 @@ impl<'a> MapSweep<'a> {
             method_median_ms,
             method_lo_ms,
             method_hi_ms,
-            total_ms: min_of(acc.total_ms.iter().copied()),
-            total_median_ms: dispmap::timing::median(&acc.total_ms),
+            total_ms: min_of(totals.iter().copied()),
+            total_median_ms: dispmap::timing::median(&totals),
+            method_median_lo_ms,
+            method_median_hi_ms,
+            total_median_lo_ms,
+            total_median_hi_ms,
             iterations_mean: acc.mean(|e| e.mean_iterations),
             iterations_p99: acc.mean(|e| e.p99_iterations),
             iterations_simd8: mean_of(acc.lockstep.iter().map(|l| l[0])),
@@ -1244,6 +1398,7 @@ impl<'a> MapSweep<'a> {
             artifact_fraction: acc.mean(|e| e.artifact_fraction),
             psnr_db: acc.mean(|e| e.psnr_db),
             nonfinite_pixels: acc.errors.iter().map(|e| e.nonfinite_pixels).sum(),
+            forward_differing_pixels: run.forward.then(|| acc.forward_differing.iter().sum()),
         }
     }
 
@@ -1405,6 +1560,11 @@ mod tests {
             [Method::Pom, Method::Dig]
         );
         assert_eq!(parse_methods("all").unwrap(), Method::ALL);
+        // The default lists leave cone-exact out; it stays available by name.
+        assert_eq!(parse_methods("default").unwrap(), Method::defaults());
+        assert!(!BenchConfig::default().methods.contains(&Method::ConeExact));
+        assert!(!SIZE_METHODS.contains(&Method::ConeExact));
+        assert_eq!(parse_methods("cone-exact").unwrap(), [Method::ConeExact]);
         assert_eq!(parse_sizes("256,2048").unwrap(), [256, 2048]);
         assert!(parse_sizes("none").unwrap().is_empty());
         assert_eq!(parse_maps("rocks").unwrap(), ["rocks"]);

@@ -50,7 +50,7 @@ pub fn csv_bytes(rows: &[RunRow]) -> Result<Vec<u8>> {
 }
 
 /// The columns of `results.csv`, in order.
-pub const CSV_HEADER: [&str; 37] = [
+pub const CSV_HEADER: [&str; 42] = [
     "sweep",
     "map",
     "map_width",
@@ -77,6 +77,10 @@ pub const CSV_HEADER: [&str; 37] = [
     "method_hi_ms",
     "total_ms",
     "total_median_ms",
+    "method_median_lo_ms",
+    "method_median_hi_ms",
+    "total_median_lo_ms",
+    "total_median_hi_ms",
     "iterations_mean",
     "iterations_p99",
     "iterations_simd8",
@@ -88,6 +92,7 @@ pub const CSV_HEADER: [&str; 37] = [
     "artifact_fraction",
     "psnr_db",
     "nonfinite_pixels",
+    "forward_differing_pixels",
 ];
 
 /// One point of a speed-error curve.
@@ -449,6 +454,7 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     for map in &results.maps {
         map_section(&mut s, results, &map.name, map);
     }
+    s.push_str(&super::compare::markdown(results));
     shadow_section(&mut s, results);
     size_section(&mut s, results);
     if let Some(m) = &results.materials {
@@ -855,6 +861,10 @@ mod tests {
             method_hi_ms: method_ms,
             total_ms: method_ms + 1.25,
             total_median_ms: method_ms + 1.25,
+            method_median_lo_ms: method_ms,
+            method_median_hi_ms: method_ms,
+            total_median_lo_ms: method_ms + 1.25,
+            total_median_hi_ms: method_ms + 1.25,
             iterations_mean: 12.5,
             iterations_p99: 40.0,
             iterations_simd8: 20.0,
@@ -866,6 +876,7 @@ mod tests {
             artifact_fraction: artifacts,
             psnr_db: 30.0,
             nonfinite_pixels: 0,
+            forward_differing_pixels: None,
         }
     }
 
@@ -883,7 +894,7 @@ mod tests {
         assert_eq!(
             lines.next().unwrap(),
             "methods,rocks,1024,1024,pom,75,64,36,2,1,1,azimuth (f+0.5)*180deg for f<2; error frames 0,\
-             0.5,,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0"
+             0.5,,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0,"
         );
         let bump = lines.next().unwrap();
         assert!(
