@@ -199,6 +199,12 @@ fn forward_refuses_what_it_cannot_draw() {
         renderer.set_depth_output(true).unwrap();
         let err = renderer.render_forward().unwrap_err().to_string();
         assert!(err.contains("depth output"), "{err}");
+        renderer.set_depth_output(false).unwrap();
+        renderer.set_motion_output(true).unwrap();
+        let err = renderer.render_forward().unwrap_err().to_string();
+        assert!(err.contains("motion output"), "{err}");
+        renderer.set_motion_output(false).unwrap();
+        renderer.render_forward().unwrap();
         drop(renderer);
         let mut cube = Renderer::new(
             &ctx,
