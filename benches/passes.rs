@@ -1,12 +1,12 @@
 //! `cargo bench`: a reduced run of `dispmap bench` (the same protocol through
 //! `dispmap_cli::bench`): 480x270 frames, 3 frames per run (error on the first), settings 75
-//! and 150, every method on the rocks, bricks and mountains maps, and a 256/2048 map-size
-//! sweep. Times are GPU timestamp medians, not wall-clock: compare ratios within one run
+//! and 150, every default method (`Method::defaults`) on the rocks, bricks and mountains
+//! maps, and a 256/2048 map-size sweep. Times are GPU timestamp medians, not wall-clock: compare ratios within one run
 //! (on lavapipe they are CPU times). Prints the report's tables and writes the full
 //! outputs to `target/dispmap-bench/`.
 //!
-//! Arguments other than cargo's `--bench` select methods by name substring
-//! (`cargo bench -- dig pom`).
+//! Arguments other than cargo's `--bench` select methods by name substring among all of
+//! them (`cargo bench -- dig pom`, `cargo bench -- cone-exact`).
 
 use dispmap::context::{Context, ContextOptions};
 use dispmap::method::Method;
@@ -18,11 +18,15 @@ fn main() -> anyhow::Result<()> {
         .skip(1)
         .filter(|a| !a.starts_with('-'))
         .collect();
-    let methods: Vec<Method> = Method::ALL
-        .iter()
-        .copied()
-        .filter(|m| filter.is_empty() || filter.iter().any(|f| m.name().contains(f.as_str())))
-        .collect();
+    let methods: Vec<Method> = if filter.is_empty() {
+        Method::defaults()
+    } else {
+        Method::ALL
+            .iter()
+            .copied()
+            .filter(|m| filter.iter().any(|f| m.name().contains(f.as_str())))
+            .collect()
+    };
     anyhow::ensure!(!methods.is_empty(), "no method matches {filter:?}");
     let config = BenchConfig {
         frame: [480, 270],

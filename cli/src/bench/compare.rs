@@ -3,7 +3,7 @@
 //! slows both): the deferred frame of `dig` and `exact` against the forward frames of
 //! `relief` and `pom` (what engines do, [`super::Sweep::Forward`]), at the largest step
 //! setting and at equal error; and the method-time ratios `exact` / `relief` at the
-//! largest setting and `cone-exact` / `exact`.
+//! largest setting (and at 64 steps when the sweep has them) and `cone-exact` / `exact`.
 //!
 //! Equal error is read as in [`super::report`] ([`time_to_reach`]), on the artifact
 //! fraction, with frame times: the median frame time over the settings' curve, and each
@@ -365,10 +365,12 @@ fn forward_section(s: &mut String, results: &BenchResults, maps: &[&str], top: u
 }
 
 fn method_ratios(s: &mut String, results: &BenchResults, maps: &[&str], top: u32) {
-    let pairs = [
-        (Method::Exact, None, Method::Relief, Some(top)),
-        (Method::ConeExact, None, Method::Exact, None),
-    ];
+    let mut pairs = vec![(Method::Exact, None, Method::Relief, Some(top))];
+    // Issue 25's moonshot: `exact` at `relief`-64's time.
+    if top != 64 && results.config.steps.contains(&64) {
+        pairs.push((Method::Exact, None, Method::Relief, Some(64)));
+    }
+    pairs.push((Method::ConeExact, None, Method::Exact, None));
     let mut lines = Vec::new();
     for (a, sa, b, sb) in pairs {
         for &map in maps {
