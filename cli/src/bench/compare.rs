@@ -184,8 +184,12 @@ fn forward_section(s: &mut String, results: &BenchResults, maps: &[&str], top: u
          pass], trace, shade). Times are **whole frames**: the median over every frame of \
          the {} interleaved passes, in brackets the lowest and highest per-pass median; \
          ratios are ratios of medians, in brackets the range of the per-pass ratios. \
-         **hits differ** = hit texels of the forward frame that differ bit for bit from the \
-         deferred frame's of the same method, setting and camera, over the error frames.\n",
+         **gbuffer** / **trace**: the forward raster pass with the march / the deferred \
+         trace (medians); **lockstep 4x2 / 8x1**: the mean over 4x2 / 8x1 pixel groups of \
+         the group's largest iteration count (8 lanes of two 2x2 quads, how an 8-wide \
+         fragment shader runs, against a compute shader's 8x1 rows). **hits differ** = hit \
+         texels of the forward frame that differ bit for bit from the deferred frame's of the \
+         same method, setting and camera, over the error frames.\n",
         c.repeat
     );
     let methods: Vec<Method> = c.forward_methods();
@@ -196,9 +200,9 @@ fn forward_section(s: &mut String, results: &BenchResults, maps: &[&str], top: u
         for m in &methods {
             let _ = write!(
                 head,
-                " `{m}` forward | `{m}` deferred | `{m}` forward gbuffer | artifacts | hits differ |"
+                " `{m}` forward | `{m}` deferred | `{m}` forward gbuffer | `{m}` deferred trace | lockstep 4x2 / 8x1 | artifacts | hits differ |"
             );
-            rule.push_str("---:|---:|---:|---:|---:|");
+            rule.push_str("---:|---:|---:|---:|---:|---:|---:|");
         }
         let _ = writeln!(s, "{head}\n{rule}");
         for &steps in &c.steps {
@@ -222,6 +226,17 @@ fn forward_section(s: &mut String, results: &BenchResults, maps: &[&str], top: u
                     || "-".to_owned(),
                     |i| format!("{:.2}", results.rows[i].method_median_ms),
                 );
+                let trace = d.map_or_else(
+                    || "-".to_owned(),
+                    |i| format!("{:.2}", results.rows[i].method_median_ms),
+                );
+                let lockstep = d.or(f).map_or_else(
+                    || "-".to_owned(),
+                    |i| {
+                        let r = &results.rows[i];
+                        format!("{:.1} / {:.1}", r.iterations_quads8, r.iterations_simd8)
+                    },
+                );
                 let err = d
                     .or(f)
                     .map_or_else(|| "-".to_owned(), |i| pct(&results.rows[i]));
@@ -230,7 +245,7 @@ fn forward_section(s: &mut String, results: &BenchResults, maps: &[&str], top: u
                     .map_or_else(|| "-".to_owned(), |n| n.to_string());
                 let _ = write!(
                     line,
-                    " {} | {} | {gbuffer} | {err} | {differ} |",
+                    " {} | {} | {gbuffer} | {trace} | {lockstep} | {err} | {differ} |",
                     frame(f),
                     frame(d)
                 );

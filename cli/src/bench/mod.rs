@@ -640,6 +640,10 @@ pub struct RunRow {
     pub iterations_simd8: f64,
     /// The same for 8x4 groups (a 32-lane GPU warp in an 8x8 workgroup).
     pub iterations_warp32: f64,
+    /// The same for 4x2 groups: 8 lanes of two 2x2 quads side by side, how an 8-wide
+    /// fragment shader (llvmpipe's on 256-bit vectors) runs, where a compute shader's
+    /// 8 lanes are an 8x1 row (`iterations_simd8`): the forward path's lockstep yardstick.
+    pub iterations_quads8: f64,
     /// DIG: corner-pass fetches per covered pixel.
     pub corner_iterations: Option<f64>,
     /// Mean hit distance, texels.
@@ -1030,7 +1034,7 @@ struct RunAccumulator {
     /// Forward runs: hit texels differing from the deferred run's, per error frame.
     forward_differing: Vec<u64>,
     corner_iterations: Vec<f64>,
-    lockstep: Vec<[f64; 2]>,
+    lockstep: Vec<[f64; 3]>,
 }
 
 impl RunAccumulator {
@@ -1309,6 +1313,7 @@ impl<'a> MapSweep<'a> {
         acc.lockstep.push([
             lockstep_iterations(&hits, &covered, frame[0], [8, 1]),
             lockstep_iterations(&hits, &covered, frame[0], [8, 4]),
+            lockstep_iterations(&hits, &covered, frame[0], [4, 2]),
         ]);
         let corners = if run.method.needs().dig_corners {
             renderer.read_corners()?
@@ -1390,6 +1395,7 @@ impl<'a> MapSweep<'a> {
             iterations_p99: acc.mean(|e| e.p99_iterations),
             iterations_simd8: mean_of(acc.lockstep.iter().map(|l| l[0])),
             iterations_warp32: mean_of(acc.lockstep.iter().map(|l| l[1])),
+            iterations_quads8: mean_of(acc.lockstep.iter().map(|l| l[2])),
             corner_iterations: (!acc.corner_iterations.is_empty())
                 .then(|| mean_of(acc.corner_iterations.iter().copied())),
             mean_texels: acc.mean(|e| e.mean_texels),

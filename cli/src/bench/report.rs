@@ -50,7 +50,7 @@ pub fn csv_bytes(rows: &[RunRow]) -> Result<Vec<u8>> {
 }
 
 /// The columns of `results.csv`, in order.
-pub const CSV_HEADER: [&str; 42] = [
+pub const CSV_HEADER: [&str; 43] = [
     "sweep",
     "map",
     "map_width",
@@ -85,6 +85,7 @@ pub const CSV_HEADER: [&str; 42] = [
     "iterations_p99",
     "iterations_simd8",
     "iterations_warp32",
+    "iterations_quads8",
     "corner_iterations",
     "mean_texels",
     "p99_texels",
@@ -869,6 +870,7 @@ mod tests {
             iterations_p99: 40.0,
             iterations_simd8: 20.0,
             iterations_warp32: 30.0,
+            iterations_quads8: 18.0,
             corner_iterations: None,
             mean_texels: 10.0 * artifacts,
             p99_texels: 3.0,
@@ -894,7 +896,7 @@ mod tests {
         assert_eq!(
             lines.next().unwrap(),
             "methods,rocks,1024,1024,pom,75,64,36,2,1,1,azimuth (f+0.5)*180deg for f<2; error frames 0,\
-             0.5,,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,,1.25,3.0,9.0,0.125,30.0,0,"
+             0.5,,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,18.0,,1.25,3.0,9.0,0.125,30.0,0,"
         );
         let bump = lines.next().unwrap();
         assert!(
