@@ -111,7 +111,13 @@ bool hard_occluded(vec2 uv, vec2 climb) {
         return false; // the hit is within `bias` of the macro surface
     }
     uint iterations = 0u;
-    Ray light = Ray(uv + rise * climb, -climb);
+    // Tile-local for repeat addressing (the hit's uv is unwrapped, up to |P| tiles from
+    // the tile the view ray entered): the traversal keeps its precision near 0.
+    vec2 start = uv + rise * climb;
+    if (pc.addressing == ADDRESSING_REPEAT) {
+        start -= floor(start);
+    }
+    Ray light = Ray(start, -climb);
     return pyramid_segment_hit(light, 0.0, t_stop, int(pc.pyramid_levels) - 1, iterations) >= 0.0;
 }
 #else

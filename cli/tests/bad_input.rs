@@ -948,11 +948,11 @@ fn an_empty_frame_has_null_metrics_and_a_warning() {
 }
 
 /// Above the depth scale where the exact methods are measured to agree with the
-/// reference (3), `render` warns, naming the depth scale and the method; at 3 it does not.
+/// reference (10), `render` warns, naming the depth scale and the method; at 10 it does not.
 #[test]
 fn exact_methods_warn_beyond_the_guaranteed_depth_scale() {
     let dir = scratch("depth-scale");
-    for (scale, warns) in [("3", false), ("10", true)] {
+    for (scale, warns) in [("10", false), ("30", true)] {
         let png = dir.join(format!("{scale}.png"));
         let out = render_args(&mut dispmap())
             .args(["--method", "exact", "--depth-scale", scale, "--out"])
@@ -962,7 +962,7 @@ fn exact_methods_warn_beyond_the_guaranteed_depth_scale() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{stderr}");
         assert_eq!(
-            stderr.contains("warning: --depth-scale 10 is above 3: exact's agreement"),
+            stderr.contains("warning: --depth-scale 30 is above 10: exact's agreement"),
             warns,
             "{stderr}"
         );

@@ -40,6 +40,7 @@ struct ConeRay {
     float t_end;  // 1, or where a clamp-addressed ray leaves the decal
     float t_start; // where the march starts: the map's maximum height (nothing above it)
     ivec2 cell;   // the cell holding the ray at t
+    float t_lo;   // CONE_PRECISE: the residual of t when t is a cell's exit (exit_residual)
 };
 
 // Starts the march where the ray comes down to the map's global maximum (the pyramid's
@@ -52,6 +53,7 @@ bool cone_start(Ray ray, out ConeRay r) {
     r.t_end = 1.0;
     ivec2 n = ivec2(pc.map_size);
     r.cell = ivec2(0);
+    r.t_lo = 0.0;
     if (pc.addressing == ADDRESSING_CLAMP) {
         if (any(lessThan(ray.uv0, vec2(0.0))) || any(greaterThan(ray.uv0, vec2(1.0)))) {
             return false;
@@ -69,7 +71,11 @@ bool cone_start(Ray ray, out ConeRay r) {
     float global_max = texelFetch(u_pyramid, ivec2(0), int(pc.pyramid_levels) - 1).r;
     r.t_start = min(max(1.0 - global_max, 0.0), r.t_end);
     for (int a = 0; a < 2; ++a) {
+#ifdef CONE_PRECISE
+        int c = cell_at_precise(r.origin, r.dir, a, r.t_start, 0.0);
+#else
         int c = cell_at(r.origin[a] + r.t_start * r.dir[a], r.dir[a]);
+#endif
         r.cell[a] = pc.addressing == ADDRESSING_CLAMP ? clamp(c, -1, n[a] - 1) : c;
     }
     return true;
@@ -112,12 +118,32 @@ float cone_height(ConeRay r, float t) {
 
 // Moves the ray to t_next > t: across the exit face(s) when t_next is the cell's exit,
 // else into the cell holding it (never behind the current one, whatever the rounding).
+// With CONE_PRECISE (cone-exact) the cell is found from the exact position (ray_at in
+// pyramid.glsl) and a move to the exit keeps t's residual in r.t_lo, so that the leaf's
+// exact solve starts on the face crossed, however long the ray.
 void cone_move(inout ConeRay r, vec2 exit, float t_exit, float t_next) {
+#ifdef CONE_PRECISE
+    r.t_lo = 0.0;
+    if (t_next == t_exit) {
+        float t_cross = t_exit;
+        float lo;
+        cross_exit(exit, r.cell, r.cell + 1, r.origin, r.dir, 0.0, g_long_ray, t_cross, lo, r.cell);
+        // The march stays at t_exit: the crossing's residual relative to it (t_cross is
+        // the other face's f32 time when that face came first; the difference is exact).
+        precise float rel = (t_cross - t_exit) + lo;
+        r.t_lo = rel;
+        return;
+    }
+#endif
     for (int a = 0; a < 2; ++a) {
         if (t_next == t_exit && exit[a] <= exit[1 - a]) {
             r.cell[a] += r.dir[a] > 0.0 ? 1 : -1;
         } else if (t_next > t_exit && r.dir[a] != 0.0) {
+#ifdef CONE_PRECISE
+            int c = cell_at_precise(r.origin, r.dir, a, t_next, 0.0);
+#else
             int c = cell_at(r.origin[a] + t_next * r.dir[a], r.dir[a]);
+#endif
             r.cell[a] = r.dir[a] > 0.0 ? max(c, r.cell[a]) : min(c, r.cell[a]);
         }
     }
@@ -164,6 +190,8 @@ bool cone_advance(inout ConeRay r, inout float t, out float t_exit, out vec2 exi
         }
         if (t_next >= t_exit) {
             cone_move(r, exit, t_exit, t_next);
+        } else {
+            r.t_lo = 0.0;
         }
         t_above = t;
         t = t_next;

@@ -96,24 +96,199 @@ float first_root(float a, float b, float c, float len) {
     return -1.0;
 }
 
-// Position of the ray at t relative to `cell`: origin + t dir - cell, with the product's
-// rounding error recovered by fma so that far along a long ray the local position keeps
-// the precision of t rather than of the absolute coordinate.
-vec2 local_at(vec2 origin, vec2 dir, float t, ivec2 cell) {
-    precise vec2 p = t * dir;
-    precise vec2 e = fma(vec2(t), dir, -p);
-    precise vec2 local = ((p - vec2(cell)) + origin) + e;
+// Exact products and sums (Dekker 1971, Knuth): the error of an f32 product or sum as a
+// second f32, from correctly rounded adds and multiplies (Vulkan's precision for them),
+// every step `precise` so that nothing is reassociated or contracted. Not fma: lavapipe
+// does not fuse it (fma(a, b, -a * b) is 0 there), so an fma-based error term silently
+// vanishes on a CPU driver.
+
+// Veltkamp's split: x = hi + lo exactly, each half with at most 12 significant bits, so
+// that a product of two halves is exact in f32.
+vec2 split_f32(float x) {
+    precise float c = 4097.0 * x;
+    precise float hi = c - (c - x);
+    precise float lo = x - hi;
+    return vec2(hi, lo);
+}
+
+// a b = p + e exactly; `bs` is split_f32(b).
+float two_product(float a, float b, vec2 bs, out float e) {
+    vec2 as_ = split_f32(a);
+    precise float p = a * b;
+    precise float err = ((as_.x * bs.x - p) + as_.x * bs.y + as_.y * bs.x) + as_.y * bs.y;
+    e = err;
+    return p;
+}
+
+// a + b = s + e exactly.
+float two_sum(float a, float b, out float e) {
+    precise float s = a + b;
+    precise float bv = s - a;
+    precise float err = (a - (s - bv)) + (b - bv);
+    e = err;
+    return s;
+}
+
+// The texel-space ray being traversed, beyond its f32 origin and dir (set by texel_ray,
+// or texel_ray_at for the `pyramid` method's coordinates): g_origin_lo and g_dir_lo, the
+// rounding of uv0 W - 0.5 and P W (0 for a power-of-two map, whose products are exact:
+// without them a 1000-texel map's ray is off by 6e-8 of its length, 0.01 texels after
+// 1.6e5 texels, enough to misjudge a skim on a steep flank), and g_dir_split, dir's
+// halves for two_product.
+vec2 g_origin_lo = vec2(0.0);
+vec2 g_dir_lo = vec2(0.0);
+vec4 g_dir_split = vec4(0.0);
+// Whether the ray is long: |dir| above SHORT_RAY_TEXELS on an axis. A short ray's
+// positions stay below 2^13 texels, where f32 keeps 1e-3 of a texel without the exact
+// products: it has no residuals, ray_at takes the plain form (2 operations instead of
+// about 25) and its crossings are the plain ones (cross_exit).
+bool g_long_ray = false;
+vec2 g_inv_dir = vec2(0.0);
+const float SHORT_RAY_TEXELS = 4096.0;
+
+// The ray in coordinates x = uv dims - shift (shift 0.5: texel space, texel centres on
+// integers; 0: texel footprints): x = origin + t dir, with the globals above. `uv0 dims`
+// is below 2^23 for any uv0 in a tile, so subtracting the shift is exact.
+void texel_ray_at(Ray ray, float shift, out vec2 origin, out vec2 dir) {
+    vec2 dims = vec2(pc.map_size);
+    origin = ray.uv0 * dims - shift;
+    dir = ray.P * dims;
+    g_long_ray = max(abs(dir.x), abs(dir.y)) > SHORT_RAY_TEXELS;
+    g_origin_lo = vec2(0.0);
+    g_dir_lo = vec2(0.0);
+    g_dir_split = vec4(0.0);
+    if (g_long_ray) {
+        for (int a = 0; a < 2; ++a) {
+            vec2 ds = split_f32(dims[a]);
+            float e;
+            float o = two_product(ray.uv0[a], dims[a], ds, e);
+            g_origin_lo[a] = e;
+            origin[a] = o - shift;
+            dir[a] = two_product(ray.P[a], dims[a], ds, e);
+            g_dir_lo[a] = e;
+        }
+        g_dir_split = vec4(split_f32(dir.x), split_f32(dir.y));
+    }
+    // Residuals and lengths in a cell multiply by these (no per-step division; the
+    // axes with dir = 0 never use theirs).
+    g_inv_dir = vec2(dir.x != 0.0 ? 1.0 / dir.x : 0.0, dir.y != 0.0 ? 1.0 / dir.y : 0.0);
+}
+
+// The ray in texel space: x = origin + t dir.
+void texel_ray(Ray ray, out vec2 origin, out vec2 dir) {
+    texel_ray_at(ray, 0.5, origin, dir);
+}
+
+// One axis of the texel-space ray (scalars: a runtime index into a vector would cost a
+// CPU driver a trip through memory): origin, dir, their residuals and dir's halves.
+struct AxisRay {
+    float o;
+    float d;
+    float o_lo;
+    float d_lo;
+    vec2 ds;
+    float inv_d;
+};
+
+AxisRay axis_ray(vec2 origin, vec2 dir, bool y) {
+    return y ? AxisRay(origin.y, dir.y, g_origin_lo.y, g_dir_lo.y, g_dir_split.zw, g_inv_dir.y)
+             : AxisRay(origin.x, dir.x, g_origin_lo.x, g_dir_lo.x, g_dir_split.xy, g_inv_dir.x);
+}
+
+// origin + (t + t_lo) dir along one axis (with the ray's residuals) as s + r: s the f32
+// sum of the product and the origin, r what rounding left out (two_product, two_sum).
+// `s - k` for an integer k within a cell of s is exact, so a position relative to its
+// cell keeps about 1e-7 texels wherever the ray is, where origin + t dir in f32 keeps an
+// ulp of the absolute coordinate (0.03 texels at 5e5 texels: depth scale 100 at 10
+// degrees, 8 texels at 1.4e8 on its grazing rows).
+float ray_at(AxisRay ray, float t, float t_lo, bool long_ray, out float r) {
+    if (!long_ray) {
+        // Short: f32 positions below 2^13 texels, no residuals (texel_ray_at).
+        r = 0.0;
+        return ray.o + t * ray.d;
+    }
+    float e_prod, e_sum;
+    float p = two_product(t, ray.d, ray.ds, e_prod);
+    float s = two_sum(p, ray.o, e_sum);
+    precise float rest = e_sum + (e_prod + (t_lo * ray.d + (ray.o_lo + t * ray.d_lo)));
+    r = rest;
+    return s;
+}
+
+// Position of the ray at t + t_lo relative to `cell`: origin + (t + t_lo) dir - cell, to
+// about 1e-7 texels (ray_at). t_lo: the residual of an exit time (exit_residual).
+vec2 local_at(vec2 origin, vec2 dir, float t, float t_lo, bool long_ray, ivec2 cell) {
+    float rx, ry;
+    float sx = ray_at(axis_ray(origin, dir, false), t, t_lo, long_ray, rx);
+    float sy = ray_at(axis_ray(origin, dir, true), t, t_lo, long_ray, ry);
+    precise vec2 local = (vec2(sx, sy) - vec2(cell)) + vec2(rx, ry);
     return local;
 }
 
-// The first t in [t_in, t_out] where the ray meets the bilinear patch of `cell`, or -1.
-float cell_hit(ivec2 cell, vec2 origin, vec2 dir, float t_in, float t_out) {
+vec2 local_at(vec2 origin, vec2 dir, float t, ivec2 cell) {
+    return local_at(origin, dir, t, 0.0, g_long_ray, cell);
+}
+
+// The residual of an exit time: t = (face - origin) / dir rounded to f32 is t + lo
+// exactly (up to f32 of lo itself), lo = (face - (origin + t dir)) / dir with the
+// position from ray_at (face - s is exact: s is within rounding of the face). A ray of
+// |dir| texels per unit of t is placed by an f32 t only to about 6e-8 |dir| texels; with
+// the residual, positions at an exit (the other axis' cell, a leaf's entry point) keep
+// their precision along rays of any length an int cell index holds. A per-skip cost, on
+// the exit axis, on long rays only: on a short ray (g_long_ray) the residual moves a
+// position by less than an ulp of t times 4096 texels (2.4e-4 texels) and is left at 0.
+float exit_residual(float face, AxisRay ray, float t, bool long_ray) {
+    if (!long_ray) {
+        return 0.0;
+    }
+    float r;
+    float s = ray_at(ray, t, 0.0, long_ray, r);
+    precise float num = (face - s) - r;
+    return num * ray.inv_d;
+}
+
+// The cell holding origin + (t + t_lo) dir along one axis, for a ray moving with `dir`
+// (cell_at's rule on an exact boundary), from the position relative to a nearby integer
+// (ray_at).
+int cell_at_precise(AxisRay ray, float t, float t_lo, bool long_ray) {
+    float r;
+    float s = ray_at(ray, t, t_lo, long_ray, r);
+    float k = floor(s);
+    precise float local = (s - k) + r;
+    float whole = floor(local);
+    k += whole;
+    local -= whole;
+    return (ray.d < 0.0 && local == 0.0) ? int(k) - 1 : int(k);
+}
+
+// cell_at_precise along axis a (0: x, 1: y).
+int cell_at_precise(vec2 origin, vec2 dir, int a, float t, float t_lo) {
+    return cell_at_precise(axis_ray(origin, dir, a == 1), t, t_lo, g_long_ray);
+}
+
+// The first t from t_in on (up to t_end) where the ray meets the bilinear patch of
+// `cell`, or -1; t_in + t_in_lo is the exact entry time (t_in_lo: the exit_residual of
+// the face crossed). The solve runs in the cell's own coordinates: the local entry point
+// (local_at) and the length of the ray's part in the cell from it. Along a long ray one
+// ulp of t spans a sizeable part of a cell (0.017 texels at t = 1e-3 and |P| = 1.4e5
+// tiles of a 1024 map), so the length as a difference of the f32 entry and exit times
+// would be off by percents, and the quadratic at the cell's exit by the surface's rise
+// over that part (8e-4 of the depth on rocks): a hit in open air.
+float cell_hit(ivec2 cell, vec2 origin, vec2 dir, float t_in, float t_in_lo, float t_end, bool long_ray) {
     vec4 g = cell_texels(cell);
     float h00 = g.w;
     float h10 = g.z;
     float h01 = g.x;
     float h11 = g.y;
-    vec2 f = local_at(origin, dir, t_in, cell);
+    vec2 f = local_at(origin, dir, t_in, t_in_lo, long_ray, cell);
+    float len = (t_end - t_in) - t_in_lo;
+    for (int k = 0; k < 2; ++k) {
+        if (dir[k] > 0.0) {
+            len = min(len, (1.0 - f[k]) * g_inv_dir[k]);
+        } else if (dir[k] < 0.0) {
+            len = min(len, -f[k] * g_inv_dir[k]);
+        }
+    }
     float a = h10 - h00;
     float b = h01 - h00;
     float c = h00 - h10 - h01 + h11;
@@ -122,43 +297,94 @@ float cell_hit(ivec2 cell, vec2 origin, vec2 dir, float t_in, float t_out) {
     // The entry height in nested-lerp form (exact at texel centres and on plateaus).
     float top = h00 + (h10 - h00) * f.x;
     float bottom = h01 + (h11 - h01) * f.x;
-    float qc = top + (bottom - top) * f.y - (1.0 - t_in);
-    float s = first_root(qa, qb, qc, t_out - t_in);
-    return s < 0.0 ? -1.0 : min(t_in + s, t_out);
+    float qc = (top + (bottom - top) * f.y - (1.0 - t_in)) + t_in_lo;
+    float s = first_root(qa, qb, qc, max(len, 0.0));
+    return s < 0.0 ? -1.0 : min(t_in + (s + t_in_lo), t_end);
 }
 
-// The ray in texel space: x = origin + t dir.
-void texel_ray(Ray ray, out vec2 origin, out vec2 dir) {
-    vec2 dims = vec2(pc.map_size);
-    origin = ray.uv0 * dims - 0.5;
-    dir = ray.P * dims;
+// Moves the ray out of the box of cells [lo, hi) through its exit: `exit` holds the
+// per-axis exit times (f32), t_exit their minimum or t_exit = t when rounding put them
+// below the current t (whose residual is t_lo_in). Sets `cell` to the cell entered,
+// t_exit and t_lo to the exact crossing (exit_residual). The f32 exit times cannot order
+// two crossings that are closer than their rounding (0.03 texels of a corner along a ray
+// of 1e6 texels), so the other axis' position at the chosen crossing is found exactly
+// (cell_at_precise): when it is already past its face, that face came first and the ray
+// leaves through it (both when they coincide). A clamp into the box here would put the
+// ray in a cell it is not in, whose patch, extrapolated, can reach it: a hit in open air.
+void cross_exit(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_lo_in, bool long_ray,
+                inout float t_exit, out float t_lo, inout ivec2 cell) {
+    if (!long_ray) {
+        // A short ray: f32 positions keep 1e-3 texels (SHORT_RAY_TEXELS); the plain crossing.
+        t_lo = t_exit == min(exit.x, exit.y) ? 0.0 : t_lo_in;
+        for (int a = 0; a < 2; ++a) {
+            if (exit[a] <= exit[1 - a]) {
+                cell[a] = dir[a] > 0.0 ? hi[a] : lo[a] - 1;
+            } else {
+                cell[a] = clamp(cell_at(origin[a] + t_exit * dir[a], dir[a]), lo[a], hi[a] - 1);
+            }
+        }
+        return;
+    }
+    // e: the exit axis (x on a tie), o: the other one; scalars, no runtime indices.
+    bool sw = exit.y < exit.x;
+    AxisRay re = axis_ray(origin, dir, sw);
+    AxisRay ro = axis_ray(origin, dir, !sw);
+    float exit_e = sw ? exit.y : exit.x;
+    float exit_o = sw ? exit.x : exit.y;
+    int lo_e = sw ? lo.y : lo.x;
+    int hi_e = sw ? hi.y : hi.x;
+    int lo_o = sw ? lo.x : lo.y;
+    int hi_o = sw ? hi.x : hi.y;
+    int face_e = re.d > 0.0 ? hi_e : lo_e;
+    int face_o = ro.d > 0.0 ? hi_o : lo_o;
+    int beyond_e = re.d > 0.0 ? hi_e : lo_e - 1;
+    int beyond_o = ro.d > 0.0 ? hi_o : lo_o - 1;
+    t_lo = t_exit == exit_e ? exit_residual(float(face_e), re, t_exit, long_ray) : t_lo_in;
+    int co = ro.d != 0.0 ? cell_at_precise(ro, t_exit, t_lo, long_ray) : (sw ? cell.x : cell.y);
+    bool past = ro.d > 0.0 ? co >= hi_o : co < lo_o;
+    int ce;
+    if (!past) {
+        ce = beyond_e;
+        co = clamp(co, lo_o, hi_o - 1);
+    } else {
+        // The other face came first (or at the same time).
+        float t_o = max(exit_o, t_exit);
+        float lo_t_o = exit_residual(float(face_o), ro, t_o, long_ray);
+        int ca = cell_at_precise(re, t_o, lo_t_o, long_ray);
+        co = beyond_o;
+        if (re.d > 0.0 ? ca < hi_e : ca >= lo_e) {
+            ce = clamp(ca, lo_e, hi_e - 1);
+            t_exit = t_o;
+            t_lo = lo_t_o;
+        } else {
+            ce = beyond_e;
+        }
+    }
+    cell = sw ? ivec2(co, ce) : ivec2(ce, co);
 }
 
 // Leaves the node [lo, hi) that the ray exits at t_exit (per-axis exit times `exit`):
 // true with `result` when the traversal ends there (the ray's end: at t = 1 the ray is at
 // h = 0 <= H and always hits, rounding may have hidden the root in the last cell; or -1
 // when a clamp-addressed ray left the decal, only through rounding at its border); else
-// false with `cell` in the next node (across the exit face(s), the other axis recomputed
-// inside the node's range), `t` = t_exit and one level up.
+// false with `cell` in the next node (cross_exit), `t` and `t_lo` at the exact crossing
+// and one level up.
 bool leave_node(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_exit, float t_end, int top,
-                inout ivec2 cell, inout float t, inout int level, out float result) {
+                bool long_ray, inout ivec2 cell, inout float t, inout float t_lo, inout int level,
+                out float result) {
     result = -1.0;
     if (t_exit >= t_end) {
         result = t_end >= 1.0 ? 1.0 : -1.0;
         return true;
     }
+    float exit_lo;
+    cross_exit(exit, lo, hi, origin, dir, t_exit == t ? t_lo : 0.0, long_ray, t_exit, exit_lo, cell);
     ivec2 n_cells = ivec2(pc.map_size);
-    for (int a = 0; a < 2; ++a) {
-        if (exit[a] <= exit[1 - a]) {
-            cell[a] = dir[a] > 0.0 ? hi[a] : lo[a] - 1;
-        } else {
-            cell[a] = clamp(cell_at(origin[a] + t_exit * dir[a], dir[a]), lo[a], hi[a] - 1);
-        }
-    }
     if (pc.addressing == ADDRESSING_CLAMP && (any(lessThan(cell, ivec2(-1))) || any(greaterThanEqual(cell, n_cells)))) {
         return true;
     }
     t = t_exit;
+    t_lo = exit_lo;
     level = min(level + 1, top);
     return false;
 }
@@ -174,11 +400,10 @@ int level_for_span(float cells) {
 // outside the decal enters it further on (the self-shadowing pass's light rays, which
 // reach the macro surface outside the decal); for a ray starting inside, the clip is a
 // no-op. Returns t, or -1 (see pyramid_first_hit_from).
-float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level, inout uint iterations) {
+float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_level, bool long_ray,
+                  inout uint iterations) {
     ivec2 n_cells = ivec2(pc.map_size);
     vec2 dims = vec2(pc.map_size);
-    vec2 origin, dir;
-    texel_ray(ray, origin, dir);
     float t_end = t_stop;
     float t_begin = t_start;
     if (pc.addressing == ADDRESSING_CLAMP) {
@@ -201,9 +426,11 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
     if (t > t_end) {
         return -1.0;
     }
+    // t's residual: 0 at the start (t is the exact value it is given).
+    float t_lo = 0.0;
     ivec2 cell;
     for (int a = 0; a < 2; ++a) {
-        int c = cell_at(origin[a] + t * dir[a], dir[a]);
+        int c = cell_at_precise(axis_ray(origin, dir, a == 1), t, 0.0, long_ray);
         cell[a] = pc.addressing == ADDRESSING_CLAMP ? clamp(c, -1, n_cells[a] - 1) : c;
     }
     // No higher than the finest level whose nodes span the ray's remaining travel: a
@@ -247,7 +474,7 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
             if (1.0 - t_exit > node_max + SKIP_MARGIN) {
                 // The ray stays above everything in the node: skip it.
                 float result;
-                if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, cell, t, level, result)) {
+                if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, long_ray, cell, t, t_lo, level, result)) {
                     return result;
                 }
             } else if (level > 0) {
@@ -260,17 +487,31 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
         if (!at_leaf) {
             break;
         }
-        float th = cell_hit(cell, origin, dir, t, t_exit);
+        float th = cell_hit(cell, origin, dir, t, t_lo, t_end, long_ray);
         if (th >= 0.0) {
             return th;
         }
         float result;
-        if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, cell, t, level, result)) {
+        if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, long_ray, cell, t, t_lo, level, result)) {
             return result;
         }
         step += 1.0;
     }
     return -1.0;
+}
+
+// The traversal in two copies: for short rays (plain f32 positions, the lean loop they
+// always had) and for long ones (exact positions, g_long_ray). `long_ray` is a constant
+// in each call, so the compiler drops the other arithmetic from each copy: one loop with
+// both (the choice per operation) cost about a third more time on short rays in lavapipe
+// (more code, more registers), although the long-ray operations never ran there.
+float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level, inout uint iterations) {
+    vec2 origin, dir;
+    texel_ray(ray, origin, dir);
+    if (g_long_ray) {
+        return segment_hit(origin, dir, t_start, t_stop, start_level, true, iterations);
+    }
+    return segment_hit(origin, dir, t_start, t_stop, start_level, false, iterations);
 }
 
 // The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h):

@@ -64,6 +64,14 @@ Hit hit_at(Ray ray, float h, uint iterations) {
     return Hit(ray_uv(ray, h), h, iterations);
 }
 
+// The hit at ray parameter t = 1 - h, its position from t itself (uv0 + t P): through
+// h = 1 - t, t would be rounded to an ulp of h, which along a long
+// ray (6e-8 |P|: 4 texels of a 1024 map at |P| = 6e4 tiles) is more than a texel. The
+// exact family's hits.
+Hit hit_at_t(Ray ray, float t, uint iterations) {
+    return Hit(fma(vec2(t), ray.P, ray.uv0), 1.0 - t, iterations);
+}
+
 Hit miss(Ray ray, uint iterations) {
     return Hit(ray.uv0, NO_HIT_HEIGHT, iterations);
 }

@@ -7,6 +7,7 @@
 // skipped: the same accuracy as `exact`, with fewer steps over open space.
 #include "trace.glsl"
 #include "pyramid.glsl"
+#define CONE_PRECISE
 #include "cone.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
@@ -25,9 +26,9 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         if (!cone_advance(r, t, t_exit, exit, t_above, step, cap, iterations)) {
             break;
         }
-        float th = cell_hit(r.cell, r.origin, r.dir, t, t_exit);
+        float th = cell_hit(r.cell, r.origin, r.dir, t, r.t_lo, r.t_end, g_long_ray);
         if (th >= 0.0) {
-            return hit_at(ray, 1.0 - th, iterations);
+            return hit_at_t(ray, th, iterations);
         }
         if (t_exit >= r.t_end) {
             t = r.t_end;
@@ -41,7 +42,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     // reached (above the surface; no crossing before it).
     if (step >= cap && t < r.t_end) {
         float th = pyramid_first_hit_from(ray, t, 1.0, int(pc.pyramid_levels) - 1, iterations);
-        return th < 0.0 ? miss(ray, iterations) : hit_at(ray, 1.0 - th, iterations);
+        return th < 0.0 ? miss(ray, iterations) : hit_at_t(ray, th, iterations);
     }
     // The ray's end: at t = 1 (h = 0 <= H) it always hits; a clamp-addressed ray that
     // leaves the decal has no hit.

@@ -26,7 +26,7 @@
 #include "dig.glsl"
 
 Hit exact_hit(Ray ray, float t, uint iterations) {
-    return t < 0.0 ? miss(ray, iterations) : hit_at(ray, 1.0 - t, iterations);
+    return t < 0.0 ? miss(ray, iterations) : hit_at_t(ray, t, iterations);
 }
 
 // Blocks without a valid interval take the full traversal from the root; it is the same
@@ -41,7 +41,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     if (constrained && t_top > 0.0) {
         float t = pyramid_first_hit(ray, 0.0, t_top, iterations);
         if (t >= 0.0) {
-            return hit_at(ray, 1.0 - t, iterations);
+            return hit_at_t(ray, t, iterations);
         }
     }
     int level = int(pc.pyramid_levels) - 1;

@@ -16,5 +16,5 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
     if (t < 0.0) {
         return miss(ray, iterations);
     }
-    return hit_at(ray, 1.0 - t, iterations);
+    return hit_at_t(ray, t, iterations);
 }

@@ -48,8 +48,8 @@
 Hit trace_ray(Ray ray, ivec2 pixel) {
     ivec2 n_cells = ivec2(pc.map_size);
     vec2 dims = vec2(pc.map_size);
-    vec2 origin = ray.uv0 * dims;
-    vec2 dir = ray.P * dims;
+    vec2 origin, dir;
+    texel_ray_at(ray, 0.0, origin, dir);
     int top = int(pc.pyramid_levels) - 1;
     int leaf = min(int(pc.max_level), top);
     if ((pc.flags & TRACE_FLAG_AUTO_LEVEL) != 0u) {
@@ -95,7 +95,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         for (; step < cap && t <= t_end; step += 1.0) {
             if (fresh) {
                 for (int a = 0; a < 2; ++a) {
-                    int c = cell_at(origin[a] + t * dir[a], dir[a]);
+                    int c = cell_at_precise(origin, dir, a, t, 0.0);
                     cell[a] = pc.addressing == ADDRESSING_CLAMP ? clamp(c, 0, n_cells[a] - 1) : c;
                 }
                 fresh = false;
@@ -133,13 +133,10 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
                         step = cap; // past the end: no leaf, stop both loops
                         break;
                     }
-                    for (int a = 0; a < 2; ++a) {
-                        if (exit[a] <= exit[1 - a]) {
-                            cell[a] = dir[a] > 0.0 ? hi[a] : lo[a] - 1;
-                        } else {
-                            cell[a] = clamp(cell_at(origin[a] + t_exit * dir[a], dir[a]), lo[a], hi[a] - 1);
-                        }
-                    }
+                    // Across the exit face at the exact crossing (pyramid.glsl:
+                    // cross_exit), so that long rays keep their cells.
+                    float exit_lo;
+                    cross_exit(exit, lo, hi, origin, dir, 0.0, g_long_ray, t_exit, exit_lo, cell);
                     t = t_exit;
                     t_safe = t;
                     level = min(level + 1, top);

@@ -77,9 +77,11 @@ pub fn asset_map(name: &str, convention: Convention) -> HeightField {
 /// shallow skims. Such a pixel is explained when the earlier of the two hits is a touch
 /// (the surface within `tolerance` of the ray) and the ray between the two never goes
 /// deeper than `tolerance` under the surface. The touch is looked for within two f32
-/// ulps of the stored hit height: the hit buffer cannot place a hit more finely along the
-/// ray (at `|P|` = 1732 tiles one ulp of a height near 1 is a tenth of a texel of a
-/// 1024 map, and a steep flank moves the surface by 1e-4 of the depth over it).
+/// ulps of the stored hit height, and within two ulps of the stored uv of the hit's own
+/// point along the ray (the exact family places it from `t`, not from the height): a height
+/// cannot place a hit more finely along the ray (at `|P|` = 1732 tiles one ulp of a
+/// height near 1 is a tenth of a texel of a 1024 map, and a steep flank moves the surface
+/// by 1e-4 of the depth over it; on a grazing row at depth scale 100 an ulp is 4 texels).
 pub fn unexplained(
     reference: &Reference,
     rays: &[Option<Ray>],
@@ -101,12 +103,27 @@ pub fn unexplained(
                     let (a, b) = (t_gpu.min(t_ref), t_gpu.max(t_ref));
                     // One ulp of a height in [0.5, 1): 2^-24.
                     let ulp = f64::from(f32::EPSILON) / 2.0;
+                    // The hit's own point along the ray, from its uv (the exact family
+                    // places it from t, not from the rounded height): the touch is
+                    // looked for there too.
+                    let axis = usize::from(ray.parallax[1].abs() > ray.parallax[0].abs());
+                    let t_uv = (f64::from(hit[axis]) - ray.uv0[axis]) / ray.parallax[axis];
+                    let t_uv = if t_uv.is_finite() {
+                        t_uv.clamp(0.0, 1.0)
+                    } else {
+                        t_gpu
+                    };
+                    // Two ulps of the stored uv, in t: where along the ray the hit can be.
+                    let uv_ulp = f64::from(hit[axis]).abs().max(1.0) * f64::from(f32::EPSILON);
+                    let dt = 2.0 * uv_ulp / ray.parallax[axis].abs();
+                    let near_uv = (-64..=64).map(|k| t_uv + dt * f64::from(k) / 64.0);
                     let touch = (-2..=2)
-                        .map(|k| {
-                            reference.penetration(ray, (a + f64::from(k) * ulp).clamp(0.0, 1.0))
-                        })
+                        .map(|k| a + f64::from(k) * ulp)
+                        .chain(near_uv)
+                        .map(|t| reference.penetration(ray, t.clamp(0.0, 1.0)))
                         .fold(f64::NEG_INFINITY, f64::max)
                         >= -tolerance;
+                    let (a, b) = (a.min(t_uv), b.max(t_uv));
                     let shallow = (0..=1000)
                         .map(|k| reference.penetration(ray, a + (b - a) * f64::from(k) / 1000.0))
                         .all(|p| p <= tolerance);
