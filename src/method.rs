@@ -203,8 +203,9 @@ impl Method {
     /// Whether the method is in the default method lists: `dispmap bench`'s default
     /// `--methods` and map-size sweep, and the `demo`'s table. Every method stays
     /// available by name. `cone-exact` is out: it has `exact`'s accuracy at 1.2x to 3.7x
-    /// `exact`'s time on every bundled map, on lavapipe and on an H100 (BENCHMARKS.md,
-    /// docs/cones.md), so a default list would show a method nobody should pick.
+    /// `exact`'s time on every bundled map on lavapipe, and 0.98x (bricks) to 1.67x on an
+    /// H100 (BENCHMARKS.md, docs/cones.md), so a default list would show a method nobody
+    /// should pick.
     pub fn in_defaults(self) -> bool {
         !matches!(self, Method::ConeExact)
     }
