@@ -52,7 +52,7 @@ float dig_step(Ray ray, float h_bottom, float h_top) {
 // The search of a pixel: with a valid interval (`constrained`), a linear search from
 // h_top down with the step of dig_step, then I_B = `refine_steps` bisections between the
 // last two samples (hardware filter, as the paper); without one, relief's unconstrained
-// search (relief_search in trace.glsl: `steps` equal steps from the entry, bisection).
+// search (relief_search in search.glsl: `steps` equal steps from the entry, bisection).
 //  * If the interval's top sample is already on or below the surface, the hit lies
 //    above the interval (the corners missed a feature): relief's search runs, from the
 //    entry (the top sample stays counted).

@@ -54,15 +54,7 @@ layout(push_constant) uniform TraceParams {
 #include "march.glsl"
 #include "texels.glsl"
 
-struct Hit {
-    vec2 uv;
-    float h;           // NO_HIT_HEIGHT for a miss
-    uint iterations;   // height-field (or pyramid) fetches spent
-};
-
-Hit hit_at(Ray ray, float h, uint iterations) {
-    return Hit(ray_uv(ray, h), h, iterations);
-}
+#include "search.glsl"
 
 // The hit at ray parameter t = 1 - h, its position from t itself (uv0 + t P): through
 // h = 1 - t, t would be rounded to an ulp of h, which along a long
@@ -70,41 +62,6 @@ Hit hit_at(Ray ray, float h, uint iterations) {
 // exact family's hits.
 Hit hit_at_t(Ray ray, float t, uint iterations) {
     return Hit(fma(vec2(t), ray.P, ray.uv0), 1.0 - t, iterations);
-}
-
-Hit miss(Ray ray, uint iterations) {
-    return Hit(ray.uv0, NO_HIT_HEIGHT, iterations);
-}
-
-// Bisection between a height above the surface and one on or below it: `steps` halvings
-// (one hardware-filtered fetch each); returns the midpoint of the final interval.
-float bisect(Ray ray, float h_above, float h_below, uint steps, inout uint iterations) {
-    for (uint i = 0u; i < steps; ++i) {
-        float h_mid = 0.5 * (h_above + h_below);
-        iterations += 1u;
-        if (height_at(ray_uv(ray, h_mid)) >= h_mid) {
-            h_below = h_mid;
-        } else {
-            h_above = h_mid;
-        }
-    }
-    return 0.5 * (h_above + h_below);
-}
-
-// Relief mapping: the linear march of `steps` equal height steps from the entry, then
-// `refine_steps` bisections (hardware filter); `relief` and DIG's unconstrained search.
-Hit relief_search(Ray ray, inout uint iterations) {
-    uint steps = max(pc.steps, 1u);
-    uint below;
-    if (!linear_march(ray, steps, below, iterations)) {
-        return miss(ray, iterations);
-    }
-    if (below == 0u) {
-        return hit_at(ray, 1.0, iterations);
-    }
-    float dh = 1.0 / float(steps);
-    float h_below = 1.0 - float(below) * dh;
-    return hit_at(ray, bisect(ray, h_below + dh, h_below, pc.refine_steps, iterations), iterations);
 }
 
 // The texels one pixel spans: the larger of the entry point's steps to the right and

@@ -9,10 +9,10 @@
 // after including this file (glsl/forward/relief.frag, glsl/forward/pom.frag). Bindings
 // and the parameter block: src/passes/forward.rs and src/abi.rs (ForwardParams).
 //
-// The marchers below are the compute trace's (glsl/common/trace.glsl: bisect,
-// relief_search; glsl/trace/pom.comp) with the step counts read from ForwardParams
-// instead of TraceParams, on the same shared march (glsl/common/march.glsl) and sampling
-// (glsl/common/heightfield.glsl): tests/forward.rs checks that the hits agree bit for bit.
+// The marchers are the compute trace's (glsl/common/search.glsl: relief_search,
+// pom_search) with the step counts from ForwardParams instead of TraceParams, on the same
+// march (glsl/common/march.glsl) and sampling (glsl/common/heightfield.glsl):
+// tests/forward.rs checks that the hits agree bit for bit.
 #ifndef DISPMAP_FORWARD_GLSL
 #define DISPMAP_FORWARD_GLSL
 
@@ -43,49 +43,7 @@ layout(location = 2) out vec4 out_tangent;
 // The id of the one surface this pass draws (glsl/gbuffer.frag's).
 const float SURFACE_ID = 1.0;
 
-struct Hit {
-    vec2 uv;
-    float h;           // NO_HIT_HEIGHT for a miss
-    uint iterations;   // height-field fetches spent
-};
-
-Hit hit_at(Ray ray, float h, uint iterations) {
-    return Hit(ray_uv(ray, h), h, iterations);
-}
-
-Hit miss(Ray ray, uint iterations) {
-    return Hit(ray.uv0, NO_HIT_HEIGHT, iterations);
-}
-
-// trace.glsl's bisect: `steps` halvings between a height above the surface and one on or
-// below it; the midpoint of the final interval.
-float bisect(Ray ray, float h_above, float h_below, uint steps, inout uint iterations) {
-    for (uint i = 0u; i < steps; ++i) {
-        float h_mid = 0.5 * (h_above + h_below);
-        iterations += 1u;
-        if (height_at(ray_uv(ray, h_mid)) >= h_mid) {
-            h_below = h_mid;
-        } else {
-            h_above = h_mid;
-        }
-    }
-    return 0.5 * (h_above + h_below);
-}
-
-// trace.glsl's relief_search: the linear march, then the bisection.
-Hit relief_search(Ray ray, inout uint iterations) {
-    uint steps = max(u_march.steps, 1u);
-    uint below;
-    if (!linear_march(ray, steps, below, iterations)) {
-        return miss(ray, iterations);
-    }
-    if (below == 0u) {
-        return hit_at(ray, 1.0, iterations);
-    }
-    float dh = 1.0 / float(steps);
-    float h_below = 1.0 - float(below) * dh;
-    return hit_at(ray, bisect(ray, h_below + dh, h_below, u_march.refine_steps, iterations), iterations);
-}
+#include "search.glsl"
 
 Hit trace_ray(Ray ray);
 

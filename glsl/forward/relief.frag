@@ -5,5 +5,5 @@
 
 Hit trace_ray(Ray ray) {
     uint iterations = 0u;
-    return relief_search(ray, iterations);
+    return relief_search(ray, u_march.steps, u_march.refine_steps, iterations);
 }
