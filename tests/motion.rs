@@ -470,17 +470,12 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
             | ash::vk::ImageUsageFlags::TRANSFER_DST,
     )
     .unwrap();
-    let read_write = Access {
-        access: ash::vk::AccessFlags2::SHADER_STORAGE_READ
-            | ash::vk::AccessFlags2::SHADER_STORAGE_WRITE,
-        ..Access::COMPUTE_STORAGE_WRITE
-    };
     upload_image(
         &ctx,
         host.shot(),
         &motion_image,
         bytemuck::cast_slice(&macro_motion),
-        read_write,
+        Access::COMPUTE_STORAGE_READ_WRITE,
     )
     .unwrap();
     let mut pass = DisplacementPass::new(

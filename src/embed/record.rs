@@ -840,6 +840,9 @@ impl DisplacementPass {
         let image = &depth.images[inputs.frame_slot as usize];
         let e = self.frame.extent;
         let live = self.live(inputs.frame_slot);
+        // The frame's matrices once; each material sets its depth scale.
+        let base =
+            crate::abi::HitDepthParams::new(camera.view_proj, camera.eye, [e.width, e.height], 0.0);
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the hits are visible
         // to storage reads (this function's contract), the G-buffer is in its entry
@@ -848,12 +851,10 @@ impl DisplacementPass {
         unsafe {
             w.scope(ctx, cmd, PassName::HitDepth, |cmd| {
                 for (tiles, m, _) in &live {
-                    let params = crate::abi::HitDepthParams::new(
-                        camera.view_proj,
-                        camera.eye,
-                        [e.width, e.height],
-                        m.settings.depth_scale,
-                    );
+                    let params = crate::abi::HitDepthParams {
+                        depth_scale: m.settings.depth_scale,
+                        ..base
+                    };
                     depth.pass.record(
                         ctx,
                         cmd,
@@ -892,6 +893,15 @@ impl DisplacementPass {
         };
         let e = self.frame.extent;
         let live = self.live(inputs.frame_slot);
+        // The frame's matrices once; each material sets its depth scale.
+        let base = crate::abi::MotionParams::new(
+            camera.view_proj,
+            camera.eye,
+            frame.previous.view_proj,
+            [e.width, e.height],
+            0.0,
+            settings,
+        );
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the hits are visible
         // to storage reads and the motion image is in `GENERAL` with the host's writes
@@ -899,14 +909,10 @@ impl DisplacementPass {
         unsafe {
             w.scope(ctx, cmd, PassName::Motion, |cmd| {
                 for (tiles, m, _) in &live {
-                    let params = crate::abi::MotionParams::new(
-                        camera.view_proj,
-                        camera.eye,
-                        frame.previous.view_proj,
-                        [e.width, e.height],
-                        m.settings.depth_scale,
-                        settings,
-                    );
+                    let params = crate::abi::MotionParams {
+                        depth_scale: m.settings.depth_scale,
+                        ..base
+                    };
                     pass.record(
                         ctx,
                         cmd,

@@ -58,6 +58,16 @@ impl Access {
         access: vk::AccessFlags2::SHADER_STORAGE_READ,
         layout: vk::ImageLayout::GENERAL,
     };
+    /// Read and written in place as a storage image by compute shaders (a host's motion
+    /// image for the `motion` stage).
+    pub const COMPUTE_STORAGE_READ_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
+        access: vk::AccessFlags2::from_raw(
+            vk::AccessFlags2::SHADER_STORAGE_READ.as_raw()
+                | vk::AccessFlags2::SHADER_STORAGE_WRITE.as_raw(),
+        ),
+        layout: vk::ImageLayout::GENERAL,
+    };
     /// Source of a copy or blit.
     pub const TRANSFER_READ: Access = Access {
         stage: vk::PipelineStageFlags2::ALL_TRANSFER,

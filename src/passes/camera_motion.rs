@@ -151,10 +151,6 @@ impl CameraMotion {
             stage: vk::PipelineStageFlags2::COMPUTE_SHADER | vk::PipelineStageFlags2::COPY,
             ..Access::UNDEFINED
         };
-        let read_write = Access {
-            access: vk::AccessFlags2::SHADER_STORAGE_READ | vk::AccessFlags2::SHADER_STORAGE_WRITE,
-            ..Access::COMPUTE_STORAGE_WRITE
-        };
         // SAFETY: this function's contract; the image is this pass's, its previous frame
         // completed (so it may be discarded), in `GENERAL` for the dispatch between the
         // barriers.
@@ -173,7 +169,7 @@ impl CameraMotion {
                 cmd,
                 &self.image,
                 Access::COMPUTE_STORAGE_WRITE,
-                read_write,
+                Access::COMPUTE_STORAGE_READ_WRITE,
             );
         }
         FrameMotion {

@@ -285,11 +285,7 @@ impl Host {
             self.motion.raw,
             self.motion.range(),
             clear_write,
-            Access {
-                access: vk::AccessFlags2::SHADER_STORAGE_READ
-                    | vk::AccessFlags2::SHADER_STORAGE_WRITE,
-                ..Access::COMPUTE_STORAGE_WRITE
-            },
+            Access::COMPUTE_STORAGE_READ_WRITE,
         ));
         // SAFETY: `cmd` is recording outside a render pass; the images are alive.
         unsafe { sync::record(ctx, cmd, &barriers) };
