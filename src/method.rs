@@ -105,6 +105,24 @@ impl PyramidKind {
     ];
 }
 
+/// Which of [`MethodParams`]' quality parameters a method reads ([`Method::reads`];
+/// docs/methods.md's table). `lod_threshold` applies to every method and is not listed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Reads {
+    /// [`MethodParams::steps`] (a setting the benchmark sweeps).
+    pub steps: bool,
+    /// [`MethodParams::refine_steps`].
+    pub refine_steps: bool,
+    /// [`MethodParams::min_steps`].
+    pub min_steps: bool,
+    /// [`MethodParams::segments`].
+    pub segments: bool,
+    /// [`MethodParams::block`] and [`MethodParams::eps`] (DIG's corner grid).
+    pub block: bool,
+    /// [`MethodParams::max_level`].
+    pub max_level: bool,
+}
+
 /// Pre-passes and resources a method needs beyond the G-buffer and the height map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Needs {
@@ -330,6 +348,44 @@ impl Method {
         }
     }
 
+    /// The parameters the method reads: the viewer shows these, the benchmark sweeps
+    /// `steps` only for the methods that read it.
+    pub fn reads(self) -> Reads {
+        let none = Reads::default();
+        match self {
+            Method::Bump | Method::Exact | Method::ConeExact => none,
+            Method::Linear => Reads {
+                steps: true,
+                ..none
+            },
+            Method::Relief | Method::Cone | Method::RelaxedCone => Reads {
+                steps: true,
+                refine_steps: true,
+                ..none
+            },
+            Method::Pom => Reads {
+                steps: true,
+                min_steps: true,
+                ..none
+            },
+            Method::Secant => Reads {
+                steps: true,
+                segments: true,
+                ..none
+            },
+            Method::Dig | Method::DigGuarded => Reads {
+                steps: true,
+                refine_steps: true,
+                block: true,
+                ..none
+            },
+            Method::Pyramid => Reads {
+                max_level: true,
+                ..none
+            },
+        }
+    }
+
     /// The default quality (`--steps`): the paper's 15 samples for `secant`, 64 for
     /// the marching methods (unused by `bump`, `pyramid` and `exact`).
     pub fn default_steps(self) -> u32 {
@@ -552,6 +608,25 @@ impl MethodParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A method that does not read `steps` has a loop bound that does not depend on it,
+    /// and one that reads `steps` (marches) has a bound that grows with it, except for
+    /// the cone methods, whose march stops after a fixed budget.
+    #[test]
+    fn reads_agrees_with_loop_bound() {
+        let with = |steps| MethodParams {
+            steps,
+            ..MethodParams::default()
+        };
+        for &m in Method::ALL {
+            let (few, many) = (m.loop_bound(&with(4)), m.loop_bound(&with(400)));
+            if !m.reads().steps {
+                assert_eq!(few, many, "{m} does not read steps");
+            } else if !matches!(m, Method::Cone | Method::RelaxedCone) {
+                assert!(many > few, "{m} reads steps: {few:?} vs {many:?}");
+            }
+        }
+    }
 
     #[test]
     fn names_round_trip() {

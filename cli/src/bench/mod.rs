@@ -132,13 +132,10 @@ pub const MAX_MAP_SIDE: u32 = 16384;
 /// Binary-search steps of every method that has them (the paper's 5).
 pub const REFINE_STEPS: u32 = 5;
 
-/// Does `method` read a step count (`--steps`)? `bump`, `pyramid`, `exact` and
-/// `cone-exact` do not: they run once per map.
+/// Does `method` read a step count (`--steps`, [`Method::reads`])? `bump`, `pyramid`,
+/// `exact` and `cone-exact` do not: they run once per map.
 pub fn has_steps(method: Method) -> bool {
-    !matches!(
-        method,
-        Method::Bump | Method::Pyramid | Method::Exact | Method::ConeExact
-    )
+    method.reads().steps
 }
 
 /// The parameters of `method` at `steps` under the protocol (module docs).

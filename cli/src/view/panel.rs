@@ -234,59 +234,6 @@ fn labels(ctx: &egui::Context, info: &Info) {
     }
 }
 
-/// Which parameters a method reads (docs/methods.md's table).
-struct Uses {
-    steps: bool,
-    refine: bool,
-    min_steps: bool,
-    segments: bool,
-    block: bool,
-    max_level: bool,
-}
-
-fn uses(m: Method) -> Uses {
-    let none = Uses {
-        steps: false,
-        refine: false,
-        min_steps: false,
-        segments: false,
-        block: false,
-        max_level: false,
-    };
-    match m {
-        Method::Bump | Method::Exact | Method::ConeExact => none,
-        Method::Linear => Uses {
-            steps: true,
-            ..none
-        },
-        Method::Relief | Method::Cone | Method::RelaxedCone => Uses {
-            steps: true,
-            refine: true,
-            ..none
-        },
-        Method::Pom => Uses {
-            steps: true,
-            min_steps: true,
-            ..none
-        },
-        Method::Secant => Uses {
-            steps: true,
-            segments: true,
-            ..none
-        },
-        Method::Dig | Method::DigGuarded => Uses {
-            steps: true,
-            refine: true,
-            block: true,
-            ..none
-        },
-        Method::Pyramid => Uses {
-            max_level: true,
-            ..none
-        },
-    }
-}
-
 fn method_combo(ui: &mut egui::Ui, id: &str, method: &mut Method) {
     egui::ComboBox::from_id_salt(id)
         .selected_text(method.name())
@@ -299,9 +246,9 @@ fn method_combo(ui: &mut egui::Ui, id: &str, method: &mut Method) {
 
 /// The parameters `m` reads, as sliders and lists; returns the steps when changed.
 fn params(ui: &mut egui::Ui, m: Method, p: &mut MethodParams, steps: &mut u32) -> bool {
-    let u = uses(m);
+    let u = m.reads();
     let mut steps_changed = false;
-    if !(u.steps || u.refine || u.min_steps || u.segments || u.block || u.max_level) {
+    if !(u.steps || u.refine_steps || u.min_steps || u.segments || u.block || u.max_level) {
         ui.weak("no parameters");
     }
     if u.steps {
@@ -313,7 +260,7 @@ fn params(ui: &mut egui::Ui, m: Method, p: &mut MethodParams, steps: &mut u32) -
             )
             .changed();
     }
-    if u.refine {
+    if u.refine_steps {
         ui.add(egui::Slider::new(&mut p.refine_steps, 0..=16).text("refine steps"));
     }
     if u.min_steps {
