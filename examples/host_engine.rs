@@ -20,7 +20,10 @@
 //! cube standing on it from a vertex buffer, each face its own chart (surface ids 2..7,
 //! uv 0..1 per face, one tile per face). Both draws transform positions relative to the
 //! eye with the eye-relative view-projection (`FrameCamera::view_proj_eye`), as dispmap's
-//! own G-buffer pass does.
+//! own G-buffer pass does. The floor's fragments take their entry from the pixel's own
+//! centre ray (`dispmap_plane_pixel_ray`, with `FrameCamera::pixel_ray_params` in a
+//! uniform buffer), as dispmap's G-buffer does, so the floor's rays are dispmap's bit for
+//! bit; the cube's are interpolated.
 //!
 //! Materials: one pass, one record per frame for everything. The floor is material 0
 //! (the rocks map, `--method`, exact by default), the cube's sides are material 1 (the
@@ -290,6 +293,12 @@ struct Engine {
     pool: vk::CommandPool,
     query_pool: vk::QueryPool,
     layout: vk::PipelineLayout,
+    /// Set 0 of the G-buffer shaders: the floor's pixel rays (a uniform buffer).
+    set_layout: vk::DescriptorSetLayout,
+    descriptor_pool: vk::DescriptorPool,
+    descriptor_set: vk::DescriptorSet,
+    /// dispmap's `PixelRayParams` of the frame (the camera does not move).
+    pixel_rays: Option<EngineBuffer>,
     /// The floor: dispmap's plane from `gl_VertexIndex`, no vertex input.
     floor_pipeline: vk::Pipeline,
     /// The cube: vertex buffer.
@@ -436,6 +445,10 @@ impl Engine {
                 pool: vk::CommandPool::null(),
                 query_pool: vk::QueryPool::null(),
                 layout: vk::PipelineLayout::null(),
+                set_layout: vk::DescriptorSetLayout::null(),
+                descriptor_pool: vk::DescriptorPool::null(),
+                descriptor_set: vk::DescriptorSet::null(),
+                pixel_rays: None,
                 floor_pipeline: vk::Pipeline::null(),
                 cube_pipeline: vk::Pipeline::null(),
                 vertices: None,
@@ -607,8 +620,69 @@ impl Engine {
             let ranges = [vk::PushConstantRange::default()
                 .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
                 .size(std::mem::size_of::<EngineParams>() as u32)];
+            // Set 0, binding 0: the floor's pixel rays (`DispmapPixelRay`, read by
+            // `dispmap_plane_pixel_ray` in the fragment shader), one uniform buffer written
+            // once: the camera does not move. An engine whose camera moves writes it per
+            // frame in flight (dispmap's own pass updates it in the command buffer).
+            let ubo = [vk::DescriptorSetLayoutBinding::default()
+                .binding(0)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+            self.set_layout = dev.create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&ubo),
+                None,
+            )?;
+            self.name(self.set_layout, "engine.gbuffer.set_layout");
+            let pool_sizes = [vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::UNIFORM_BUFFER,
+                descriptor_count: 1,
+            }];
+            self.descriptor_pool = dev.create_descriptor_pool(
+                &vk::DescriptorPoolCreateInfo::default()
+                    .max_sets(1)
+                    .pool_sizes(&pool_sizes),
+                None,
+            )?;
+            self.name(self.descriptor_pool, "engine.gbuffer.descriptor_pool");
+            let set_layouts = [self.set_layout];
+            self.descriptor_set = dev.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(self.descriptor_pool)
+                    .set_layouts(&set_layouts),
+            )?[0];
+            let rays = scene().frame_camera(o.width, o.height).pixel_ray_params();
+            let bytes = bytemuck::bytes_of(&rays);
+            let mut ub = self.buffer(
+                "engine.pixel_rays",
+                bytes.len() as u64,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                MemoryLocation::CpuToGpu,
+            )?;
+            let mapped = ub.allocation.as_mut().and_then(|a| a.mapped_slice_mut());
+            let Some(mapped) = mapped else {
+                self.pixel_rays = Some(ub);
+                bail!("pixel-ray buffer not mapped");
+            };
+            mapped[..bytes.len()].copy_from_slice(bytes);
+            let infos = [vk::DescriptorBufferInfo {
+                buffer: ub.buffer,
+                offset: 0,
+                range: vk::WHOLE_SIZE,
+            }];
+            self.pixel_rays = Some(ub);
+            dev.update_descriptor_sets(
+                &[vk::WriteDescriptorSet::default()
+                    .dst_set(self.descriptor_set)
+                    .dst_binding(0)
+                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                    .buffer_info(&infos)],
+                &[],
+            );
             self.layout = dev.create_pipeline_layout(
-                &vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges),
+                &vk::PipelineLayoutCreateInfo::default()
+                    .set_layouts(&set_layouts)
+                    .push_constant_ranges(&ranges),
                 None,
             )?;
             self.name(self.layout, "engine.gbuffer.layout");
@@ -1055,6 +1129,14 @@ impl Engine {
                         .depth_attachment(&depth_attachment),
                 );
                 dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.floor_pipeline);
+                dev.cmd_bind_descriptor_sets(
+                    cmd,
+                    vk::PipelineBindPoint::GRAPHICS,
+                    self.layout,
+                    0,
+                    &[self.descriptor_set],
+                    &[],
+                );
                 dev.cmd_set_viewport(
                     cmd,
                     0,
@@ -1329,9 +1411,14 @@ impl Engine {
             if let Some(vb) = self.vertices.take() {
                 free_buffer(self, vb);
             }
+            if let Some(ub) = self.pixel_rays.take() {
+                free_buffer(self, ub);
+            }
             dev.destroy_pipeline(self.floor_pipeline, None);
             dev.destroy_pipeline(self.cube_pipeline, None);
             dev.destroy_pipeline_layout(self.layout, None);
+            dev.destroy_descriptor_pool(self.descriptor_pool, None);
+            dev.destroy_descriptor_set_layout(self.set_layout, None);
             dev.destroy_query_pool(self.query_pool, None);
             dev.destroy_command_pool(self.pool, None);
             // The leak check: everything the pass and the engine allocated is freed.

@@ -1,12 +1,19 @@
 #version 460
 // G-buffer pass, fragment stage: writes the tangent-space ray and the shading frame with
 // the same include a host engine uses (glsl/include/dispmap_gbuffer.glsl documents every
-// channel). Back faces (viewer below the surface) are discarded: nothing to displace.
+// channel). The entry is the pixel's own centre ray met with the plane
+// (dispmap_plane_pixel_ray, glsl/include/dispmap_plane.glsl), not the rasteriser's
+// interpolation: fragments whose centre ray misses the plane or the quad are discarded,
+// as are back faces (viewer below the surface: nothing to displace).
 #include "gbuffer.glsl"
+#include "include/dispmap_plane.glsl"
 #include "include/dispmap_gbuffer.glsl"
 
-layout(location = 0) in vec3 v_eye_rel;
-layout(location = 1) in vec2 v_uv;
+// The frame's pixel rays (src/abi.rs PixelRayParams; a uniform buffer: the push
+// constants already take the 128 bytes every device guarantees).
+layout(set = 0, binding = 0, std140) uniform PixelRayBlock {
+    DispmapPixelRay u_pixel_ray;
+};
 
 layout(location = 0) out vec4 out_ray;
 layout(location = 1) out vec4 out_normal;
@@ -16,8 +23,17 @@ layout(location = 2) out vec4 out_tangent;
 const float SURFACE_ID = 1.0;
 
 void main() {
+    vec3 eye_rel;
+    vec2 uv;
+    float t;
+    if (!dispmap_plane_pixel_ray(u_pixel_ray, gl_FragCoord.xy, pc.world_rect, pc.uv_rect,
+                                 pc.addressing == DISPMAP_ADDRESSING_REPEAT, eye_rel, uv, t)) {
+        discard;
+    }
+    // The entry's own depth, not the rasteriser's interpolation (dispmap_plane.glsl).
+    gl_FragDepth = dispmap_plane_pixel_depth(pc.view_proj, eye_rel);
     // The quad lies on y = 0 with u along +x and v along +z.
-    DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, vec3(0.0, 1.0, 0.0),
+    DispmapSurface s = DispmapSurface(eye_rel, vec3(0.0), uv, vec3(0.0, 1.0, 0.0),
         vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), SURFACE_ID, pc.depth_scale, pc.min_cos,
         pc.addressing);
     // camera_pos.w: the drawn object's material index + 1, or 0 for an object that is

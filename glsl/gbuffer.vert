@@ -6,13 +6,14 @@
 #include "gbuffer.glsl"
 #include "include/dispmap_plane.glsl"
 
-// Position relative to the eye: interpolated near the eye at full precision wherever the
-// eye is (world positions far from the origin would lose the view direction's bits).
-layout(location = 0) out vec3 v_eye_rel;
-layout(location = 1) out vec2 v_uv;
-
+// The vertices only decide which pixels the plane covers: the fragment stage computes
+// each pixel's entry and uv from its own centre ray (dispmap_plane_pixel_ray), so nothing
+// is interpolated. Positions are relative to the eye, transformed by the eye-relative
+// view-projection (full precision near the eye wherever the eye is).
 void main() {
+    vec3 eye_rel;
+    vec2 uv;
     dispmap_plane_vertex(gl_VertexIndex, pc.plane_cells, pc.world_rect, pc.uv_rect,
-                         pc.camera_pos.xyz, v_eye_rel, v_uv);
-    gl_Position = pc.view_proj * vec4(v_eye_rel, 1.0);
+                         pc.camera_pos.xyz, eye_rel, uv);
+    gl_Position = pc.view_proj * vec4(eye_rel, 1.0);
 }

@@ -192,6 +192,33 @@ impl GBufferParams {
     }
 }
 
+/// `DispmapPixelRay` in `glsl/include/dispmap_plane.glsl`: each pixel's centre ray of the
+/// frame as f32 pairs `hi + lo` of the camera's f64 values, for the G-buffer's
+/// `dispmap_plane_pixel_ray` (a uniform buffer, std140: [`GBufferParams`] already takes
+/// the 128 bytes of push constants every device guarantees). Formed by
+/// [`crate::pixel_rays::PixelRays::params`]; the direction of the ray through pixel
+/// centre `(px, py)` is `dir + (px - W/2) step_x + (py - H/2) step_y`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PixelRayParams {
+    /// The eye (xyz, rounded to f32); `w`: `W / 2`.
+    pub eye_hi: [f32; 4],
+    /// The eye minus `eye_hi` (xyz); `w`: `H / 2`.
+    pub eye_lo: [f32; 4],
+    /// The unit view direction (xyz).
+    pub dir_hi: [f32; 4],
+    /// Its rounding error.
+    pub dir_lo: [f32; 4],
+    /// The direction's change per pixel along x (xyz).
+    pub step_x_hi: [f32; 4],
+    /// Its rounding error.
+    pub step_x_lo: [f32; 4],
+    /// The direction's change per pixel along y, downwards (xyz).
+    pub step_y_hi: [f32; 4],
+    /// Its rounding error.
+    pub step_y_lo: [f32; 4],
+}
+
 /// `ShadeParams` in `glsl/shade.comp`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -367,8 +394,12 @@ pub(crate) mod spirv_layout {
             }
             i += count.max(1);
         }
+        // A struct used both in a block and as a function's value has two types of that
+        // name: the block's carries the Offset decorations.
         for (id, name) in &names {
-            if name == block {
+            if name == block
+                && (type_id.is_none() || member_offsets.iter().any(|(t, _, _)| t == id))
+            {
                 type_id = Some(*id);
             }
         }
@@ -546,6 +577,28 @@ mod tests {
             size_of::<GBufferParams>(),
         );
         assert_eq!(size_of::<GBufferParams>(), 128);
+    }
+
+    #[test]
+    fn pixel_ray_params_layout() {
+        for shader in [&shaders::GBUFFER_FRAG, &shaders::FORWARD_RELIEF_FRAG] {
+            check(
+                shader,
+                "DispmapPixelRay",
+                &[
+                    ("eye_hi", offset_of!(PixelRayParams, eye_hi)),
+                    ("eye_lo", offset_of!(PixelRayParams, eye_lo)),
+                    ("dir_hi", offset_of!(PixelRayParams, dir_hi)),
+                    ("dir_lo", offset_of!(PixelRayParams, dir_lo)),
+                    ("step_x_hi", offset_of!(PixelRayParams, step_x_hi)),
+                    ("step_x_lo", offset_of!(PixelRayParams, step_x_lo)),
+                    ("step_y_hi", offset_of!(PixelRayParams, step_y_hi)),
+                    ("step_y_lo", offset_of!(PixelRayParams, step_y_lo)),
+                ],
+                size_of::<PixelRayParams>(),
+            );
+        }
+        assert_eq!(size_of::<PixelRayParams>(), 128);
     }
 
     #[test]

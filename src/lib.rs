@@ -140,6 +140,7 @@ pub mod material;
 pub mod mesh;
 pub mod method;
 pub mod passes;
+pub mod pixel_rays;
 pub mod renderer;
 pub mod scene;
 pub mod shaders;

@@ -50,6 +50,25 @@ use std::sync::Arc;
 /// Largest frame side the CLI accepts (a sanity bound; the device's limit applies too).
 pub const MAX_FRAME_SIDE: u32 = 16384;
 
+/// The rays of [`Renderer::reference_rays`], row by row (`None`: nothing to trace).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReferenceRays {
+    /// Each pixel's ray: on an analytic surface the pixel's own f64 centre ray wherever
+    /// it meets the surface, whether the G-buffer drew the pixel or not; else the
+    /// G-buffer's.
+    pub rays: Vec<Option<Ray>>,
+    /// Whether the rays are the analytic centre rays.
+    pub analytic: bool,
+    /// Pixels the G-buffer drew whose f64 centre ray misses the surface (tangent to the
+    /// horizon or the rectangle's edge within the G-buffer's double-float precision):
+    /// the reference has no ray there, so they are not compared.
+    pub drawn_only: Vec<usize>,
+    /// Pixels whose f64 centre ray meets the surface but that the G-buffer left empty
+    /// (the rasteriser's coverage ends within a pixel of the horizon or the edge): the
+    /// reference traces them and a method, having no ray, misses them (an artifact).
+    pub ray_only: Vec<usize>,
+}
+
 /// What to render.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -776,9 +795,13 @@ impl Renderer {
         unsafe {
             w.scope(ctx, cmd, PassName::GBuffer, |cmd| {
                 match (&draws, &self.mesh) {
-                    (Some(draws), _) => {
-                        crate::passes::gbuffer::record_draws(ctx, cmd, &self.gbuffer, draws)
-                    }
+                    (Some(draws), _) => crate::passes::gbuffer::record_draws(
+                        ctx,
+                        cmd,
+                        &self.gbuffer,
+                        draws,
+                        &camera.pixel_ray_params(),
+                    ),
                     (None, Some(mesh)) => self.gbuffer_pass.record_mesh(
                         ctx,
                         cmd,
@@ -786,10 +809,13 @@ impl Renderer {
                         &gbuffer_params,
                         mesh,
                     ),
-                    (None, None) => {
-                        self.gbuffer_pass
-                            .record(ctx, cmd, &self.gbuffer, &gbuffer_params)
-                    }
+                    (None, None) => self.gbuffer_pass.record(
+                        ctx,
+                        cmd,
+                        &self.gbuffer,
+                        &gbuffer_params,
+                        &camera.pixel_ray_params(),
+                    ),
                 }
             })
         };
@@ -1111,6 +1137,44 @@ impl Renderer {
                 })
             })
             .collect())
+    }
+
+    /// The rays a CPU reference traces for the last frame: each pixel's own f64 centre
+    /// ray where the macro surface is analytic (the tiled plane or the quad, drawn
+    /// alone: [`crate::scene::Scene::analytic_rays`]), else the G-buffer's
+    /// ([`Renderer::read_rays`]: meshes and scenes of several objects interpolate their
+    /// entry). Pixels where the G-buffer and the centre ray disagree on coverage are
+    /// listed: see [`ReferenceRays`].
+    pub fn reference_rays(&self) -> Result<ReferenceRays> {
+        let drawn = self.read_rays()?;
+        let analytic = if self.objects.is_none() && self.mesh.is_none() {
+            let (camera, _) = self.frame_target();
+            self.settings.scene.analytic_rays(&camera)
+        } else {
+            None
+        };
+        let Some(rays) = analytic else {
+            return Ok(ReferenceRays {
+                rays: drawn,
+                analytic: false,
+                drawn_only: Vec::new(),
+                ray_only: Vec::new(),
+            });
+        };
+        let (mut drawn_only, mut ray_only) = (Vec::new(), Vec::new());
+        for (i, (d, r)) in drawn.iter().zip(&rays).enumerate() {
+            match (d.is_some(), r.is_some()) {
+                (true, false) => drawn_only.push(i),
+                (false, true) => ray_only.push(i),
+                _ => {}
+            }
+        }
+        Ok(ReferenceRays {
+            rays,
+            analytic: true,
+            drawn_only,
+            ray_only,
+        })
     }
 
     /// The last frame's G-buffer depth (reverse-Z depth of the macro surface, 0 where

@@ -12,6 +12,8 @@
 use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, GBufferParams, ShadeParams};
 use crate::error::{Error, Result};
 use crate::heightfield::Addressing;
+use crate::passes::gbuffer::Ray;
+use crate::pixel_rays::{PixelRays, PlaneRect};
 use glam::{Mat4, Vec3, Vec4};
 
 /// Half the side of the tiled plane, in tiles: "effectively infinite" (the plane's edge
@@ -201,6 +203,18 @@ pub struct FrameCamera {
     /// from the rotation alone so that no precision is lost far from the origin (the
     /// G-buffer pass transforms eye-relative positions).
     pub view_proj_eye: Mat4,
+    /// The same camera in f64: each pixel's centre ray, the entry on the analytic
+    /// surfaces ([`Scene::analytic_rays`]) and the G-buffer's double-float uniform
+    /// ([`FrameCamera::pixel_ray_params`]).
+    pub rays: PixelRays,
+}
+
+impl FrameCamera {
+    /// The G-buffer's uniform of this frame's pixel rays (`glsl/gbuffer.frag`, and a host
+    /// drawing dispmap's plane with `dispmap_plane_pixel_ray`).
+    pub fn pixel_ray_params(&self) -> crate::abi::PixelRayParams {
+        self.rays.params()
+    }
 }
 
 impl Scene {
@@ -262,6 +276,18 @@ impl Scene {
         }
     }
 
+    /// [`Scene::orbit_distance`] in f64 (the tiled plane's `height / sin e` rounded
+    /// once, not twice).
+    pub fn orbit_distance_f64(&self) -> f64 {
+        let c = &self.camera;
+        match self.geometry {
+            Geometry::TiledPlane => {
+                f64::from(c.height) / f64::from(c.elevation_deg).to_radians().sin().max(1e-6)
+            }
+            _ => f64::from(self.orbit_distance()),
+        }
+    }
+
     /// Eye and view-projection for a `width x height` frame.
     pub fn frame_camera(&self, width: u32, height: u32) -> FrameCamera {
         let target = match self.geometry {
@@ -269,7 +295,18 @@ impl Scene {
             _ => Vec3::ZERO,
         };
         let distance = self.orbit_distance();
-        self.camera_looking_at(width, height, target, distance)
+        let mut camera = self.camera_looking_at(width, height, target, distance);
+        let c = &self.camera;
+        camera.rays = PixelRays::orbit(
+            c.elevation_deg,
+            c.azimuth_deg,
+            c.fov_y_deg,
+            target.as_dvec3(),
+            self.orbit_distance_f64(),
+            width,
+            height,
+        );
+        camera
     }
 
     /// The orbit camera of [`Scene::camera`] around `target` at `distance` (world units)
@@ -314,7 +351,44 @@ impl Scene {
             eye,
             view_proj: proj * view,
             view_proj_eye: proj * view_eye,
+            rays: PixelRays::orbit(
+                c.elevation_deg,
+                c.azimuth_deg,
+                c.fov_y_deg,
+                target.as_dvec3(),
+                f64::from(distance),
+                width,
+                height,
+            ),
         }
+    }
+
+    /// The rectangle and uv mapping of the analytic surface of [`Scene::gbuffer_params`]
+    /// (the tiled plane's square about the eye's tile, or the quad), in f64; `None` for
+    /// meshes.
+    pub fn analytic_rect(&self, camera: &FrameCamera) -> Option<PlaneRect> {
+        if !matches!(self.geometry, Geometry::TiledPlane | Geometry::Quad) {
+            return None;
+        }
+        let p = self.gbuffer_params(camera);
+        Some(PlaneRect {
+            world: p.world_rect.as_dvec4(),
+            uv: p.uv_rect.as_dvec4(),
+            repeat: self.addressing() == Addressing::Repeat,
+        })
+    }
+
+    /// Each pixel's own ray on the analytic macro surface (the tiled plane, the quad), in
+    /// f64 from the camera's f64 model: what the G-buffer computes in double-float
+    /// (`glsl/gbuffer.frag`) and the reference traces. `None` for meshes, whose entry is
+    /// the rasteriser's interpolation.
+    pub fn analytic_rays(&self, camera: &FrameCamera) -> Option<Vec<Option<Ray>>> {
+        let rect = self.analytic_rect(camera)?;
+        Some(
+            camera
+                .rays
+                .plane_rays(&rect, f64::from(self.depth_scale), f64::from(MIN_COS)),
+        )
     }
 
     /// Push constants of the G-buffer pass.

@@ -117,7 +117,16 @@ impl Host {
         // context's queue family) and is submitted below; the slot's images are replaced
         // only after its fence, and its last frame completed (`begin` waited), so they
         // may be discarded.
-        unsafe { record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params) };
+        unsafe {
+            record_gbuffer(
+                &ctx,
+                cmd,
+                &self.gbuffer_pass,
+                g,
+                &params,
+                &camera.pixel_ray_params(),
+            )
+        };
         // SAFETY: as above, for the slot's hit image.
         unsafe { sync::transition(&ctx, cmd, &slot.hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
         let inputs = FrameInputs {

@@ -170,7 +170,16 @@ impl Host {
         // context's queue family) and is submitted below; the slot's images are replaced
         // only after its fence, and its last frame completed (`begin` waited), so they
         // may be discarded.
-        unsafe { record_gbuffer(&ctx, cmd, &self.gbuffer_pass, g, &params) };
+        unsafe {
+            record_gbuffer(
+                &ctx,
+                cmd,
+                &self.gbuffer_pass,
+                g,
+                &params,
+                &camera.pixel_ray_params(),
+            )
+        };
         let mut entry = Vec::new();
         for image in [&slot.hit, &slot.color] {
             entry.push(sync::image_barrier(

@@ -11,7 +11,7 @@ use common::{asset_map, finish, validated_context};
 use dispmap::heightfield::Convention;
 use dispmap::method::{Method, MethodParams};
 use dispmap::renderer::{RenderSettings, Renderer};
-use dispmap::scene::{Camera, Geometry, PLANE_HALF_EXTENT, Scene};
+use dispmap::scene::{Camera, Geometry, NEAR, PLANE_HALF_EXTENT, Scene};
 use glam::{DMat4, DVec3, DVec4};
 
 /// The rasteriser snaps vertices to its sub-pixel grid (lavapipe: 8 bits, 1/256 pixel;
@@ -277,6 +277,138 @@ fn the_plane_covers_every_pixel_below_the_horizon_at_the_analytic_depth_and_uv()
             ));
         }
         assert!(covered > 1000, "{view:?}: {covered} pixels compared");
+    }
+    finish(ctx);
+    let shown: Vec<_> = failures.iter().take(20).collect();
+    assert!(
+        failures.is_empty(),
+        "{} failures: {shown:#?}",
+        failures.len()
+    );
+}
+
+/// uv0 error (tiles) allowed against the f64 centre ray: the G-buffer's double-float
+/// entry keeps about 48 bits, and uv0 is an f32 in [0, 1) (an ulp is at most 2^-24 =
+/// 6e-8 tiles), so a few ulps: 2e-4 texels of a 1024-texel map (measured: at most 6.2e-8
+/// tiles, every case below).
+const CENTRE_RAY_UV_TOL: f64 = 2e-7;
+
+/// Relative error allowed on the parallax vector P (f32 from the f32 eye-relative entry;
+/// measured: at most 1.9e-7).
+const CENTRE_RAY_P_REL_TOL: f64 = 1e-6;
+
+/// Relative error allowed on the G-buffer depth against the centre ray's entry:
+/// `gl_FragDepth` from the entry through the f32 eye-relative view-projection (measured:
+/// at most 2.0e-7; the rasteriser's interpolated depth was up to 7.4e-5 off at 2 degrees).
+const CENTRE_RAY_DEPTH_REL_TOL: f64 = 1e-6;
+
+/// The G-buffer's entry on the analytic surfaces is each pixel's own centre ray
+/// (`dispmap_plane_pixel_ray`): on the tiled plane at grazing angles (where one pixel row
+/// spans hundreds of tiles and the rasteriser's interpolation was tens to thousands of
+/// texels off) and on the quad, every pixel's uv0 and P agree with the library's f64
+/// centre ray (`Scene::analytic_rays`), and the two agree on which pixels have geometry.
+#[test]
+fn uv0_is_the_entry_of_the_pixel_centre_ray() {
+    let ctx = validated_context();
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let mut failures = Vec::new();
+    let cases = [
+        (Geometry::TiledPlane, 0.5, 0.0),
+        (Geometry::TiledPlane, 2.0, 0.0),
+        (Geometry::TiledPlane, 10.0, 0.0),
+        (Geometry::TiledPlane, 2.0, 37.0),
+        (Geometry::Quad, 30.0, 20.0),
+        (Geometry::Quad, 8.0, 0.0),
+    ];
+    for (geometry, elevation, azimuth) in cases {
+        let scene = Scene {
+            geometry,
+            camera: Camera {
+                elevation_deg: elevation,
+                azimuth_deg: azimuth,
+                ..Camera::default()
+            },
+            ..Scene::default()
+        };
+        let (w, h) = (192, 108);
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            method: Method::Bump,
+            params: MethodParams::for_method(Method::Bump),
+            scene,
+            shadows: Default::default(),
+        };
+        let mut renderer = Renderer::new(&ctx, &field, settings).unwrap();
+        renderer.render().unwrap();
+        let rays = renderer.read_rays().unwrap();
+        let depth = renderer.read_macro_depth().unwrap();
+        let reference = renderer.reference_rays().unwrap();
+        drop(renderer);
+        let frame = scene.frame_camera(w, h);
+        let want = scene.analytic_rays(&frame).expect("analytic geometry");
+        let rect = scene.analytic_rect(&frame).expect("analytic geometry");
+        let mut depth_worst = 0.0f64;
+        assert!(
+            reference.analytic,
+            "{geometry:?}: the reference traces centre rays"
+        );
+        assert_eq!(
+            reference.rays, want,
+            "{geometry:?}: reference_rays are analytic_rays"
+        );
+        let (mut compared, mut uv_worst, mut p_worst) = (0usize, 0.0f64, 0.0f64);
+        let mut coverage = Vec::new();
+        for (i, (got, want)) in rays.iter().zip(&want).enumerate() {
+            let (x, y) = (i % w as usize, i / w as usize);
+            let (got, want) = match (got, want) {
+                (Some(g), Some(r)) => (g, r),
+                (None, None) => continue,
+                _ => {
+                    coverage.push((x, y, got.is_some()));
+                    continue;
+                }
+            };
+            compared += 1;
+            let du = if scene.addressing() == dispmap::heightfield::Addressing::Repeat {
+                wrapped_distance(got.uv0, want.uv0)
+            } else {
+                (got.uv0[0] - want.uv0[0]).hypot(got.uv0[1] - want.uv0[1])
+            };
+            let dp = (got.parallax[0] - want.parallax[0]).hypot(got.parallax[1] - want.parallax[1])
+                / want.parallax[0].hypot(want.parallax[1]).max(1e-12);
+            uv_worst = uv_worst.max(du);
+            p_worst = p_worst.max(dp);
+            // The entry's reverse-Z depth: NEAR / its distance along the view direction.
+            let (entry, _) = frame
+                .rays
+                .plane_entry(x as u32, y as u32, &rect)
+                .expect("a ray");
+            let want_depth = f64::from(NEAR) / (entry - frame.rays.eye).dot(frame.rays.forward);
+            let dd = (f64::from(depth[i]) - want_depth).abs() / want_depth;
+            depth_worst = depth_worst.max(dd);
+            if du > CENTRE_RAY_UV_TOL || dp > CENTRE_RAY_P_REL_TOL || dd > CENTRE_RAY_DEPTH_REL_TOL
+            {
+                failures.push(format!(
+                    "{geometry:?} {elevation} deg az {azimuth}: pixel ({x}, {y}) uv0 {:?} vs \
+                     {:?} ({du:.2e} tiles), P {:?} vs {:?} (rel {dp:.2e}), depth {} vs \
+                     {want_depth} (rel {dd:.2e})",
+                    got.uv0, want.uv0, got.parallax, want.parallax, depth[i]
+                ));
+            }
+        }
+        println!(
+            "{geometry:?} {elevation} deg az {azimuth}: {compared} pixels, uv0 worst \
+             {uv_worst:.2e} tiles, P worst rel {p_worst:.2e}, depth worst rel \
+             {depth_worst:.2e}, coverage differs at {coverage:?}"
+        );
+        if !coverage.is_empty() {
+            failures.push(format!(
+                "{geometry:?} {elevation} deg az {azimuth}: coverage differs at (x, y, drawn) \
+                 {coverage:?}"
+            ));
+        }
+        assert!(compared > 1000, "{geometry:?}: {compared} pixels compared");
     }
     finish(ctx);
     let shown: Vec<_> = failures.iter().take(20).collect();

@@ -45,7 +45,7 @@ use ash::vk;
 use common::host::RayHost;
 use common::{finish, unexplained, validated_context};
 use dispmap::Context;
-use dispmap::abi::GBufferParams;
+use dispmap::abi::{GBufferParams, PixelRayParams};
 use dispmap::embed::{DisplacementPass, PassSettings};
 use dispmap::heightfield::{Addressing, Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
@@ -347,20 +347,35 @@ fn make_rays(host: &mut RayHost, rays: Rays, depth_scale: f32) -> Vec<Option<Ray
             host.set_rays(&chosen);
         }
         Rays::Camera(edit) => {
-            host.rasterise(&camera_params(edit, depth_scale));
+            let (params, rays) = camera_params(edit, depth_scale);
+            host.rasterise(&params, &rays);
         }
     }
     host.read_rays()
 }
 
-fn camera_params(edit: fn(&mut GBufferParams), depth_scale: f32) -> GBufferParams {
+/// The G-buffer's push constants and pixel rays of the default scene, `edit`ed. The
+/// pixel rays' eye is `camera_pos` (as edited) plus the f64 eye's offset from the
+/// unedited `camera_pos`, so a moved frame is the base frame shifted by exactly the f32
+/// difference of the two `camera_pos`.
+fn camera_params(
+    edit: fn(&mut GBufferParams),
+    depth_scale: f32,
+) -> (GBufferParams, PixelRayParams) {
     let scene = Scene {
         depth_scale,
         ..Scene::default()
     };
-    let mut params = scene.gbuffer_params(&scene.frame_camera(FRAME, FRAME));
+    let camera = scene.frame_camera(FRAME, FRAME);
+    let mut params = scene.gbuffer_params(&camera);
+    let mut rays = camera.pixel_ray_params();
+    let base = camera.eye.as_dvec3();
     edit(&mut params);
-    params
+    for k in 0..3 {
+        rays.eye_hi[k] = params.camera_pos[k];
+        rays.eye_lo[k] = (camera.rays.eye[k] - base[k]) as f32;
+    }
+    (params, rays)
 }
 
 /// One linear step of the fixed-step searches, in the ray parameter `t` (`None`: the
@@ -565,7 +580,8 @@ fn check_extra(
                 case.name
             );
             // The route itself draws the plane when the camera is above it.
-            host.rasterise(&camera_params(|_| {}, case.depth_scale));
+            let (params, rays) = camera_params(|_| {}, case.depth_scale);
+            host.rasterise(&params, &rays);
             let upright = host.read_rays().iter().filter(|r| r.is_some()).count();
             assert!(
                 upright > host.pixels() / 2,
@@ -576,8 +592,8 @@ fn check_extra(
             uv_tolerance,
             p_tolerance,
         } => {
-            let base_params = camera_params(|_| {}, case.depth_scale);
-            host.rasterise(&base_params);
+            let (base_params, base_rays) = camera_params(|_| {}, case.depth_scale);
+            host.rasterise(&base_params, &base_rays);
             let base = host.read_rays();
             // A moved eye is rounded to f32 (an ulp is 1e-3 tiles at 1e4): the frame is
             // then the exact frame of that rounded eye, shifted by the rounding. The
@@ -585,7 +601,7 @@ fn check_extra(
             // world x, z), computed in f64 from the two eyes.
             let eye_shift = match case.rays {
                 Rays::Camera(edit) => {
-                    let moved = camera_params(edit, case.depth_scale).camera_pos;
+                    let moved = camera_params(edit, case.depth_scale).0.camera_pos;
                     [0, 2].map(|k| f64::from(moved[k]) - f64::from(base_params.camera_pos[k]))
                 }
                 Rays::Ortho { .. } => [0.0; 2],

@@ -168,7 +168,8 @@ fn setup(
     let depths = mats.iter().map(|m| m.settings.depth_scale).collect();
     let (scene, cam) = camera();
     let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
-    host.rasterise(&scene.gbuffer_params(&scene.frame_camera(EXTENT.width, EXTENT.height)));
+    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
+    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
     let base = host.read_gbuffer();
     (mats, depths, cam, host, base)
 }

@@ -76,7 +76,8 @@ fn soak(frames: usize, swap_every: usize) {
     };
     let mut host = RayHost::new(ctx.clone(), extent, 2);
     let scene = Scene::default();
-    host.rasterise(&scene.gbuffer_params(&scene.frame_camera(extent.width, extent.height)));
+    let camera = scene.frame_camera(extent.width, extent.height);
+    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
     // DIG with the pyramid guard: height texture, pyramid, corner grids per slot.
     let method = Method::DigGuarded;
     let mut pass = DisplacementPass::new(

@@ -483,10 +483,27 @@ struct MetricsReport<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     warning: Option<String>,
     nonfinite_pixels: u64,
+    /// The reference traces each pixel's own centre ray on the tiled plane and the quad:
+    /// pixels where the G-buffer's coverage and the f64 centre ray disagree
+    /// (`Renderer::reference_rays`).
+    coverage: CoverageReport,
     iterations: Iterations,
     /// DIG methods only: the corner pass's iterations.
     #[serde(skip_serializing_if = "Option::is_none")]
     corner_pass: Option<CornerPass>,
+}
+
+/// Where the G-buffer's coverage and the reference's f64 centre rays disagree.
+#[derive(Serialize)]
+struct CoverageReport {
+    /// Whether the reference traced the f64 centre rays (the tiled plane or the quad
+    /// alone) rather than the G-buffer's rays.
+    centre_rays: bool,
+    /// Pixels drawn whose f64 centre ray misses the surface: not compared.
+    drawn_without_ray: usize,
+    /// Pixels with an f64 centre ray that the G-buffer left empty: compared (a method
+    /// has no ray there: an artifact where the reference hits).
+    ray_without_draw: usize,
 }
 
 /// The error against the reference; every measure `null` when no pixel was compared
@@ -875,9 +892,15 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
     {
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
+        let mut coverage = None;
         let (timings, color, error, hits, rays) = if args.metrics.is_some() {
             let reference = Reference::new(&field, settings.scene.addressing());
             let frame_ref = renderer.reference(&reference)?;
+            coverage = Some(CoverageReport {
+                centre_rays: renderer.reference_rays()?.analytic,
+                drawn_without_ray: frame_ref.drawn_only,
+                ray_without_draw: frame_ref.ray_only,
+            });
             let m = renderer.measure(&frame_ref, args.common.frames)?;
             (m.timings_ms, m.color, Some(m.error), m.hits, frame_ref.rays)
         } else {
@@ -926,7 +949,17 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
             let png = output::png_bytes(path, settings.width, settings.height, &rgba)?;
             outputs.stage(path, png)?;
         }
-        if let (Some(path), Some(error)) = (&args.metrics, error) {
+        if let Some(c) = coverage
+            .as_ref()
+            .filter(|c| c.drawn_without_ray + c.ray_without_draw > 0)
+        {
+            eprintln!(
+                "note: coverage: {} pixels drawn whose centre ray misses the surface (not \
+                 compared), {} centre-ray hits not drawn (compared)",
+                c.drawn_without_ray, c.ray_without_draw
+            );
+        }
+        if let (Some(path), Some(error), Some(coverage)) = (&args.metrics, error, coverage) {
             let report = MetricsReport {
                 method: settings.method.name(),
                 steps: settings.params.steps,
@@ -945,6 +978,7 @@ fn render(options: &ContextOptions, args: &RenderArgs, matches: &ArgMatches) -> 
                 error: (&error).into(),
                 warning: (error.compared_pixels == 0).then(|| NO_PIXELS.to_owned()),
                 nonfinite_pixels: error.nonfinite_pixels,
+                coverage,
                 iterations: trace_iterations.into(),
                 corner_pass: corners
                     .as_ref()

@@ -11,11 +11,18 @@ use dispmap::passes::PassName;
 use dispmap::passes::shadow::ShadowMode;
 use dispmap::renderer::Renderer;
 
-/// The reference for one frame: rays read from the G-buffer, exact hits, and those
-/// hits shaded by the same `shade` pass.
+/// The reference for one frame: its rays (each pixel's own f64 centre ray on the tiled
+/// plane and the quad, else the G-buffer's: [`Renderer::reference_rays`]), exact hits,
+/// and those hits shaded by the same `shade` pass.
 pub struct FrameReference {
     /// Each pixel's ray (`None`: no geometry).
     pub rays: Vec<Option<Ray>>,
+    /// Pixels the G-buffer drew whose f64 centre ray misses the surface: not compared
+    /// (reported by `render --metrics`).
+    pub drawn_only: usize,
+    /// Pixels whose f64 centre ray meets the surface but that the G-buffer left empty:
+    /// compared (a method has no ray there: an artifact where the reference hits).
+    pub ray_only: usize,
     /// The exact first intersections.
     pub hits: Vec<Option<Hit>>,
     /// The reference hits shaded (RGBA8).
@@ -106,7 +113,9 @@ impl Measure for Renderer {
 
     fn reference(&mut self, reference: &Reference) -> Result<FrameReference> {
         self.render()?;
-        let rays = self.read_rays()?;
+        let traced = self.reference_rays()?;
+        let (drawn_only, ray_only) = (traced.drawn_only.len(), traced.ray_only.len());
+        let rays = traced.rays;
         let hits = reference.trace(&rays);
         let texels: Vec<HitTexel> = hits
             .iter()
@@ -134,7 +143,13 @@ impl Measure for Renderer {
             // Off, or soft (the same estimate for every method): the pass itself.
             self.shade_hits(&texels)?
         };
-        Ok(FrameReference { rays, hits, color })
+        Ok(FrameReference {
+            rays,
+            drawn_only,
+            ray_only,
+            hits,
+            color,
+        })
     }
 
     fn measure(&mut self, reference: &FrameReference, frames: u32) -> Result<Measurement> {
@@ -252,7 +267,13 @@ pub fn reference_objects(
         renderer.shade_hits(&texels)?
     };
     Ok(ObjectsReference {
-        frame: FrameReference { rays, hits, color },
+        frame: FrameReference {
+            rays,
+            drawn_only: 0,
+            ray_only: 0,
+            hits,
+            color,
+        },
         pixel_material,
     })
 }

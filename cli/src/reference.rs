@@ -598,6 +598,11 @@ pub fn reference_visibility(
         .zip(normal.par_iter().zip(tangent.par_iter()))
         .map(|(hit, (n4, t4))| {
             let Some(hit) = hit else { return 1.0 };
+            if n4[3] == 0.0 {
+                // No geometry drawn (a centre-ray hit the rasteriser left empty,
+                // `Renderer::reference_rays`): no shading frame, nothing the method shades.
+                return 1.0;
+            }
             let (n, t) = (unit(*n4), unit(*t4));
             // tangent.w = handedness * (material + 1): its sign is the handedness.
             let w = f64::from(t4[3]).signum();

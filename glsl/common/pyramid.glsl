@@ -96,37 +96,20 @@ float first_root(float a, float b, float c, float len) {
     return -1.0;
 }
 
-// Exact products and sums (Dekker 1971, Knuth): the error of an f32 product or sum as a
-// second f32, from correctly rounded adds and multiplies (Vulkan's precision for them),
-// every step `precise` so that nothing is reassociated or contracted. Not fma: lavapipe
-// does not fuse it (fma(a, b, -a * b) is 0 there), so an fma-based error term silently
-// vanishes on a CPU driver.
+// Exact products and sums: glsl/include/dispmap_double_float.glsl (shared with the
+// pixel rays of the G-buffer), under the names this file has always used.
+#include "../include/dispmap_double_float.glsl"
 
-// Veltkamp's split: x = hi + lo exactly, each half with at most 12 significant bits, so
-// that a product of two halves is exact in f32.
 vec2 split_f32(float x) {
-    precise float c = 4097.0 * x;
-    precise float hi = c - (c - x);
-    precise float lo = x - hi;
-    return vec2(hi, lo);
+    return dispmap_split_f32(x);
 }
 
-// a b = p + e exactly; `bs` is split_f32(b).
 float two_product(float a, float b, vec2 bs, out float e) {
-    vec2 as_ = split_f32(a);
-    precise float p = a * b;
-    precise float err = ((as_.x * bs.x - p) + as_.x * bs.y + as_.y * bs.x) + as_.y * bs.y;
-    e = err;
-    return p;
+    return dispmap_two_product(a, b, bs, e);
 }
 
-// a + b = s + e exactly.
 float two_sum(float a, float b, out float e) {
-    precise float s = a + b;
-    precise float bv = s - a;
-    precise float err = (a - (s - bv)) + (b - bv);
-    e = err;
-    return s;
+    return dispmap_two_sum(a, b, e);
 }
 
 // The texel-space ray being traversed, beyond its f32 origin and dir (set by texel_ray,

@@ -1,9 +1,17 @@
 #version 460
 // examples/host_engine.rs: the host engine's own G-buffer fragment shader, writing
 // dispmap's channels with the provided include. The draw's material is camera_pos.w (the
-// floor 0, the cube 1); the cube's top face is flat geometry (not displaced).
+// floor 0, the cube 1); the cube's top face is flat geometry (not displaced). The floor's
+// entry is the pixel's own centre ray (dispmap_plane_pixel_ray, with dispmap's
+// PixelRayParams in a uniform buffer), exactly as dispmap's own G-buffer computes it; the
+// cube's is the rasteriser's interpolation.
+#include "../include/dispmap_plane.glsl"
 #include "../include/dispmap_gbuffer.glsl"
 #include "host_engine.glsl"
+
+layout(set = 0, binding = 0, std140) uniform PixelRayBlock {
+    DispmapPixelRay u_pixel_ray;
+};
 
 layout(location = 0) in vec3 v_eye_rel;
 layout(location = 1) in vec2 v_uv;
@@ -15,13 +23,28 @@ layout(location = 0) out vec4 out_ray;
 layout(location = 1) out vec4 out_normal;
 layout(location = 2) out vec4 out_tangent;
 
+// The floor's surface id (host_engine_floor.vert).
+const float FLOOR_ID = 1.0;
+
 void main() {
+    // The cube keeps the rasteriser's depth; the floor writes its entry's (below).
+    gl_FragDepth = gl_FragCoord.z;
     uint material = uint(pc.camera_pos.w);
     if (material != 0u && v_normal.y > 0.5) {
         dispmap_gbuffer_encode_flat(v_normal.xyz, v_tangent, v_normal.w, out_ray, out_normal, out_tangent);
         return;
     }
-    DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, v_normal.xyz,
+    vec3 eye_rel = v_eye_rel;
+    vec2 uv = v_uv;
+    if (v_normal.w == FLOOR_ID) {
+        float t;
+        if (!dispmap_plane_pixel_ray(u_pixel_ray, gl_FragCoord.xy, pc.world_rect, pc.uv_rect,
+                                     pc.addressing == DISPMAP_ADDRESSING_REPEAT, eye_rel, uv, t)) {
+            discard;
+        }
+        gl_FragDepth = dispmap_plane_pixel_depth(pc.view_proj, eye_rel);
+    }
+    DispmapSurface s = DispmapSurface(eye_rel, vec3(0.0), uv, v_normal.xyz,
         v_tangent, v_bitangent, v_normal.w, pc.depth_scale, pc.min_cos, pc.addressing);
     if (!dispmap_gbuffer_encode_material(s, material, out_ray, out_normal, out_tangent)) {
         discard;

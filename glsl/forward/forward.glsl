@@ -17,6 +17,7 @@
 #define DISPMAP_FORWARD_GLSL
 
 #include "gbuffer.glsl"
+#include "../include/dispmap_plane.glsl"
 #include "../include/dispmap_gbuffer.glsl"
 
 // The height field (linear filtering, the map's addressing).
@@ -31,10 +32,12 @@ layout(set = 0, binding = 1, std140) uniform ForwardParams {
     uint pad;
 } u_march;
 
-#include "march.glsl"
+// The frame's pixel rays (glsl/gbuffer.frag's, src/abi.rs PixelRayParams).
+layout(set = 0, binding = 2, std140) uniform PixelRayBlock {
+    DispmapPixelRay u_pixel_ray;
+};
 
-layout(location = 0) in vec3 v_eye_rel;
-layout(location = 1) in vec2 v_uv;
+#include "march.glsl"
 
 layout(location = 0) out vec4 out_hit;
 layout(location = 1) out vec4 out_normal;
@@ -48,8 +51,17 @@ const float SURFACE_ID = 1.0;
 Hit trace_ray(Ray ray);
 
 void main() {
-    // glsl/gbuffer.frag's encoding: the quad lies on y = 0 with u along +x and v along +z.
-    DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, vec3(0.0, 1.0, 0.0),
+    // glsl/gbuffer.frag's entry (the pixel's own centre ray) and encoding: the quad lies on
+    // y = 0 with u along +x and v along +z.
+    vec3 eye_rel;
+    vec2 uv;
+    float t;
+    if (!dispmap_plane_pixel_ray(u_pixel_ray, gl_FragCoord.xy, pc.world_rect, pc.uv_rect,
+                                 pc.addressing == DISPMAP_ADDRESSING_REPEAT, eye_rel, uv, t)) {
+        discard;
+    }
+    gl_FragDepth = dispmap_plane_pixel_depth(pc.view_proj, eye_rel);
+    DispmapSurface s = DispmapSurface(eye_rel, vec3(0.0), uv, vec3(0.0, 1.0, 0.0),
         vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), SURFACE_ID, pc.depth_scale, pc.min_cos,
         pc.addressing);
     uint material_plus_one = uint(pc.camera_pos.w);

@@ -32,7 +32,10 @@
 // position minus eye, then world_pos = that, camera_pos = vec3(0)), so V keeps its bits
 // near the eye wherever the eye is; and give uv tile-local enough that the f32
 // interpolant keeps sub-texel precision (the reduction to [0, 1) below cannot restore
-// bits lost before it: at 1e4 tiles one ulp is 2^-10 tiles).
+// bits lost before it: at 1e4 tiles one ulp is 2^-10 tiles). On dispmap's plane and quad
+// do not interpolate at all: dispmap_plane_pixel_ray (dispmap_plane.glsl) gives each
+// pixel's entry from its own centre ray, which interpolation near the horizon misses by
+// tens of texels.
 #ifndef DISPMAP_INCLUDE_GBUFFER_GLSL
 #define DISPMAP_INCLUDE_GBUFFER_GLSL
 

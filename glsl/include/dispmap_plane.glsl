@@ -29,6 +29,8 @@
 #ifndef DISPMAP_INCLUDE_PLANE_GLSL
 #define DISPMAP_INCLUDE_PLANE_GLSL
 
+#include "dispmap_double_float.glsl"
+
 const vec2 DISPMAP_PLANE_CORNERS[6] =
     vec2[](vec2(0, 0), vec2(1, 0), vec2(1, 1), vec2(0, 0), vec2(1, 1), vec2(0, 1));
 
@@ -76,6 +78,118 @@ void dispmap_plane_vertex(int vertex_index, uint cells, vec4 world_rect, vec4 uv
     vec2 mid = 0.5 * (lo + hi);
     vec2 uv_per_world = (uv_rect.zw - uv_rect.xy) / (hi - lo);
     uv = 0.5 * (uv_rect.xy + uv_rect.zw) + ((centre - mid) + o) * uv_per_world;
+}
+
+
+// ---------------------------------------------------------------------------------------
+// The pixel's own ray (fragment stage). Interpolating eye_rel and uv across a cell gives
+// each fragment the rasteriser's f32 interpolation, which near the horizon is tens of
+// texels (worst measured: thousands) from where the pixel's centre ray meets the plane:
+// there one pixel row spans hundreds of tiles. dispmap_plane_pixel_ray instead intersects
+// the pixel's centre ray (gl_FragCoord.xy, centres at +0.5) with y = 0 in double-float
+// arithmetic (dispmap_double_float.glsl) from the camera's f64 values, given as hi/lo f32
+// pairs in a DispmapPixelRay (dispmap's `PixelRayParams`, src/abi.rs, from
+// `FrameCamera::pixel_ray_params`; a host declares it in a uniform block, std140). The
+// ray's angle below the horizon is a difference of two nearly equal terms near the
+// horizon, which f32 cannot form (5 texels off at 2 degrees); the double-float keeps
+// about 48 bits of it, and the uv is formed relative to the eye's tile so that it keeps
+// sub-texel precision thousands of tiles away.
+//
+// The direction of pixel (px, py)'s centre ray (unnormalised) is
+//     dir = forward + (px - W/2) step_x + (py - H/2) step_y
+// with forward the unit view direction, step_x = right tan(fov_y / 2) aspect 2 / W and
+// step_y = -up tan(fov_y / 2) 2 / H (row 0 is the top of the image): the direction
+// through the pixel's centre of the projection the vertices are drawn with
+// (docs/design.md, "Camera and frame").
+struct DispmapPixelRay {
+    vec4 eye_hi;     // xyz: the eye (world), rounded to f32; w: W / 2 (pixels)
+    vec4 eye_lo;     // xyz: the eye minus eye_hi; w: H / 2 (pixels)
+    vec4 dir_hi;     // xyz: forward (unit), rounded to f32; w: 0
+    vec4 dir_lo;     // xyz: forward minus dir_hi; w: 0
+    vec4 step_x_hi;  // xyz: the direction's change per pixel along x; w: 0
+    vec4 step_x_lo;
+    vec4 step_y_hi;  // xyz: the direction's change per pixel along y (downwards); w: 0
+    vec4 step_y_lo;
+};
+
+// One component of the pixel's direction, a double-float: f + a sx + b sy.
+vec2 dispmap_pixel_dir(float f_hi, float f_lo, float sx_hi, float sx_lo, float sy_hi,
+                       float sy_lo, float a, float b) {
+    vec2 d = dispmap_df_add(vec2(f_hi, f_lo), dispmap_df_mul_f(vec2(sx_hi, sx_lo), a));
+    return dispmap_df_add(d, dispmap_df_mul_f(vec2(sy_hi, sy_lo), b));
+}
+
+// The entry of the pixel whose centre is frag_coord (gl_FragCoord.xy) on the plane
+// y = 0 within world_rect, uv mapped by uv_rect (the inputs of dispmap_plane_vertex).
+// Returns false when the centre ray does not meet the rectangle from above (it points
+// at or above the horizon, the eye is not above the plane, or the entry lies outside
+// world_rect): discard the fragment, as dispmap does. Else eye_rel is the entry minus
+// the eye (its y is exactly -eye.y, its xz the ray's at that depth: use it as
+// dispmap_gbuffer_encode's world_pos with camera_pos = vec3(0)) and uv the entry's uv,
+// reduced to [0, 1) from its double-float value when `repeat` (the addressing repeats
+// the map), so that it keeps sub-texel precision far from the eye; t is the ray
+// parameter of the entry (entry = eye + t dir).
+// Depth: the rasteriser's depth is interpolated like any attribute (near the horizon
+// 1e-5 to 5e-4 of the depth off: tests/gbuffer_plane.rs); write the entry's own depth,
+// gl_FragDepth = dispmap_plane_pixel_depth(view_proj_eye, eye_rel), so that the depth
+// (the corrected depth, the depth resolve) agrees with uv0, as dispmap does.
+bool dispmap_plane_pixel_ray(DispmapPixelRay r, vec2 frag_coord, vec4 world_rect,
+                             vec4 uv_rect, bool repeat, out vec3 eye_rel, out vec2 uv,
+                             out float t) {
+    eye_rel = vec3(0.0);
+    uv = vec2(0.0);
+    t = 0.0;
+    // Offsets from the frame's centre: exact (half-integers minus half-integers).
+    precise float a = frag_coord.x - r.eye_hi.w;
+    precise float b = frag_coord.y - r.eye_lo.w;
+    vec2 dx = dispmap_pixel_dir(r.dir_hi.x, r.dir_lo.x, r.step_x_hi.x, r.step_x_lo.x,
+                                r.step_y_hi.x, r.step_y_lo.x, a, b);
+    vec2 dy = dispmap_pixel_dir(r.dir_hi.y, r.dir_lo.y, r.step_x_hi.y, r.step_x_lo.y,
+                                r.step_y_hi.y, r.step_y_lo.y, a, b);
+    vec2 dz = dispmap_pixel_dir(r.dir_hi.z, r.dir_lo.z, r.step_x_hi.z, r.step_x_lo.z,
+                                r.step_y_hi.z, r.step_y_lo.z, a, b);
+    vec2 eye_y = vec2(r.eye_hi.y, r.eye_lo.y);
+    if (!(dy.x < 0.0) || !(eye_y.x > 0.0)) {
+        return false;
+    }
+    vec2 tt = dispmap_df_div(eye_y, -dy);
+    vec2 rx = dispmap_df_mul(dx, tt);
+    vec2 rz = dispmap_df_mul(dz, tt);
+    // The rectangle, relative to the eye (its edge needs no more than f32).
+    vec2 lo = world_rect.xy - r.eye_hi.xz;
+    vec2 hi = world_rect.zw - r.eye_hi.xz;
+    if (!(rx.x >= lo.x && rx.x <= hi.x && rz.x >= lo.y && rz.x <= hi.y)) {
+        return false;
+    }
+    t = tt.x;
+    eye_rel = vec3(rx.x, -eye_y.x, rz.x);
+    // uv = uv0 + (eye - world0 + rel) k per axis, in double-float.
+    vec2 k = (uv_rect.zw - uv_rect.xy) / (world_rect.zw - world_rect.xy);
+    vec2 rel[2] = vec2[](rx, rz);
+    vec2 eye_hi = r.eye_hi.xz;
+    vec2 eye_lo = r.eye_lo.xz;
+    for (int i = 0; i < 2; ++i) {
+        float e;
+        float s = dispmap_two_sum(eye_hi[i], -world_rect[i], e);
+        vec2 from_corner = dispmap_df_add(dispmap_df_add(vec2(s, e), vec2(eye_lo[i], 0.0)), rel[i]);
+        vec2 u = dispmap_df_add(dispmap_df_mul_f(from_corner, k[i]), vec2(uv_rect[i], 0.0));
+        if (repeat) {
+            // hi - floor(hi) is exact; adding lo may step over an integer.
+            precise float f = (u.x - floor(u.x)) + u.y;
+            f = f < 0.0 ? f + 1.0 : f;
+            uv[i] = f >= 1.0 ? f - 1.0 : f;
+        } else {
+            uv[i] = u.x;
+        }
+    }
+    return true;
+}
+
+// The reverse-Z depth of the entry eye_rel (dispmap_plane_pixel_ray) through the
+// eye-relative view-projection the vertices are drawn with (GBufferParams.view_proj).
+float dispmap_plane_pixel_depth(mat4 view_proj_eye, vec3 eye_rel) {
+    vec4 clip = view_proj_eye * vec4(eye_rel, 1.0);
+    return clamp(clip.z / clip.w, 0.0, 1.0);
 }
 
 #endif

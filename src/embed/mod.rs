@@ -32,9 +32,11 @@
 //!    `glsl/include/dispmap_plane.glsl`, the function dispmap's own `gbuffer.vert` calls:
 //!    with the values of [`crate::scene::Scene::gbuffer_params`] (rectangles, `plane_cells`,
 //!    eye), [`crate::abi::GBufferParams::vertex_count`] vertices from `gl_VertexIndex` and
-//!    the eye-relative view-projection ([`crate::scene::FrameCamera::view_proj_eye`]) its
-//!    vertices, rays and hits are bit-identical to the standalone renderer's
-//!    (`examples/host_engine.rs`, `tests/host_engine.rs`).
+//!    the eye-relative view-projection ([`crate::scene::FrameCamera::view_proj_eye`]), and
+//!    in its fragment shader `dispmap_plane_pixel_ray` (each pixel's own centre ray, from
+//!    [`crate::scene::FrameCamera::pixel_ray_params`] in a uniform buffer) and
+//!    `dispmap_plane_pixel_depth`, its vertices, rays, depths and hits are bit-identical to
+//!    the standalone renderer's (`examples/host_engine.rs`, `tests/host_engine.rs`).
 //! 5. [`DisplacementPass::add_material`] / [`DisplacementPass::remove_material`] /
 //!    [`DisplacementPass::set_material_settings`] /
 //!    [`DisplacementPass::set_material_height_map`] /

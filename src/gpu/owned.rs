@@ -187,6 +187,7 @@ destroy_by_method!(
     crate::passes::gbuffer::GBufferPass,
     crate::passes::hit_depth::HitDepthPass,
     crate::passes::motion::MotionPass,
+    crate::passes::pixel_ray_buffer::PixelRayBuffer,
     crate::passes::camera_motion::CameraMotionPass,
     crate::passes::camera_motion::CameraMotion,
     crate::passes::pyramid::Pyramid,

@@ -20,7 +20,9 @@
 //! Bindings (set 0, push descriptors): 0 the height field (the map's own texture, its
 //! sampler: bilinear, the map's addressing), 1 the step counts
 //! ([`crate::abi::ForwardParams`], a uniform buffer the pass owns: the G-buffer's push
-//! constants, [`GBufferParams`], already take the 128 bytes every device guarantees).
+//! constants, [`GBufferParams`], already take the 128 bytes every device guarantees), 2
+//! the frame's pixel rays ([`PixelRayParams`], as the G-buffer pass's: the entry is the
+//! pixel's own centre ray, written in each recording).
 //! The vertex stage is the G-buffer's (`glsl/gbuffer.vert`): the plane or the quad.
 //!
 //! The marchers are the compute trace's code with the same inputs, so the forward hits
@@ -29,7 +31,7 @@
 //! `precise` anywhere), so on another driver a ray may differ in its last bits and a march
 //! sample flip, moving that pixel's hit by up to a step.
 
-use crate::abi::{ForwardParams, GBufferParams, NO_HIT_HEIGHT};
+use crate::abi::{ForwardParams, GBufferParams, NO_HIT_HEIGHT, PixelRayParams};
 use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
 use crate::gpu::owned::Guard;
@@ -37,6 +39,7 @@ use crate::gpu::pipeline::{RasterDesc, image_write, raster_pipeline};
 use crate::gpu::{Buffer, HeightTexture, Image};
 use crate::method::{Method, MethodParams};
 use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, GBuffer};
+use crate::passes::pixel_ray_buffer::PixelRayBuffer;
 use crate::passes::trace::HIT_FORMAT;
 use crate::shaders;
 use ash::vk;
@@ -49,6 +52,7 @@ pub struct ForwardPass {
     layout: vk::PipelineLayout,
     set_layout: vk::DescriptorSetLayout,
     params: Buffer,
+    rays: PixelRayBuffer,
 }
 
 /// Writes the step counts of `params` into `buffer` (host-visible, host-coherent: the
@@ -98,6 +102,10 @@ impl ForwardPass {
             )?,
         );
         write_params(&mut params_buffer, params)?;
+        let rays = Guard::new(
+            ctx,
+            PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
+        );
         let bindings = [
             vk::DescriptorSetLayoutBinding::default()
                 .binding(0)
@@ -106,6 +114,11 @@ impl ForwardPass {
                 .stage_flags(vk::ShaderStageFlags::FRAGMENT),
             vk::DescriptorSetLayoutBinding::default()
                 .binding(1)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(2)
                 .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
                 .descriptor_count(1)
                 .stage_flags(vk::ShaderStageFlags::FRAGMENT),
@@ -167,6 +180,7 @@ impl ForwardPass {
             layout,
             set_layout,
             params: params_buffer.keep(),
+            rays: rays.keep(),
         })
     }
 
@@ -207,6 +221,7 @@ impl ForwardPass {
         hit: &Image,
         height: &HeightTexture,
         params: &GBufferParams,
+        rays: &PixelRayParams,
     ) {
         let extent = target.ray.extent;
         let attachment = |view: vk::ImageView, layout: vk::ImageLayout, clear: [f32; 4]| {
@@ -258,14 +273,22 @@ impl ForwardPass {
             offset: 0,
             range: vk::WHOLE_SIZE,
         }];
+        let ray_info = self.rays.info();
         let writes = [
             image_write(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, &heights),
             vk::WriteDescriptorSet::default()
                 .dst_binding(1)
                 .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
                 .buffer_info(&buffers),
+            vk::WriteDescriptorSet::default()
+                .dst_binding(2)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .buffer_info(&ray_info),
         ];
         let dev = ctx.device();
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the pass (and its buffer) outlives the command buffer.
+        unsafe { self.rays.record_update(ctx, cmd, rays) };
         // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
         // size of attachments `Image::new` created (non-zero, within
         // `maxImageDimension2D`), which the viewport limits cover.
@@ -273,7 +296,7 @@ impl ForwardPass {
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the attachments and the height texture are alive and in the layouts
         // named above (the caller's barriers); the writes match set 0's layout (binding
-        // 0 a combined image sampler, 1 a uniform buffer the pass owns); the push
+        // 0 a combined image sampler, 1 and 2 uniform buffers the pass owns); the push
         // constants are the layout's range; the plane pipeline draws without vertex
         // buffers.
         unsafe {
@@ -312,5 +335,6 @@ impl ForwardPass {
         self.layout = vk::PipelineLayout::null();
         self.set_layout = vk::DescriptorSetLayout::null();
         self.params.destroy(ctx);
+        self.rays.destroy(ctx);
     }
 }

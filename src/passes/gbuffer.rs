@@ -14,16 +14,25 @@
 //! into `[0, 1)` is not a discontinuity, since the addressing repeats the map. Meshes
 //! (`src/mesh.rs`) carry their ids per vertex: the cube's six faces are ids 1 to 6.
 //!
+//! On the plane and the quad the entry (`uv0`, the position `P` and the depth derive from)
+//! is each pixel's own centre ray met with the surface in double-float arithmetic
+//! (`dispmap_plane_pixel_ray` in `glsl/include/dispmap_plane.glsl`), from the frame's
+//! [`PixelRayParams`] in a uniform buffer the plane pipeline owns (set 0, binding 0; the
+//! push constants are full) and writes in each recording; the vertices only decide
+//! coverage, and a fragment whose centre ray misses the surface is discarded. Meshes
+//! interpolate their vertices' attributes.
+//!
 //! `record` expects every attachment in `COLOR_ATTACHMENT_OPTIMAL` /
 //! `DEPTH_ATTACHMENT_OPTIMAL` (contents may be discarded: it clears them) and leaves them
 //! there, written.
 
-use crate::abi::GBufferParams;
+use crate::abi::{GBufferParams, PixelRayParams};
 use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{HostView, Image};
+use crate::passes::pixel_ray_buffer::PixelRayBuffer;
 use crate::shaders;
 use ash::vk;
 
@@ -158,10 +167,13 @@ impl GBuffer {
     }
 }
 
-/// The graphics pipeline of the G-buffer pass.
+/// The graphics pipeline of the G-buffer pass (the plane's also its set layout and the
+/// uniform buffer of the frame's pixel rays).
 pub struct GBufferPass {
     pipeline: vk::Pipeline,
     layout: vk::PipelineLayout,
+    set_layout: vk::DescriptorSetLayout,
+    rays: Option<PixelRayBuffer>,
     mesh: bool,
 }
 
@@ -185,19 +197,59 @@ impl GBufferPass {
 
     fn build(ctx: &Context, mesh: bool) -> Result<Self> {
         let dev = ctx.device();
+        let name = if mesh { "gbuffer_mesh" } else { "gbuffer" };
+        // The plane's set 0: binding 0, the pixel rays (a uniform buffer the pass owns and
+        // writes in each recording); meshes interpolate and bind nothing.
+        let (set_layout, rays) = if mesh {
+            (vk::DescriptorSetLayout::null(), None)
+        } else {
+            let rays = crate::gpu::owned::Guard::new(
+                ctx,
+                PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
+            );
+            let bindings = [vk::DescriptorSetLayoutBinding::default()
+                .binding(0)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+            let set_info = vk::DescriptorSetLayoutCreateInfo::default()
+                .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+                .bindings(&bindings);
+            // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
+            let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
+                .vk("vkCreateDescriptorSetLayout")?;
+            (set_layout, Some(rays.keep()))
+        };
         let ranges = [vk::PushConstantRange::default()
             .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
             .size(std::mem::size_of::<GBufferParams>() as u32)];
-        let layout_info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
+        let set_layouts = [set_layout];
+        let layout_info = vk::PipelineLayoutCreateInfo::default()
+            .set_layouts(&set_layouts[..usize::from(!mesh)])
+            .push_constant_ranges(&ranges);
+        let mut owned = GBufferPass {
+            pipeline: vk::Pipeline::null(),
+            layout: vk::PipelineLayout::null(),
+            set_layout,
+            rays,
+            mesh,
+        };
         // SAFETY: valid device and create info.
-        let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
-            .vk("vkCreatePipelineLayout")?;
+        owned.layout = match unsafe { dev.create_pipeline_layout(&layout_info, None) }
+            .vk("vkCreatePipelineLayout")
+        {
+            Ok(l) => l,
+            Err(e) => {
+                owned.destroy(ctx);
+                return Err(e);
+            }
+        };
+        let layout = owned.layout;
         let (vert, frag) = if mesh {
             (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG)
         } else {
             (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG)
         };
-        let name = if mesh { "gbuffer_mesh" } else { "gbuffer" };
         let bindings = [vk::VertexInputBindingDescription {
             binding: 0,
             stride: std::mem::size_of::<crate::mesh::Vertex>() as u32,
@@ -225,17 +277,16 @@ impl GBufferPass {
         ) {
             Ok(p) => p,
             Err(e) => {
-                // SAFETY: the layout is unused.
-                unsafe { dev.destroy_pipeline_layout(layout, None) };
+                owned.destroy(ctx);
                 return Err(e);
             }
         };
         ctx.set_name(layout, &format!("{name}.layout"));
-        Ok(GBufferPass {
-            pipeline,
-            layout,
-            mesh,
-        })
+        if !mesh {
+            ctx.set_name(set_layout, &format!("{name}.set_layout"));
+        }
+        owned.pipeline = pipeline;
+        Ok(owned)
     }
 
     /// Records the pass: clears the G-buffer and draws the plane (a grid about the eye,
@@ -260,10 +311,11 @@ impl GBufferPass {
         cmd: vk::CommandBuffer,
         target: &GBuffer,
         params: &GBufferParams,
+        rays: &PixelRayParams,
     ) {
         debug_assert!(!self.mesh, "the mesh pipeline draws with record_mesh");
         // SAFETY: this function's # Safety contract is `record_draw`'s without a mesh.
-        unsafe { self.record_draw(ctx, cmd, target, params, None) };
+        unsafe { self.record_draw(ctx, cmd, target, params, None, rays) };
     }
 
     /// Records the pass: clears the G-buffer and draws `mesh` (its buffers must stay
@@ -281,8 +333,18 @@ impl GBufferPass {
         mesh: &crate::mesh::MeshBuffers,
     ) {
         debug_assert!(self.mesh, "the plane pipeline draws with record");
-        // SAFETY: this function's # Safety contract is `record_draw`'s with a mesh.
-        unsafe { self.record_draw(ctx, cmd, target, params, Some(mesh)) };
+        // SAFETY: this function's # Safety contract is `record_draw`'s with a mesh (which
+        // reads no pixel rays).
+        unsafe {
+            self.record_draw(
+                ctx,
+                cmd,
+                target,
+                params,
+                Some(mesh),
+                &PixelRayParams::default(),
+            )
+        };
     }
 
     /// # Safety
@@ -294,6 +356,7 @@ impl GBufferPass {
         target: &GBuffer,
         params: &GBufferParams,
         mesh: Option<&crate::mesh::MeshBuffers>,
+        rays: &PixelRayParams,
     ) {
         let draw = GBufferDraw {
             pass: self,
@@ -301,17 +364,25 @@ impl GBufferPass {
             mesh,
         };
         // SAFETY: this function's # Safety contract is `record_draws`'s for one draw.
-        unsafe { record_draws(ctx, cmd, target, std::slice::from_ref(&draw)) };
+        unsafe { record_draws(ctx, cmd, target, std::slice::from_ref(&draw), rays) };
     }
 
-    /// Destroys the pipeline. The GPU must be done with it.
+    /// Destroys the pipeline, its layouts and the pixel-ray buffer. The GPU must be done
+    /// with them.
     pub fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: caller guarantees no pending use.
+        // SAFETY: caller guarantees no pending use; null handles are ignored.
         unsafe {
             ctx.device().destroy_pipeline(self.pipeline, None);
             ctx.device().destroy_pipeline_layout(self.layout, None);
+            ctx.device()
+                .destroy_descriptor_set_layout(self.set_layout, None);
         }
         self.pipeline = vk::Pipeline::null();
+        self.layout = vk::PipelineLayout::null();
+        self.set_layout = vk::DescriptorSetLayout::null();
+        if let Some(mut rays) = self.rays.take() {
+            rays.destroy(ctx);
+        }
     }
 }
 
@@ -329,6 +400,9 @@ pub struct GBufferDraw<'a> {
 
 /// Records the G-buffer pass of several objects: clears the G-buffer once and draws every
 /// object in order into it (one rendering instance; the depth test keeps the nearest).
+/// `rays` are the frame's pixel rays ([`crate::scene::FrameCamera::pixel_ray_params`]),
+/// which the plane's draws read: written into each plane pipeline's buffer in the
+/// command buffer before the rendering begins.
 ///
 /// # Safety
 /// As [`GBufferPass::record`] for `target`; every draw's pass and mesh buffers stay alive
@@ -339,8 +413,21 @@ pub unsafe fn record_draws(
     cmd: vk::CommandBuffer,
     target: &GBuffer,
     draws: &[GBufferDraw<'_>],
+    rays: &PixelRayParams,
 ) {
     let extent = target.ray.extent;
+    // Each plane pipeline's pixel-ray buffer, once.
+    let mut updated: Vec<*const GBufferPass> = Vec::new();
+    for draw in draws {
+        if let Some(buffer) = &draw.pass.rays
+            && !updated.contains(&std::ptr::from_ref(draw.pass))
+        {
+            updated.push(std::ptr::from_ref(draw.pass));
+            // SAFETY: this function's # Safety contract: `cmd` is recording outside a
+            // render pass; the pass (and its buffer) outlives the command buffer.
+            unsafe { buffer.record_update(ctx, cmd, rays) };
+        }
+    }
     let color_attachments: Vec<_> = target
         .colors()
         .iter()
@@ -380,12 +467,26 @@ pub unsafe fn record_draws(
     // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
     // pass; the attachments are alive and in the layouts documented above (the
     // caller's barriers); a mesh's buffers are alive and match the mesh pipeline's
-    // vertex input (`MeshBuffers` holds `Vertex`es and `u32` indices).
+    // vertex input (`MeshBuffers` holds `Vertex`es and `u32` indices); a plane
+    // pipeline's push descriptor is its set 0 (binding 0, a uniform buffer the pass owns,
+    // written above).
     unsafe {
         dev.cmd_begin_rendering(cmd, &rendering);
         for draw in draws {
             debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
+            if let Some(buffer) = &draw.pass.rays {
+                let info = buffer.info();
+                let writes = [crate::gpu::pipeline::buffer_write(0, &info)
+                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)];
+                ctx.push_descriptor().cmd_push_descriptor_set(
+                    cmd,
+                    vk::PipelineBindPoint::GRAPHICS,
+                    draw.pass.layout,
+                    0,
+                    &writes,
+                );
+            }
             dev.cmd_push_constants(
                 cmd,
                 draw.pass.layout,

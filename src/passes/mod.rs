@@ -20,6 +20,7 @@ pub mod gbuffer;
 pub mod hit_depth;
 pub mod hit_resolve;
 pub mod motion;
+pub mod pixel_ray_buffer;
 pub mod pyramid;
 pub mod shade;
 pub mod shadow;

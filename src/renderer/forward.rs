@@ -209,7 +209,15 @@ impl Renderer {
         // submission below has completed.
         unsafe {
             w.scope(ctx, cmd, PassName::GBuffer, |cmd| {
-                pass.record(ctx, cmd, g, hit, height, &gbuffer_params)
+                pass.record(
+                    ctx,
+                    cmd,
+                    g,
+                    hit,
+                    height,
+                    &gbuffer_params,
+                    &camera.pixel_ray_params(),
+                )
             })
         };
         let mut entry = vec![

@@ -5,7 +5,7 @@
 
 use ash::vk;
 use dispmap::Context;
-use dispmap::abi::GBufferParams;
+use dispmap::abi::{GBufferParams, PixelRayParams};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
 use std::sync::Arc;
@@ -169,6 +169,7 @@ pub unsafe fn record_gbuffer(
     pass: &GBufferPass,
     g: &GBuffer,
     params: &GBufferParams,
+    rays: &PixelRayParams,
 ) {
     // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
     // pass; the G-buffer is alive and its contents may be discarded; its images have
@@ -184,7 +185,7 @@ pub unsafe fn record_gbuffer(
         )
     };
     // SAFETY: as above; the G-buffer is in the attachment layouts (the barriers above).
-    unsafe { pass.record(ctx, cmd, g, params) };
+    unsafe { pass.record(ctx, cmd, g, params, rays) };
     // SAFETY: as above; the G-buffer was written in the attachment layouts.
     unsafe {
         sync::record(

@@ -9,7 +9,7 @@
 
 use ash::vk;
 use dispmap::Context;
-use dispmap::abi::GBufferParams;
+use dispmap::abi::{GBufferParams, PixelRayParams};
 use dispmap::embed::{
     DEPTH_FORMAT, DisplacementPass, FRAME_FORMAT, FrameInputs, HIT_FORMAT, RAY_FORMAT, Timestamps,
 };
@@ -185,7 +185,7 @@ impl RayHost {
 
     /// Rasterises the G-buffer with dispmap's `GBufferPass` and `params`. Needs no frame
     /// in flight.
-    pub fn rasterise(&mut self, params: &GBufferParams) {
+    pub fn rasterise(&mut self, params: &GBufferParams, rays: &PixelRayParams) {
         self.wait_all();
         let c = &*self.ctx;
         if self.gbuffer_pass.is_none() {
@@ -196,7 +196,7 @@ impl RayHost {
         // SAFETY: `cmd` was begun by `shot.begin` above and is submitted and waited for
         // below, while the G-buffer and the pass live; no frame is in flight
         // (`wait_all` above), so the G-buffer may be discarded.
-        unsafe { record_gbuffer(c, cmd, pass, &self.gbuffer, params) };
+        unsafe { record_gbuffer(c, cmd, pass, &self.gbuffer, params, rays) };
         self.shot.submit_and_wait(c).unwrap();
     }
 

@@ -1162,8 +1162,10 @@ impl Viewer {
             );
             return Ok(());
         }
-        // The rays and hits of the last rendered frame (the current inputs).
-        let rays = self.left.read_rays()?;
+        // The rays and hits of the last rendered frame (the current inputs); the
+        // reference traces each pixel's own f64 centre ray on the plane and the quad
+        // (`Renderer::reference_rays`), so entry errors show too.
+        let rays = self.left.reference_rays()?.rays;
         let mut sides = vec![(
             self.left.settings().method.name().to_owned(),
             self.left.read_hits()?,

@@ -17,7 +17,7 @@
 //!
 //! Built and run by `scripts/downstream-check.sh`.
 
-use dispmap::abi::GBufferParams;
+use dispmap::abi::{GBufferParams, PixelRayParams};
 use dispmap::ash::vk;
 use dispmap::embed::{
     DEPTH_FORMAT, DepthCamera, DisplacementPass, FRAME_FORMAT, FrameInputs, FrameMotion,
@@ -30,6 +30,7 @@ use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::Texels;
 use dispmap::passes::depth_resolve::DepthResolvePass;
 use dispmap::passes::gbuffer::GBuffer;
+use dispmap::passes::pixel_ray_buffer::PixelRayBuffer;
 use dispmap::shaders::Shader;
 use dispmap::{
     Context, ContextOptions, HeightField, Method, MethodParams, RenderSettings, Renderer, Scene,
@@ -62,7 +63,10 @@ struct Host {
     ctx: Arc<Context>,
     extent: vk::Extent2D,
     layout: vk::PipelineLayout,
+    set_layout: vk::DescriptorSetLayout,
     pipeline: vk::Pipeline,
+    /// The floor's pixel rays (dispmap's buffer, written in the command buffer).
+    rays: PixelRayBuffer,
     gbuffer: GBuffer,
     hit: Image,
     motion: Image,
@@ -99,13 +103,33 @@ impl Host {
         let ranges = [vk::PushConstantRange::default()
             .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
             .size(size_of::<GBufferParams>() as u32)];
-        // SAFETY: a valid device and create info.
-        let layout = unsafe {
-            dev.create_pipeline_layout(
-                &vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges),
+        // Set 0, binding 0: the pixel rays of the frame (a push descriptor).
+        let bindings = [vk::DescriptorSetLayoutBinding::default()
+            .binding(0)
+            .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+            .descriptor_count(1)
+            .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+        // SAFETY: a valid device and create info; dispmap's context enables
+        // VK_KHR_push_descriptor.
+        let set_layout = unsafe {
+            dev.create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default()
+                    .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+                    .bindings(&bindings),
                 None,
             )
         }?;
+        let set_layouts = [set_layout];
+        // SAFETY: a valid device and create info.
+        let layout = unsafe {
+            dev.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default()
+                    .set_layouts(&set_layouts)
+                    .push_constant_ranges(&ranges),
+                None,
+            )
+        }?;
+        let rays = PixelRayBuffer::new(&ctx, "downstream.pixel_rays")?;
         let pipeline = raster_pipeline(
             &ctx,
             &RasterDesc {
@@ -163,7 +187,9 @@ impl Host {
             ctx,
             extent,
             layout,
+            set_layout,
             pipeline,
+            rays,
             gbuffer,
             hit,
             motion,
@@ -183,12 +209,16 @@ impl Host {
         &mut self,
         cmd: vk::CommandBuffer,
         params: &GBufferParams,
+        rays: &PixelRayParams,
         camera: DepthCamera,
         previous: DepthCamera,
     ) -> Result<()> {
         let ctx = &*self.ctx;
         let dev = ctx.device();
         let g = &self.gbuffer;
+        // SAFETY: `cmd` is recording outside a render pass; the buffer lives as long as
+        // the host.
+        unsafe { self.rays.record_update(ctx, cmd, rays) };
         // SAFETY: `cmd` is recording outside a render pass; nothing else uses the images
         // (no frame in flight), so their contents may be discarded.
         unsafe {
@@ -232,13 +262,26 @@ impl Host {
             .layer_count(1)
             .color_attachments(&colors)
             .depth_attachment(&depth);
+        let ray_info = self.rays.info();
+        let writes = [vk::WriteDescriptorSet::default()
+            .dst_binding(0)
+            .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+            .buffer_info(&ray_info)];
         // SAFETY: `cmd` is recording; the attachments are in the layouts the barriers
         // above made; the pipeline's layout takes these push constants (GBufferParams is
-        // the shaders' block) and it draws from gl_VertexIndex alone.
+        // the shaders' block) and this push descriptor (set 0: the pixel rays' uniform
+        // buffer, alive) and it draws from gl_VertexIndex alone.
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             set_frame_viewport(ctx, cmd, self.extent);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+            ctx.push_descriptor().cmd_push_descriptor_set(
+                cmd,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.layout,
+                0,
+                &writes,
+            );
             dev.cmd_push_constants(
                 cmd,
                 self.layout,
@@ -354,13 +397,14 @@ impl Host {
     fn render(
         &mut self,
         params: &GBufferParams,
+        rays: &PixelRayParams,
         camera: DepthCamera,
         previous: DepthCamera,
     ) -> Result<Frame> {
         let cmd = self.shot.begin(&self.ctx)?;
         // SAFETY: the host's command buffer, just begun; `submit_and_wait` waited for
         // the previous frame.
-        unsafe { self.record_frame(cmd, params, camera, previous) }?;
+        unsafe { self.record_frame(cmd, params, rays, camera, previous) }?;
         self.shot.submit_and_wait(&self.ctx)?;
         let (ctx, shot) = (&self.ctx, &self.shot);
         // The pass leaves the hit buffer and the motion in GENERAL after its storage
@@ -408,7 +452,11 @@ impl Host {
             self.resolve.destroy(&self.ctx);
             self.ctx.device().destroy_pipeline(self.pipeline, None);
             self.ctx.device().destroy_pipeline_layout(self.layout, None);
+            self.ctx
+                .device()
+                .destroy_descriptor_set_layout(self.set_layout, None);
         }
+        self.rays.destroy(&self.ctx);
         self.gbuffer.destroy(&self.ctx);
         self.hit.destroy(&self.ctx);
         self.motion.destroy(&self.ctx);
@@ -462,15 +510,21 @@ fn main() -> Result<()> {
     };
     let (first, second) = (depth_camera(&scene), depth_camera(&turned));
     let mut host = Host::new(ctx.clone(), &field, &scene)?;
+    let (first_frame, second_frame) = (
+        scene.frame_camera(SIDE, SIDE),
+        turned.frame_camera(SIDE, SIDE),
+    );
     let rendered = host
         .render(
-            &scene.gbuffer_params(&scene.frame_camera(SIDE, SIDE)),
+            &scene.gbuffer_params(&first_frame),
+            &first_frame.pixel_ray_params(),
             first,
             first,
         )
         .and_then(|_| {
             host.render(
-                &turned.gbuffer_params(&turned.frame_camera(SIDE, SIDE)),
+                &turned.gbuffer_params(&second_frame),
+                &second_frame.pixel_ray_params(),
                 second,
                 first,
             )
