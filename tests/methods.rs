@@ -61,6 +61,18 @@ const TANGENCY: f64 = 1e-6;
 /// checks, kept with the eighth checks); without them, up to 3.1e-3.
 const PYRAMID_SKIM: f64 = 1.8e-3;
 
+/// Artifacts an exact method may have in a frame, each a tangency `unexplained`
+/// recognises (the issue's 0 apart from tangencies that f32 cannot decide). With each
+/// pixel's own f64 centre ray as the reference's ray, mountains at 1 degree has one: the
+/// f64 ray clears a ridge by 4.6e-6 of the depth, the ray as the G-buffer stores it (f32)
+/// touches it, and exact (and cone-exact, dig-guarded) report the touch.
+const MAX_TANGENCY_PIXELS: u64 = 1;
+
+/// A run's artifact pixels.
+fn artifact_pixels(run: &Run) -> u64 {
+    (run.error.artifact_fraction * run.error.compared_pixels as f64).round() as u64
+}
+
 /// The tolerance `unexplained` applies to `method`'s hits.
 fn skim_tolerance(method: Method) -> Option<f64> {
     match method {
@@ -162,9 +174,6 @@ const METHODS: [(Method, u32); 10] = [
 /// Bounds each test holds. Where the issue's target is not reached the bound is the
 /// measured value (rounded up) and docs/methods.md says so; see `check`.
 struct Bounds {
-    /// `exact`: artifact fraction (issue: 0; a float-precision tangency, which
-    /// `unexplained` recognises, would be the only allowed exception).
-    exact: f64,
     /// `pyramid`: artifact fraction (issue: 0.001).
     pyramid: f64,
     /// `dig` minus `relief` at 150 steps, artifact fraction (issue: 0.002).
@@ -193,17 +202,21 @@ fn check(runs: &[Run], bounds: &Bounds) {
             let run = find(runs, method, elevation);
             assert_eq!(run.unexplained, Some(0), "{method} at {elevation}");
         }
+        // Every artifact of the exact family is a tangency (unexplained == 0 above):
+        // at most one a frame.
         assert!(
-            exact.error.artifact_fraction <= bounds.exact,
-            "exact at {elevation}: {}",
-            exact.error.artifact_fraction
+            artifact_pixels(exact) <= MAX_TANGENCY_PIXELS,
+            "exact at {elevation}: {} artifact pixels",
+            artifact_pixels(exact)
         );
         assert!(exact.error.p99_texels <= 0.05, "exact p99 at {elevation}");
-        // The exact cone method meets exact's bar: no artifact, p99 <= 0.05 texel.
+        // The exact cone method meets exact's bar: no artifact but a tangency, p99 <=
+        // 0.05 texel.
         let cone_exact = find(runs, Method::ConeExact, elevation);
-        assert_eq!(
-            cone_exact.error.artifact_fraction, 0.0,
-            "cone-exact at {elevation}"
+        assert!(
+            artifact_pixels(cone_exact) <= MAX_TANGENCY_PIXELS,
+            "cone-exact at {elevation}: {} artifact pixels",
+            artifact_pixels(cone_exact)
         );
         assert!(
             cone_exact.error.p99_texels <= 0.05,
@@ -251,7 +264,6 @@ fn rocks() {
     check(
         &runs,
         &Bounds {
-            exact: 0.0,
             pyramid: 0.001,
             dig_minus_relief: 0.03,
         },
@@ -265,9 +277,6 @@ fn bricks() {
     check(
         &runs,
         &Bounds {
-            // The issue's 0: the one tangency pixel at 5 deg (a ray 1.1e-7 above a ridge)
-            // went away with the eye-relative plane grid's rays.
-            exact: 0.0,
             // The issue's 0.001 (measured 0.022%, 0.081% and 0.016% at 30, 5 and 1 deg).
             pyramid: 0.001,
             dig_minus_relief: 0.015,
@@ -282,7 +291,6 @@ fn mountains() {
     check(
         &runs,
         &Bounds {
-            exact: 0.0,
             // The issue's 0.001 (measured 0.027%, 0.045% and 0.068% at 30, 5 and 1 deg).
             pyramid: 0.001,
             dig_minus_relief: 0.015,

@@ -93,48 +93,78 @@ pub fn unexplained(
     let mut count = 0;
     for ((hit, exact), ray) in hits.iter().zip(exact).zip(rays) {
         let Some(ray) = ray else { continue };
-        let explained = match (hit[2] >= 0.0, exact) {
-            (false, None) => true,
-            (true, Some(exact)) => {
-                if hit_distance_texels(hit, exact, geometry) <= 1.0 {
-                    true
-                } else {
-                    let (t_gpu, t_ref) = (1.0 - f64::from(hit[2]), 1.0 - exact.height);
-                    let (a, b) = (t_gpu.min(t_ref), t_gpu.max(t_ref));
-                    // One ulp of a height in [0.5, 1): 2^-24.
-                    let ulp = f64::from(f32::EPSILON) / 2.0;
-                    // The hit's own point along the ray, from its uv (the exact family
-                    // places it from t, not from the rounded height): the touch is
-                    // looked for there too.
-                    let axis = usize::from(ray.parallax[1].abs() > ray.parallax[0].abs());
-                    let t_uv = (f64::from(hit[axis]) - ray.uv0[axis]) / ray.parallax[axis];
-                    let t_uv = if t_uv.is_finite() {
-                        t_uv.clamp(0.0, 1.0)
-                    } else {
-                        t_gpu
-                    };
-                    // Two ulps of the stored uv, in t: where along the ray the hit can be.
-                    let uv_ulp = f64::from(hit[axis]).abs().max(1.0) * f64::from(f32::EPSILON);
-                    let dt = 2.0 * uv_ulp / ray.parallax[axis].abs();
-                    let near_uv = (-64..=64).map(|k| t_uv + dt * f64::from(k) / 64.0);
-                    let touch = (-2..=2)
-                        .map(|k| a + f64::from(k) * ulp)
-                        .chain(near_uv)
-                        .map(|t| reference.penetration(ray, t.clamp(0.0, 1.0)))
-                        .fold(f64::NEG_INFINITY, f64::max)
-                        >= -tolerance;
-                    let (a, b) = (a.min(t_uv), b.max(t_uv));
-                    let shallow = (0..=1000)
-                        .map(|k| reference.penetration(ray, a + (b - a) * f64::from(k) / 1000.0))
-                        .all(|p| p <= tolerance);
-                    touch && shallow
-                }
-            }
-            _ => false,
+        // On the ray itself, or on the ray as the G-buffer stores it (uv0 and P rounded to
+        // f32, `R32G32B32A32_SFLOAT`): the reference traces each pixel's f64 centre ray,
+        // and a ray that skims a steep ridge can touch it or clear it depending on that
+        // rounding alone (mountains at 1 degree: the f64 ray clears a ridge by 4.6e-6 of
+        // the depth, its f32 rounding touches it), which f32 cannot decide.
+        let stored = Ray {
+            uv0: ray.uv0.map(|x| f64::from(x as f32)),
+            parallax: ray.parallax.map(|x| f64::from(x as f32)),
         };
+        let explained = explained_pixel(reference, ray, exact.as_ref(), hit, geometry, tolerance)
+            || explained_pixel(
+                reference,
+                &stored,
+                reference.intersect(&stored).as_ref(),
+                hit,
+                geometry,
+                tolerance,
+            );
         if !explained {
             count += 1;
         }
     }
     count
+}
+
+/// Whether `hit` agrees with `exact`, the exact hit of `ray`, or the two are a skim of
+/// depth `tolerance` along `ray` (see [`unexplained`]).
+fn explained_pixel(
+    reference: &Reference,
+    ray: &Ray,
+    exact: Option<&Hit>,
+    hit: &[f32; 4],
+    geometry: MapGeometry,
+    tolerance: f64,
+) -> bool {
+    match (hit[2] >= 0.0, exact) {
+        (false, None) => true,
+        (true, Some(exact)) => {
+            if hit_distance_texels(hit, exact, geometry) <= 1.0 {
+                true
+            } else {
+                let (t_gpu, t_ref) = (1.0 - f64::from(hit[2]), 1.0 - exact.height);
+                let (a, b) = (t_gpu.min(t_ref), t_gpu.max(t_ref));
+                // One ulp of a height in [0.5, 1): 2^-24.
+                let ulp = f64::from(f32::EPSILON) / 2.0;
+                // The hit's own point along the ray, from its uv (the exact family
+                // places it from t, not from the rounded height): the touch is
+                // looked for there too.
+                let axis = usize::from(ray.parallax[1].abs() > ray.parallax[0].abs());
+                let t_uv = (f64::from(hit[axis]) - ray.uv0[axis]) / ray.parallax[axis];
+                let t_uv = if t_uv.is_finite() {
+                    t_uv.clamp(0.0, 1.0)
+                } else {
+                    t_gpu
+                };
+                // Two ulps of the stored uv, in t: where along the ray the hit can be.
+                let uv_ulp = f64::from(hit[axis]).abs().max(1.0) * f64::from(f32::EPSILON);
+                let dt = 2.0 * uv_ulp / ray.parallax[axis].abs();
+                let near_uv = (-64..=64).map(|k| t_uv + dt * f64::from(k) / 64.0);
+                let touch = (-2..=2)
+                    .map(|k| a + f64::from(k) * ulp)
+                    .chain(near_uv)
+                    .map(|t| reference.penetration(ray, t.clamp(0.0, 1.0)))
+                    .fold(f64::NEG_INFINITY, f64::max)
+                    >= -tolerance;
+                let (a, b) = (a.min(t_uv), b.max(t_uv));
+                let shallow = (0..=1000)
+                    .map(|k| reference.penetration(ray, a + (b - a) * f64::from(k) / 1000.0))
+                    .all(|p| p <= tolerance);
+                touch && shallow
+            }
+        }
+        _ => false,
+    }
 }
