@@ -199,7 +199,9 @@ impl ForwardPass {
     /// Records the pass: clears the hit, normal, tangent and depth attachments and draws
     /// the plane or the quad of `params` (the G-buffer pass's draw,
     /// [`crate::passes::gbuffer::GBufferPass::record`]) with the marcher in the fragment
-    /// shader.
+    /// shader; `rays` are the frame's pixel rays
+    /// ([`crate::scene::FrameCamera::pixel_ray_params`]), written into the pass's buffer in
+    /// the command buffer.
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
@@ -220,8 +222,7 @@ impl ForwardPass {
         target: &GBuffer,
         hit: &Image,
         height: &HeightTexture,
-        params: &GBufferParams,
-        rays: &PixelRayParams,
+        (params, rays): (&GBufferParams, &PixelRayParams),
     ) {
         let extent = target.ray.extent;
         let attachment = |view: vk::ImageView, layout: vk::ImageLayout, clear: [f32; 4]| {

@@ -215,8 +215,7 @@ impl Renderer {
                     g,
                     hit,
                     height,
-                    &gbuffer_params,
-                    &camera.pixel_ray_params(),
+                    (&gbuffer_params, &camera.pixel_ray_params()),
                 )
             })
         };
