@@ -267,20 +267,17 @@ fn cases() -> Vec<Case> {
         row("4096x4096 (8-bit, the memory budget)", |_| bumps8(4096, 4096), oblique(), DEPTH, E::None),
         row("maxImageDimension2D x 1",         |max| bumps(max, 1), oblique(),         DEPTH, E::None),
         row("1 x maxImageDimension2D",         |max| bumps(1, max), oblique(),         DEPTH, E::None),
-        // Coordinates: the surface 1e4 tiles from the origin, two ways. uv0: measured
-        // 1.6e-3 tiles, under two ulps (2^-10) of a world coordinate at 1e4: the plane's
-        // grid has vertices next to the eye, whose clip positions the f32 world-space
-        // view-projection at 1e4 rounds by that much (4.2e-7 tiles when the plane was two
-        // triangles with integer corners 4096 tiles away, which gave gaps and depth off
-        // by 1e-3 on close-ups: tests/gbuffer_plane.rs). P: measured 3.8e-3 relative
-        // (2.5e-3 with the two triangles, 8.9e-3 before the G-buffer
-        // interpolated eye-relative positions), the f32 world-space projection at 1e4
-        // moving each pixel's sample point: 4e-4 tiles at full depth, under half a texel
-        // of a 1024 map. A host whose interpolated UVs are 1e4 tiles from the origin
-        // loses what the f32 interpolant lost before the reduction to [0, 1): up to four
-        // ulps of 2^-10 tiles.
-        row("camera 1e4 tiles from the origin", rocks,    Rays::Camera(far_camera),    DEPTH, E::TileLocal { uv_tolerance: 1e-6, p_tolerance: 5e-3 }),
-        row("host UVs offset by 1e4 tiles",    rocks,     Rays::Camera(offset_uvs),    DEPTH, E::TileLocal { uv_tolerance: 4.0 / 1024.0, p_tolerance: 0.0 }),
+        // Coordinates: the surface 1e4 tiles from the origin, two ways. Since the
+        // G-buffer takes each pixel's entry from its own centre ray in double-float,
+        // relative to the eye (dispmap_plane_pixel_ray, issue 24), neither moves the
+        // rays beyond the f32 rounding of uv0 in [0, 1): measured 3.0e-8 tiles (camera)
+        // and 6.0e-8 (UVs), P identical. Before, with the interpolated entry: uv0 1.6e-3
+        // tiles and P 3.8e-3 relative (the f32 world-space projection at 1e4 moving each
+        // pixel's sample point), and a host whose interpolated UVs are 1e4 tiles from the
+        // origin lost up to four ulps of 2^-10 tiles before the reduction to [0, 1) (it
+        // still does if it interpolates: glsl/include/dispmap_gbuffer.glsl).
+        row("camera 1e4 tiles from the origin", rocks,    Rays::Camera(far_camera),    DEPTH, E::TileLocal { uv_tolerance: 2e-7, p_tolerance: 1e-6 }),
+        row("host UVs offset by 1e4 tiles",    rocks,     Rays::Camera(offset_uvs),    DEPTH, E::TileLocal { uv_tolerance: 2e-7, p_tolerance: 0.0 }),
         row("|P| = 115 tiles (0.05 deg)",      rocks,     ortho(view(0.05, 30.0, d)),  DEPTH, E::None),
         row("|P| = 1000 tiles (the clamp)",    rocks,     ortho(view(clamp_elevation, 30.0, d)), DEPTH, E::None),
         row("depth scale 0",                   rocks,     ortho([0.0, 0.0]),           0.0,   E::EqualsBump),
