@@ -160,8 +160,10 @@ pub struct Renderer {
     builds: Vec<(PassName, f64)>,
     /// The forward path ([`Renderer::enable_forward`]), once enabled.
     forward: Option<forward::Forward>,
-    /// Whether the last frame wrote the G-buffer's rays (a forward frame does not).
-    rays_written: bool,
+    /// The scene and camera of the last frame, when it wrote the G-buffer's rays (a
+    /// forward frame does not): what [`Renderer::reference_rays`] forms the centre rays
+    /// of, even after a later `set_scene`.
+    rays_frame: Option<(Scene, crate::scene::FrameCamera)>,
 }
 
 /// The displaced material of one object of [`Renderer::with_objects`].
@@ -654,7 +656,7 @@ impl Renderer {
         old.destroy(c);
         self.settings = settings;
         self.depth_written = false;
-        self.rays_written = false;
+        self.rays_frame = None;
         Ok(())
     }
 
@@ -873,7 +875,7 @@ impl Renderer {
         if let Some(m) = &mut self.motion {
             m.previous = Some(current);
         }
-        self.rays_written = true;
+        self.rays_frame = Some((self.settings.scene, camera));
         self.frame_times(&w, &frame)
     }
 
@@ -1112,7 +1114,7 @@ impl Renderer {
     /// geometry). An error after a forward frame ([`Renderer::render_forward`] writes no
     /// rays) or before the first frame.
     pub fn read_rays(&self) -> Result<Vec<Option<Ray>>> {
-        if !self.rays_written {
+        if self.rays_frame.is_none() {
             return Err(Error::invalid(
                 "rays",
                 "the last frame wrote no rays (none rendered yet, or a forward frame): \
@@ -1147,11 +1149,9 @@ impl Renderer {
     /// listed: see [`ReferenceRays`].
     pub fn reference_rays(&self) -> Result<ReferenceRays> {
         let drawn = self.read_rays()?;
-        let analytic = if self.objects.is_none() && self.mesh.is_none() {
-            let (camera, _) = self.frame_target();
-            self.settings.scene.analytic_rays(&camera)
-        } else {
-            None
+        let analytic = match (&self.rays_frame, &self.objects, &self.mesh) {
+            (Some((scene, camera)), None, None) => scene.analytic_rays(camera),
+            _ => None,
         };
         let Some(rays) = analytic else {
             return Ok(ReferenceRays {
@@ -1404,7 +1404,7 @@ impl<'c> HostParts<'c> {
             motion: None,
             builds: Vec::new(),
             forward: None,
-            rays_written: false,
+            rays_frame: None,
         }
     }
 }

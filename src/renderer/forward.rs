@@ -281,7 +281,7 @@ impl Renderer {
         if let Some(f) = self.forward.as_mut() {
             f.height_visible = true;
         }
-        self.rays_written = false;
+        self.rays_frame = None;
         self.frame_times(&w, &frame)
     }
 }
