@@ -372,6 +372,28 @@ bool leave_node(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_ex
     return false;
 }
 
+// The level after a skip of a level-`was` node from `from` into `cell`, where
+// leave_node climbed to `level` (was + 1, or the top): the climb stands only when the node entered is the first
+// of its parent along every axis the ray crossed (in the direction of travel). Otherwise
+// that parent also holds the node just skipped and the part of the map beside it, so its
+// bound is at least as high as the two together and the step that tests it mostly fails
+// and descends again: one wasted step per skip, which staying at the skipped level saves.
+// The rule is B's of the step study in docs/methods.md ("the side doubles only where the
+// ray's offset is a multiple of the doubled side"), for the pyramid's aligned nodes. A
+// heuristic (any level is correct): the parity of the node in unbounded cell coordinates
+// is its parity in the tile for power-of-two maps, and off by one across the tile seam
+// of others.
+int climb(int was, int level, ivec2 from, ivec2 cell, vec2 dir) {
+    bool first = true;
+    for (int a = 0; a < 2; ++a) {
+        if (cell[a] != from[a]) {
+            int odd = (cell[a] >> was) & 1;
+            first = first && (dir[a] > 0.0 ? odd == 0 : odd == 1);
+        }
+    }
+    return first ? level : was;
+}
+
 // The finest level whose nodes are at least `cells` cells wide (a restart level).
 int level_for_span(float cells) {
     int top = int(pc.pyramid_levels) - 1;
@@ -457,9 +479,12 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
             if (1.0 - t_exit > node_max + SKIP_MARGIN) {
                 // The ray stays above everything in the node: skip it.
                 float result;
+                ivec2 from = cell;
+                int was = level;
                 if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, long_ray, cell, t, t_lo, level, result)) {
                     return result;
                 }
+                level = climb(was, level, from, cell, dir);
             } else if (level > 0) {
                 level -= 1;
             } else {
@@ -475,9 +500,12 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
             return th;
         }
         float result;
+        ivec2 from = cell;
+        int was = level;
         if (leave_node(exit, lo, hi, origin, dir, t_exit, t_end, top, long_ray, cell, t, t_lo, level, result)) {
             return result;
         }
+        level = climb(was, level, from, cell, dir);
         step += 1.0;
     }
     return -1.0;
