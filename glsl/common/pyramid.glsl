@@ -1,7 +1,10 @@
 // Traversal of the cell-max pyramid (PYRAMID_KIND_CELL, glsl/pyramid.comp) with the
 // exact ray / bilinear-patch intersection in the leaf: the GPU twin of the CPU reference
 // (cli/src/reference.rs, whose module docs explain the algorithm), in f32. Used by `exact`
-// and by `dig-guarded`'s guard. Include after trace.glsl (which brings texels.glsl).
+// and by `dig-guarded`'s guard. Include after trace.glsl (which brings texels.glsl). It
+// picks its levels differently from the reference (a start level of at most
+// START_LEVEL_CAP, and a climb after a skip only where `climb` allows it): fewer steps,
+// the same cells tested, the same first hit.
 //
 // Texel space: x = u W - 0.5, y = v H - 0.5; texel (i, j) at the integer point (i, j);
 // cell (i, j) = [i, i + 1] x [j, j + 1], its bound = pyramid level 0 at (i, j) (wrapped
@@ -372,16 +375,18 @@ bool leave_node(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_ex
     return false;
 }
 
-// The level after a skip of a level-`was` node from `from` into `cell`, where
-// leave_node climbed to `level` (was + 1, or the top): the climb stands only when the node entered is the first
-// of its parent along every axis the ray crossed (in the direction of travel). Otherwise
-// that parent also holds the node just skipped and the part of the map beside it, so its
-// bound is at least as high as the two together and the step that tests it mostly fails
-// and descends again: one wasted step per skip, which staying at the skipped level saves.
-// The rule is B's of the step study in docs/methods.md ("the side doubles only where the
-// ray's offset is a multiple of the doubled side"), for the pyramid's aligned nodes. A
+// The level after a skip of a level-`was` node from `from` into `cell`, where leave_node
+// climbed to `level` (was + 1, or the top): the climb stands only when the node entered
+// is the first of its parent along every axis the ray crossed (in the direction of
+// travel). Otherwise that parent also holds the node just skipped and the part of the
+// map beside it, so its bound is at least as high as the two together and the step that
+// tests it mostly fails and descends again: one wasted step per skip, which staying at
+// the skipped level saves.
+// The doubling rule of rectangle-maximum traversals (a segment's side doubles only where
+// the ray's offset is a multiple of the doubled side) for the pyramid's aligned nodes:
+// 0.74-0.77x the steps on the bundled maps (docs/methods.md, "Traversal steps"). A
 // heuristic (any level is correct): the parity of the node in unbounded cell coordinates
-// is its parity in the tile for power-of-two maps, and off by one across the tile seam
+// is its parity in the tile for power-of-two maps, and may be off across the tile seam
 // of others.
 int climb(int was, int level, ivec2 from, ivec2 cell, vec2 dir) {
     bool first = true;
@@ -393,6 +398,14 @@ int climb(int was, int level, ivec2 from, ivec2 cell, vec2 dir) {
     }
     return first ? level : was;
 }
+
+// The highest level a traversal starts at. The ray starts at the map's highest point,
+// so the nodes that span its whole travel (levels 9-10 of a 1024 map) hold that point,
+// the ray fails them and descends one level per step; from nodes of 32 cells a ray in
+// open space climbs back in one or two steps per level (climb). Measured on the bundled
+// maps (SIMD-8 steps, against no cap): 3: 1.04 / 0.84 / 1.11x (rocks / bricks /
+// mountains), 4: 0.98 / 0.85 / 1.05x, 5: 0.95 / 0.87 / 1.01x, 7: 0.95 / 0.94 / 0.98x.
+const int START_LEVEL_CAP = 5;
 
 // The finest level whose nodes are at least `cells` cells wide (a restart level).
 int level_for_span(float cells) {
@@ -441,9 +454,9 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
     // No higher than the finest level whose nodes span the ray's remaining travel: a
     // node wider than that is entered only to descend (every level bounds its cells, so
     // any start level finds the same first hit; the steps from the root down to here
-    // were 3 to 12 of every pixel's).
+    // were 3 to 12 of every pixel's). Nor above START_LEVEL_CAP.
     float travel = max(abs(dir.x), abs(dir.y)) * (t_end - t);
-    int level = min(clamp(start_level, 0, top), level_for_span(travel));
+    int level = min(min(clamp(start_level, 0, top), level_for_span(travel)), START_LEVEL_CAP);
     // Each skip moves a cell index by >= 1 along the ray and follows at most `top`
     // descents: the cap is only reached through a bug (then: no hit), or at
     // TRAVERSAL_CAP (frame.glsl), within the loop budget of a lavapipe invocation.
