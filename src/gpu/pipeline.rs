@@ -405,6 +405,37 @@ pub fn frame_area(extent: vk::Extent2D) -> vk::Rect2D {
     }
 }
 
+/// A colour attachment cleared to `clear` and stored, in `layout`.
+pub fn cleared_color_attachment(
+    view: vk::ImageView,
+    layout: vk::ImageLayout,
+    clear: [f32; 4],
+) -> vk::RenderingAttachmentInfo<'static> {
+    vk::RenderingAttachmentInfo::default()
+        .image_view(view)
+        .image_layout(layout)
+        .load_op(vk::AttachmentLoadOp::CLEAR)
+        .store_op(vk::AttachmentStoreOp::STORE)
+        .clear_value(vk::ClearValue {
+            color: vk::ClearColorValue { float32: clear },
+        })
+}
+
+/// The G-buffer's reverse-Z depth attachment, cleared to 0 (no geometry) and stored.
+pub fn cleared_depth_attachment(view: vk::ImageView) -> vk::RenderingAttachmentInfo<'static> {
+    vk::RenderingAttachmentInfo::default()
+        .image_view(view)
+        .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+        .load_op(vk::AttachmentLoadOp::CLEAR)
+        .store_op(vk::AttachmentStoreOp::STORE)
+        .clear_value(vk::ClearValue {
+            depth_stencil: vk::ClearDepthStencilValue {
+                depth: 0.0,
+                stencil: 0,
+            },
+        })
+}
+
 /// Records the dynamic viewport (depth 0..1) and scissor covering all of `extent`: the
 /// state every raster pipeline of [`raster_pipeline`] leaves dynamic.
 ///

@@ -1,4 +1,4 @@
-//! Image barriers (synchronization2).
+//! Image and memory barriers (synchronization2).
 
 use super::Image;
 use crate::context::Context;
@@ -68,6 +68,13 @@ impl Access {
         ),
         layout: vk::ImageLayout::GENERAL,
     };
+    /// Read as a uniform buffer by fragment shaders (the G-buffer's pixel-ray
+    /// parameters; the layout is meaningless for a buffer).
+    pub const FRAGMENT_UNIFORM_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
+        access: vk::AccessFlags2::UNIFORM_READ,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
     /// Source of a copy or blit.
     pub const TRANSFER_READ: Access = Access {
         stage: vk::PipelineStageFlags2::ALL_TRANSFER,
@@ -100,6 +107,16 @@ pub fn image_barrier(
         .new_layout(after.layout)
         .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+}
+
+/// A global memory barrier from `before` to `after` (their layouts are ignored): for
+/// buffers, whose every access it orders.
+pub fn memory_barrier(before: Access, after: Access) -> vk::MemoryBarrier2<'static> {
+    vk::MemoryBarrier2::default()
+        .src_stage_mask(before.stage)
+        .src_access_mask(before.access)
+        .dst_stage_mask(after.stage)
+        .dst_access_mask(after.access)
 }
 
 /// Records `barriers` in one `vkCmdPipelineBarrier2` (nothing when `barriers` is

@@ -225,16 +225,7 @@ impl ForwardPass {
         (params, rays): (&GBufferParams, &PixelRayParams),
     ) {
         let extent = target.ray.extent;
-        let attachment = |view: vk::ImageView, layout: vk::ImageLayout, clear: [f32; 4]| {
-            vk::RenderingAttachmentInfo::default()
-                .image_view(view)
-                .image_layout(layout)
-                .load_op(vk::AttachmentLoadOp::CLEAR)
-                .store_op(vk::AttachmentStoreOp::STORE)
-                .clear_value(vk::ClearValue {
-                    color: vk::ClearColorValue { float32: clear },
-                })
-        };
+        let attachment = crate::gpu::pipeline::cleared_color_attachment;
         let colors = [
             attachment(
                 hit.view,
@@ -252,17 +243,7 @@ impl ForwardPass {
                 [0.0; 4],
             ),
         ];
-        let depth = vk::RenderingAttachmentInfo::default()
-            .image_view(target.depth.view)
-            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
-            .load_op(vk::AttachmentLoadOp::CLEAR)
-            .store_op(vk::AttachmentStoreOp::STORE)
-            .clear_value(vk::ClearValue {
-                depth_stencil: vk::ClearDepthStencilValue {
-                    depth: 0.0,
-                    stencil: 0,
-                },
-            });
+        let depth = crate::gpu::pipeline::cleared_depth_attachment(target.depth.view);
         let rendering = vk::RenderingInfo::default()
             .render_area(crate::gpu::pipeline::frame_area(extent))
             .layer_count(1)

@@ -432,27 +432,14 @@ pub unsafe fn record_draws(
         .colors()
         .iter()
         .map(|image| {
-            vk::RenderingAttachmentInfo::default()
-                .image_view(image.view)
-                .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-                .load_op(vk::AttachmentLoadOp::CLEAR)
-                .store_op(vk::AttachmentStoreOp::STORE)
-                .clear_value(vk::ClearValue {
-                    color: vk::ClearColorValue { float32: [0.0; 4] },
-                })
+            crate::gpu::pipeline::cleared_color_attachment(
+                image.view,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                [0.0; 4],
+            )
         })
         .collect();
-    let depth_attachment = vk::RenderingAttachmentInfo::default()
-        .image_view(target.depth.view)
-        .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
-        .load_op(vk::AttachmentLoadOp::CLEAR)
-        .store_op(vk::AttachmentStoreOp::STORE)
-        .clear_value(vk::ClearValue {
-            depth_stencil: vk::ClearDepthStencilValue {
-                depth: 0.0,
-                stencil: 0,
-            },
-        });
+    let depth_attachment = crate::gpu::pipeline::cleared_depth_attachment(target.depth.view);
     let area = crate::gpu::pipeline::frame_area(extent);
     let rendering = vk::RenderingInfo::default()
         .render_area(area)

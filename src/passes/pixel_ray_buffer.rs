@@ -7,6 +7,7 @@ use crate::abi::PixelRayParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::Buffer;
+use crate::gpu::sync::{self, Access};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
@@ -42,16 +43,16 @@ impl PixelRayBuffer {
         cmd: vk::CommandBuffer,
         rays: &PixelRayParams,
     ) {
-        let before = [vk::MemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::FRAGMENT_SHADER)
-            .src_access_mask(vk::AccessFlags2::NONE)
-            .dst_stage_mask(vk::PipelineStageFlags2::ALL_TRANSFER)
-            .dst_access_mask(vk::AccessFlags2::TRANSFER_WRITE)];
-        let after = [vk::MemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::ALL_TRANSFER)
-            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-            .dst_stage_mask(vk::PipelineStageFlags2::FRAGMENT_SHADER)
-            .dst_access_mask(vk::AccessFlags2::UNIFORM_READ)];
+        // The previous frame's fragment reads before the write (write-after-read), the
+        // write before this frame's reads.
+        let before = [sync::memory_barrier(
+            Access::FRAGMENT_UNIFORM_READ,
+            Access::TRANSFER_WRITE,
+        )];
+        let after = [sync::memory_barrier(
+            Access::TRANSFER_WRITE,
+            Access::FRAGMENT_UNIFORM_READ,
+        )];
         let dev = ctx.device();
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the update is 128 bytes (a multiple of 4, under 65536) of a live buffer
