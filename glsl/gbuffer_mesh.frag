@@ -13,6 +13,13 @@ layout(location = 3) in vec4 v_tangent;
 layout(location = 4) in float v_stretch;
 layout(location = 5) flat in float v_surface;
 
+// A two-sided mesh (src/mesh.rs Mesh::two_sided, GBufferPass::new_mesh_two_sided): a
+// fragment on the side the mesh's normals point away from is displaced as seen from that
+// side (dispmap_surface_back_side) instead of discarded. The side is the triangle's own
+// plane (from the derivatives of the eye-relative position, oriented by the interpolated
+// normal), not the winding, so it holds for any index order.
+layout(constant_id = 0) const bool TWO_SIDED = false;
+
 layout(location = 0) out vec4 out_ray;
 layout(location = 1) out vec4 out_normal;
 layout(location = 2) out vec4 out_tangent;
@@ -27,6 +34,13 @@ void main() {
     vec3 B = w * cross(N, T);
     DispmapSurface s = DispmapSurface(v_eye_rel, vec3(0.0), v_uv, N, T, B, v_surface,
         pc.depth_scale, pc.min_cos, pc.addressing);
+    if (TWO_SIDED) {
+        vec3 face = cross(dFdx(v_eye_rel), dFdy(v_eye_rel));
+        face = dot(face, N) < 0.0 ? -face : face;
+        if (dot(face, v_eye_rel) > 0.0) {
+            s = dispmap_surface_back_side(s);
+        }
+    }
     // camera_pos.w: the drawn object's material index + 1, or 0 for an object that is
     // not displaced (src/abi.rs GBufferParams; 1 = material 0 for a single object).
     uint material_plus_one = uint(pc.camera_pos.w);

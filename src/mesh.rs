@@ -111,6 +111,12 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     /// A name for debug labels and errors.
     pub label: String,
+    /// Drawn two-sided: a fragment seen from the side the normals point away from (the
+    /// inside of an open mesh, such as a vase) is displaced as seen from that side
+    /// instead of discarded ([`crate::passes::gbuffer::GBufferPass::new_mesh_two_sided`];
+    /// glTF's `doubleSided`). Off for the generated closed meshes, whose inside is never
+    /// seen.
+    pub two_sided: bool,
 }
 
 fn handedness(n: Vec3, t: Vec3, b: Vec3) -> f32 {
@@ -158,6 +164,7 @@ fn grid(
         vertices,
         indices,
         label: label.into(),
+        two_sided: false,
     }
 }
 
@@ -206,6 +213,7 @@ impl Mesh {
             vertices,
             indices,
             label: "cube".into(),
+            two_sided: false,
         }
     }
 
@@ -396,6 +404,7 @@ impl Mesh {
             vertices,
             indices,
             label: label.into(),
+            two_sided: false,
         })
     }
 
@@ -419,6 +428,7 @@ impl Mesh {
             vertices,
             indices: vec![0, 1, 2, 0, 2, 3],
             label: "quad".into(),
+            two_sided: false,
         }
     }
 
@@ -449,6 +459,7 @@ impl Mesh {
             vertices,
             indices: self.indices.clone(),
             label: self.label.clone(),
+            two_sided: self.two_sided,
         }
     }
 
@@ -479,6 +490,8 @@ pub struct MeshBuffers {
     pub indices: Buffer,
     /// Number of indices.
     pub index_count: u32,
+    /// [`Mesh::two_sided`]: drawn with the two-sided G-buffer pipeline.
+    pub two_sided: bool,
 }
 
 impl MeshBuffers {
@@ -586,6 +599,7 @@ impl MeshBuffers {
             vertices,
             indices,
             index_count: mesh.indices.len() as u32,
+            two_sided: mesh.two_sided,
         })
     }
 

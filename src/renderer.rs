@@ -200,6 +200,9 @@ struct Objects {
     /// The meshes' pipeline (the plane's is `Renderer::gbuffer_pass`), when an object
     /// is not the tiled plane.
     mesh_pass: Option<GBufferPass>,
+    /// The two-sided meshes' pipeline, when an object is a two-sided mesh
+    /// ([`crate::mesh::Mesh::two_sided`]).
+    two_sided_pass: Option<GBufferPass>,
     /// Per object: its vertex buffers (`None`: the tiled plane, drawn by the plane
     /// pipeline) ...
     meshes: Vec<Option<MeshBuffers>>,
@@ -213,6 +216,7 @@ struct Objects {
 impl crate::gpu::owned::Destroy for Objects {
     fn destroy(&mut self, ctx: &Context) {
         self.mesh_pass.destroy(ctx);
+        self.two_sided_pass.destroy(ctx);
         self.meshes.destroy(ctx);
     }
 }
@@ -373,8 +377,12 @@ impl Renderer {
         let host = HostParts::new(c, extent)?;
         let gbuffer_pass = Guard::new(
             c,
-            if mesh.is_some() {
-                GBufferPass::new_mesh(c)?
+            if let Some(m) = &mesh {
+                if m.two_sided {
+                    GBufferPass::new_mesh_two_sided(c)?
+                } else {
+                    GBufferPass::new_mesh(c)?
+                }
             } else {
                 GBufferPass::new(c)?
             },
@@ -506,13 +514,18 @@ impl Renderer {
             c,
             Objects {
                 mesh_pass: None,
+                two_sided_pass: None,
                 meshes: Vec::new(),
                 materials: Vec::new(),
                 framing: None,
             },
         );
-        if placed.iter().any(Option::is_some) {
+        // Only the pipelines the objects need.
+        if placed.iter().flatten().any(|m| !m.two_sided) {
             drawn.mesh_pass = Some(GBufferPass::new_mesh(c)?);
+        }
+        if placed.iter().flatten().any(|m| m.two_sided) {
+            drawn.two_sided_pass = Some(GBufferPass::new_mesh_two_sided(c)?);
         }
         for mesh in &placed {
             let buffers = mesh
@@ -948,8 +961,9 @@ impl Renderer {
                 params.depth_scale = m.depth_scale;
                 params.addressing = crate::scene::addressing_code(m.addressing);
             }
-            let pass = match (buffers, &objects.mesh_pass) {
-                (Some(_), Some(p)) => p,
+            let pass = match (buffers, &objects.mesh_pass, &objects.two_sided_pass) {
+                (Some(b), _, Some(p)) if b.two_sided => p,
+                (Some(_), Some(p), _) => p,
                 _ => &self.gbuffer_pass,
             };
             draws.push(GBufferDraw {

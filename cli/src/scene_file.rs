@@ -67,6 +67,10 @@ use std::path::{Path, PathBuf};
 /// The largest scene file read (1 MiB; a scene is a few hundred bytes).
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
 
+/// Why `two_sided` is refused on a geometry other than `mesh`.
+pub const TWO_SIDED_ONLY_MESH: &str = "`two_sided` is only read with geometry = \"mesh\" (the \
+     generated cube, sphere and torus are closed: their inside is never seen)";
+
 /// Default frame size of a scene file.
 pub const DEFAULT_SIZE: [u32; 2] = [640, 360];
 
@@ -78,6 +82,9 @@ pub struct SceneFile {
     pub geometry: Option<String>,
     /// The OBJ file of `geometry = "mesh"`.
     pub mesh: Option<PathBuf>,
+    /// Draw the mesh of `geometry = "mesh"` two-sided (its inside displaced as seen
+    /// from there; default: the glTF material's `doubleSided`, else off).
+    pub two_sided: Option<bool>,
     /// Frame width and height.
     #[serde(deserialize_with = "pair")]
     pub size: Option<[u32; 2]>,
@@ -105,6 +112,8 @@ pub struct ObjectKeys {
     pub geometry: Option<String>,
     /// The OBJ or glTF file of `geometry = "mesh"`.
     pub mesh: Option<PathBuf>,
+    /// Draw the mesh two-sided, as the scene's `two_sided`.
+    pub two_sided: Option<bool>,
     /// `[x, y, z]`, world units (not for the plane).
     #[serde(deserialize_with = "triple")]
     pub position: Option<[f32; 3]>,
@@ -478,6 +487,12 @@ impl SceneFile {
                 "`mesh` is only read with geometry = \"mesh\"",
             ));
         }
+        if geometry != Geometry::Mesh && self.two_sided.is_some() {
+            return Err(Error::invalid(
+                format!("two_sided in {}", path.display()),
+                TWO_SIDED_ONLY_MESH,
+            ));
+        }
         self.heightmap.check("heightmap", path)?;
         if !self.object.is_empty() {
             self.check_objects(path)?;
@@ -496,7 +511,11 @@ impl SceneFile {
     pub fn assets(&self, path: &Path, with_mesh: bool) -> Result<SceneAssets> {
         let dir = path.parent().unwrap_or(Path::new("."));
         let mesh = match &self.mesh {
-            Some(m) if with_mesh => Some(crate::mesh_file::load(&dir.join(m))?),
+            Some(m) if with_mesh => {
+                let mut mesh = crate::mesh_file::load(&dir.join(m))?;
+                mesh.two_sided = self.two_sided.unwrap_or(mesh.two_sided);
+                Some(mesh)
+            }
             _ => None,
         };
         let green_up = self.material.normal_map_green.unwrap_or(GreenAxis::Up) == GreenAxis::Up;

@@ -28,6 +28,8 @@ pub struct ObjectSpec {
     pub placement: Placement,
     /// The mesh file of `geometry = "mesh"` (relative to the scene's folder, joined).
     pub mesh: Option<PathBuf>,
+    /// `two_sided` of `geometry = "mesh"` (`None`: the mesh file's own).
+    pub two_sided: Option<bool>,
     /// Its displacement; `None`: flat.
     pub material: Option<MaterialSpec>,
 }
@@ -68,6 +70,7 @@ pub fn specs(file: &SceneFile, path: &Path) -> Result<Vec<ObjectSpec>> {
     };
     refuse("geometry", file.geometry.is_some())?;
     refuse("mesh", file.mesh.is_some())?;
+    refuse("two_sided", file.two_sided.is_some())?;
     refuse("heightmap", file.heightmap != Default::default())?;
     refuse("material", file.material != Default::default())?;
     if file.object.len() > dispmap::renderer::MAX_OBJECTS {
@@ -109,6 +112,12 @@ pub fn specs(file: &SceneFile, path: &Path) -> Result<Vec<ObjectSpec>> {
                 )));
             }
             _ => {}
+        }
+        if geometry != Geometry::Mesh && o.two_sided.is_some() {
+            return Err(err(Error::invalid(
+                "two_sided",
+                crate::scene_file::TWO_SIDED_ONLY_MESH,
+            )));
         }
         let placed = o.position.is_some() || o.scale.is_some() || o.rotation.is_some();
         if geometry == Geometry::TiledPlane && placed {
@@ -163,6 +172,7 @@ pub fn specs(file: &SceneFile, path: &Path) -> Result<Vec<ObjectSpec>> {
             geometry,
             placement,
             mesh: o.mesh.as_ref().map(|m| dir.join(m)),
+            two_sided: o.two_sided,
             material,
         });
     }
@@ -198,7 +208,11 @@ pub fn load(specs: &[ObjectSpec], path: &Path) -> Result<Vec<ObjectAssets>> {
         .iter()
         .map(|spec| {
             let mesh = match &spec.mesh {
-                Some(m) => Some(crate::mesh_file::load(m)?),
+                Some(m) => {
+                    let mut mesh = crate::mesh_file::load(m)?;
+                    mesh.two_sided = spec.two_sided.unwrap_or(mesh.two_sided);
+                    Some(mesh)
+                }
                 None => None,
             };
             let material = match &spec.material {

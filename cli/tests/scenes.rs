@@ -179,6 +179,34 @@ fn scene_file_errors_defaults_and_overrides() {
     let err = scene_file::load(&scene).err().unwrap().to_string();
     assert!(err.contains("nowhere.obj"), "{err}");
 
+    // `two_sided` only where it means something: a loaded mesh (one object or per
+    // object); the generated closed meshes refuse it, naming the key and the file.
+    for (name, text) in [
+        (
+            "two_sided_cube.toml",
+            "geometry = \"cube\"\ntwo_sided = true\n",
+        ),
+        (
+            "two_sided_object.toml",
+            "[[object]]\ngeometry = \"sphere\"\ntwo_sided = true\n[object.heightmap]\nbundled = \"rocks\"\n",
+        ),
+    ] {
+        let scene = dir.join(name);
+        std::fs::write(&scene, text).unwrap();
+        let file = scene_file::SceneFile::read(&scene).unwrap();
+        let err = match scene_file::load(&scene) {
+            Err(e) => e.to_string(),
+            Ok(_) => dispmap_cli::scene_objects::specs(&file, &scene)
+                .err()
+                .unwrap()
+                .to_string(),
+        };
+        assert!(
+            err.contains("two_sided") && err.contains(name) && err.contains("mesh"),
+            "{err}"
+        );
+    }
+
     // Only the geometry given: everything else is the default.
     let minimal = dir.join("minimal.toml");
     std::fs::write(&minimal, "geometry = \"torus\"\n").unwrap();
@@ -905,5 +933,120 @@ fn a_scene_of_several_objects_has_per_material_metrics() {
             assert!(ids.contains(&k), "material {k} not on screen");
         }
     }
+    finish(ctx);
+}
+
+/// A two-sided open mesh shows its inner wall displaced: the vase of
+/// `scenes/bricks_vase.toml` (`two_sided = true`) seen from 50 degrees, where the far
+/// inner wall fills the opening. A pixel is a back-face hit when its G-buffer normal
+/// points towards the vase's axis (from its world position, unprojected from the
+/// G-buffer's depth with the frame's camera): there, the pixel is displaced (a material,
+/// a hit) and `exact` matches the CPU reference. The same scene drawn one-sided (the
+/// mesh's `two_sided` off) has no such pixel: the check fails without the feature.
+#[test]
+fn the_open_vase_shows_its_inner_wall_displaced() {
+    let ctx = validated_context();
+    let path = root().join("scenes/bricks_vase.toml");
+    let mut loaded = scene_file::load(&path).unwrap();
+    assert!(
+        loaded.assets.mesh.as_ref().is_some_and(|m| m.two_sided),
+        "bricks_vase.toml draws the vase two-sided"
+    );
+    let (w, h) = (192u32, 144u32);
+    loaded.settings.width = w;
+    loaded.settings.height = h;
+    loaded.settings.scene.camera.elevation_deg = 50.0;
+    // The axis of the surface of revolution (its vertices' mean in x and z).
+    let mesh = loaded.assets.mesh.clone().unwrap();
+    let n = mesh.vertices.len() as f64;
+    let axis = mesh.vertices.iter().fold([0.0f64; 2], |a, v| {
+        [
+            a[0] + f64::from(v.position[0]) / n,
+            a[1] + f64::from(v.position[2]) / n,
+        ]
+    });
+    let camera = loaded.settings.scene.frame_camera(w, h);
+    let unproject = camera.view_proj_eye.as_dmat4().inverse();
+    // Per pixel: is it a back-face pixel, and its (displaced, hit) state.
+    let inward = |renderer: &Renderer| -> Vec<usize> {
+        let depth = renderer.read_macro_depth().unwrap();
+        let (normals, _) = renderer.read_frames().unwrap();
+        let mut out = Vec::new();
+        for (i, (d, nrm)) in depth.iter().zip(&normals).enumerate() {
+            if *d <= 0.0 {
+                continue;
+            }
+            let (px, py) = ((i as u32 % w) as f64 + 0.5, (i as u32 / w) as f64 + 0.5);
+            let ndc = glam::DVec4::new(
+                2.0 * px / f64::from(w) - 1.0,
+                2.0 * py / f64::from(h) - 1.0,
+                f64::from(*d),
+                1.0,
+            );
+            let rel = unproject * ndc;
+            let p = camera.eye.as_dvec3() + rel.truncate() / rel.w;
+            let radial = glam::DVec2::new(p.x - axis[0], p.z - axis[1]);
+            let normal = glam::DVec2::new(f64::from(nrm[0]), f64::from(nrm[2]));
+            if radial.length() > 1e-3
+                && normal.dot(radial) < -0.1 * radial.length() * normal.length().max(1e-6)
+            {
+                out.push(i);
+            }
+        }
+        out
+    };
+    let field = loaded.field.clone();
+    let reference = Reference::new(&field, loaded.settings.scene.addressing());
+    let mut renderer =
+        Renderer::with_assets(&ctx, &field, loaded.settings, &loaded.assets).unwrap();
+    let frame_ref = renderer.reference(&reference).unwrap();
+    let m = renderer.measure(&frame_ref, 1).unwrap();
+    let back = inward(&renderer);
+    let materials = renderer.read_materials().unwrap();
+    let covered = frame_ref.rays.iter().filter(|r| r.is_some()).count();
+    let left = unexplained(
+        &reference,
+        &frame_ref,
+        &m.hits,
+        renderer.map_geometry(),
+        TANGENCY,
+    );
+    eprintln!(
+        "two-sided vase at 50 deg: {} back-face pixels of {covered} covered, artifacts {:.5}%, unexplained {left}",
+        back.len(),
+        100.0 * m.error.artifact_fraction
+    );
+    assert!(
+        back.len() * 10 > covered,
+        "{} back-face pixels of {covered}",
+        back.len()
+    );
+    for &i in &back {
+        assert!(
+            materials[i].is_some(),
+            "pixel {i}: a back-face pixel is displaced"
+        );
+        assert!(
+            frame_ref.rays[i].is_some(),
+            "pixel {i}: a back-face pixel has a ray"
+        );
+        assert!(
+            m.hits[i][2] >= 0.0,
+            "pixel {i}: the inner wall is hit, not missed"
+        );
+    }
+    assert_eq!(m.error.nonfinite_pixels, 0);
+    assert_eq!(left, 0);
+
+    // One-sided: the opening shows no inner wall.
+    let mut assets = loaded.assets.clone();
+    assets.mesh.as_mut().unwrap().two_sided = false;
+    let mut one_sided = Renderer::with_assets(&ctx, &field, loaded.settings, &assets).unwrap();
+    one_sided.render().unwrap();
+    let none = inward(&one_sided);
+    eprintln!("one-sided vase: {} back-face pixels", none.len());
+    assert_eq!(none.len(), 0, "a one-sided mesh draws no back face");
+    drop(renderer);
+    drop(one_sided);
     finish(ctx);
 }

@@ -27,7 +27,8 @@
 // tile is one world unit, and the same depth_scale means the same depth in tiles on any
 // surface, whatever its world size. V is the unit view direction (eye to fragment) and
 // V_ts = (V.T, V.B, V.N). Back faces (V_ts.z >= 0: the eye below the surface) have nothing
-// to displace: dispmap_gbuffer_encode returns false and the caller discards them.
+// to displace: dispmap_gbuffer_encode returns false and the caller discards them, unless
+// the geometry is two-sided (dispmap_surface_back_side below).
 // Precision far from the origin: interpolate the position relative to the eye (vertex
 // position minus eye, then world_pos = that, camera_pos = vec3(0)), so V keeps its bits
 // near the eye wherever the eye is; and give uv tile-local enough that the f32
@@ -58,6 +59,16 @@ struct DispmapSurface {
 
 // The pass's value for a pixel without displacement (tangent.w).
 #define DISPMAP_NOT_DISPLACED 0.0
+
+// The same fragment seen from the other side of the surface (a two-sided open mesh, such
+// as the inside of a vase): the normal reversed, T and B kept, so the map keeps its uv
+// directions and is carved into the surface from the side the eye is on (the handedness
+// the encoders write flips with it). A host that draws two-sided geometry calls it for a
+// back face before dispmap_gbuffer_encode_material; the pass needs nothing else.
+DispmapSurface dispmap_surface_back_side(DispmapSurface s) {
+    s.normal = -s.normal;
+    return s;
+}
 
 // Encodes one fragment of material `material` (its index in the pass's table). Returns
 // false for a back face (discard it).

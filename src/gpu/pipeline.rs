@@ -319,6 +319,16 @@ pub struct RasterDesc<'a> {
 /// Builds a graphics pipeline for dynamic rendering from `desc` (the shader modules live
 /// only during the call).
 pub fn raster_pipeline(ctx: &Context, desc: &RasterDesc) -> Result<vk::Pipeline> {
+    raster_pipeline_specialized(ctx, desc, None)
+}
+
+/// As [`raster_pipeline`], with the fragment stage's specialization constants (for
+/// example `TWO_SIDED` of `glsl/gbuffer_mesh.frag`).
+pub fn raster_pipeline_specialized(
+    ctx: &Context,
+    desc: &RasterDesc,
+    frag_specialization: Option<&vk::SpecializationInfo>,
+) -> Result<vk::Pipeline> {
     let dev = ctx.device();
     let vert = desc.vert.module(ctx)?;
     let frag = match desc.frag.module(ctx) {
@@ -334,10 +344,17 @@ pub fn raster_pipeline(ctx: &Context, desc: &RasterDesc) -> Result<vk::Pipeline>
             .stage(vk::ShaderStageFlags::VERTEX)
             .module(vert)
             .name(c"main"),
-        vk::PipelineShaderStageCreateInfo::default()
-            .stage(vk::ShaderStageFlags::FRAGMENT)
-            .module(frag)
-            .name(c"main"),
+        match frag_specialization {
+            Some(spec) => vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(frag)
+                .name(c"main")
+                .specialization_info(spec),
+            None => vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(frag)
+                .name(c"main"),
+        },
     ];
     let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
         .vertex_binding_descriptions(desc.vertex_bindings)

@@ -29,7 +29,7 @@
 use crate::abi::{GBufferParams, PixelRayParams};
 use crate::context::Context;
 use crate::error::{Result, VkContext};
-use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
+use crate::gpu::pipeline::{RasterDesc, raster_pipeline_specialized};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{HostView, Image};
 use crate::passes::pixel_ray_buffer::PixelRayBuffer;
@@ -175,19 +175,30 @@ pub struct GBufferPass {
     set_layout: vk::DescriptorSetLayout,
     rays: Option<PixelRayBuffer>,
     mesh: bool,
+    two_sided: bool,
 }
 
 impl GBufferPass {
     /// Builds the pipeline of the plane and the quad (dynamic rendering: no render pass
     /// object; no vertex buffer).
     pub fn new(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, false)
+        Self::build(ctx, false, false)
     }
 
     /// Builds the pipeline of meshes (`glsl/gbuffer_mesh.*`): one vertex buffer of
     /// [`crate::mesh::Vertex`] and `u32` indices, drawn by [`GBufferPass::record_mesh`].
     pub fn new_mesh(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true)
+        Self::build(ctx, true, false)
+    }
+
+    /// As [`GBufferPass::new_mesh`] for two-sided meshes ([`crate::mesh::Mesh::two_sided`]):
+    /// a fragment on the side the mesh's normals point away from is displaced as seen from
+    /// that side (its normal reversed, `dispmap_surface_back_side` in
+    /// `glsl/include/dispmap_gbuffer.glsl`) instead of discarded. The same shader with its
+    /// `TWO_SIDED` specialization constant set; built only for a frame that draws such a
+    /// mesh.
+    pub fn new_mesh_two_sided(ctx: &Context) -> Result<Self> {
+        Self::build(ctx, true, true)
     }
 
     /// Whether this is the mesh pipeline.
@@ -195,9 +206,18 @@ impl GBufferPass {
         self.mesh
     }
 
-    fn build(ctx: &Context, mesh: bool) -> Result<Self> {
+    /// Whether this is the two-sided mesh pipeline.
+    pub fn is_two_sided(&self) -> bool {
+        self.two_sided
+    }
+
+    fn build(ctx: &Context, mesh: bool, two_sided: bool) -> Result<Self> {
         let dev = ctx.device();
-        let name = if mesh { "gbuffer_mesh" } else { "gbuffer" };
+        let name = match (mesh, two_sided) {
+            (false, _) => "gbuffer",
+            (true, false) => "gbuffer_mesh",
+            (true, true) => "gbuffer_mesh_two_sided",
+        };
         // The plane's set 0: binding 0, the pixel rays (a uniform buffer the pass owns and
         // writes in each recording); meshes interpolate and bind nothing.
         let (set_layout, rays) = if mesh {
@@ -233,6 +253,7 @@ impl GBufferPass {
             set_layout,
             rays,
             mesh,
+            two_sided,
         };
         // SAFETY: valid device and create info.
         owned.layout = match unsafe { dev.create_pipeline_layout(&layout_info, None) }
@@ -261,7 +282,17 @@ impl GBufferPass {
         } else {
             (&[], &[])
         };
-        let pipeline = match raster_pipeline(
+        // The fragment stage's TWO_SIDED (constant_id 0, a 32-bit bool).
+        let two_sided_value = vk::Bool32::from(two_sided).to_ne_bytes();
+        let entries = [vk::SpecializationMapEntry {
+            constant_id: 0,
+            offset: 0,
+            size: std::mem::size_of::<vk::Bool32>(),
+        }];
+        let spec = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(&two_sided_value);
+        let pipeline = match raster_pipeline_specialized(
             ctx,
             &RasterDesc {
                 vert: &vert,
@@ -274,6 +305,7 @@ impl GBufferPass {
                 depth_format: DEPTH_FORMAT,
                 name: &format!("{name}.pipeline"),
             },
+            two_sided.then_some(&spec),
         ) {
             Ok(p) => p,
             Err(e) => {

@@ -283,6 +283,9 @@ pub fn load_gltf(path: &Path) -> Result<Mesh> {
     let mut tangents = Vec::new();
     let mut uvs = Vec::new();
     let mut indices = Vec::new();
+    // glTF's material `doubleSided`: the mesh is drawn two-sided when any of its
+    // triangle primitives' materials is (dispmap draws one mesh with one pipeline).
+    let mut double_sided = false;
     for (mesh, world) in &meshes {
         let world = *world;
         let normal_matrix = glam::Mat3::from_mat4(world).inverse().transpose();
@@ -292,6 +295,7 @@ pub fn load_gltf(path: &Path) -> Result<Mesh> {
             {
                 continue;
             }
+            double_sided |= primitive.material().double_sided();
             let site = Site { mesh, primitive: k };
             check_primitive(&site, &primitive, &buffers).map_err(bad)?;
             let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
@@ -344,7 +348,9 @@ pub fn load_gltf(path: &Path) -> Result<Mesh> {
             }
         }
     }
-    Mesh::from_parts(&label, positions, normals, tangents, uvs, indices)
+    let mut mesh = Mesh::from_parts(&label, positions, normals, tangents, uvs, indices)?;
+    mesh.two_sided = double_sided;
+    Ok(mesh)
 }
 
 #[cfg(test)]
