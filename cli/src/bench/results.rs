@@ -1,0 +1,204 @@
+//! What a run returns ([`BenchResults`]): one row per run, the medians, the heat maps
+//! and the maps' facts.
+
+use super::*;
+use dispmap::method::Method;
+use std::time::{Duration, SystemTime};
+
+/// Which part of the benchmark a row belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sweep {
+    /// Every method and setting on every map.
+    Methods,
+    /// One map resampled to several sizes.
+    MapSize,
+    /// The methods sweep's `relief` and `pom` runs again, forward: the march in the
+    /// G-buffer pass (module docs).
+    Forward,
+}
+
+/// One run: a (map, method, setting, frame set), as one row of `results.csv`. Times are
+/// milliseconds; empty optional cells mean "no such pass" (module docs for every value).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunRow {
+    /// Which sweep.
+    pub sweep: Sweep,
+    /// The map's short name.
+    pub map: String,
+    /// Map width in texels.
+    pub map_width: u32,
+    /// Map height in texels.
+    pub map_height: u32,
+    /// The method's CLI name.
+    pub method: String,
+    /// Linear steps (`iter`); empty for methods without a step count.
+    pub steps: Option<u32>,
+    /// Frame width in pixels.
+    pub frame_width: u32,
+    /// Frame height in pixels.
+    pub frame_height: u32,
+    /// Frames (camera azimuths) per pass.
+    pub frames: u32,
+    /// Interleaved passes over the frames (`--repeat`).
+    pub repeat: u32,
+    /// Frames measured against the reference.
+    pub error_frames: u32,
+    /// The frames (azimuths and error frames) in words.
+    pub frame_set: String,
+    /// G-buffer pass (every `*_ms` time below is the minimum over the `frames` frames of
+    /// the `repeat` passes unless it says median); forward rows: the raster pass with the
+    /// march.
+    pub gbuffer_ms: f64,
+    /// The pyramid's build (once per map and pyramid kind; the fastest of `repeat`
+    /// builds by as many renderers), if the method uses one.
+    pub pyramid_build_ms: Option<f64>,
+    /// Map-size sweep: the same pyramid built on the CPU by one thread
+    /// (`dispmap::passes::pyramid::cpu_build`, the minimum of 3 builds), the yardstick
+    /// of the GPU build.
+    pub cpu_pyramid_build_ms: Option<f64>,
+    /// The cone map's build (once per map; the fastest of `repeat` builds), cone
+    /// methods only. It follows the pyramid build, which it reads.
+    pub cone_build_ms: Option<f64>,
+    /// DIG corner pass, DIG methods only.
+    pub dig_corners_ms: Option<f64>,
+    /// Trace pass (0 in forward rows: none).
+    pub trace_ms: f64,
+    /// Shade pass.
+    pub shade_ms: f64,
+    /// Self-shadowing pass (`--shadows` on only).
+    pub shadow_ms: Option<f64>,
+    /// The method's time, per-frame `dig_corners + trace` (forward rows: the `gbuffer`
+    /// pass, which runs the march): the minimum over every frame of every pass, the
+    /// statistic the speed-ups and plots use.
+    pub method_ms: f64,
+    /// Its median over every frame of every pass.
+    pub method_median_ms: f64,
+    /// The lowest per-pass minimum of the method time.
+    pub method_lo_ms: f64,
+    /// The highest per-pass minimum of the method time (with `method_lo_ms`: the spread
+    /// of `method_ms` over the repeat).
+    pub method_hi_ms: f64,
+    /// Per-frame total (without the one-off passes), minimum.
+    pub total_ms: f64,
+    /// Per-frame total, median.
+    pub total_median_ms: f64,
+    /// The lowest per-pass median of the method time.
+    pub method_median_lo_ms: f64,
+    /// The highest per-pass median of the method time.
+    pub method_median_hi_ms: f64,
+    /// The lowest per-pass median of the per-frame total.
+    pub total_median_lo_ms: f64,
+    /// The highest per-pass median of the per-frame total.
+    pub total_median_hi_ms: f64,
+    /// Mean per-pixel iterations of the trace pass.
+    pub iterations_mean: f64,
+    /// p99 per-pixel iterations of the trace pass.
+    pub iterations_p99: f64,
+    /// Lockstep cost of 8x1 pixel groups (lavapipe's 8-lane SIMD subgroups): the mean
+    /// over groups with a covered pixel of the group's largest iteration count
+    /// ([`lockstep_iterations`]).
+    pub iterations_simd8: f64,
+    /// The same for 8x4 groups (a 32-lane GPU warp in an 8x8 workgroup).
+    pub iterations_warp32: f64,
+    /// The same for 4x2 groups: 8 lanes of two 2x2 quads side by side, how an 8-wide
+    /// fragment shader (llvmpipe's on 256-bit vectors) runs, where a compute shader's
+    /// 8 lanes are an 8x1 row (`iterations_simd8`): the forward path's lockstep yardstick.
+    pub iterations_quads8: f64,
+    /// DIG: corner-pass fetches per covered pixel.
+    pub corner_iterations: Option<f64>,
+    /// Mean hit distance, texels.
+    pub mean_texels: f64,
+    /// p99 hit distance, texels.
+    pub p99_texels: f64,
+    /// Largest hit distance over the error frames, texels.
+    pub max_texels: f64,
+    /// Fraction of covered pixels more than one texel off (or hit/miss mismatched).
+    pub artifact_fraction: f64,
+    /// PSNR of the shaded frame against the shaded reference, dB.
+    pub psnr_db: f64,
+    /// Non-finite hit texels summed over the error frames (must be 0).
+    pub nonfinite_pixels: u64,
+    /// Forward rows: hit texels that differ (bit for bit) from the deferred run's of the
+    /// same method and setting on the same frame, summed over the error frames.
+    pub forward_differing_pixels: Option<u64>,
+}
+
+impl RunRow {
+    /// The parsed method (rows written by this module always parse).
+    pub fn method(&self) -> Option<Method> {
+        self.method.parse().ok()
+    }
+}
+
+/// The medians of one run's times, one per pass of the repeat (pass order): what the
+/// spread of a ratio of medians is read from (the ratio per pass, both sides measured in
+/// the same interleaved pass).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PassMedians {
+    /// The method time's median per pass.
+    pub method: Vec<f64>,
+    /// The per-frame total's median per pass.
+    pub total: Vec<f64>,
+}
+
+/// An RGBA8 image produced by the sweep (heat maps, interval maps).
+#[derive(Clone, Debug)]
+pub struct NamedImage {
+    /// File name inside the output folder.
+    pub file_name: String,
+    /// What it shows.
+    pub caption: String,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// RGBA8 pixels, row by row.
+    pub rgba: Vec<u8>,
+}
+
+/// A map of the sweep as the report describes it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapInfo {
+    /// Short name.
+    pub name: String,
+    /// The field's label (file name).
+    pub label: String,
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Storage format (`R8_UNORM`, ...).
+    pub format: String,
+    /// Mean height.
+    pub mean_height: f64,
+}
+
+/// Everything a sweep measured.
+#[derive(Clone, Debug)]
+pub struct BenchResults {
+    /// The (validated) configuration.
+    pub config: BenchConfig,
+    /// Device name.
+    pub device: String,
+    /// Driver name and version.
+    pub driver: String,
+    /// Vulkan API version.
+    pub api_version: String,
+    /// The maps of the methods sweep.
+    pub maps: Vec<MapInfo>,
+    /// The map resampled by the map-size sweep, if it ran.
+    pub size_source: Option<MapInfo>,
+    /// One row per run, methods sweep first.
+    pub rows: Vec<RunRow>,
+    /// Per row (same order), the per-pass medians of its times.
+    pub pass_medians: Vec<PassMedians>,
+    /// Heat maps and interval maps.
+    pub images: Vec<NamedImage>,
+    /// When the sweep started.
+    pub started: SystemTime,
+    /// Wall-clock duration of the sweep.
+    pub wall: Duration,
+    /// The material-table numbers, when they ran ([`BenchConfig::materials`]).
+    pub materials: Option<materials::MaterialsBench>,
+}
