@@ -218,6 +218,13 @@ impl Method {
         }
     }
 
+    /// Whether the method is of the exact family: it keeps the exact reference's first hit,
+    /// up to rays that skim the surface within f32 precision (`exact`, `dig-guarded`,
+    /// `cone-exact`; docs/methods.md).
+    pub fn is_exact(self) -> bool {
+        matches!(self, Method::Exact | Method::DigGuarded | Method::ConeExact)
+    }
+
     /// Whether the method is in the default method lists: `dispmap bench`'s default
     /// `--methods` and map-size sweep, and the `demo`'s table. Every method stays
     /// available by name. `cone-exact` is out: it has `exact`'s accuracy at 1.2x to 3.7x

@@ -130,6 +130,10 @@ pub(crate) fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Resul
     let outputs = bench::stage_outputs(&args.out, &results, &command)?;
     let written = outputs.paths();
     print_bench_summary(&results);
+    // What the run is too short or too noisy for: after the tables, where it is read.
+    for warning in bench::verdict::warnings(&results) {
+        eprintln!("warning: {warning}");
+    }
     println!(
         "\nwrote {} files to {} in {:.0} s (report.md, results.csv, plots, heat maps)",
         written.len(),
@@ -214,19 +218,38 @@ pub(crate) fn print_bench_summary(results: &bench::BenchResults) {
         }
     }
     if let Some(m) = &results.materials {
+        use bench::materials::{DISJOINT_BOUND, TENTH_BOUND};
+        let verdict = |v: f64, bound: f64| if v <= bound { "met" } else { "MISSED" };
         println!(
             "materials: (a) together / alone trace {:.3} ({:.3}-{:.3}; medians {:.3}; bound \
-             1.1); (b) {:.1}% displaced / fully displaced pass {:.3} ({:.3}-{:.3}; medians \
-             {:.3}; bound 0.2)",
+             {DISJOINT_BOUND}: {}); (b) {:.1}% displaced / fully displaced pass {:.3} \
+             ({:.3}-{:.3}; medians {:.3}; bound {TENTH_BOUND}: {})",
             m.disjoint_ratio.min,
             m.disjoint_ratio.lo,
             m.disjoint_ratio.hi,
             m.disjoint_median_ratio,
+            verdict(m.disjoint_ratio.min, DISJOINT_BOUND),
             100.0 * m.tenth_share,
             m.tenth_ratio.min,
             m.tenth_ratio.lo,
             m.tenth_ratio.hi,
-            m.tenth_median_ratio
+            m.tenth_median_ratio,
+            verdict(m.tenth_ratio.min, TENTH_BOUND),
         );
+    }
+    // The verdict: the cheapest method at each error level, per map.
+    println!("\ncheapest method (method time) at each artifact level:");
+    for map in &results.maps {
+        let picks: Vec<String> = bench::verdict::cheapest(results, &map.name)
+            .iter()
+            .map(|p| {
+                let level = bench::verdict::percent(p.target);
+                match p.best {
+                    Some((m, t)) => format!("{level} {m} {t:.2} ms"),
+                    None => format!("{level} none"),
+                }
+            })
+            .collect();
+        println!("{:<10} {}", map.name, picks.join(", "));
     }
 }

@@ -65,7 +65,7 @@ fn library_sweep_writes_every_output() {
         frames: 1,
         error_frames: None,
         steps: vec![32, 16],
-        methods: vec![Method::Dig, Method::Relief],
+        methods: vec![Method::Dig, Method::Relief, Method::Exact],
         sizes: vec![64, 32],
         size_methods: vec![Method::Pyramid, Method::ConeExact, Method::Pom],
         size_steps: 16,
@@ -89,7 +89,8 @@ fn library_sweep_writes_every_output() {
     let (done, total) = *events.last().unwrap();
     assert_eq!(done, total);
 
-    // Lists are put in order; 2 methods x 2 settings, then 2 sizes x 3 methods.
+    // Lists are put in order; 2 methods x 2 settings and exact once, then 2 sizes x 3
+    // methods.
     assert_eq!(results.config.steps, [16, 32]);
     assert_eq!(results.config.sizes, [32, 64]);
     let main: Vec<_> = results
@@ -102,7 +103,7 @@ fn library_sweep_writes_every_output() {
         .iter()
         .filter(|r| r.sweep == Sweep::MapSize)
         .collect();
-    assert_eq!(main.len(), 4);
+    assert_eq!(main.len(), 5);
     assert_eq!(sizes.len(), 6);
     // The forward path (on by default): relief's two settings again, forward.
     let forward: Vec<_> = results
@@ -198,7 +199,31 @@ fn library_sweep_writes_every_output() {
     ] {
         assert!(md.contains(needle), "report.md lacks '{needle}'");
     }
-    // The material-table numbers (issue 22): finite, positive, the tenth's share measured.
+    // The report opens with the verdict: per map, a method named at each error level
+    // (exact reaches every level here).
+    let first = md
+        .split("\n## ")
+        .nth(1)
+        .expect("report.md has a first section");
+    assert!(first.starts_with("Verdict"), "{first}");
+    for map in &results.maps {
+        let section = first
+            .split(&format!("### {}\n", map.name))
+            .nth(1)
+            .unwrap_or_else(|| panic!("the verdict has no {} part: {first}", map.name));
+        for target in bench::report::ARTIFACT_TARGETS {
+            let level = format!("| {} |", bench::verdict::percent(target));
+            let line = section
+                .lines()
+                .find(|l| l.starts_with(&level))
+                .unwrap_or_else(|| panic!("no {level} line in {section}"));
+            let named = Method::ALL
+                .iter()
+                .any(|m| line.contains(&format!("| `{m}` |")));
+            assert!(named, "no method named for {level}: {line}");
+        }
+    }
+    // The material-table numbers: finite, positive, the tenth's share measured.
     let m = results.materials.as_ref().unwrap();
     assert_eq!(m.alone.len(), 3);
     for t in [
@@ -253,12 +278,19 @@ fn cli_bench_writes_every_output() {
             "--sizes",
             "32,64",
         ])
-        .args(["--size-steps", "8", "--quiet"])
+        .args(["--size-steps", "8", "--repeat", "1", "--quiet"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(!stderr.contains("Validation"), "{stderr}");
+    // One pass is too few for a spread: the console says so, and so does the report.
+    assert!(
+        stderr
+            .lines()
+            .any(|l| l.starts_with("warning: only 1 pass(es)") && l.contains("--repeat 1")),
+        "{stderr}"
+    );
     let rows = read_csv(&dir.join("results.csv"));
     // bump once, pom twice (and twice forward); 2 sizes x (pyramid, exact, dig, pom): the
     // default size methods leave cone-exact out.
@@ -276,6 +308,8 @@ fn cli_bench_writes_every_output() {
     assert_eq!(rows.iter().filter(|r| r.sweep == Sweep::Forward).count(), 2);
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("## rocks") && md.contains("## Map-size sweep"));
+    let warning = md.find("> **Warning").expect("report.md warns");
+    assert!(warning < md.find("## Verdict").unwrap() && md[warning..].contains("--repeat 1"));
     assert!(
         md.contains("--methods bump,pom"),
         "the command line is quoted"

@@ -76,6 +76,7 @@ pub mod report;
 mod results;
 mod run;
 mod sweep;
+pub mod verdict;
 
 pub use report::{CurvePoint, TimeToError, time_to_reach};
 

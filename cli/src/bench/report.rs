@@ -386,14 +386,20 @@ pub fn utc_timestamp(t: std::time::SystemTime) -> String {
     )
 }
 
-/// The Markdown report (see the module docs of [`crate::bench`] for the protocol):
-/// set-up, then per map the run table, DIG's speed-ups at the same setting and at equal
+/// The Markdown report (see the module docs of [`crate::bench`] for the protocol): the
+/// warnings about what the run is too short for and the verdict per map
+/// ([`super::verdict`]), the set-up, then per map the run table, DIG's speed-ups at the same setting and at equal
 /// error, the time every method needs for the reference errors and the plots; then the
 /// map-size sweep.
 pub fn markdown(results: &BenchResults, command: &str) -> String {
     let c = &results.config;
     let mut s = String::new();
     let _ = writeln!(s, "# dispmap speed-versus-error benchmark\n");
+    s.push_str(&super::verdict::warnings_markdown(
+        &super::verdict::warnings(results),
+    ));
+    s.push_str(&super::verdict::markdown(results));
+    let _ = writeln!(s, "\n## Set-up\n");
     let _ = writeln!(
         s,
         "- date: {}\n- command: `{command}`\n- device: {} (driver {}, Vulkan {})\n- wall time of the sweep: {:.1} s",
