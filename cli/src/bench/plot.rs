@@ -47,18 +47,21 @@ pub(crate) fn register_font() -> Result<()> {
 /// The colour of a method (fixed across plots).
 pub fn method_color(method: Method) -> RGBColor {
     match method {
-        Method::Bump => RGBColor(140, 140, 140),
-        Method::Linear => RGBColor(102, 194, 255),
-        Method::Relief => RGBColor(31, 119, 180),
-        Method::Pom => RGBColor(255, 127, 14),
-        Method::Secant => RGBColor(148, 103, 189),
-        Method::Dig => RGBColor(214, 39, 40),
-        Method::DigGuarded => RGBColor(227, 119, 194),
-        Method::Pyramid => RGBColor(44, 160, 44),
+        // Tableau 10 (a palette made for categorical data: distinct hues of similar
+        // weight), with black for `exact`, grey for the `bump` floor and a dark purple
+        // for the twelfth.
+        Method::Bump => RGBColor(160, 160, 160),
+        Method::Linear => RGBColor(118, 183, 178),
+        Method::Relief => RGBColor(78, 121, 167),
+        Method::Pom => RGBColor(242, 142, 43),
+        Method::Secant => RGBColor(176, 122, 161),
+        Method::Dig => RGBColor(225, 87, 89),
+        Method::DigGuarded => RGBColor(255, 157, 167),
+        Method::Pyramid => RGBColor(89, 161, 79),
         Method::Exact => RGBColor(0, 0, 0),
-        Method::Cone => RGBColor(188, 189, 34),
-        Method::ConeExact => RGBColor(23, 190, 207),
-        Method::RelaxedCone => RGBColor(140, 86, 75),
+        Method::Cone => RGBColor(237, 201, 72),
+        Method::ConeExact => RGBColor(156, 117, 95),
+        Method::RelaxedCone => RGBColor(96, 40, 120),
     }
 }
 
@@ -117,6 +120,10 @@ fn log_range(values: impl Iterator<Item = f64>, floor: f64) -> (f64, f64) {
     (lo * (1.0 - 1e-9), hi.max(lo * 10.0))
 }
 
+/// Where a Pareto panel draws zeros and values under its floor: this factor above the
+/// axis' lowest value (a fifth of a decade), so that their markers are whole.
+const ZERO_LIFT: f64 = 1.6;
+
 /// What a Pareto panel shows.
 struct Panel<'a> {
     title: String,
@@ -168,11 +175,24 @@ fn pareto_panel(
                 .light_line_style(RGBColor(235, 235, 235))
                 .draw()
                 .map_err(|x| e(&x))?;
+            // Step labels placed so far (pixel boxes): a label that would overlap one is
+            // left out.
+            let mut placed: Vec<(i32, i32, i32, i32)> = Vec::new();
             for (method, rows) in curves {
                 let color = method_color(*method);
+                // Zeros (and values under the floor) sit a little above the bottom edge,
+                // whole, not cut by it.
                 let points: Vec<(f64, f64)> = rows
                     .iter()
-                    .map(|r| (r.method_ms, value(r).clamp(y0, y1)))
+                    .map(|r| {
+                        let v = value(r);
+                        let v = if v <= panel.floor {
+                            y0 * ZERO_LIFT
+                        } else {
+                            v.clamp(y0, y1)
+                        };
+                        (r.method_ms, v)
+                    })
                     .collect();
                 let name = method.name();
                 if has_steps(*method) {
@@ -190,11 +210,22 @@ fn pareto_panel(
                     for (i, (r, &p)) in rows.iter().zip(&points).enumerate() {
                         let labelled = panel.zoom || i == 0 || i == last;
                         if let (true, Some(steps)) = (labelled, r.steps) {
+                            let (px, py) = chart.backend_coord(&p);
+                            let text = steps.to_string();
+                            let w = 7 * text.len() as i32;
+                            let rect = (px + 5, py - 16, px + 5 + w, py - 3);
+                            let overlaps = placed.iter().any(|q| {
+                                rect.0 < q.2 && q.0 < rect.2 && rect.1 < q.3 && q.1 < rect.3
+                            });
+                            if overlaps {
+                                continue;
+                            }
+                            placed.push(rect);
                             chart
                                 .draw_series(std::iter::once(
                                     EmptyElement::at(p)
                                         + Text::new(
-                                            steps.to_string(),
+                                            text,
                                             (5, -16),
                                             (FAMILY, 12).into_font().color(&color),
                                         ),
@@ -293,7 +324,7 @@ pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<Vec<u8>> {
             "{map}: artifacts against time{}",
             if zoom { " (marching methods)" } else { "" }
         ),
-        y_desc: "artifacts (% of covered pixels, log; 0 on the bottom edge)",
+        y_desc: "artifacts (% of covered pixels, log; 0 at the bottom)",
         value: |r| 100.0 * r.artifact_fraction,
         floor: 1e-3,
         cap: 100.0,
@@ -304,7 +335,7 @@ pub fn pareto(path: &Path, map: &str, rows: &[RunRow]) -> Result<Vec<u8>> {
             "{map}: mean hit distance against time{}",
             if zoom { " (marching methods)" } else { "" }
         ),
-        y_desc: "mean hit distance (texels, log; 0 on the bottom edge)",
+        y_desc: "mean hit distance (texels, log; 0 at the bottom)",
         value: |r| r.mean_texels,
         floor: 1e-4,
         cap: f64::INFINITY,
