@@ -430,3 +430,33 @@ fn view_help_gives_the_viewers_defaults() {
     assert!(!help.contains("[default: 3]"), "{help}");
     assert!(help.contains("--no-ui"), "{help}");
 }
+
+/// A scene file without `size` opens at the documented default (960x540), as the bundled
+/// map does; the split heat map shares one scale (the panel would show the same top on
+/// both sides: checked through the pixels, one colour for one count).
+#[test]
+fn a_scene_without_a_size_opens_at_the_default_size() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            eprintln!("SKIPPED a_scene_without_a_size_opens_at_the_default_size: {why}");
+            return;
+        }
+    };
+    let dir = scratch("scene-size");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/rocks_sphere.toml");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "0 heatmap on\n").unwrap();
+    let shot = dir.join("shot.png");
+    let scene = scene.to_string_lossy().into_owned();
+    view(
+        &xvfb,
+        &[
+            "--scene", &scene, "--steps", "8", "--frames", "2", "--no-ui",
+        ],
+        &script,
+        &shot,
+    );
+    let png = image::open(&shot).unwrap();
+    assert_eq!((png.width(), png.height()), (960, 540));
+}

@@ -49,8 +49,9 @@ impl Viewer {
         let s = self.left.settings();
         panel::Info {
             sides,
-            fps: self.stats.shown_fps,
-            frame_ms: self.stats.shown_frame_ms,
+            // Nothing measured yet: no numbers rather than zeros.
+            fps: (self.stats.shown_fps > 0.0).then_some(self.stats.shown_fps),
+            frame_ms: (self.stats.shown_fps > 0.0).then_some(self.stats.shown_frame_ms),
             history: [
                 self.history[0].iter().copied().collect(),
                 self.history[1].iter().copied().collect(),
@@ -77,17 +78,30 @@ impl Viewer {
     pub(super) fn compose(&mut self, state: &ViewState, layout: &Layout) -> Result<Vec<u8>> {
         let mut sides = Vec::new();
         let mut scales = [None, None];
+        // The heat map: one scale for both sides (the larger top count), so that one
+        // colour means one count on either side of the divider.
+        let mut heat = Vec::new();
+        if state.heatmap {
+            for r in std::iter::once(&self.left).chain(self.right.as_ref()) {
+                let hits = r.read_hits()?;
+                let covered = heatmap::coverage(&hits, None);
+                heat.push((hits, covered));
+            }
+        }
+        let top = heat
+            .iter()
+            .map(|(hits, covered)| heatmap::iteration_stats(hits, covered).max as f32)
+            .fold(0.0f32, f32::max);
         for (i, r) in std::iter::once(&self.left)
             .chain(self.right.as_ref())
             .enumerate()
         {
-            let mut rgba = if state.heatmap {
-                let hits = r.read_hits()?;
-                let covered = heatmap::coverage(&hits, None);
-                scales[i] = Some(heatmap::iteration_stats(&hits, &covered).max as f32);
-                heatmap::iteration_heatmap(&hits, &covered, None)?
-            } else {
-                r.read_color()?
+            let mut rgba = match heat.get(i) {
+                Some((hits, covered)) => {
+                    scales[i] = Some(top);
+                    heatmap::iteration_heatmap(hits, covered, (top > 0.0).then_some(top))?
+                }
+                None => r.read_color()?,
             };
             if let Some(marks) = self.overlay.as_ref().and_then(|o| o.marks.get(i)) {
                 for (px, &m) in rgba.chunks_exact_mut(4).zip(marks) {

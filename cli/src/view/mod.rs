@@ -154,7 +154,12 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
             let field = bundled::rocks()?;
             (field, "rocks".to_owned(), settings, SceneAssets::default())
         };
-    if !given("size") && inputs.scene.is_none() {
+    // The documented first size, unless --size or the scene file gives one.
+    let scene_size = match &inputs.scene {
+        Some(path) => dispmap_cli::scene_file::SceneFile::read(path)?.size,
+        None => None,
+    };
+    if !given("size") && scene_size.is_none() {
         (settings.width, settings.height) = DEFAULT_WINDOW;
     }
     let camera_path = camera_path.as_deref().map(CameraPath::parse).transpose()?;

@@ -97,10 +97,10 @@ pub enum OverlayState {
 pub struct Info {
     /// Left, and right in split view.
     pub sides: Vec<SideInfo>,
-    /// Frames per second and the median frame time over the last update period.
-    pub fps: f64,
-    /// Median wall milliseconds of a frame.
-    pub frame_ms: f64,
+    /// Frames per second over the last update period (`None` until the first one).
+    pub fps: Option<f64>,
+    /// Median wall milliseconds of a frame (`None` until the first update).
+    pub frame_ms: Option<f64>,
     /// Each side's total GPU milliseconds of the recent frames, oldest first.
     pub history: [Vec<f32>; 2],
     /// The error overlay.
@@ -481,10 +481,10 @@ fn timings(ui: &mut egui::Ui, info: &Info) {
     egui::CollapsingHeader::new("Timings")
         .default_open(true)
         .show(ui, |ui| {
-            ui.label(format!(
-                "{:.1} fps, frame {:.1} ms",
-                info.fps, info.frame_ms
-            ));
+            ui.label(match (info.fps, info.frame_ms) {
+                (Some(fps), Some(ms)) => format!("{fps:.1} fps, frame {ms:.1} ms"),
+                _ => "fps, frame: measuring (after the first update)".to_owned(),
+            });
             let colours = [
                 Color32::from_rgb(255, 200, 60),
                 Color32::from_rgb(90, 200, 255),
@@ -498,10 +498,12 @@ fn timings(ui: &mut egui::Ui, info: &Info) {
                 let iterations = s
                     .iterations
                     .map_or(String::new(), |it| format!(", {it:.1} iterations / pixel"));
-                ui.colored_label(
-                    colours[i],
-                    format!("{name}: GPU {:.2} ms{iterations}", s.gpu_ms()),
-                );
+                let gpu = if s.passes.is_empty() {
+                    "measuring".to_owned()
+                } else {
+                    format!("{:.2} ms", s.gpu_ms())
+                };
+                ui.colored_label(colours[i], format!("{name}: GPU {gpu}{iterations}"));
                 let passes: Vec<String> = s
                     .passes
                     .iter()
