@@ -57,6 +57,18 @@ pub enum Geometry {
 }
 
 impl Geometry {
+    /// The name scene files and `--geometry` use (`plane` for the tiled plane).
+    pub fn name(self) -> &'static str {
+        match self {
+            Geometry::TiledPlane => "plane",
+            Geometry::Quad => "quad",
+            Geometry::Cube => "cube",
+            Geometry::Sphere => "sphere",
+            Geometry::Torus => "torus",
+            Geometry::Mesh => "mesh",
+        }
+    }
+
     /// The addressing this geometry implies unless the scene says otherwise.
     pub fn addressing(self) -> Addressing {
         match self {
@@ -532,6 +544,20 @@ pub fn addressing_code(a: Addressing) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn geometry_names_parse_back() {
+        for g in [
+            Geometry::TiledPlane,
+            Geometry::Quad,
+            Geometry::Cube,
+            Geometry::Sphere,
+            Geometry::Torus,
+            Geometry::Mesh,
+        ] {
+            assert_eq!(g.name().parse::<Geometry>().unwrap(), g);
+        }
+    }
 
     #[test]
     fn central_ray_has_the_requested_elevation() {

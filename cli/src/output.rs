@@ -671,6 +671,59 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     outputs.commit()
 }
 
+/// An sRGB-encoded RGBA8 image of `size` pixels reduced by `k` in each direction: each
+/// `k x k` block averaged in linear light (alpha linearly), rounded to the nearest
+/// sRGB value. The anti-aliased still of `render --samples` (`size` a multiple of `k`).
+pub fn downsample_srgb(rgba: &[u8], size: [usize; 2], k: usize) -> Vec<u8> {
+    let to_linear = |c: u8| {
+        let c = f64::from(c) / 255.0;
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    let to_srgb = |l: f64| {
+        let c = if l <= 0.003_130_8 {
+            l * 12.92
+        } else {
+            1.055 * l.powf(1.0 / 2.4) - 0.055
+        };
+        (c * 255.0).round().clamp(0.0, 255.0) as u8
+    };
+    let k = k.max(1);
+    let (w, h) = (size[0] / k, size[1] / k);
+    let n = (k * k) as f64;
+    let mut out = Vec::with_capacity(w * h * 4);
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = [0.0f64; 4];
+            for sy in 0..k {
+                for sx in 0..k {
+                    let i = 4 * ((y * k + sy) * size[0] + x * k + sx);
+                    for (c, s) in sum.iter_mut().enumerate() {
+                        let v = rgba[i + c];
+                        *s += if c < 3 {
+                            to_linear(v)
+                        } else {
+                            f64::from(v) / 255.0
+                        };
+                    }
+                }
+            }
+            for (c, s) in sum.iter().enumerate() {
+                let m = s / n;
+                out.push(if c < 3 {
+                    to_srgb(m)
+                } else {
+                    (m * 255.0).round() as u8
+                });
+            }
+        }
+    }
+    out
+}
+
 /// Encodes an RGBA8 image as PNG; `path` names it in errors.
 pub fn png_bytes(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<Vec<u8>> {
     let mut encoded = Vec::new();

@@ -192,6 +192,14 @@ pub(crate) fn render(
     if let Some(path) = &args.scene {
         let file = dispmap_cli::scene_file::SceneFile::read(path)?;
         if file.has_objects() {
+            if args.samples > 1 {
+                bail!(
+                    "invalid --samples {}: a scene of several objects ({}) renders one \
+                     sample per pixel",
+                    args.samples,
+                    path.display()
+                );
+            }
             return render_objects::render(options, args, matches, outputs, &file, path);
         }
     }
@@ -257,6 +265,11 @@ pub(crate) fn render(
             None
         };
         if let Some(out) = &args.out {
+            let color = if args.samples > 1 {
+                supersampled(&ctx, &field, settings, &assets, args)?
+            } else {
+                color
+            };
             let png = output::png_bytes(out, settings.width, settings.height, &color)?;
             outputs.stage(out, png)?;
         }
@@ -365,4 +378,46 @@ pub(crate) fn timings_line(timings: &[(String, f64)]) -> String {
         .map(|(name, ms)| format!("{name} {ms:.3} ms"))
         .collect();
     format!("GPU time (median): {}", parts.join(", "))
+}
+
+/// The `--out` image with `args.samples` samples per pixel: the frame rendered by a
+/// second renderer at `k = sqrt(samples)` times the size in each direction (each sample
+/// its own pixel-centre ray), and each `k x k` block averaged in linear light. Its
+/// memory is checked like the frame's before it is allocated.
+fn supersampled(
+    ctx: &Arc<Context>,
+    field: &HeightField,
+    settings: RenderSettings,
+    assets: &SceneAssets,
+    args: &RenderArgs,
+) -> Result<Vec<u8>> {
+    let k = args.samples.isqrt();
+    let mut big = settings;
+    (big.width, big.height) = (settings.width * k, settings.height * k);
+    dispmap_cli::frame_limit::check(ctx, big.width, big.height, "--samples")?;
+    let extras = memory::Extras {
+        maps: memory::MethodMaps::of(settings.method, settings.shadows.mode == ShadowMode::Hard),
+        ..memory::Extras::default()
+    };
+    let estimate = memory::estimate(
+        memory::MapSize::loaded(field),
+        [big.width, big.height],
+        extras,
+    );
+    memory::check(
+        &estimate,
+        args.common.max_memory,
+        &format!(
+            "rendering {}x{} for --samples {}",
+            big.width, big.height, args.samples
+        ),
+    )?;
+    let mut renderer = Renderer::with_assets(ctx, field, big, assets)?;
+    renderer.render_frames(1)?;
+    let rgba = renderer.read_color()?;
+    Ok(output::downsample_srgb(
+        &rgba,
+        [big.width as usize, big.height as usize],
+        k as usize,
+    ))
 }

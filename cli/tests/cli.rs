@@ -416,3 +416,64 @@ fn out_to_stdout_and_metrics_without_an_image() {
         "neither --out nor --metrics was accepted"
     );
 }
+
+/// `render --samples 4`: the image is anti-aliased (each pixel the average of a 2x2
+/// supersampled block: more distinct colours along the sphere's outline, the same
+/// picture), while the metrics stay those of one ray per pixel centre, equal to the
+/// `--samples 1` run's.
+#[test]
+fn supersampled_render_keeps_the_metrics() {
+    let dir = scratch("samples");
+    let run = |samples: &str| {
+        let (png, json) = (
+            dir.join(format!("s{samples}.png")),
+            dir.join(format!("s{samples}.json")),
+        );
+        let out = dispmap()
+            .args(["render", "--heightmap"])
+            .arg(asset("rocks_depth.jpg"))
+            .args(["--convention", "depth", "--geometry", "sphere", "--method"])
+            .args(["exact", "--size", "96x54", "--samples", samples, "--out"])
+            .arg(&png)
+            .arg("--metrics")
+            .arg(&json)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        (image::open(&png).unwrap().to_rgba8(), read_json(&json))
+    };
+    let (one, one_metrics) = run("1");
+    let (four, four_metrics) = run("4");
+    for key in ["error", "iterations", "coverage", "width", "height"] {
+        assert_eq!(one_metrics[key], four_metrics[key], "{key}");
+    }
+    assert_eq!(one.dimensions(), four.dimensions());
+    assert_ne!(one, four, "the supersampled image is the same");
+    let diff: f64 = one
+        .as_raw()
+        .iter()
+        .zip(four.as_raw())
+        .map(|(a, b)| f64::from(a.abs_diff(*b)))
+        .sum::<f64>()
+        / one.as_raw().len() as f64;
+    assert!(diff < 12.0, "not the same picture: mean difference {diff}");
+    let distinct = |img: &image::RgbaImage| {
+        img.pixels()
+            .map(|p| p.0)
+            .collect::<std::collections::HashSet<_>>()
+            .len()
+    };
+    assert!(distinct(&four) > distinct(&one), "no intermediate colours");
+    // Not a square number: refused, naming the option.
+    let out = dispmap()
+        .args(["render", "--heightmap"])
+        .arg(asset("rocks_depth.jpg"))
+        .args(["--convention", "depth", "--samples", "2", "--out"])
+        .arg(dir.join("bad.png"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--samples"));
+    assert!(!dir.join("bad.png").exists());
+}

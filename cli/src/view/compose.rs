@@ -61,7 +61,7 @@ impl Viewer {
             frame: [layout.frame.width, layout.frame.height],
             label_columns,
             maps: state.maps.iter().map(|(n, _)| n.clone()).collect(),
-            geometry: format!("{:?}", s.scene.geometry).to_lowercase(),
+            geometry: s.scene.geometry.name().to_owned(),
             notice: self
                 .notice
                 .as_ref()

@@ -141,6 +141,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         heatmap_max: None,
         interval_map: None,
         depth_out: None,
+        samples: 1,
     };
     let common = &inputs.common;
     common.check()?;
