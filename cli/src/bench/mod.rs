@@ -35,7 +35,7 @@
 //!   `total_ms` is the minimum whole frame (G-buffer, corner pass, trace, shade; without
 //!   the one-off pyramid build), `total_median_ms` its median.
 //! * **Error.** The reference of a frame (the exact CPU intersection of its rays,
-//!   [`Renderer::reference`]) is computed once per map and error frame and shared by
+//!   [`Measure::reference`](crate::measure::Measure::reference)) is computed once per map and error frame and shared by
 //!   every method. `--error-frames N` picks frames `floor(i K / N)`, `i < N` (frame 0
 //!   always; all frames by default). Each error measure of a run is the mean of the
 //!   per-frame measures ([`crate::metrics`]) over its error frames, except `max_texels`
@@ -45,7 +45,7 @@
 //!   covered pixel.
 //! * **Forward path** (`--forward on`, the default): what engines do with relief
 //!   mapping and POM, the marcher in the G-buffer pass's fragment shader
-//!   ([`dispmap::passes::forward`], [`Renderer::render_forward`]). Every `relief` and
+//!   ([`dispmap::passes::forward`], [`Renderer::render_forward`](dispmap::renderer::Renderer::render_forward)). Every `relief` and
 //!   `pom` run of the methods sweep is run a second time that way, by the same renderer,
 //!   interleaved with the others frame by frame (rows of [`Sweep::Forward`]). A forward
 //!   frame is `gbuffer` (the raster pass with the march), `classify` and `shade`; its
