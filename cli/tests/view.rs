@@ -460,3 +460,36 @@ fn a_scene_without_a_size_opens_at_the_default_size() {
     let png = image::open(&shot).unwrap();
     assert_eq!((png.width(), png.height()), (960, 540));
 }
+
+/// A scene of several objects: the viewer names every object's material (method, map,
+/// depth) on the console, as its panel lists them, not only the first one's map.
+#[test]
+fn a_scene_of_several_objects_lists_every_material() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            eprintln!("SKIPPED a_scene_of_several_objects_lists_every_material: {why}");
+            return;
+        }
+    };
+    let dir = scratch("materials");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/materials.toml");
+    let script = dir.join("script.txt");
+    std::fs::write(&script, "").unwrap();
+    let scene = scene.to_string_lossy().into_owned();
+    let stderr = view(
+        &xvfb,
+        &["--scene", &scene, "--size", "96x54", "--frames", "1"],
+        &script,
+        &dir.join("shot.png"),
+    );
+    assert!(stderr.contains("a scene of 5 objects"), "{stderr}");
+    for line in [
+        "1. quad: relief on rocks_depth.jpg (bundled), depth 0.03",
+        "2. cube: exact on bricks_depth.jpg (bundled), depth 0.08",
+        "3. sphere: secant on mountains_height16.png (bundled), depth 0.05",
+        "4. torus: flat",
+    ] {
+        assert!(stderr.contains(line), "no '{line}' in {stderr}");
+    }
+}

@@ -4,7 +4,7 @@
 use super::panel;
 use super::panel::{OverlayState, SideInfo};
 use super::present::{DIVIDER_PX, DIVIDER_RGBA, Layout, Part};
-use super::state::{Compare, ViewState};
+use super::state::{Compare, ViewState, material_lines};
 use super::viewer::Viewer;
 use super::{ARTIFACT_RGBA, LOD_RGBA, MISS_RGBA, NOTICE_TIME};
 use anyhow::Result;
@@ -62,6 +62,7 @@ impl Viewer {
             label_columns,
             maps: state.maps.iter().map(|(n, _)| n.clone()).collect(),
             geometry: s.scene.geometry.name().to_owned(),
+            materials: material_lines(state),
             notice: self
                 .notice
                 .as_ref()

@@ -115,6 +115,8 @@ pub struct Info {
     pub maps: Vec<String>,
     /// The geometry's name.
     pub geometry: String,
+    /// A scene of several objects: one line per object (method, map, depth, or flat).
+    pub materials: Vec<String>,
     /// A recent message (the last screenshot's file).
     pub notice: Option<String>,
 }
@@ -375,6 +377,15 @@ fn methods(ui: &mut egui::Ui, state: &mut ViewState) {
 }
 
 fn scene(ui: &mut egui::Ui, state: &mut ViewState, info: &Info, req: &mut Requests) {
+    if !info.materials.is_empty() {
+        egui::CollapsingHeader::new(format!("Objects ({})", info.materials.len()))
+            .default_open(true)
+            .show(ui, |ui| {
+                for line in &info.materials {
+                    ui.label(line);
+                }
+            });
+    }
     egui::CollapsingHeader::new("Scene")
         .default_open(true)
         .show(ui, |ui| {

@@ -112,3 +112,25 @@ pub(super) fn title(state: &ViewState) -> String {
         None => format!("dispmap view: {}", state.settings.method.name()),
     }
 }
+
+/// One line per object of a scene of several objects: its geometry, and its method, map
+/// and depth scale, or `flat` (empty for one geometry).
+pub(super) fn material_lines(state: &ViewState) -> Vec<String> {
+    state
+        .assets
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| match &o.material {
+            Some((field, m, _)) => format!(
+                "{}. {}: {} on {}, depth {}",
+                i + 1,
+                o.geometry.name(),
+                m.method.name(),
+                field.label(),
+                m.depth_scale
+            ),
+            None => format!("{}. {}: flat", i + 1, o.geometry.name()),
+        })
+        .collect()
+}

@@ -8,7 +8,7 @@ use super::input::{next_screenshot_path, switch_map};
 use super::overlay::{ErrorJob, Overlay};
 use super::present::{Presenter, Source};
 use super::script::{Action, CameraPath};
-use super::state::{Snapshot, ViewState, side_of, title};
+use super::state::{Snapshot, ViewState, material_lines, side_of, title};
 use super::stats::{Stats, push_history};
 use super::{RESIZE_TIMEOUT, STATS_PERIOD};
 use super::{panel, present, ui};
@@ -131,9 +131,15 @@ impl Viewer {
             Some(Ok(g)) => Some(g),
             None => None,
         };
+        let objects = material_lines(state);
+        let shown = if objects.is_empty() {
+            state.maps[state.map].0.clone()
+        } else {
+            format!("a scene of {} objects", objects.len())
+        };
         eprintln!(
             "dispmap view: {} on {} ({}), {}x{}, {:?}{}",
-            state.maps[state.map].0,
+            shown,
             ctx.info().name,
             ctx.info().driver,
             extent.width,
@@ -145,6 +151,9 @@ impl Viewer {
                 (false, false) => "; keys: see docs/viewer.md (Esc quits)",
             }
         );
+        for line in &objects {
+            eprintln!("  {line}");
+        }
         Ok(Viewer {
             gui,
             presenter,
