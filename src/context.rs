@@ -114,10 +114,15 @@ pub struct DeviceInfo {
     /// Queue family index used.
     pub queue_family_index: u32,
     /// Loop iterations the driver lets one shader invocation run, when it ends an
-    /// invocation past a fixed count ([`crate::method::LOOP_LIMIT`] on lavapipe); `None`
+    /// invocation past a fixed count ([`LOOP_LIMIT`] on lavapipe); `None`
     /// when only a timeout bounds it.
     pub loop_limit: Option<u32>,
 }
+
+/// Loop iterations lavapipe (Mesa's llvmpipe) lets one shader invocation run, all of
+/// its loops together; past them it ends the invocation silently
+/// ([`DeviceInfo::loop_limit`]; the methods' bounds check against it).
+pub const LOOP_LIMIT: u32 = 65_535;
 
 /// Counts validation (debug messenger) messages of warning and error severity.
 #[derive(Debug, Default)]
@@ -973,8 +978,7 @@ fn device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, family: u32) ->
             .unwrap_or(0),
         max_image_dimension_2d: props.limits.max_image_dimension2_d,
         queue_family_index: family,
-        loop_limit: (driver.driver_id == vk::DriverId::MESA_LLVMPIPE)
-            .then_some(crate::method::LOOP_LIMIT),
+        loop_limit: (driver.driver_id == vk::DriverId::MESA_LLVMPIPE).then_some(LOOP_LIMIT),
     }
 }
 

@@ -214,10 +214,13 @@ struct Objects {
 }
 
 impl crate::gpu::owned::Destroy for Objects {
-    fn destroy(&mut self, ctx: &Context) {
-        self.mesh_pass.destroy(ctx);
-        self.two_sided_pass.destroy(ctx);
-        self.meshes.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.mesh_pass.destroy(ctx);
+            self.two_sided_pass.destroy(ctx);
+            self.meshes.destroy(ctx);
+        }
     }
 }
 
@@ -375,23 +378,29 @@ impl Renderer {
         let c = &**ctx;
         // Built in order; a failure destroys what the guards hold.
         let host = HostParts::new(c, extent)?;
-        let gbuffer_pass = Guard::new(
-            c,
-            if let Some(m) = &mesh {
-                if m.two_sided {
-                    GBufferPass::new_mesh_two_sided(c)?
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let gbuffer_pass = unsafe {
+            Guard::new(
+                c,
+                if let Some(m) = &mesh {
+                    if m.two_sided {
+                        GBufferPass::new_mesh_two_sided(c)?
+                    } else {
+                        GBufferPass::new_mesh(c)?
+                    }
                 } else {
-                    GBufferPass::new_mesh(c)?
-                }
-            } else {
-                GBufferPass::new(c)?
-            },
-        );
-        let mesh = Guard::new(
-            c,
-            mesh.map(|m| MeshBuffers::upload(c, &host.shot, &m))
-                .transpose()?,
-        );
+                    GBufferPass::new(c)?
+                },
+            )
+        };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mesh = unsafe {
+            Guard::new(
+                c,
+                mesh.map(|m| MeshBuffers::upload(c, &host.shot, &m))
+                    .transpose()?,
+            )
+        };
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             field,
@@ -509,17 +518,21 @@ impl Renderer {
         let extent = settings.extent();
         let c = &**ctx;
         let host = HostParts::new(c, extent)?;
-        let gbuffer_pass = Guard::new(c, GBufferPass::new(c)?);
-        let mut drawn = Guard::new(
-            c,
-            Objects {
-                mesh_pass: None,
-                two_sided_pass: None,
-                meshes: Vec::new(),
-                materials: Vec::new(),
-                framing: None,
-            },
-        );
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let gbuffer_pass = unsafe { Guard::new(c, GBufferPass::new(c)?) };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut drawn = unsafe {
+            Guard::new(
+                c,
+                Objects {
+                    mesh_pass: None,
+                    two_sided_pass: None,
+                    meshes: Vec::new(),
+                    materials: Vec::new(),
+                    framing: None,
+                },
+            )
+        };
         // Only the pipelines the objects need.
         if placed.iter().flatten().any(|m| !m.two_sided) {
             drawn.mesh_pass = Some(GBufferPass::new_mesh(c)?);
@@ -656,7 +669,9 @@ impl Renderer {
         let c = &*self.ctx;
         let (gbuffer, hit, color) = frame_images(c, extent)?;
         if let Some(m) = &mut self.motion {
-            m.resize(c, extent)?;
+            // SAFETY: every frame of this renderer was waited for (`render` submits and
+            // waits): nothing reads the old motion image.
+            unsafe { m.resize(c, extent)? };
         }
         self.pass.resize(extent)?;
         let mut old = (
@@ -666,7 +681,8 @@ impl Renderer {
                 std::mem::replace(&mut self.color, color.keep()),
             ),
         );
-        old.destroy(c);
+        // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
+        unsafe { old.destroy(c) };
         self.settings = settings;
         self.depth_written = false;
         self.rays_frame = None;
@@ -750,7 +766,9 @@ impl Renderer {
         let c = &*self.ctx;
         match (on, &mut self.motion) {
             (true, None) => {
-                let motion = Guard::new(c, CameraMotion::new(c, self.settings.extent())?);
+                // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+                let motion =
+                    unsafe { Guard::new(c, CameraMotion::new(c, self.settings.extent())?) };
                 self.pass.set_motion_output(Some(MotionSettings {
                     format: CAMERA_MOTION_FORMAT,
                     ..MotionSettings::default()
@@ -760,7 +778,8 @@ impl Renderer {
             (false, Some(_)) => {
                 self.pass.set_motion_output(None)?;
                 // Every frame of this renderer was waited for.
-                self.motion.destroy(c);
+                // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
+                unsafe { self.motion.destroy(c) };
             }
             _ => {}
         }
@@ -1274,17 +1293,20 @@ impl Renderer {
         }
         let given = visibility
             .map(|values| -> Result<Image> {
-                let image = Guard::new(
-                    ctx,
-                    Image::new(
+                // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+                let image = unsafe {
+                    Guard::new(
                         ctx,
-                        "given_visibility",
-                        VISIBILITY_FORMAT,
-                        self.settings.extent(),
-                        1,
-                        vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_DST,
-                    )?,
-                );
+                        Image::new(
+                            ctx,
+                            "given_visibility",
+                            VISIBILITY_FORMAT,
+                            self.settings.extent(),
+                            1,
+                            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_DST,
+                        )?,
+                    )
+                };
                 upload_image(
                     ctx,
                     &self.shot,
@@ -1295,7 +1317,8 @@ impl Renderer {
                 Ok(image.keep())
             })
             .transpose()?;
-        let mut given = Guard::new(ctx, given);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut given = unsafe { Guard::new(ctx, given) };
         upload_image(
             ctx,
             &self.shot,
@@ -1327,7 +1350,8 @@ impl Renderer {
             )?
         };
         self.shot.submit_and_wait(ctx)?;
-        given.destroy(ctx);
+        // SAFETY: the submission that read it was waited for just above.
+        unsafe { given.destroy(ctx) };
         self.read_color()
     }
 }
@@ -1341,17 +1365,20 @@ impl Drop for Renderer {
         }
         // SAFETY: the device is idle: no frame recorded with the pass is pending.
         unsafe { self.pass.destroy() };
-        self.mesh.destroy(ctx);
-        self.objects.destroy(ctx);
-        self.forward.destroy(ctx);
-        self.gbuffer_pass.destroy(ctx);
-        self.background.destroy(ctx);
-        self.motion.destroy(ctx);
-        self.color.destroy(ctx);
-        self.hit.destroy(ctx);
-        self.gbuffer.destroy(ctx);
-        self.timestamps.destroy(ctx);
-        self.shot.destroy(ctx);
+        // SAFETY: the device is idle: no submission uses these objects.
+        unsafe {
+            self.mesh.destroy(ctx);
+            self.objects.destroy(ctx);
+            self.forward.destroy(ctx);
+            self.gbuffer_pass.destroy(ctx);
+            self.background.destroy(ctx);
+            self.motion.destroy(ctx);
+            self.color.destroy(ctx);
+            self.hit.destroy(ctx);
+            self.gbuffer.destroy(ctx);
+            self.timestamps.destroy(ctx);
+            self.shot.destroy(ctx);
+        }
     }
 }
 
@@ -1370,17 +1397,22 @@ struct HostParts<'c> {
 impl<'c> HostParts<'c> {
     /// Builds them in order; a failure destroys what was built.
     fn new(c: &'c Context, extent: vk::Extent2D) -> Result<Self> {
-        let shot = Guard::new(c, OneShot::new(c, "renderer")?);
-        let timestamps = Guard::new(
-            c,
-            QueryPool(crate::timing::timestamp_pool(
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let shot = unsafe { Guard::new(c, OneShot::new(c, "renderer")?) };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let timestamps = unsafe {
+            Guard::new(
                 c,
-                "renderer.timestamps",
-                GBUFFER_QUERIES + MAX_QUERIES,
-            )?),
-        );
+                QueryPool(crate::timing::timestamp_pool(
+                    c,
+                    "renderer.timestamps",
+                    GBUFFER_QUERIES + MAX_QUERIES,
+                )?),
+            )
+        };
         let (gbuffer, hit, color) = frame_images(c, extent)?;
-        let background = Guard::new(c, BackgroundPass::new(c)?);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let background = unsafe { Guard::new(c, BackgroundPass::new(c)?) };
         Ok(HostParts {
             shot,
             timestamps,
@@ -1429,32 +1461,39 @@ fn frame_images(
     c: &Context,
     extent: vk::Extent2D,
 ) -> Result<(Guard<'_, GBuffer>, Guard<'_, Image>, Guard<'_, Image>)> {
-    let gbuffer = Guard::new(c, GBuffer::new(c, extent)?);
-    let hit = Guard::new(
-        c,
-        Image::new(
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let gbuffer = unsafe { Guard::new(c, GBuffer::new(c, extent)?) };
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let hit = unsafe {
+        Guard::new(
             c,
-            "hits",
-            HIT_FORMAT,
-            extent,
-            1,
-            // COLOR_ATTACHMENT: the forward path writes it from its fragment shader.
-            vk::ImageUsageFlags::STORAGE
-                | vk::ImageUsageFlags::COLOR_ATTACHMENT
-                | vk::ImageUsageFlags::TRANSFER_SRC
-                | vk::ImageUsageFlags::TRANSFER_DST,
-        )?,
-    );
-    let color = Guard::new(
-        c,
-        Image::new(
+            Image::new(
+                c,
+                "hits",
+                HIT_FORMAT,
+                extent,
+                1,
+                // COLOR_ATTACHMENT: the forward path writes it from its fragment shader.
+                vk::ImageUsageFlags::STORAGE
+                    | vk::ImageUsageFlags::COLOR_ATTACHMENT
+                    | vk::ImageUsageFlags::TRANSFER_SRC
+                    | vk::ImageUsageFlags::TRANSFER_DST,
+            )?,
+        )
+    };
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let color = unsafe {
+        Guard::new(
             c,
-            "color",
-            COLOR_FORMAT,
-            extent,
-            1,
-            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-        )?,
-    );
+            Image::new(
+                c,
+                "color",
+                COLOR_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?,
+        )
+    };
     Ok((gbuffer, hit, color))
 }

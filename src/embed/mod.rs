@@ -222,7 +222,8 @@ pub use crate::passes::PassName;
 pub use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, RAY_FORMAT};
 pub use crate::passes::hit_depth::HIT_DEPTH_FORMAT;
 pub use crate::passes::motion::{
-    MOTION_FORMATS, MotionDirection, MotionSettings, MotionSource, MotionUnits,
+    DepthCamera, FrameMotion, MOTION_FORMATS, MotionDirection, MotionSettings, MotionSource,
+    MotionUnits,
 };
 pub use crate::passes::shade::COLOR_FORMAT;
 pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
@@ -281,17 +282,6 @@ pub struct FrameInputs {
     pub motion: Option<FrameMotion>,
 }
 
-/// The motion output's inputs of one frame ([`crate::passes::motion`] documents the
-/// contract).
-#[derive(Clone, Copy, Debug)]
-pub struct FrameMotion {
-    /// The host's motion image (the format of the pass's [`MotionSettings`], one of
-    /// [`MOTION_FORMATS`]; `STORAGE` usage; the frame's size), read and written in place.
-    pub image: HostView,
-    /// The camera the host drew its previous frame with (world to clip and eye).
-    pub previous: DepthCamera,
-}
-
 /// Where [`DisplacementPass::record`] writes its timestamps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Timestamps {
@@ -318,16 +308,6 @@ pub struct RecordedFrame {
     pub passes: Vec<PassName>,
     /// Their timestamp queries (empty with [`Timestamps::Off`]).
     pub timestamps: Vec<TimestampScope>,
-}
-
-/// The camera of a frame for the corrected depth when the frame has no
-/// [`ShadeTarget`] (see [`DisplacementPass::record_with_camera`]).
-#[derive(Clone, Copy, Debug)]
-pub struct DepthCamera {
-    /// World to clip of the frame (the G-buffer's; reverse-Z).
-    pub view_proj: Mat4,
-    /// Eye position, world space.
-    pub eye: Vec3,
 }
 
 /// The settings of one displaced material (one entry of the pass's material table).
@@ -442,8 +422,10 @@ impl DisplacementPass {
         validate_frame(&ctx, settings.extent, settings.frames_in_flight)?;
         validate_material(&ctx, &settings.material())?;
         let c = &*ctx;
-        let shade = Guard::new(c, ShadePass::new(c)?);
-        let classify = Guard::new(c, ClassifyPass::new(c)?);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let shade = unsafe { Guard::new(c, ShadePass::new(c)?) };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let classify = unsafe { Guard::new(c, ClassifyPass::new(c)?) };
         let mut pass = DisplacementPass {
             frame: FrameSettings {
                 extent: settings.extent,
@@ -548,12 +530,14 @@ impl DisplacementPass {
         }
         if let Err(e) = self.sync() {
             // Never recorded: destroyed at once.
-            self.materials[index].take().destroy(&self.ctx);
+            // SAFETY: the failed sync recorded nothing with the new entry.
+            unsafe { self.materials[index].take().destroy(&self.ctx) };
             if index + 1 == self.materials.len() {
                 self.materials.pop();
             }
             if new_map {
-                self.maps[map].take().destroy(&self.ctx);
+                // SAFETY: the failed sync recorded nothing with the new map.
+                unsafe { self.maps[map].take().destroy(&self.ctx) };
             }
             return Err(e);
         }
@@ -653,7 +637,8 @@ impl DisplacementPass {
                 m.map = old;
             }
             if new_map {
-                self.maps[map].take().destroy(&self.ctx);
+                // SAFETY: the failed sync recorded nothing with the new map.
+                unsafe { self.maps[map].take().destroy(&self.ctx) };
             }
             return Err(e);
         }
@@ -676,7 +661,8 @@ impl DisplacementPass {
                 self.retired.retire(old);
             }
             // Staging never recorded: no frame reads it.
-            std::mem::replace(&mut m.pending_shading, staging).destroy(&ctx);
+            // SAFETY: staging buffers are only read by the next record's upload, which has not happened.
+            unsafe { std::mem::replace(&mut m.pending_shading, staging).destroy(&ctx) };
         }
         Ok(())
     }
@@ -910,20 +896,23 @@ impl DisplacementPass {
             return;
         }
         let ctx = &*self.ctx;
-        self.retired.destroy_all(ctx);
-        self.materials.destroy(ctx);
-        self.maps.destroy(ctx);
-        self.depth.destroy(ctx);
-        self.motion.destroy(ctx);
-        self.visibility.destroy(ctx);
-        self.tiles.destroy(ctx);
-        self.shadow_passes.destroy(ctx);
-        self.cone_passes.destroy(ctx);
-        self.corner_pass.destroy(ctx);
-        self.pyramid_pass.destroy(ctx);
-        self.classify.destroy(ctx);
-        self.shade.destroy(ctx);
-        self.traces.destroy(ctx);
+        // SAFETY: this function's contract: no frame recorded with the pass is pending.
+        unsafe {
+            self.retired.destroy_all(ctx);
+            self.materials.destroy(ctx);
+            self.maps.destroy(ctx);
+            self.depth.destroy(ctx);
+            self.motion.destroy(ctx);
+            self.visibility.destroy(ctx);
+            self.tiles.destroy(ctx);
+            self.shadow_passes.destroy(ctx);
+            self.cone_passes.destroy(ctx);
+            self.corner_pass.destroy(ctx);
+            self.pyramid_pass.destroy(ctx);
+            self.classify.destroy(ctx);
+            self.shade.destroy(ctx);
+            self.traces.destroy(ctx);
+        }
         if let Some(pool) = self.query_pool.take() {
             // SAFETY: this function's contract: no pending use.
             unsafe { ctx.device().destroy_query_pool(pool, None) };

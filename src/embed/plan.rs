@@ -52,10 +52,13 @@ pub(super) enum Fill {
 }
 
 impl Destroy for Fill {
-    fn destroy(&mut self, ctx: &Context) {
-        match self {
-            Fill::Upload(b) => b.destroy(ctx),
-            Fill::Copy(h) => h.destroy(ctx),
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            match self {
+                Fill::Upload(b) => b.destroy(ctx),
+                Fill::Copy(h) => h.destroy(ctx),
+            }
         }
     }
 }
@@ -91,8 +94,11 @@ pub(super) struct Built<T> {
 }
 
 impl<T: Destroy> Destroy for Built<T> {
-    fn destroy(&mut self, ctx: &Context) {
-        self.value.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.value.destroy(ctx);
+        }
     }
 }
 
@@ -145,11 +151,14 @@ impl MapEntry {
 }
 
 impl Destroy for MapEntry {
-    fn destroy(&mut self, ctx: &Context) {
-        self.pending_fill.destroy(ctx);
-        self.cones.destroy(ctx);
-        self.pyramids.destroy(ctx);
-        self.texture.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pending_fill.destroy(ctx);
+            self.cones.destroy(ctx);
+            self.pyramids.destroy(ctx);
+            self.texture.destroy(ctx);
+        }
     }
 }
 
@@ -168,10 +177,13 @@ pub(super) struct MaterialEntry {
 }
 
 impl Destroy for MaterialEntry {
-    fn destroy(&mut self, ctx: &Context) {
-        self.shading.destroy(ctx);
-        self.pending_shading.destroy(ctx);
-        self.corners.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.shading.destroy(ctx);
+            self.pending_shading.destroy(ctx);
+            self.corners.destroy(ctx);
+        }
     }
 }
 
@@ -183,9 +195,12 @@ pub(super) struct DepthParts {
 }
 
 impl Destroy for DepthParts {
-    fn destroy(&mut self, ctx: &Context) {
-        self.pass.destroy(ctx);
-        self.images.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pass.destroy(ctx);
+            self.images.destroy(ctx);
+        }
     }
 }
 
@@ -242,29 +257,32 @@ struct Additions {
 }
 
 impl Destroy for Additions {
-    fn destroy(&mut self, ctx: &Context) {
-        self.traces.destroy(ctx);
-        self.pyramid_pass.destroy(ctx);
-        self.corner_pass.destroy(ctx);
-        self.cone_passes.destroy(ctx);
-        self.shadow_passes.destroy(ctx);
-        self.shade.destroy(ctx);
-        for (_, t) in &mut self.textures {
-            t.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.traces.destroy(ctx);
+            self.pyramid_pass.destroy(ctx);
+            self.corner_pass.destroy(ctx);
+            self.cone_passes.destroy(ctx);
+            self.shadow_passes.destroy(ctx);
+            self.shade.destroy(ctx);
+            for (_, t) in &mut self.textures {
+                t.destroy(ctx);
+            }
+            for (_, p) in &mut self.pyramids {
+                p.destroy(ctx);
+            }
+            for (_, c) in &mut self.cones {
+                c.destroy(ctx);
+            }
+            for (_, g) in &mut self.corners {
+                g.destroy(ctx);
+            }
+            self.visibility.destroy(ctx);
+            self.depth.destroy(ctx);
+            self.motion.destroy(ctx);
+            self.tiles.destroy(ctx);
         }
-        for (_, p) in &mut self.pyramids {
-            p.destroy(ctx);
-        }
-        for (_, c) in &mut self.cones {
-            c.destroy(ctx);
-        }
-        for (_, g) in &mut self.corners {
-            g.destroy(ctx);
-        }
-        self.visibility.destroy(ctx);
-        self.depth.destroy(ctx);
-        self.motion.destroy(ctx);
-        self.tiles.destroy(ctx);
     }
 }
 
@@ -274,7 +292,8 @@ pub(super) fn per_slot<T: Destroy>(
     frames: u32,
     mut make: impl FnMut(u32) -> Result<T>,
 ) -> Result<Vec<T>> {
-    let mut made = Guard::new(ctx, Vec::new());
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let mut made = unsafe { Guard::new(ctx, Vec::new()) };
     for s in 0..frames {
         made.push(make(s)?);
     }
@@ -332,7 +351,8 @@ impl DisplacementPass {
         let extent = self.frame.extent;
         let frames = self.frame.frames_in_flight;
         let resized = self.built_extent != extent;
-        let mut add = Guard::new(c, Additions::default());
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut add = unsafe { Guard::new(c, Additions::default()) };
         for &m in &plan.methods {
             if !self.traces.iter().any(|t| t.method() == m) {
                 add.traces.push(TracePass::new(c, m)?);
@@ -408,7 +428,8 @@ impl DisplacementPass {
             })?);
         }
         if plan.depth && (resized || self.depth.is_none()) {
-            let pass = Guard::new(c, HitDepthPass::new(c)?);
+            // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+            let pass = unsafe { Guard::new(c, HitDepthPass::new(c)?) };
             let images = per_slot(c, frames, |s| {
                 Image::new(
                     c,

@@ -324,7 +324,8 @@ impl DisplacementPass {
         };
         // Slot `slot`'s previous frame has completed: nothing retired before now is
         // read by it any more.
-        self.retired.release(&self.ctx, slot);
+        // SAFETY: `record`'s slot contract: the slot's previous frame has completed.
+        unsafe { self.retired.release(&self.ctx, slot) };
         let w = ScopeWriter::new(pool, first, MAX_QUERIES);
         // SAFETY: this function's contract (a live pool with the range).
         unsafe { w.reset(&self.ctx, cmd) };

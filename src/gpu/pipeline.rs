@@ -3,6 +3,7 @@
 use super::Image;
 use crate::context::Context;
 use crate::error::{Result, VkContext};
+use crate::gpu::owned::Destroy;
 use crate::shaders::Shader;
 use ash::vk;
 
@@ -180,10 +181,13 @@ impl ComputePipeline {
             }
         }
     }
+}
 
-    /// Destroys pipeline and layouts. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: caller guarantees no pending use.
+impl Destroy for ComputePipeline {
+    /// Destroys pipeline and layouts and nulls their handles (a second call does
+    /// nothing: Vulkan ignores null handles).
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             ctx.device().destroy_pipeline(self.pipeline, None);
             ctx.device().destroy_pipeline_layout(self.layout, None);
@@ -191,6 +195,8 @@ impl ComputePipeline {
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
         self.pipeline = vk::Pipeline::null();
+        self.layout = vk::PipelineLayout::null();
+        self.set_layout = vk::DescriptorSetLayout::null();
     }
 }
 
@@ -233,7 +239,7 @@ impl FetchPipeline {
         push_constant_size: u32,
     ) -> Result<Self> {
         let mut pipeline = ComputePipeline::new(ctx, name, shader, bindings, push_constant_size)?;
-        match crate::passes::sampler(
+        match sampler(
             ctx,
             &format!("{name}.fetch_sampler"),
             vk::Filter::NEAREST,
@@ -241,7 +247,8 @@ impl FetchPipeline {
         ) {
             Ok(sampler) => Ok(FetchPipeline { pipeline, sampler }),
             Err(e) => {
-                pipeline.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { pipeline.destroy(ctx) };
                 Err(e)
             }
         }
@@ -261,13 +268,17 @@ impl FetchPipeline {
             image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         }]
     }
+}
 
+impl Destroy for FetchPipeline {
     /// Destroys the pipeline and the sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_sampler(self.sampler, None) };
-        self.sampler = vk::Sampler::null();
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+            ctx.device().destroy_sampler(self.sampler, None);
+            self.sampler = vk::Sampler::null();
+        }
     }
 }
 
@@ -475,4 +486,25 @@ pub unsafe fn set_frame_viewport(ctx: &Context, cmd: vk::CommandBuffer, extent: 
         ctx.device().cmd_set_viewport(cmd, 0, &[viewport]);
         ctx.device().cmd_set_scissor(cmd, 0, &[frame_area(extent)]);
     }
+}
+
+/// Creates a sampler named `name` (no mipmap filtering, every level reachable).
+pub fn sampler(
+    ctx: &Context,
+    name: &str,
+    filter: vk::Filter,
+    address: vk::SamplerAddressMode,
+) -> Result<vk::Sampler> {
+    let info = vk::SamplerCreateInfo::default()
+        .mag_filter(filter)
+        .min_filter(filter)
+        .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+        .address_mode_u(address)
+        .address_mode_v(address)
+        .address_mode_w(address)
+        .max_lod(vk::LOD_CLAMP_NONE);
+    // SAFETY: valid device and create info.
+    let sampler = unsafe { ctx.device().create_sampler(&info, None) }.vk("vkCreateSampler")?;
+    ctx.set_name(sampler, name);
+    Ok(sampler)
 }

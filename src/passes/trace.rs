@@ -26,6 +26,7 @@ use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TRACE_FLAG_LOD, TraceParams};
 use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
@@ -250,9 +251,14 @@ impl TracePass {
         };
         Ok(())
     }
+}
 
+impl Destroy for TracePass {
     /// Destroys the pipeline and sampler.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }
