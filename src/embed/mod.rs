@@ -205,10 +205,11 @@ use crate::gpu::owned::{Destroy, Guard, RetireQueue};
 use crate::heightfield::{Addressing, HeightField};
 use crate::material::{MaterialImages, MaterialTextures};
 use crate::method::{Method, MethodParams};
-use crate::passes::classify::{ClassifyPass, TileLists};
+use crate::passes::classify::ClassifyPass;
 use crate::passes::cone::{ConeMap, ConePass};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::GBufferViews;
+use crate::passes::hit_depth::HitDepthPass;
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
 use crate::passes::shadow::ShadowPass;
@@ -389,12 +390,10 @@ pub struct DisplacementPass {
     corner_pass: Option<DigCornerPass>,
     cone_passes: Vec<ConePass>,
     shadow_passes: Vec<ShadowPass>,
-    /// One tile list set per frame slot.
-    tiles: Vec<TileLists>,
-    /// One visibility image per frame slot (self-shadowing on).
-    visibility: Vec<Image>,
-    /// The corrected-depth output (`None` when off).
-    depth: Option<plan::DepthParts>,
+    /// What each frame in flight owns, by frame slot (built by the first sync).
+    slots: Vec<plan::Slot>,
+    /// The corrected-depth pipeline (`None` when off; its images are the slots').
+    depth: Option<HitDepthPass>,
     /// Whether the corrected depth is requested.
     depth_on: bool,
     /// The motion pass (`None` when off).
@@ -404,8 +403,6 @@ pub struct DisplacementPass {
     /// The frame size the frame-sized resources were built for.
     built_extent: vk::Extent2D,
     query_pool: Option<vk::QueryPool>,
-    /// The owned-pool scopes each slot recorded last.
-    slot_scopes: Vec<Vec<TimestampScope>>,
     retired: RetireQueue,
     /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
     shadows: ShadowSettings,
@@ -446,15 +443,13 @@ impl DisplacementPass {
             corner_pass: None,
             cone_passes: Vec::new(),
             shadow_passes: Vec::new(),
-            tiles: Vec::new(),
-            visibility: Vec::new(),
+            slots: Vec::new(),
             depth: None,
             depth_on: false,
             motion: None,
             motion_on: None,
             built_extent: vk::Extent2D::default(),
             query_pool: None,
-            slot_scopes: vec![Vec::new(); settings.frames_in_flight as usize],
             retired: RetireQueue::new(settings.frames_in_flight),
             shadows: ShadowSettings::default(),
             destroyed: false,
@@ -679,13 +674,13 @@ impl DisplacementPass {
     /// signalled and before the slot is recorded again; an unfinished frame gives an
     /// error (`VK_NOT_READY`), never a wait.
     pub fn timings(&self, frame_slot: u32) -> Result<Vec<(PassName, f64)>> {
-        let scopes = self
-            .slot_scopes
+        let slot = self
+            .slots
             .get(frame_slot as usize)
             .ok_or_else(|| Error::invalid("frame_slot", format!("no slot {frame_slot}")))?;
         // SAFETY: the scopes name the pass's own live pool; reading without WAIT cannot
         // block, and an unwritten or unfinished query is an error, not undefined.
-        unsafe { read_timestamps(&self.ctx, scopes) }
+        unsafe { read_timestamps(&self.ctx, &slot.scopes) }
     }
 
     /// [`DisplacementPass::set_material_height_map`] of the first material
@@ -826,9 +821,7 @@ impl DisplacementPass {
     /// `D32_SFLOAT` attachment, record [`crate::passes::depth_resolve::DepthResolvePass`]
     /// (module docs: "Corrected depth").
     pub fn hit_depth(&self, frame_slot: u32) -> Option<&Image> {
-        self.depth
-            .as_ref()
-            .and_then(|d| d.images.get(frame_slot as usize))
+        self.slots.get(frame_slot as usize)?.hit_depth.as_ref()
     }
 
     /// The light visibility of `frame_slot` (`R16_SFLOAT`, 1 = lit; written by the
@@ -837,7 +830,7 @@ impl DisplacementPass {
     /// `COMPUTE_SHADER` `SHADER_STORAGE_READ` (shade); usage `STORAGE | TRANSFER_SRC`.
     /// Read-only for the host, and only until the slot is recorded again.
     pub fn visibility(&self, frame_slot: u32) -> Option<&Image> {
-        self.visibility.get(frame_slot as usize)
+        self.slots.get(frame_slot as usize)?.visibility.as_ref()
     }
 
     /// The first material's DIG corner grid of `frame_slot` (`None` unless its method is
@@ -903,8 +896,7 @@ impl DisplacementPass {
             self.maps.destroy(ctx);
             self.depth.destroy(ctx);
             self.motion.destroy(ctx);
-            self.visibility.destroy(ctx);
-            self.tiles.destroy(ctx);
+            self.slots.destroy(ctx);
             self.shadow_passes.destroy(ctx);
             self.cone_passes.destroy(ctx);
             self.corner_pass.destroy(ctx);

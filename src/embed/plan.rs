@@ -19,6 +19,9 @@
 //! | motion pipeline | image format | the motion output on |
 //! | tile lists | (table size, extent) | always |
 //!
+//! What each frame in flight owns (tile lists, visibility, corrected depth, the
+//! timestamp scopes it recorded last) is one [`Slot`] per frame slot.
+//!
 //! A new preparation pass needs a key here, a constructor and a build stage in
 //! `record.rs`.
 
@@ -39,6 +42,7 @@ use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
 use crate::passes::shadow::{ShadowPass, ShadowTrace};
 use crate::passes::trace::TracePass;
+use crate::timing::TimestampScope;
 use ash::vk;
 use std::hash::{Hash, Hasher};
 
@@ -202,6 +206,43 @@ impl Destroy for DepthParts {
             self.images.destroy(ctx);
         }
     }
+}
+
+/// What one frame in flight owns: a frame recorded in the slot uses these, and only
+/// that slot's frames do.
+pub(super) struct Slot {
+    /// The material tile lists.
+    pub tiles: TileLists,
+    /// The light visibility (self-shadowing on).
+    pub visibility: Option<Image>,
+    /// The corrected depth (the corrected-depth output on).
+    pub hit_depth: Option<Image>,
+    /// The owned-pool timestamp scopes the slot recorded last.
+    pub scopes: Vec<TimestampScope>,
+}
+
+impl Destroy for Slot {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.tiles.destroy(ctx);
+            self.visibility.destroy(ctx);
+            self.hit_depth.destroy(ctx);
+        }
+    }
+}
+
+/// Swaps `new[i]` into `field(slot i)`, returning what it replaced (to retire).
+fn swap_per_slot(
+    slots: &mut [Slot],
+    new: Vec<Image>,
+    field: impl Fn(&mut Slot) -> &mut Option<Image>,
+) -> Vec<Image> {
+    slots
+        .iter_mut()
+        .zip(new)
+        .filter_map(|(s, image)| field(s).replace(image))
+        .collect()
 }
 
 /// What one map needs.
@@ -415,7 +456,7 @@ impl DisplacementPass {
                 add.corners.push((i, grids));
             }
         }
-        if plan.shadowed_shade && (resized || self.visibility.is_empty()) {
+        if plan.shadowed_shade && (resized || self.slots.iter().all(|s| s.visibility.is_none())) {
             add.visibility = Some(per_slot(c, frames, |s| {
                 Image::new(
                     c,
@@ -454,9 +495,9 @@ impl DisplacementPass {
         }
         if resized
             || self
-                .tiles
+                .slots
                 .first()
-                .is_none_or(|t| t.materials() != plan.table)
+                .is_none_or(|s| s.tiles.materials() != plan.table)
         {
             add.tiles = Some(per_slot(c, frames, |s| {
                 TileLists::new(c, &format!("embed.tiles{s}"), extent, plan.table)
@@ -563,26 +604,59 @@ impl DisplacementPass {
                 retired.retire(std::mem::take(&mut m.corners));
             }
         }
+        // The tile lists first: the first sync makes the slots with them.
+        if let Some(tiles) = add.tiles {
+            if self.slots.is_empty() {
+                self.slots = tiles
+                    .into_iter()
+                    .map(|tiles| Slot {
+                        tiles,
+                        visibility: None,
+                        hit_depth: None,
+                        scopes: Vec::new(),
+                    })
+                    .collect();
+            } else {
+                let old: Vec<TileLists> = self
+                    .slots
+                    .iter_mut()
+                    .zip(tiles)
+                    .map(|(s, t)| std::mem::replace(&mut s.tiles, t))
+                    .collect();
+                retired.retire(old);
+            }
+        }
         if let Some(v) = add.visibility {
-            retired.retire(std::mem::replace(&mut self.visibility, v));
+            retired.retire(swap_per_slot(&mut self.slots, v, |s| &mut s.visibility));
         }
         if !plan.shadowed_shade {
-            retired.retire(std::mem::take(&mut self.visibility));
+            let old: Vec<Image> = self
+                .slots
+                .iter_mut()
+                .filter_map(|s| s.visibility.take())
+                .collect();
+            retired.retire(old);
         }
         if let Some(d) = add.depth {
-            retired.retire(self.depth.replace(d));
+            retired.retire(self.depth.replace(d.pass));
+            retired.retire(swap_per_slot(&mut self.slots, d.images, |s| {
+                &mut s.hit_depth
+            }));
         }
         if !plan.depth {
             retired.retire(self.depth.take());
+            let old: Vec<Image> = self
+                .slots
+                .iter_mut()
+                .filter_map(|s| s.hit_depth.take())
+                .collect();
+            retired.retire(old);
         }
         if let Some(m) = add.motion {
             retired.retire(self.motion.replace(m));
         }
         if plan.motion.is_none() {
             retired.retire(self.motion.take());
-        }
-        if let Some(t) = add.tiles {
-            retired.retire(std::mem::replace(&mut self.tiles, t));
         }
         self.built_extent = self.frame.extent;
     }

@@ -338,7 +338,7 @@ impl DisplacementPass {
             passes: w.passes,
             timestamps: w.scopes,
         };
-        self.slot_scopes[slot as usize] = if matches!(timestamps, Timestamps::Owned) {
+        self.slots[slot as usize].scopes = if matches!(timestamps, Timestamps::Owned) {
             frame.timestamps.clone()
         } else {
             Vec::new()
@@ -348,7 +348,7 @@ impl DisplacementPass {
 
     /// The live materials: `(tiles, entry, map)` for each, by index.
     fn live(&self, slot: u32) -> Vec<(MaterialTiles, &MaterialEntry, &MapEntry)> {
-        let lists = &self.tiles[slot as usize];
+        let lists = &self.slots[slot as usize].tiles;
         self.materials
             .iter()
             .enumerate()
@@ -518,7 +518,7 @@ impl DisplacementPass {
         hit_depth: Option<vk::ImageView>,
     ) {
         let ctx = &*self.ctx;
-        let lists = &self.tiles[inputs.frame_slot as usize];
+        let lists = &self.slots[inputs.frame_slot as usize].tiles;
         let mut live: Vec<bool> = self.materials.iter().map(Option::is_some).collect();
         live.resize(lists.materials() as usize, false);
         let classify = ClassifyInputs {
@@ -706,7 +706,7 @@ impl DisplacementPass {
         target: &ShadeTarget,
     ) -> Result<Option<vk::ImageView>> {
         let ctx = &*self.ctx;
-        let Some(image) = self.visibility.get(inputs.frame_slot as usize) else {
+        let Some(image) = &self.slots[inputs.frame_slot as usize].visibility else {
             return Ok(None);
         };
         // The slot's previous frame (the last reader) has completed: discarded.
@@ -835,10 +835,12 @@ impl DisplacementPass {
         camera: &DepthCamera,
     ) {
         let ctx = &*self.ctx;
-        let Some(depth) = &self.depth else {
+        let (Some(depth), Some(image)) = (
+            &self.depth,
+            &self.slots[inputs.frame_slot as usize].hit_depth,
+        ) else {
             return;
         };
-        let image = &depth.images[inputs.frame_slot as usize];
         let e = self.frame.extent;
         let live = self.live(inputs.frame_slot);
         // The frame's matrices once; each material sets its depth scale.
@@ -856,7 +858,7 @@ impl DisplacementPass {
                         depth_scale: m.settings.depth_scale,
                         ..base
                     };
-                    depth.pass.record(
+                    depth.record(
                         ctx,
                         cmd,
                         HitDepthInputs {
