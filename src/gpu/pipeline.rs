@@ -2,7 +2,7 @@
 
 use super::Image;
 use crate::context::Context;
-use crate::error::{Result, VkContext};
+use crate::error::{Error, Result, VkContext};
 use crate::gpu::owned::Destroy;
 use crate::shaders::Shader;
 use ash::vk;
@@ -23,24 +23,29 @@ pub struct ComputePipeline {
 pub const LOCAL_SIZE: [u32; 2] = [8, 8];
 
 impl ComputePipeline {
-    /// Builds a pipeline from `shader` whose set 0 has the `(binding, type)` pairs of
-    /// `bindings` (numbers may have gaps: a method declares only what it reads) and
-    /// `push_constant_size` bytes of push constants.
+    /// Builds a pipeline from `shader` whose set 0 is the shader's own bindings as its
+    /// SPIR-V declares them ([`Shader::bindings`]: numbers, types, counts) and
+    /// `push_constant_size` bytes of push constants. `declared` is what the pass binds,
+    /// `(binding, type)`: it must be exactly the shader's table ([`check_declared`]), so a
+    /// binding renumbered or retyped in the GLSL is an error here, not a validation
+    /// message at the first dispatch.
     pub fn new(
         ctx: &Context,
         name: &str,
         shader: &Shader,
-        bindings: &[(u32, vk::DescriptorType)],
+        declared: &[(u32, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
+        check_declared(shader, declared)?;
         let dev = ctx.device();
-        let binding_info: Vec<_> = bindings
+        let binding_info: Vec<_> = shader
+            .bindings
             .iter()
-            .map(|&(i, ty)| {
+            .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
-                    .binding(i)
-                    .descriptor_type(ty)
-                    .descriptor_count(1)
+                    .binding(b.binding)
+                    .descriptor_type(b.ty)
+                    .descriptor_count(b.count)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
             .collect();
@@ -198,6 +203,34 @@ impl Destroy for ComputePipeline {
         self.layout = vk::PipelineLayout::null();
         self.set_layout = vk::DescriptorSetLayout::null();
     }
+}
+
+/// Checks what a pass binds (`declared`, `(binding, type)` in any order) against the
+/// bindings `shader`'s SPIR-V declares: the same numbers with the same types, every one
+/// in set 0 and a single descriptor (push descriptors of one set); the error names the
+/// shader and the first difference.
+pub fn check_declared(shader: &Shader, declared: &[(u32, vk::DescriptorType)]) -> Result<()> {
+    let mut ours: Vec<(u32, vk::DescriptorType)> = declared.to_vec();
+    ours.sort_by_key(|&(b, _)| b);
+    let theirs: Vec<(u32, vk::DescriptorType)> =
+        shader.bindings.iter().map(|b| (b.binding, b.ty)).collect();
+    if let Some(b) = shader.bindings.iter().find(|b| b.set != 0 || b.count != 1) {
+        return Err(Error::invalid(
+            shader.name,
+            format!(
+                "binding {} ({}) is in set {} with {} descriptors; passes push one set of \
+                 single descriptors",
+                b.binding, b.name, b.set, b.count
+            ),
+        ));
+    }
+    if ours != theirs {
+        return Err(Error::invalid(
+            shader.name,
+            format!("the pass binds {ours:?}, the shader declares {theirs:?}"),
+        ));
+    }
+    Ok(())
 }
 
 /// `(i, types[i])` for every entry: bindings numbered from 0 without gaps.

@@ -90,6 +90,20 @@ impl PassName {
         }
     }
 
+    /// How many passes of [`PassName::ALL`] the displacement pass records (every one but
+    /// the host's G-buffer pass): its timestamp queries are twice that.
+    pub const fn recorded_by_pass() -> u32 {
+        let mut n = 0;
+        let mut i = 0;
+        while i < PassName::ALL.len() {
+            if !matches!(PassName::ALL[i], PassName::GBuffer) {
+                n += 1;
+            }
+            i += 1;
+        }
+        n
+    }
+
     /// Whether the pass runs once after a change (a new map or method) rather than
     /// every frame: such times are reported apart from the per-frame total.
     pub fn is_one_off(self) -> bool {

@@ -262,3 +262,57 @@ impl Destroy for TracePass {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::pipeline::check_declared;
+
+    /// What each method's trace pass binds is exactly what its shader declares (binding
+    /// numbers and types reflected from the SPIR-V), for every method.
+    #[test]
+    fn declared_bindings_match_the_shaders() {
+        for &m in Method::ALL {
+            check_declared(&m.shader(), &bindings(m.needs()))
+                .unwrap_or_else(|e| panic!("{}: {e}", m.name()));
+        }
+    }
+
+    /// The declared numbers are the GLSL's (`glsl/common/trace.glsl`) by name.
+    #[test]
+    fn binding_numbers_by_name() {
+        let shader = Method::DigGuarded.shader();
+        for (number, name) in [
+            (PYRAMID_BINDING, "u_pyramid"),
+            (CORNERS_BINDING, "u_corners"),
+            (NORMAL_BINDING, "u_normal"),
+            (TANGENT_BINDING, "u_tangent"),
+            (TILES_BINDING, "u_tiles"),
+        ] {
+            assert_eq!(shader.binding(number).map(|b| b.name), Some(name));
+        }
+        let cone = Method::Cone.shader();
+        assert_eq!(cone.binding(CONE_BINDING).map(|b| b.name), Some("u_cone"));
+    }
+
+    /// `PUSH_DESCRIPTORS` is the largest compute pass's count of descriptors, and the
+    /// timestamp queries cover every pass the displacement pass records.
+    #[test]
+    fn device_requirements_from_the_shaders() {
+        let passes = crate::shaders::ALL.iter().filter(|s| {
+            (s.name.ends_with(".comp") || s.name.contains(".comp["))
+                && !s.name.starts_with("examples/")
+                && !s.name.starts_with("tests/")
+        });
+        let largest = passes.map(|s| s.bindings.len() as u32).max();
+        assert_eq!(largest, Some(crate::embed::PUSH_DESCRIPTORS));
+        assert_eq!(
+            crate::embed::PUSH_DESCRIPTORS,
+            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+        );
+        assert_eq!(
+            crate::embed::MAX_QUERIES as usize,
+            2 * (crate::passes::PassName::ALL.len() - 1)
+        );
+    }
+}
