@@ -261,4 +261,25 @@ mod tests {
                 .all(|&b| b as u32 <= r.max_push_constants_size)
         );
     }
+
+    /// `PUSH_DESCRIPTORS` is the largest compute pass's count of descriptors, and the
+    /// timestamp queries cover every pass the displacement pass records.
+    #[test]
+    fn device_requirements_from_the_shaders() {
+        let passes = crate::shaders::ALL.iter().filter(|s| {
+            (s.name.ends_with(".comp") || s.name.contains(".comp["))
+                && !s.name.starts_with("examples/")
+                && !s.name.starts_with("tests/")
+        });
+        let largest = passes.map(|s| s.bindings.len() as u32).max();
+        assert_eq!(largest, Some(super::PUSH_DESCRIPTORS));
+        assert_eq!(
+            super::PUSH_DESCRIPTORS,
+            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+        );
+        assert_eq!(
+            super::MAX_QUERIES as usize,
+            2 * (crate::passes::PassName::ALL.len() - 1)
+        );
+    }
 }

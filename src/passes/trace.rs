@@ -294,25 +294,4 @@ mod tests {
         let cone = Method::Cone.shader();
         assert_eq!(cone.binding(CONE_BINDING).map(|b| b.name), Some("u_cone"));
     }
-
-    /// `PUSH_DESCRIPTORS` is the largest compute pass's count of descriptors, and the
-    /// timestamp queries cover every pass the displacement pass records.
-    #[test]
-    fn device_requirements_from_the_shaders() {
-        let passes = crate::shaders::ALL.iter().filter(|s| {
-            (s.name.ends_with(".comp") || s.name.contains(".comp["))
-                && !s.name.starts_with("examples/")
-                && !s.name.starts_with("tests/")
-        });
-        let largest = passes.map(|s| s.bindings.len() as u32).max();
-        assert_eq!(largest, Some(crate::embed::PUSH_DESCRIPTORS));
-        assert_eq!(
-            crate::embed::PUSH_DESCRIPTORS,
-            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
-        );
-        assert_eq!(
-            crate::embed::MAX_QUERIES as usize,
-            2 * (crate::passes::PassName::ALL.len() - 1)
-        );
-    }
 }
