@@ -191,16 +191,21 @@ impl MaterialTextures {
             Addressing::Repeat => vk::SamplerAddressMode::REPEAT,
             Addressing::Clamp => vk::SamplerAddressMode::CLAMP_TO_EDGE,
         };
-        let sampler = crate::passes::sampler(ctx, "material.sampler", vk::Filter::LINEAR, mode)?;
-        let mut textures = Guard::new(
-            ctx,
-            MaterialTextures {
-                albedo: None,
-                normal_map: None,
-                sampler,
-            },
-        );
-        let mut staging = Guard::new(ctx, MaterialStaging([None, None]));
+        let sampler =
+            crate::gpu::pipeline::sampler(ctx, "material.sampler", vk::Filter::LINEAR, mode)?;
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut textures = unsafe {
+            Guard::new(
+                ctx,
+                MaterialTextures {
+                    albedo: None,
+                    normal_map: None,
+                    sampler,
+                },
+            )
+        };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut staging = unsafe { Guard::new(ctx, MaterialStaging([None, None])) };
         let maps = [
             (&images.albedo, vk::Format::R8G8B8A8_SRGB, "material.albedo"),
             (
@@ -265,30 +270,37 @@ impl MaterialTextures {
             None => [[fallback.descriptor()], [fallback.descriptor()]],
         }
     }
+}
 
+impl Destroy for MaterialTextures {
     /// Destroys images and sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        for image in [&mut self.albedo, &mut self.normal_map]
-            .into_iter()
-            .flatten()
-        {
-            image.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            for image in [&mut self.albedo, &mut self.normal_map]
+                .into_iter()
+                .flatten()
+            {
+                image.destroy(ctx);
+            }
+            self.albedo = None;
+            self.normal_map = None;
+            ctx.device().destroy_sampler(self.sampler, None);
+            self.sampler = vk::Sampler::null();
         }
-        self.albedo = None;
-        self.normal_map = None;
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_sampler(self.sampler, None) };
-        self.sampler = vk::Sampler::null();
     }
 }
 
 /// The staging buffers of [`MaterialTextures::create_for_upload`] (albedo, normal map).
 pub struct MaterialStaging([Option<Buffer>; 2]);
 
-impl MaterialStaging {
+impl Destroy for MaterialStaging {
     /// Destroys the buffers. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.0.iter_mut().for_each(|b| b.destroy(ctx));
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.0.iter_mut().for_each(|b| b.destroy(ctx));
+        }
     }
 }
 
@@ -316,20 +328,23 @@ fn create_map(
     for texel in bytes.chunks_exact_mut(4) {
         texel[3] = 0; // alpha 0 marks a present map
     }
-    let image = Guard::new(
-        ctx,
-        Image::new(
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let image = unsafe {
+        Guard::new(
             ctx,
-            name,
-            format,
-            vk::Extent2D {
-                width: map.width(),
-                height: map.height(),
-            },
-            1,
-            vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
-        )?,
-    );
+            Image::new(
+                ctx,
+                name,
+                format,
+                vk::Extent2D {
+                    width: map.width(),
+                    height: map.height(),
+                },
+                1,
+                vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
+            )?,
+        )
+    };
     let staging = staging_for(ctx, &image, &bytes)?;
     Ok((image.keep(), staging))
 }

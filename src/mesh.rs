@@ -47,6 +47,7 @@
 
 use crate::context::Context;
 use crate::error::{Error, Result};
+use crate::gpu::owned::Destroy;
 use crate::gpu::{Buffer, OneShot};
 use ash::vk;
 use glam::Vec3;
@@ -518,7 +519,8 @@ impl MeshBuffers {
         ) {
             Ok(b) => b,
             Err(e) => {
-                vertices.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { vertices.destroy(ctx) };
                 return Err(e);
             }
         };
@@ -531,8 +533,10 @@ impl MeshBuffers {
         ) {
             Ok(b) => b,
             Err(e) => {
-                vertices.destroy(ctx);
-                indices.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { vertices.destroy(ctx) };
+                // SAFETY: built above and never used by a command.
+                unsafe { indices.destroy(ctx) };
                 return Err(e);
             }
         };
@@ -589,10 +593,13 @@ impl MeshBuffers {
             }
             shot.submit_and_wait(ctx)
         })();
-        staging.destroy(ctx);
+        // SAFETY: the one-shot submission that used it was waited for (or never made).
+        unsafe { staging.destroy(ctx) };
         if let Err(e) = copied {
-            vertices.destroy(ctx);
-            indices.destroy(ctx);
+            // SAFETY: the one-shot submission that used it was waited for (or never made).
+            unsafe { vertices.destroy(ctx) };
+            // SAFETY: the one-shot submission that used it was waited for (or never made).
+            unsafe { indices.destroy(ctx) };
             return Err(e);
         }
         Ok(MeshBuffers {
@@ -602,11 +609,16 @@ impl MeshBuffers {
             two_sided: mesh.two_sided,
         })
     }
+}
 
+impl Destroy for MeshBuffers {
     /// Destroys the buffers. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.vertices.destroy(ctx);
-        self.indices.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.vertices.destroy(ctx);
+            self.indices.destroy(ctx);
+        }
     }
 }
 

@@ -430,9 +430,7 @@ impl std::str::FromStr for Method {
 /// linear step is far below the height map's own precision.
 pub const MAX_STEPS: u32 = 1 << 16;
 
-/// Loop iterations lavapipe (Mesa's llvmpipe) lets one shader invocation run, all of
-/// its loops together; past them it ends the invocation silently.
-pub const LOOP_LIMIT: u32 = 65_535;
+pub use crate::context::LOOP_LIMIT;
 
 /// The steps a traversal may take per invocation (`TRAVERSAL_CAP` in
 /// `glsl/common/frame.glsl`): the cone methods' march is cut there (no hit).

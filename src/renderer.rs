@@ -19,6 +19,12 @@
 //! waits for each frame, so what the pass retires is destroyed by the next frame.
 
 mod forward;
+mod frame;
+mod objects;
+mod readback;
+
+pub use objects::{MAX_OBJECTS, ObjectAssets, ObjectMaterial, SceneAssets, SceneObject};
+use objects::{Objects, bounding_sphere, objects_settings};
 
 use crate::context::Context;
 use crate::embed::{
@@ -166,165 +172,6 @@ pub struct Renderer {
     rays_frame: Option<(Scene, crate::scene::FrameCamera)>,
 }
 
-/// The displaced material of one object of [`Renderer::with_objects`].
-#[derive(Clone, Copy, Debug)]
-pub struct ObjectMaterial<'a> {
-    /// Its height map.
-    pub field: &'a HeightField,
-    /// Its method, parameters, depth scale and addressing.
-    pub settings: MaterialSettings,
-    /// Its albedo and normal map (empty: none).
-    pub images: &'a MaterialImages,
-}
-
-/// One object of a frame of several objects ([`Renderer::with_objects`]).
-#[derive(Clone, Copy, Debug)]
-pub struct SceneObject<'a> {
-    /// Its geometry: the tiled plane (which has no placement: `placement` must be the
-    /// default), a quad, a generated mesh or a loaded one.
-    pub geometry: Geometry,
-    /// Where it sits.
-    pub placement: Placement,
-    /// The loaded mesh of [`Geometry::Mesh`] (needed there, ignored elsewhere).
-    pub mesh: Option<&'a Mesh>,
-    /// Its displaced material; `None`: drawn flat (not displaced, shaded by the
-    /// renderer's background pass).
-    pub material: Option<ObjectMaterial<'a>>,
-}
-
-/// Largest number of objects of [`Renderer::with_objects`].
-pub const MAX_OBJECTS: usize = 256;
-
-/// The objects of a frame of several objects: what the G-buffer pass draws.
-struct Objects {
-    /// The meshes' pipeline (the plane's is `Renderer::gbuffer_pass`), when an object
-    /// is not the tiled plane.
-    mesh_pass: Option<GBufferPass>,
-    /// The two-sided meshes' pipeline, when an object is a two-sided mesh
-    /// ([`crate::mesh::Mesh::two_sided`]).
-    two_sided_pass: Option<GBufferPass>,
-    /// Per object: its vertex buffers (`None`: the tiled plane, drawn by the plane
-    /// pipeline) ...
-    meshes: Vec<Option<MeshBuffers>>,
-    /// ... and its material (`None`: flat).
-    materials: Vec<Option<MaterialId>>,
-    /// The camera's target and orbit distance (`None`: the tiled plane's camera, when a
-    /// plane is among the objects).
-    framing: Option<(glam::Vec3, f32)>,
-}
-
-impl crate::gpu::owned::Destroy for Objects {
-    fn destroy(&mut self, ctx: &Context) {
-        self.mesh_pass.destroy(ctx);
-        self.two_sided_pass.destroy(ctx);
-        self.meshes.destroy(ctx);
-    }
-}
-
-/// `settings` as a renderer of several objects keeps them: the method, parameters,
-/// depth scale, addressing and geometry of its primary material (`geometry` and
-/// `material`: the first displaced object's).
-fn objects_settings(
-    mut settings: RenderSettings,
-    geometry: Geometry,
-    material: &MaterialSettings,
-) -> RenderSettings {
-    settings.method = material.method;
-    settings.params = material.params;
-    settings.scene.depth_scale = material.depth_scale;
-    settings.scene.addressing = Some(material.addressing);
-    settings.scene.geometry = geometry;
-    settings
-}
-
-impl SceneAssets {
-    /// `settings` as [`Renderer::with_assets`] keeps them with these assets: unchanged
-    /// for one geometry; for several objects, with the first displaced object's
-    /// geometry, method, parameters, depth scale and addressing (its material is the
-    /// pass's primary one).
-    pub fn settings(&self, settings: RenderSettings) -> RenderSettings {
-        match self
-            .objects
-            .iter()
-            .find_map(|o| o.material.as_ref().map(|m| (o.geometry, m.1)))
-        {
-            Some((geometry, material)) => objects_settings(settings, geometry, &material),
-            None => settings,
-        }
-    }
-}
-
-/// The sphere around the objects (each generated or loaded mesh fits the unit sphere
-/// before its placement; the quad spans `[0, 1]²`): its centre and radius.
-fn bounding_sphere(objects: &[SceneObject<'_>]) -> (glam::Vec3, f32) {
-    let spheres: Vec<(glam::Vec3, f32)> = objects
-        .iter()
-        .map(|o| {
-            let p = &o.placement;
-            match o.geometry {
-                Geometry::Quad => (
-                    p.matrix().transform_point3(glam::Vec3::new(0.5, 0.0, 0.5)),
-                    p.scale * std::f32::consts::FRAC_1_SQRT_2,
-                ),
-                _ => (p.position, p.scale),
-            }
-        })
-        .collect();
-    let centre = spheres.iter().map(|s| s.0).sum::<glam::Vec3>() / spheres.len().max(1) as f32;
-    let radius = spheres
-        .iter()
-        .map(|(c, r)| (*c - centre).length() + r)
-        .fold(0.0f32, f32::max);
-    (centre, radius)
-}
-
-/// What a scene brings besides the height field and the settings: a loaded mesh (for
-/// [`crate::scene::Geometry::Mesh`]) and the material maps. The generated cube, sphere
-/// and torus need no mesh here.
-#[derive(Clone, Debug, Default)]
-pub struct SceneAssets {
-    /// The loaded mesh.
-    pub mesh: Option<Mesh>,
-    /// Albedo and normal map.
-    pub material: MaterialImages,
-    /// A scene of several objects: when not empty, [`Renderer::with_assets`] draws these
-    /// ([`Renderer::with_objects`]) instead of the one geometry (its field, mesh and
-    /// maps are then unused).
-    pub objects: Vec<ObjectAssets>,
-}
-
-/// One object of a scene of several objects, owned ([`SceneAssets::objects`]).
-#[derive(Clone, Debug)]
-pub struct ObjectAssets {
-    /// Its geometry.
-    pub geometry: Geometry,
-    /// Where it sits.
-    pub placement: Placement,
-    /// The loaded mesh of [`Geometry::Mesh`].
-    pub mesh: Option<Mesh>,
-    /// Its displacement (`None`: flat): height map, settings, material maps.
-    pub material: Option<(HeightField, MaterialSettings, MaterialImages)>,
-}
-
-impl ObjectAssets {
-    /// The object as [`Renderer::with_objects`] takes it.
-    pub fn as_object(&self) -> SceneObject<'_> {
-        SceneObject {
-            geometry: self.geometry,
-            placement: self.placement,
-            mesh: self.mesh.as_ref(),
-            material: self
-                .material
-                .as_ref()
-                .map(|(field, settings, images)| ObjectMaterial {
-                    field,
-                    settings: *settings,
-                    images,
-                }),
-        }
-    }
-}
-
 impl Renderer {
     /// Uploads `field` and builds what `settings` needs (no loaded mesh, no material
     /// maps: see [`Renderer::with_assets`]).
@@ -375,23 +222,29 @@ impl Renderer {
         let c = &**ctx;
         // Built in order; a failure destroys what the guards hold.
         let host = HostParts::new(c, extent)?;
-        let gbuffer_pass = Guard::new(
-            c,
-            if let Some(m) = &mesh {
-                if m.two_sided {
-                    GBufferPass::new_mesh_two_sided(c)?
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let gbuffer_pass = unsafe {
+            Guard::new(
+                c,
+                if let Some(m) = &mesh {
+                    if m.two_sided {
+                        GBufferPass::new_mesh_two_sided(c)?
+                    } else {
+                        GBufferPass::new_mesh(c)?
+                    }
                 } else {
-                    GBufferPass::new_mesh(c)?
-                }
-            } else {
-                GBufferPass::new(c)?
-            },
-        );
-        let mesh = Guard::new(
-            c,
-            mesh.map(|m| MeshBuffers::upload(c, &host.shot, &m))
-                .transpose()?,
-        );
+                    GBufferPass::new(c)?
+                },
+            )
+        };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mesh = unsafe {
+            Guard::new(
+                c,
+                mesh.map(|m| MeshBuffers::upload(c, &host.shot, &m))
+                    .transpose()?,
+            )
+        };
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             field,
@@ -509,17 +362,21 @@ impl Renderer {
         let extent = settings.extent();
         let c = &**ctx;
         let host = HostParts::new(c, extent)?;
-        let gbuffer_pass = Guard::new(c, GBufferPass::new(c)?);
-        let mut drawn = Guard::new(
-            c,
-            Objects {
-                mesh_pass: None,
-                two_sided_pass: None,
-                meshes: Vec::new(),
-                materials: Vec::new(),
-                framing: None,
-            },
-        );
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let gbuffer_pass = unsafe { Guard::new(c, GBufferPass::new(c)?) };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut drawn = unsafe {
+            Guard::new(
+                c,
+                Objects {
+                    mesh_pass: None,
+                    two_sided_pass: None,
+                    meshes: Vec::new(),
+                    materials: Vec::new(),
+                    framing: None,
+                },
+            )
+        };
         // Only the pipelines the objects need.
         if placed.iter().flatten().any(|m| !m.two_sided) {
             drawn.mesh_pass = Some(GBufferPass::new_mesh(c)?);
@@ -656,7 +513,9 @@ impl Renderer {
         let c = &*self.ctx;
         let (gbuffer, hit, color) = frame_images(c, extent)?;
         if let Some(m) = &mut self.motion {
-            m.resize(c, extent)?;
+            // SAFETY: every frame of this renderer was waited for (`render` submits and
+            // waits): nothing reads the old motion image.
+            unsafe { m.resize(c, extent)? };
         }
         self.pass.resize(extent)?;
         let mut old = (
@@ -666,7 +525,8 @@ impl Renderer {
                 std::mem::replace(&mut self.color, color.keep()),
             ),
         );
-        old.destroy(c);
+        // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
+        unsafe { old.destroy(c) };
         self.settings = settings;
         self.depth_written = false;
         self.rays_frame = None;
@@ -750,7 +610,9 @@ impl Renderer {
         let c = &*self.ctx;
         match (on, &mut self.motion) {
             (true, None) => {
-                let motion = Guard::new(c, CameraMotion::new(c, self.settings.extent())?);
+                // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+                let motion =
+                    unsafe { Guard::new(c, CameraMotion::new(c, self.settings.extent())?) };
                 self.pass.set_motion_output(Some(MotionSettings {
                     format: CAMERA_MOTION_FORMAT,
                     ..MotionSettings::default()
@@ -760,7 +622,8 @@ impl Renderer {
             (false, Some(_)) => {
                 self.pass.set_motion_output(None)?;
                 // Every frame of this renderer was waited for.
-                self.motion.destroy(c);
+                // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
+                unsafe { self.motion.destroy(c) };
             }
             _ => {}
         }
@@ -781,555 +644,6 @@ impl Renderer {
         )?;
         Ok(Some(bytemuck::cast_slice::<u8, [f32; 2]>(&bytes).to_vec()))
     }
-
-    /// Renders one frame and returns its per-pass GPU times (one-off passes included
-    /// when this frame ran them).
-    pub fn render(&mut self) -> Result<PassTimes> {
-        let ctx = &*self.ctx;
-        let (camera, target) = self.frame_target();
-        let gbuffer_params = self.settings.scene.gbuffer_params(&camera);
-        let draws = self.object_draws(&camera)?;
-        let cmd = self.shot.begin(ctx)?;
-        let mut w = ScopeWriter::new(Some(self.timestamps.0), 0, GBUFFER_QUERIES);
-        // SAFETY: `cmd` was just begun; the pool is alive with the range.
-        unsafe { w.reset(ctx, cmd) };
-
-        let to_attachments = self.gbuffer.barriers(
-            (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
-            (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
-        );
-        // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
-        // context's queue family) and is submitted and waited for below, while the
-        // G-buffer lives; its previous frame was waited for, so the contents may be
-        // discarded; the images have attachment usage (`GBuffer::new`).
-        unsafe { sync::record(ctx, cmd, &to_attachments) };
-        // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
-        // above (the scope's contract). In the body (inside this block): the G-buffer is
-        // in the attachment layouts (the barriers above); it, the pass and the mesh's
-        // buffers live until the submission below has completed.
-        unsafe {
-            w.scope(ctx, cmd, PassName::GBuffer, |cmd| {
-                match (&draws, &self.mesh) {
-                    (Some(draws), _) => crate::passes::gbuffer::record_draws(
-                        ctx,
-                        cmd,
-                        &self.gbuffer,
-                        draws,
-                        &camera.pixel_ray_params(),
-                    ),
-                    (None, Some(mesh)) => self.gbuffer_pass.record_mesh(
-                        ctx,
-                        cmd,
-                        &self.gbuffer,
-                        &gbuffer_params,
-                        mesh,
-                    ),
-                    (None, None) => self.gbuffer_pass.record(
-                        ctx,
-                        cmd,
-                        &self.gbuffer,
-                        &gbuffer_params,
-                        &camera.pixel_ray_params(),
-                    ),
-                }
-            })
-        };
-
-        // The pass's entry contract: G-buffer sampled by compute, hit buffer discarded in
-        // GENERAL, colour in GENERAL with the host's background (below).
-        let mut entry = self.gbuffer.barriers(
-            (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-            (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-        );
-        for image in [&self.hit, &self.color] {
-            entry.push(sync::image_barrier(
-                image.raw,
-                image.range(),
-                DISCARD,
-                Access::COMPUTE_STORAGE_WRITE,
-            ));
-        }
-        // SAFETY: `cmd` is recording outside a render pass (begun above, submitted
-        // below); the G-buffer was written as attachments by the scope above; the hit and
-        // colour images are the renderer's, alive, and their previous frame was waited
-        // for, so they may be discarded.
-        unsafe { sync::record(ctx, cmd, &entry) };
-        // SAFETY: `cmd` is recording outside a render pass and submitted below; the
-        // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
-        // (the barriers above).
-        unsafe { self.record_background(cmd, &target) };
-        let mut inputs = self.frame_inputs(Some(target));
-        let current = DepthCamera {
-            view_proj: target.view_proj,
-            eye: target.camera_pos,
-        };
-        if let Some(m) = &self.motion {
-            // SAFETY: `cmd` is recording outside a render pass and submitted (and waited
-            // for) below; the G-buffer depth is sampled-readable (the entry barriers); the
-            // image's previous frame was waited for.
-            inputs.motion = Some(unsafe { m.record(ctx, cmd, self.gbuffer.depth.view, current) });
-        }
-        // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
-        // submitted below; the views are the renderer's, in the entry states; one slot,
-        // whose previous frame was waited for; the pool has the queries after the
-        // G-buffer's.
-        let frame = unsafe {
-            self.pass.record(
-                cmd,
-                &inputs,
-                Timestamps::Host {
-                    pool: self.timestamps.0,
-                    first_query: GBUFFER_QUERIES,
-                },
-            )?
-        };
-        self.shot.submit_and_wait(ctx)?;
-        self.depth_written |= self.pass.depth_output();
-        if let Some(m) = &mut self.motion {
-            m.previous = Some(current);
-        }
-        self.rays_frame = Some((self.settings.scene, camera));
-        self.frame_times(&w, &frame)
-    }
-
-    /// The per-pass times of a completed frame (the renderer's scopes, then the pass's),
-    /// and the builds it ran kept for [`Renderer::build_ms`].
-    fn frame_times(
-        &mut self,
-        own: &ScopeWriter,
-        frame: &crate::embed::RecordedFrame,
-    ) -> Result<PassTimes> {
-        let scopes: Vec<_> = own
-            .scopes
-            .iter()
-            .chain(&frame.timestamps)
-            .copied()
-            .collect();
-        // SAFETY: the pool is alive and the frame completed (the caller waited for it).
-        let times = unsafe { read_timestamps(&self.ctx, &scopes)? };
-        for &(name, ms) in &times {
-            if matches!(name, PassName::Pyramid | PassName::Cone) {
-                self.builds.retain(|(n, _)| *n != name);
-                self.builds.push((name, ms));
-            }
-        }
-        Ok(times)
-    }
-
-    /// The GPU milliseconds of the last pyramid build (the method's, or hard shadows'
-    /// cell pyramid), while the renderer has one.
-    pub fn pyramid_ms(&self) -> Option<f64> {
-        self.build_ms(PassName::Pyramid)
-    }
-
-    /// The GPU milliseconds of the last build of a one-off map, [`PassName::Pyramid`] or
-    /// [`PassName::Cone`], while the renderer has it (`None` for other passes).
-    pub fn build_ms(&self, pass: PassName) -> Option<f64> {
-        self.builds
-            .iter()
-            .find(|(n, _)| *n == pass)
-            .map(|&(_, ms)| ms)
-    }
-
-    /// The draws of a frame of several objects (`None` for one geometry): each object's
-    /// push constants with its material (`camera_pos.w` = index + 1, 0 flat), the
-    /// material's current depth scale and addressing.
-    fn object_draws(
-        &self,
-        camera: &crate::scene::FrameCamera,
-    ) -> Result<Option<Vec<GBufferDraw<'_>>>> {
-        let Some(objects) = &self.objects else {
-            return Ok(None);
-        };
-        let plane = Scene {
-            geometry: Geometry::TiledPlane,
-            ..self.settings.scene
-        }
-        .gbuffer_params(camera);
-        let mesh = Scene {
-            geometry: Geometry::Quad,
-            ..self.settings.scene
-        }
-        .gbuffer_params(camera);
-        let mut draws = Vec::with_capacity(objects.meshes.len());
-        for (buffers, material) in objects.meshes.iter().zip(&objects.materials) {
-            let mut params = if buffers.is_some() { mesh } else { plane };
-            params.camera_pos.w = 0.0;
-            if let Some(id) = material {
-                let m = self.pass.material_settings(*id)?;
-                params.camera_pos.w = (id.index() + 1) as f32;
-                params.depth_scale = m.depth_scale;
-                params.addressing = crate::scene::addressing_code(m.addressing);
-            }
-            let pass = match (buffers, &objects.mesh_pass, &objects.two_sided_pass) {
-                (Some(b), _, Some(p)) if b.two_sided => p,
-                (Some(_), Some(p), _) => p,
-                _ => &self.gbuffer_pass,
-            };
-            draws.push(GBufferDraw {
-                pass,
-                params,
-                mesh: buffers.as_ref(),
-            });
-        }
-        Ok(Some(draws))
-    }
-
-    /// The frame's camera and what `shade` lights it with.
-    fn frame_target(&self) -> (crate::scene::FrameCamera, ShadeTarget) {
-        let scene = &self.settings.scene;
-        let (w, h) = (self.settings.width, self.settings.height);
-        let camera = match &self.objects {
-            None => scene.frame_camera(w, h),
-            Some(Objects {
-                framing: Some((target, distance)),
-                ..
-            }) => {
-                scene.camera_looking_at(w, h, *target, scene.camera.distance.unwrap_or(*distance))
-            }
-            Some(_) => Scene {
-                geometry: Geometry::TiledPlane,
-                ..*scene
-            }
-            .frame_camera(w, h),
-        };
-        let target = ShadeTarget {
-            color: self.color.host_view(),
-            view_proj: camera.view_proj,
-            camera_pos: camera.eye,
-            light_dir: scene.light_direction(),
-            light_intensity: scene.light.intensity,
-        };
-        (camera, target)
-    }
-
-    /// The host's background (sky, flat geometry) into the colour image, then the
-    /// colour's barrier for `shade`'s writes of the displaced pixels.
-    ///
-    /// # Safety
-    /// `cmd` is recording outside a render pass on the context's queue and is submitted
-    /// (and waited for) while the renderer lives; when it executes, the G-buffer is
-    /// sampled-readable by compute and the colour image in `GENERAL`, earlier accesses
-    /// ordered before compute-shader storage writes.
-    unsafe fn record_background(&self, cmd: vk::CommandBuffer, target: &ShadeTarget) {
-        let ctx = &*self.ctx;
-        let e = self.settings.extent();
-        let params = crate::abi::ShadeParams::new(
-            target.view_proj,
-            target.camera_pos,
-            target.light_dir,
-            target.light_intensity,
-            [e.width, e.height],
-            [1, 1],
-            0.0,
-        );
-        // SAFETY: this function's contract; the views are the renderer's, alive.
-        unsafe {
-            self.background.record(
-                ctx,
-                cmd,
-                self.gbuffer.views(),
-                self.color.view_ref(),
-                &params,
-            );
-            sync::transition(
-                ctx,
-                cmd,
-                &self.color,
-                Access::COMPUTE_STORAGE_WRITE,
-                Access::COMPUTE_STORAGE_WRITE,
-            );
-        }
-    }
-
-    fn frame_inputs(&self, shade: Option<ShadeTarget>) -> FrameInputs {
-        FrameInputs {
-            frame_slot: 0,
-            gbuffer: self.gbuffer.views(),
-            hit: self.hit.host_view(),
-            shade,
-            motion: None,
-        }
-    }
-
-    /// The last frame's light visibility (1 = lit), row by row; `None` when
-    /// self-shadowing is off.
-    pub fn read_visibility(&self) -> Result<Option<Vec<f32>>> {
-        let Some(image) = self.pass.visibility(0) else {
-            return Ok(None);
-        };
-        let bytes = read_image(&self.ctx, &self.shot, image, Access::COMPUTE_STORAGE_READ)?;
-        Ok(Some(
-            bytes
-                .chunks_exact(2)
-                .map(|b| crate::passes::shadow::f16_to_f32(u16::from_le_bytes([b[0], b[1]])))
-                .collect(),
-        ))
-    }
-
-    /// The last frame's DIG corner grid (`None` unless the method is a DIG): the grid size
-    /// in corners and the corners row by row.
-    pub fn read_corners(&self) -> Result<Option<([u32; 2], Vec<Corner>)>> {
-        match self.pass.corner_grid(0) {
-            Some(c) => Ok(Some((
-                c.size(),
-                c.read(&self.ctx, &self.shot, Access::COMPUTE_SAMPLED)?,
-            ))),
-            None => Ok(None),
-        }
-    }
-
-    /// The pyramid's levels (logical sizes, row by row); `None` unless the method uses
-    /// one and a frame has built it.
-    pub fn read_pyramid(&self) -> Result<Option<Vec<Vec<f32>>>> {
-        self.pass
-            .pyramid()
-            .map(|p| p.read_levels(&self.ctx, &self.shot))
-            .transpose()
-    }
-
-    /// The cone map, `(M, w)` per cell row by row (see [`crate::passes::cone`]); `None`
-    /// unless the method uses one and a frame has built it.
-    pub fn read_cone_map(&self) -> Result<Option<Vec<[f32; 2]>>> {
-        self.pass
-            .cone_map()
-            .map(|c| c.read(&self.ctx, &self.shot))
-            .transpose()
-    }
-
-    /// The corrected-depth image (`R32_SFLOAT`, reverse-Z clip depth of each pixel's hit,
-    /// 0 without one; see [`crate::passes::hit_depth`]) once a frame has been rendered
-    /// with the output on. It is in `GENERAL`, last written by a compute-shader storage
-    /// write; a caller that reads it in its own submission (e.g.
-    /// [`crate::passes::depth_resolve`]) places the barrier from that state and returns
-    /// it there.
-    pub fn hit_depth(&self) -> Option<&Image> {
-        self.pass.hit_depth(0).filter(|_| self.depth_written)
-    }
-
-    /// The corrected depth of the last [`Renderer::render`]'s hits, row by row (`None`
-    /// when the output is off; an error when no frame has been rendered since it was
-    /// turned on). [`Renderer::shade_hits`] does not update it.
-    pub fn read_depth(&self) -> Result<Option<Vec<f32>>> {
-        if !self.pass.depth_output() {
-            return Ok(None);
-        }
-        let image = self.hit_depth().ok_or_else(|| {
-            Error::invalid(
-                "depth output",
-                "no frame has been rendered since the depth output was turned on",
-            )
-        })?;
-        let bytes = read_image(&self.ctx, &self.shot, image, Access::COMPUTE_STORAGE_WRITE)?;
-        Ok(Some(bytemuck::cast_slice::<u8, f32>(&bytes).to_vec()))
-    }
-
-    /// Each pixel's ray from the last frame's G-buffer (`None` where there is no
-    /// geometry). An error after a forward frame ([`Renderer::render_forward`] writes no
-    /// rays) or before the first frame.
-    pub fn read_rays(&self) -> Result<Vec<Option<Ray>>> {
-        if self.rays_frame.is_none() {
-            return Err(Error::invalid(
-                "rays",
-                "the last frame wrote no rays (none rendered yet, or a forward frame): \
-                 render a frame with Renderer::render first",
-            ));
-        }
-        let ray = read_image(
-            &self.ctx,
-            &self.shot,
-            &self.gbuffer.ray,
-            Access::COMPUTE_SAMPLED,
-        )?;
-        let depth = self.read_macro_depth()?;
-        let ray: &[[f32; 4]] = bytemuck::cast_slice(&ray);
-        Ok(ray
-            .iter()
-            .zip(depth)
-            .map(|(r, d)| {
-                (d > 0.0).then(|| Ray {
-                    uv0: [r[0] as f64, r[1] as f64],
-                    parallax: [r[2] as f64, r[3] as f64],
-                })
-            })
-            .collect())
-    }
-
-    /// The rays a CPU reference traces for the last frame: each pixel's own f64 centre
-    /// ray where the macro surface is analytic (the tiled plane or the quad, drawn
-    /// alone: [`crate::scene::Scene::analytic_rays`]), else the G-buffer's
-    /// ([`Renderer::read_rays`]: meshes and scenes of several objects interpolate their
-    /// entry). Pixels where the G-buffer and the centre ray disagree on coverage are
-    /// listed: see [`ReferenceRays`].
-    pub fn reference_rays(&self) -> Result<ReferenceRays> {
-        let drawn = self.read_rays()?;
-        let analytic = match (&self.rays_frame, &self.objects, &self.mesh) {
-            (Some((scene, camera)), None, None) => scene.analytic_rays(camera),
-            _ => None,
-        };
-        let Some(rays) = analytic else {
-            return Ok(ReferenceRays {
-                rays: drawn,
-                analytic: false,
-                drawn_only: Vec::new(),
-                ray_only: Vec::new(),
-            });
-        };
-        let (mut drawn_only, mut ray_only) = (Vec::new(), Vec::new());
-        for (i, (d, r)) in drawn.iter().zip(&rays).enumerate() {
-            match (d.is_some(), r.is_some()) {
-                (true, false) => drawn_only.push(i),
-                (false, true) => ray_only.push(i),
-                _ => {}
-            }
-        }
-        Ok(ReferenceRays {
-            rays,
-            analytic: true,
-            drawn_only,
-            ray_only,
-        })
-    }
-
-    /// The last frame's G-buffer depth (reverse-Z depth of the macro surface, 0 where
-    /// there is no geometry), row by row.
-    pub fn read_macro_depth(&self) -> Result<Vec<f32>> {
-        let depth = read_image(
-            &self.ctx,
-            &self.shot,
-            &self.gbuffer.depth,
-            Access::COMPUTE_SAMPLED,
-        )?;
-        Ok(bytemuck::cast_slice::<u8, f32>(&depth).to_vec())
-    }
-
-    /// Each pixel's material index from the last frame's G-buffer (`tangent.w` =
-    /// handedness * (index + 1)): `None` where there is no geometry or the geometry is
-    /// flat (not displaced).
-    pub fn read_materials(&self) -> Result<Vec<Option<u32>>> {
-        let (_, tangent) = self.read_frames()?;
-        let depth = self.read_macro_depth()?;
-        Ok(tangent
-            .iter()
-            .zip(depth)
-            .map(|(t, d)| {
-                let m = t[3].abs().round();
-                (d > 0.0 && m >= 1.0).then(|| m as u32 - 1)
-            })
-            .collect())
-    }
-
-    /// The last frame's G-buffer `normal` and `tangent` texels (RGBA16F decoded), row by
-    /// row.
-    pub fn read_frames(&self) -> Result<TangentFrames> {
-        let read = |image: &Image| -> Result<Vec<[f32; 4]>> {
-            let bytes = read_image(&self.ctx, &self.shot, image, Access::COMPUTE_SAMPLED)?;
-            Ok(crate::passes::shadow::decode_rgba16f(&bytes))
-        };
-        Ok((read(&self.gbuffer.normal)?, read(&self.gbuffer.tangent)?))
-    }
-
-    /// The last frame's hit buffer.
-    pub fn read_hits(&self) -> Result<Vec<HitTexel>> {
-        let bytes = read_image(
-            &self.ctx,
-            &self.shot,
-            &self.hit,
-            Access::COMPUTE_STORAGE_READ,
-        )?;
-        Ok(bytemuck::cast_slice::<u8, HitTexel>(&bytes).to_vec())
-    }
-
-    /// The last frame's colour image (RGBA8, sRGB-encoded).
-    pub fn read_color(&self) -> Result<Vec<u8>> {
-        read_image(
-            &self.ctx,
-            &self.shot,
-            &self.color,
-            Access::COMPUTE_STORAGE_WRITE,
-        )
-    }
-
-    /// Shades `hits` (one texel per pixel) with the current G-buffer and returns the
-    /// colour. Overwrites the hit buffer. With self-shadowing on, the `shadow` pass runs
-    /// on `hits` first.
-    pub fn shade_hits(&mut self, hits: &[HitTexel]) -> Result<Vec<u8>> {
-        self.shade_hits_with(hits, None)
-    }
-
-    /// [`Renderer::shade_hits`] with the light visibility given (one value per pixel;
-    /// self-shadowing must be on) instead of computed by the `shadow` pass
-    /// ([`DisplacementPass::record_shading`]).
-    pub fn shade_hits_with(
-        &mut self,
-        hits: &[HitTexel],
-        visibility: Option<&[f32]>,
-    ) -> Result<Vec<u8>> {
-        let ctx = &*self.ctx;
-        if visibility.is_some() && !self.settings.shadows.is_on() {
-            return Err(Error::invalid(
-                "visibility",
-                "self-shadowing is off: nothing to shade with",
-            ));
-        }
-        let given = visibility
-            .map(|values| -> Result<Image> {
-                let image = Guard::new(
-                    ctx,
-                    Image::new(
-                        ctx,
-                        "given_visibility",
-                        VISIBILITY_FORMAT,
-                        self.settings.extent(),
-                        1,
-                        vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_DST,
-                    )?,
-                );
-                upload_image(
-                    ctx,
-                    &self.shot,
-                    &image,
-                    &crate::passes::shadow::encode_visibility(values),
-                    Access::COMPUTE_STORAGE_READ,
-                )?;
-                Ok(image.keep())
-            })
-            .transpose()?;
-        let mut given = Guard::new(ctx, given);
-        upload_image(
-            ctx,
-            &self.shot,
-            &self.hit,
-            bytemuck::cast_slice(hits),
-            Access::COMPUTE_STORAGE_READ,
-        )?;
-        let (_, target) = self.frame_target();
-        let inputs = self.frame_inputs(Some(target));
-        let cmd = self.shot.begin(ctx)?;
-        let color = &self.color;
-        // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
-        // context's queue family) and is submitted and waited for below; the colour image
-        // is the renderer's, alive, and its previous frame was waited for, so it may be
-        // discarded; the G-buffer is sampled-readable since the frame that drew it.
-        unsafe {
-            sync::transition(ctx, cmd, color, DISCARD, Access::COMPUTE_STORAGE_WRITE);
-            self.record_background(cmd, &target);
-        }
-        // SAFETY: `cmd` is recording and submitted below; the hits (and the given
-        // visibility) were uploaded and made visible to storage reads; one slot, whose
-        // previous frame was waited for.
-        unsafe {
-            self.pass.record_shading(
-                cmd,
-                &inputs,
-                given.as_ref().map(|v| v.view),
-                Timestamps::Off,
-            )?
-        };
-        self.shot.submit_and_wait(ctx)?;
-        given.destroy(ctx);
-        self.read_color()
-    }
 }
 
 impl Drop for Renderer {
@@ -1341,17 +655,20 @@ impl Drop for Renderer {
         }
         // SAFETY: the device is idle: no frame recorded with the pass is pending.
         unsafe { self.pass.destroy() };
-        self.mesh.destroy(ctx);
-        self.objects.destroy(ctx);
-        self.forward.destroy(ctx);
-        self.gbuffer_pass.destroy(ctx);
-        self.background.destroy(ctx);
-        self.motion.destroy(ctx);
-        self.color.destroy(ctx);
-        self.hit.destroy(ctx);
-        self.gbuffer.destroy(ctx);
-        self.timestamps.destroy(ctx);
-        self.shot.destroy(ctx);
+        // SAFETY: the device is idle: no submission uses these objects.
+        unsafe {
+            self.mesh.destroy(ctx);
+            self.objects.destroy(ctx);
+            self.forward.destroy(ctx);
+            self.gbuffer_pass.destroy(ctx);
+            self.background.destroy(ctx);
+            self.motion.destroy(ctx);
+            self.color.destroy(ctx);
+            self.hit.destroy(ctx);
+            self.gbuffer.destroy(ctx);
+            self.timestamps.destroy(ctx);
+            self.shot.destroy(ctx);
+        }
     }
 }
 
@@ -1370,17 +687,22 @@ struct HostParts<'c> {
 impl<'c> HostParts<'c> {
     /// Builds them in order; a failure destroys what was built.
     fn new(c: &'c Context, extent: vk::Extent2D) -> Result<Self> {
-        let shot = Guard::new(c, OneShot::new(c, "renderer")?);
-        let timestamps = Guard::new(
-            c,
-            QueryPool(crate::timing::timestamp_pool(
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let shot = unsafe { Guard::new(c, OneShot::new(c, "renderer")?) };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let timestamps = unsafe {
+            Guard::new(
                 c,
-                "renderer.timestamps",
-                GBUFFER_QUERIES + MAX_QUERIES,
-            )?),
-        );
+                QueryPool(crate::timing::timestamp_pool(
+                    c,
+                    "renderer.timestamps",
+                    GBUFFER_QUERIES + MAX_QUERIES,
+                )?),
+            )
+        };
         let (gbuffer, hit, color) = frame_images(c, extent)?;
-        let background = Guard::new(c, BackgroundPass::new(c)?);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let background = unsafe { Guard::new(c, BackgroundPass::new(c)?) };
         Ok(HostParts {
             shot,
             timestamps,
@@ -1429,32 +751,39 @@ fn frame_images(
     c: &Context,
     extent: vk::Extent2D,
 ) -> Result<(Guard<'_, GBuffer>, Guard<'_, Image>, Guard<'_, Image>)> {
-    let gbuffer = Guard::new(c, GBuffer::new(c, extent)?);
-    let hit = Guard::new(
-        c,
-        Image::new(
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let gbuffer = unsafe { Guard::new(c, GBuffer::new(c, extent)?) };
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let hit = unsafe {
+        Guard::new(
             c,
-            "hits",
-            HIT_FORMAT,
-            extent,
-            1,
-            // COLOR_ATTACHMENT: the forward path writes it from its fragment shader.
-            vk::ImageUsageFlags::STORAGE
-                | vk::ImageUsageFlags::COLOR_ATTACHMENT
-                | vk::ImageUsageFlags::TRANSFER_SRC
-                | vk::ImageUsageFlags::TRANSFER_DST,
-        )?,
-    );
-    let color = Guard::new(
-        c,
-        Image::new(
+            Image::new(
+                c,
+                "hits",
+                HIT_FORMAT,
+                extent,
+                1,
+                // COLOR_ATTACHMENT: the forward path writes it from its fragment shader.
+                vk::ImageUsageFlags::STORAGE
+                    | vk::ImageUsageFlags::COLOR_ATTACHMENT
+                    | vk::ImageUsageFlags::TRANSFER_SRC
+                    | vk::ImageUsageFlags::TRANSFER_DST,
+            )?,
+        )
+    };
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let color = unsafe {
+        Guard::new(
             c,
-            "color",
-            COLOR_FORMAT,
-            extent,
-            1,
-            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-        )?,
-    );
+            Image::new(
+                c,
+                "color",
+                COLOR_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?,
+        )
+    };
     Ok((gbuffer, hit, color))
 }

@@ -8,6 +8,7 @@
 
 use crate::context::Context;
 use crate::error::{Result, VkContext};
+use crate::gpu::owned::Destroy;
 use crate::passes::PassName;
 use ash::vk;
 
@@ -189,13 +190,15 @@ pub(crate) fn timestamp_pool(ctx: &Context, name: &str, count: u32) -> Result<vk
 /// A `TIMESTAMP` query pool owned by the standalone renderer.
 pub(crate) struct QueryPool(pub(crate) vk::QueryPool);
 
-impl QueryPool {
+impl Destroy for QueryPool {
     /// Destroys the pool. Nothing may be pending.
-    pub(crate) fn destroy(&mut self, ctx: &Context) {
-        if self.0 != vk::QueryPool::null() {
-            // SAFETY: the caller guarantees no pending use.
-            unsafe { ctx.device().destroy_query_pool(self.0, None) };
-            self.0 = vk::QueryPool::null();
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            if self.0 != vk::QueryPool::null() {
+                ctx.device().destroy_query_pool(self.0, None);
+                self.0 = vk::QueryPool::null();
+            }
         }
     }
 }

@@ -18,6 +18,7 @@ use common::{asset_map, validated_context};
 use dispmap::Context;
 use dispmap::embed::{DisplacementPass, FrameInputs, HIT_FORMAT, PassSettings, Timestamps};
 use dispmap::gpu::commands::read_image;
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::{Convention, HeightField};
@@ -103,8 +104,11 @@ impl Host {
             // unused.
             let (gbuffer, hit) = images(&ctx, self.extent, s);
             let slot = &mut self.slots[s];
-            std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
-            std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
+            // SAFETY: slot `s`'s last frame has completed (`begin` waited): nothing reads the old images.
+            unsafe {
+                std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
+                std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
+            }
         }
         let slot = &self.slots[s];
         let camera = self
@@ -162,10 +166,14 @@ impl Host {
         self.frames.destroy();
         let ctx = self.ctx.clone();
         for slot in &mut self.slots {
-            slot.gbuffer.destroy(&ctx);
-            slot.hit.destroy(&ctx);
+            // SAFETY: `frames.destroy()` waited for every frame.
+            unsafe {
+                slot.gbuffer.destroy(&ctx);
+                slot.hit.destroy(&ctx);
+            }
         }
-        self.gbuffer_pass.destroy(&ctx);
+        // SAFETY: `frames.destroy()` waited for every frame.
+        unsafe { self.gbuffer_pass.destroy(&ctx) };
     }
 }
 
@@ -227,7 +235,8 @@ fn assert_bit_identical(got: &[[f32; 4]], want: &[[f32; 4]], what: &str) {
 fn teardown(ctx: Arc<Context>, mut pass: DisplacementPass, host: Host, shot: OneShot) {
     let mut shot = shot;
     host.destroy();
-    shot.destroy(&ctx);
+    // SAFETY: every submission of the shot was waited for.
+    unsafe { shot.destroy(&ctx) };
     // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
     unsafe { pass.destroy() };
     drop(pass);

@@ -23,6 +23,7 @@ use dispmap::embed::{
     ShadeTarget, ShadowMode, ShadowSettings, Timestamps,
 };
 use dispmap::gpu::commands::read_image;
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::{Convention, HeightField};
@@ -153,10 +154,13 @@ impl Host {
         if slot.hit.extent != extent {
             // The slot's last frame has completed (`begin` waited): its images are unused.
             let (gbuffer, hit, color, resolved) = slot_images(&ctx, extent, s);
-            std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
-            std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
-            std::mem::replace(&mut slot.color, color).destroy(&ctx);
-            std::mem::replace(&mut slot.resolved, resolved).destroy(&ctx);
+            // SAFETY: the slot's last frame has completed (`begin` waited): nothing reads the old images.
+            unsafe {
+                std::mem::replace(&mut slot.gbuffer, gbuffer).destroy(&ctx);
+                std::mem::replace(&mut slot.hit, hit).destroy(&ctx);
+                std::mem::replace(&mut slot.color, color).destroy(&ctx);
+                std::mem::replace(&mut slot.resolved, resolved).destroy(&ctx);
+            }
         }
         let camera = self.scene.frame_camera(extent.width, extent.height);
         let params = self.scene.gbuffer_params(&camera);
@@ -303,12 +307,16 @@ impl Host {
         self.frames.destroy();
         let ctx = self.ctx.clone();
         for slot in &mut self.slots {
-            slot.gbuffer.destroy(&ctx);
-            slot.hit.destroy(&ctx);
-            slot.color.destroy(&ctx);
-            slot.resolved.destroy(&ctx);
+            // SAFETY: `frames.destroy()` waited for every frame.
+            unsafe {
+                slot.gbuffer.destroy(&ctx);
+                slot.hit.destroy(&ctx);
+                slot.color.destroy(&ctx);
+                slot.resolved.destroy(&ctx);
+            }
         }
-        self.gbuffer_pass.destroy(&ctx);
+        // SAFETY: `frames.destroy()` waited for every frame.
+        unsafe { self.gbuffer_pass.destroy(&ctx) };
         // SAFETY: every frame that recorded the resolve has completed.
         unsafe { self.resolve.destroy(&ctx) };
     }
@@ -319,7 +327,8 @@ impl Host {
 fn teardown(ctx: Arc<Context>, mut pass: DisplacementPass, host: Host, shot: Option<OneShot>) {
     host.destroy();
     if let Some(mut shot) = shot {
-        shot.destroy(&ctx);
+        // SAFETY: every submission of the shot was waited for.
+        unsafe { shot.destroy(&ctx) };
     }
     // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
     unsafe { pass.destroy() };

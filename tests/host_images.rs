@@ -14,6 +14,7 @@ use dispmap::embed::{
     MotionSettings, PassSettings, ShadeTarget, Timestamps,
 };
 use dispmap::error::Error;
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::{Addressing, Convention};
@@ -212,9 +213,13 @@ fn wrong_host_images_are_refused_by_name() {
     unsafe { pass.destroy() };
     drop(pass);
     for i in [&mut hit, &mut half_hit, &mut small_hit, &mut motion32] {
-        i.destroy(c);
+        // SAFETY: the one submission completed.
+        unsafe { i.destroy(c) };
     }
-    gbuffer.destroy(c);
-    shot.destroy(c);
+    // SAFETY: the one submission completed.
+    unsafe {
+        gbuffer.destroy(c);
+        shot.destroy(c);
+    }
     finish(ctx);
 }

@@ -9,6 +9,7 @@
 mod common;
 
 use common::{asset_map, finish, validated_context};
+use dispmap::gpu::owned::Destroy;
 use dispmap::heightfield::Convention;
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::renderer::{RenderSettings, Renderer};
@@ -486,9 +487,11 @@ fn the_height_mip_chain_is_the_box_average_and_level_0_is_the_map() {
     let mut dropped = derive(&derived, false);
     check_levels(&ctx, &shot, &dropped, &values, (w, h), 1);
     for t in [&mut plain, &mut chained, &mut derived, &mut dropped] {
-        t.destroy(&ctx);
+        // SAFETY: every one-shot submission was waited for.
+        unsafe { t.destroy(&ctx) };
     }
-    shot.destroy(&ctx);
+    // SAFETY: every one-shot submission was waited for.
+    unsafe { shot.destroy(&ctx) };
     finish(ctx);
 }
 

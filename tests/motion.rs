@@ -17,6 +17,7 @@
 mod common;
 
 use common::{asset_map, finish, validated_context};
+use dispmap::gpu::owned::Destroy;
 use dispmap::heightfield::{Addressing, Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::gbuffer::Ray;
@@ -555,7 +556,8 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
     // SAFETY: `hits` and `read_image` waited for the frame: nothing is pending.
     unsafe { pass.destroy() };
     drop(pass);
-    motion_image.destroy(&ctx);
+    // SAFETY: `hits` and `read_image` waited for the frame: nothing is pending.
+    unsafe { motion_image.destroy(&ctx) };
     host.destroy();
     finish(ctx);
     out

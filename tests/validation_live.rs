@@ -6,6 +6,7 @@
 mod common;
 
 use ash::vk;
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Buffer, Image, OneShot};
 use gpu_allocator::MemoryLocation;
@@ -68,9 +69,12 @@ fn a_missing_barrier_is_reported() {
     }
     shot.submit_and_wait(&ctx).unwrap();
     let errors = ctx.messages().errors();
-    shot.destroy(&ctx);
-    staging.destroy(&ctx);
-    image.destroy(&ctx);
+    // SAFETY: the one submission completed.
+    unsafe {
+        shot.destroy(&ctx);
+        staging.destroy(&ctx);
+        image.destroy(&ctx);
+    }
     assert!(
         errors > 0,
         "synchronization validation did not report the write-after-write hazard"

@@ -11,6 +11,7 @@ use ash::vk;
 use common::{asset_map, finish, validated_context};
 use dispmap::context::Context;
 use dispmap::gpu::commands::read_image;
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::pipeline::{RasterDesc, raster_pipeline};
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
@@ -622,9 +623,12 @@ fn destroy_all(
     boxes.destroy(ctx);
     // SAFETY: the command buffer that recorded the resolve has completed (waited for).
     unsafe { resolve.destroy(ctx) };
-    color.destroy(ctx);
-    depth.destroy(ctx);
-    shot.destroy(ctx);
+    // SAFETY: the command buffers that used them completed (waited for).
+    unsafe {
+        color.destroy(ctx);
+        depth.destroy(ctx);
+        shot.destroy(ctx);
+    }
 }
 
 fn dispmap_cli() -> std::process::Command {

@@ -5,13 +5,15 @@
 use crate::abi::ShadeParams;
 use crate::context::{Context, requirements as context_requirements};
 use crate::error::{Error, Result};
+use crate::passes::PassName;
 use ash::vk;
 use std::ffi::CStr;
 
 /// Timestamp queries one [`DisplacementPass::record`](super::DisplacementPass::record) writes at most: a begin/end pair
-/// for each of `upload`, `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`,
-/// `shade`, `hit_depth` and `motion`.
-pub const MAX_QUERIES: u32 = 20;
+/// for each pass of [`PassName::ALL`] it records (every one but the host's `gbuffer`:
+/// `upload`, `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`,
+/// `hit_depth` and `motion`).
+pub const MAX_QUERIES: u32 = 2 * PassName::recorded_by_pass();
 
 /// Largest `frames_in_flight` a pass accepts.
 pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;
@@ -19,10 +21,10 @@ pub const MAX_FRAMES_IN_FLIGHT: u32 = 16;
 /// The push-constant bytes the largest pass uses (`shade`: [`ShadeParams`]).
 pub const PUSH_CONSTANT_BYTES: u32 = std::mem::size_of::<ShadeParams>() as u32;
 
-/// Descriptors the largest pass pushes: the shaded `shade` variant of self-shadowing (8:
-/// bindings 0 to 7; `trace` of the DIG methods pushes 7). Every Vulkan device with
+/// Descriptors the largest pass pushes, reflected from the compute shaders' SPIR-V by
+/// `build.rs` (today the self-shadowed `shade` variant: 10). Every Vulkan device with
 /// `VK_KHR_push_descriptor` has at least 32.
-pub const PUSH_DESCRIPTORS: u32 = 8;
+pub const PUSH_DESCRIPTORS: u32 = crate::shaders::MAX_PASS_DESCRIPTORS;
 
 /// What the pass needs from the host's device (see [`requirements`]).
 #[derive(Clone, Debug)]
@@ -241,8 +243,12 @@ mod tests {
                 .iter()
                 .any(|(f, _)| *f == crate::passes::trace::HIT_FORMAT)
         );
-        // The shaded shade variant (self-shadowing) pushes bindings 0..=7.
-        assert_eq!(r.max_push_descriptors, 8);
+        // The self-shadowed shade variant pushes the most descriptors (10, reflected).
+        assert_eq!(
+            r.max_push_descriptors,
+            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+        );
+        assert_eq!(r.max_push_descriptors, 10);
         let largest = [
             std::mem::size_of::<crate::abi::ShadowParams>(),
             std::mem::size_of::<crate::abi::HitDepthParams>(),
@@ -253,6 +259,27 @@ mod tests {
             largest
                 .iter()
                 .all(|&b| b as u32 <= r.max_push_constants_size)
+        );
+    }
+
+    /// `PUSH_DESCRIPTORS` is the largest compute pass's count of descriptors, and the
+    /// timestamp queries cover every pass the displacement pass records.
+    #[test]
+    fn device_requirements_from_the_shaders() {
+        let passes = crate::shaders::ALL.iter().filter(|s| {
+            (s.name.ends_with(".comp") || s.name.contains(".comp["))
+                && !s.name.starts_with("examples/")
+                && !s.name.starts_with("tests/")
+        });
+        let largest = passes.map(|s| s.bindings.len() as u32).max();
+        assert_eq!(largest, Some(super::PUSH_DESCRIPTORS));
+        assert_eq!(
+            super::PUSH_DESCRIPTORS,
+            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+        );
+        assert_eq!(
+            super::MAX_QUERIES as usize,
+            2 * (crate::passes::PassName::ALL.len() - 1)
         );
     }
 }

@@ -189,6 +189,8 @@
 //! (`DEP_DISPMAP_INCLUDE`) for the same point: the corrected depth uses it too.
 
 mod device;
+mod inputs;
+mod materials;
 mod plan;
 mod record;
 
@@ -205,10 +207,11 @@ use crate::gpu::owned::{Destroy, Guard, RetireQueue};
 use crate::heightfield::{Addressing, HeightField};
 use crate::material::{MaterialImages, MaterialTextures};
 use crate::method::{Method, MethodParams};
-use crate::passes::classify::{ClassifyPass, TileLists};
+use crate::passes::classify::ClassifyPass;
 use crate::passes::cone::{ConeMap, ConePass};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::gbuffer::GBufferViews;
+use crate::passes::hit_depth::HitDepthPass;
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
 use crate::passes::shadow::ShadowPass;
@@ -222,158 +225,16 @@ pub use crate::passes::PassName;
 pub use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, RAY_FORMAT};
 pub use crate::passes::hit_depth::HIT_DEPTH_FORMAT;
 pub use crate::passes::motion::{
-    MOTION_FORMATS, MotionDirection, MotionSettings, MotionSource, MotionUnits,
+    DepthCamera, FrameMotion, MOTION_FORMATS, MotionDirection, MotionSettings, MotionSource,
+    MotionUnits,
 };
 pub use crate::passes::shade::COLOR_FORMAT;
 pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
 pub use crate::passes::trace::HIT_FORMAT;
 pub use crate::timing::{TimestampScope, read_timestamps};
-
-/// How the pass is configured.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PassSettings {
-    /// The intersection method.
-    pub method: Method,
-    /// Its parameters.
-    pub params: MethodParams,
-    /// Displacement depth in uv (tile) units: the value the host's G-buffer used for `P`.
-    pub depth_scale: f32,
-    /// Height-map addressing: `Repeat` for tiled surfaces, `Clamp` for decals (must match
-    /// the `addressing` the host's G-buffer shader used for `uv0`).
-    pub addressing: Addressing,
-    /// Frame size in pixels (the G-buffer's, hit buffer's and colour image's size).
-    pub extent: vk::Extent2D,
-    /// Frames the host keeps in flight (1..=[`MAX_FRAMES_IN_FLIGHT`]): the number of
-    /// slots of the per-frame resources the pass owns.
-    pub frames_in_flight: u32,
-}
-
-/// What `shade` needs to light the hits (only when the host wants dispmap's colour).
-#[derive(Clone, Copy, Debug)]
-pub struct ShadeTarget {
-    /// The colour image (`R8G8B8A8_UNORM`, `STORAGE` usage, the frame's size; see the
-    /// module table).
-    pub color: HostView,
-    /// World to clip of the frame (the inverse gives each pixel's view ray).
-    pub view_proj: Mat4,
-    /// Eye position, world space.
-    pub camera_pos: Vec3,
-    /// Unit vector towards a directional light, world space.
-    pub light_dir: Vec3,
-    /// Light intensity.
-    pub light_intensity: f32,
-}
-
-/// One frame's host images (layouts and access on entry and exit: module docs).
-#[derive(Clone, Copy, Debug)]
-pub struct FrameInputs {
-    /// The frame-in-flight slot, `0..frames_in_flight` (the slot contract: module docs).
-    pub frame_slot: u32,
-    /// The host's G-buffer views; `extent` must equal the pass's.
-    pub gbuffer: GBufferViews,
-    /// The hit buffer this frame writes (`R32G32B32A32_SFLOAT`, `STORAGE` usage, the
-    /// frame's size).
-    pub hit: HostView,
-    /// Shade the hits into a colour image (`None`: the host shades from the hit buffer).
-    pub shade: Option<ShadeTarget>,
-    /// The host's motion image and previous camera: required while the motion output is
-    /// on ([`DisplacementPass::set_motion_output`]), refused while it is off.
-    pub motion: Option<FrameMotion>,
-}
-
-/// The motion output's inputs of one frame ([`crate::passes::motion`] documents the
-/// contract).
-#[derive(Clone, Copy, Debug)]
-pub struct FrameMotion {
-    /// The host's motion image (the format of the pass's [`MotionSettings`], one of
-    /// [`MOTION_FORMATS`]; `STORAGE` usage; the frame's size), read and written in place.
-    pub image: HostView,
-    /// The camera the host drew its previous frame with (world to clip and eye).
-    pub previous: DepthCamera,
-}
-
-/// Where [`DisplacementPass::record`] writes its timestamps.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Timestamps {
-    /// No timestamps.
-    Off,
-    /// The pass's own query pool (one range per frame slot, created on first use);
-    /// read with [`DisplacementPass::timings`] after the frame's fence.
-    Owned,
-    /// The host's `TIMESTAMP` query pool: the pass resets, in the command buffer, and
-    /// writes queries `first_query .. first_query + MAX_QUERIES` (the host must not use
-    /// them in the same frame); read with [`read_timestamps`] or the host's profiler.
-    Host {
-        /// A `VK_QUERY_TYPE_TIMESTAMP` pool of the host's device.
-        pool: vk::QueryPool,
-        /// First of the [`MAX_QUERIES`] queries the pass may use.
-        first_query: u32,
-    },
-}
-
-/// What [`DisplacementPass::record`] recorded.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct RecordedFrame {
-    /// The passes recorded, in order.
-    pub passes: Vec<PassName>,
-    /// Their timestamp queries (empty with [`Timestamps::Off`]).
-    pub timestamps: Vec<TimestampScope>,
-}
-
-/// The camera of a frame for the corrected depth when the frame has no
-/// [`ShadeTarget`] (see [`DisplacementPass::record_with_camera`]).
-#[derive(Clone, Copy, Debug)]
-pub struct DepthCamera {
-    /// World to clip of the frame (the G-buffer's; reverse-Z).
-    pub view_proj: Mat4,
-    /// Eye position, world space.
-    pub eye: Vec3,
-}
-
-/// The settings of one displaced material (one entry of the pass's material table).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MaterialSettings {
-    /// The intersection method.
-    pub method: Method,
-    /// Its parameters.
-    pub params: MethodParams,
-    /// Displacement depth in uv (tile) units: the value the host's G-buffer used for `P`
-    /// on this material's pixels.
-    pub depth_scale: f32,
-    /// Height-map addressing: `Repeat` for tiled surfaces, `Clamp` for decals (must match
-    /// the `addressing` the host's G-buffer shader used for `uv0`). Fixed for a material's
-    /// life ([`DisplacementPass::set_material_settings`] refuses a change).
-    pub addressing: Addressing,
-}
-
-impl PassSettings {
-    /// The settings of the material [`DisplacementPass::new`] makes from these.
-    pub fn material(&self) -> MaterialSettings {
-        MaterialSettings {
-            method: self.method,
-            params: self.params,
-            depth_scale: self.depth_scale,
-            addressing: self.addressing,
-        }
-    }
-}
-
-/// A handle to one material of a [`DisplacementPass`]'s table. Its
-/// [`MaterialId::index`] is the value the host's G-buffer writes for the material's
-/// pixels (`glsl/include/dispmap_gbuffer.glsl`: `tangent.w = ±(index + 1)`). A removed
-/// material's handle is refused by every call, also after its index is reused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct MaterialId {
-    index: u32,
-    generation: u32,
-}
-
-impl MaterialId {
-    /// The material's index in the table: what the G-buffer encodes.
-    pub fn index(self) -> u32 {
-        self.index
-    }
-}
+pub use inputs::{
+    FrameInputs, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget, Timestamps,
+};
 
 /// The frame-wide settings: the frame size and the frames in flight.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -409,12 +270,10 @@ pub struct DisplacementPass {
     corner_pass: Option<DigCornerPass>,
     cone_passes: Vec<ConePass>,
     shadow_passes: Vec<ShadowPass>,
-    /// One tile list set per frame slot.
-    tiles: Vec<TileLists>,
-    /// One visibility image per frame slot (self-shadowing on).
-    visibility: Vec<Image>,
-    /// The corrected-depth output (`None` when off).
-    depth: Option<plan::DepthParts>,
+    /// What each frame in flight owns, by frame slot (built by the first sync).
+    slots: Vec<plan::Slot>,
+    /// The corrected-depth pipeline (`None` when off; its images are the slots').
+    depth: Option<HitDepthPass>,
     /// Whether the corrected depth is requested.
     depth_on: bool,
     /// The motion pass (`None` when off).
@@ -424,8 +283,6 @@ pub struct DisplacementPass {
     /// The frame size the frame-sized resources were built for.
     built_extent: vk::Extent2D,
     query_pool: Option<vk::QueryPool>,
-    /// The owned-pool scopes each slot recorded last.
-    slot_scopes: Vec<Vec<TimestampScope>>,
     retired: RetireQueue,
     /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
     shadows: ShadowSettings,
@@ -442,8 +299,10 @@ impl DisplacementPass {
         validate_frame(&ctx, settings.extent, settings.frames_in_flight)?;
         validate_material(&ctx, &settings.material())?;
         let c = &*ctx;
-        let shade = Guard::new(c, ShadePass::new(c)?);
-        let classify = Guard::new(c, ClassifyPass::new(c)?);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let shade = unsafe { Guard::new(c, ShadePass::new(c)?) };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let classify = unsafe { Guard::new(c, ClassifyPass::new(c)?) };
         let mut pass = DisplacementPass {
             frame: FrameSettings {
                 extent: settings.extent,
@@ -464,15 +323,13 @@ impl DisplacementPass {
             corner_pass: None,
             cone_passes: Vec::new(),
             shadow_passes: Vec::new(),
-            tiles: Vec::new(),
-            visibility: Vec::new(),
+            slots: Vec::new(),
             depth: None,
             depth_on: false,
             motion: None,
             motion_on: None,
             built_extent: vk::Extent2D::default(),
             query_pool: None,
-            slot_scopes: vec![Vec::new(); settings.frames_in_flight as usize],
             retired: RetireQueue::new(settings.frames_in_flight),
             shadows: ShadowSettings::default(),
             destroyed: false,
@@ -507,180 +364,6 @@ impl DisplacementPass {
         self.primary
     }
 
-    /// Adds a displaced material: `field` as its height map (shared with a material that
-    /// already has the same map and addressing: one texture, one pyramid, one cone map),
-    /// its method, parameters and depth scale. Returns its handle; its
-    /// [`MaterialId::index`] (the lowest free one) is what the host's G-buffer writes
-    /// for its pixels. The next record uploads the map and builds what the method needs.
-    /// Needs no GPU idle. On error the pass is unchanged.
-    pub fn add_material(
-        &mut self,
-        field: &HeightField,
-        settings: MaterialSettings,
-    ) -> Result<MaterialId> {
-        self.check_alive()?;
-        validate_material(&self.ctx, &settings)?;
-        let index = match self.materials.iter().position(Option::is_none) {
-            Some(i) => i,
-            None if self.materials.len() < MAX_MATERIALS as usize => self.materials.len(),
-            None => {
-                return Err(Error::invalid(
-                    "material",
-                    format!("the table is full ({MAX_MATERIALS} materials)"),
-                ));
-            }
-        };
-        let (map, new_map) = self.map_for(field, &settings)?;
-        let generation = self.next_generation;
-        self.next_generation += 1;
-        let entry = plan::MaterialEntry {
-            generation,
-            settings,
-            map,
-            shading: None,
-            pending_shading: None,
-            corners: Vec::new(),
-        };
-        if index == self.materials.len() {
-            self.materials.push(Some(entry));
-        } else {
-            self.materials[index] = Some(entry);
-        }
-        if let Err(e) = self.sync() {
-            // Never recorded: destroyed at once.
-            self.materials[index].take().destroy(&self.ctx);
-            if index + 1 == self.materials.len() {
-                self.materials.pop();
-            }
-            if new_map {
-                self.maps[map].take().destroy(&self.ctx);
-            }
-            return Err(e);
-        }
-        Ok(MaterialId {
-            index: index as u32,
-            generation,
-        })
-    }
-
-    /// Removes a material: its pixels are treated as not displaced from the next record
-    /// on. What only it used (its map when no other material shares it, pipelines, grids)
-    /// is retired like a replaced method's resources. Needs no GPU idle.
-    pub fn remove_material(&mut self, id: MaterialId) -> Result<()> {
-        self.check_alive()?;
-        let i = self.entry_index(id)?;
-        let entry = self.materials[i].take();
-        // The plan without it only drops resources: nothing is built, so the sync cannot
-        // fail for lack of memory (the tile lists keep their size).
-        let result = self.sync();
-        self.retired.retire(entry);
-        result
-    }
-
-    /// The handles of the live materials, by index.
-    pub fn materials(&self) -> Vec<MaterialId> {
-        self.materials
-            .iter()
-            .enumerate()
-            .filter_map(|(i, m)| {
-                m.as_ref().map(|m| MaterialId {
-                    index: i as u32,
-                    generation: m.generation,
-                })
-            })
-            .collect()
-    }
-
-    /// A material's settings.
-    pub fn material_settings(&self, id: MaterialId) -> Result<MaterialSettings> {
-        Ok(self.entry(id)?.settings)
-    }
-
-    /// Changes a material's method, parameters and depth scale (not its addressing),
-    /// building only what the new settings need that the pass lacks (a `trace` pipeline,
-    /// a pyramid or cone map of its map, DIG grids; the height texture's mip chain when
-    /// level of detail is switched, filled on the GPU from the old texture by the next
-    /// record) and retiring what nothing uses any more.
-    ///
-    /// GPU-use contract: needs no GPU idle; what is replaced may still be read by frames
-    /// in flight, so it is retired: destroyed once every slot has been recorded again (by
-    /// the slot contract, every frame that could use it has completed), or by
-    /// [`DisplacementPass::destroy`]. Frames recorded before the call keep the old
-    /// settings. On error (invalid settings, an allocation or pipeline failure) the pass
-    /// is unchanged.
-    pub fn set_material_settings(
-        &mut self,
-        id: MaterialId,
-        settings: MaterialSettings,
-    ) -> Result<()> {
-        self.check_alive()?;
-        let i = self.entry_index(id)?;
-        validate_material(&self.ctx, &settings)?;
-        let old = self.materials[i]
-            .as_ref()
-            .map(|m| m.settings)
-            .unwrap_or(settings);
-        if settings.addressing != old.addressing {
-            return Err(Error::invalid(
-                "addressing",
-                "a material's addressing is fixed: remove it and add it again",
-            ));
-        }
-        self.with_material_settings(i, settings);
-        if let Err(e) = self.sync() {
-            self.with_material_settings(i, old);
-            return Err(e);
-        }
-        Ok(())
-    }
-
-    /// Swaps in a new height map for a material (any size; its addressing). The next
-    /// [`DisplacementPass::record`] uploads it and rebuilds what its method needs (timed
-    /// as `upload`, `pyramid`, `cone`). The old texture and what was derived from it stay
-    /// alive for frames in flight (unless another material still uses them) and are
-    /// retired. Needs no GPU idle. On error the pass is unchanged.
-    pub fn set_material_height_map(&mut self, id: MaterialId, field: &HeightField) -> Result<()> {
-        self.check_alive()?;
-        let i = self.entry_index(id)?;
-        let settings = self.entry(id)?.settings;
-        let (map, new_map) = self.map_for(field, &settings)?;
-        let old = self.materials[i].as_ref().map_or(map, |m| m.map);
-        if let Some(m) = &mut self.materials[i] {
-            m.map = map;
-        }
-        if let Err(e) = self.sync() {
-            if let Some(m) = &mut self.materials[i] {
-                m.map = old;
-            }
-            if new_map {
-                self.maps[map].take().destroy(&self.ctx);
-            }
-            return Err(e);
-        }
-        Ok(())
-    }
-
-    /// Sets a material's maps for `shade` (an albedo and a tangent-space normal map,
-    /// addressed like its height map; [`crate::material`] has their conventions); empty
-    /// [`MaterialImages`] remove them. The next record uploads them (in its `upload`
-    /// scope); replaced maps are retired. On error the material keeps its old maps.
-    pub fn set_material_maps(&mut self, id: MaterialId, images: &MaterialImages) -> Result<()> {
-        self.check_alive()?;
-        let i = self.entry_index(id)?;
-        let ctx = self.ctx.clone();
-        let addressing = self.entry(id)?.settings.addressing;
-        let created = MaterialTextures::create_for_upload(&ctx, images, addressing)?;
-        let (shading, staging) = created.unzip();
-        if let Some(m) = &mut self.materials[i] {
-            if let Some(old) = std::mem::replace(&mut m.shading, shading) {
-                self.retired.retire(old);
-            }
-            // Staging never recorded: no frame reads it.
-            std::mem::replace(&mut m.pending_shading, staging).destroy(&ctx);
-        }
-        Ok(())
-    }
-
     /// Whether the next [`DisplacementPass::record`] fills a height texture (a new map, or
     /// the mip chain added or dropped with level of detail) or builds a pyramid or cone
     /// map.
@@ -693,13 +376,13 @@ impl DisplacementPass {
     /// signalled and before the slot is recorded again; an unfinished frame gives an
     /// error (`VK_NOT_READY`), never a wait.
     pub fn timings(&self, frame_slot: u32) -> Result<Vec<(PassName, f64)>> {
-        let scopes = self
-            .slot_scopes
+        let slot = self
+            .slots
             .get(frame_slot as usize)
             .ok_or_else(|| Error::invalid("frame_slot", format!("no slot {frame_slot}")))?;
         // SAFETY: the scopes name the pass's own live pool; reading without WAIT cannot
         // block, and an unwritten or unfinished query is an error, not undefined.
-        unsafe { read_timestamps(&self.ctx, scopes) }
+        unsafe { read_timestamps(&self.ctx, &slot.scopes) }
     }
 
     /// [`DisplacementPass::set_material_height_map`] of the first material
@@ -840,9 +523,7 @@ impl DisplacementPass {
     /// `D32_SFLOAT` attachment, record [`crate::passes::depth_resolve::DepthResolvePass`]
     /// (module docs: "Corrected depth").
     pub fn hit_depth(&self, frame_slot: u32) -> Option<&Image> {
-        self.depth
-            .as_ref()
-            .and_then(|d| d.images.get(frame_slot as usize))
+        self.slots.get(frame_slot as usize)?.hit_depth.as_ref()
     }
 
     /// The light visibility of `frame_slot` (`R16_SFLOAT`, 1 = lit; written by the
@@ -851,7 +532,7 @@ impl DisplacementPass {
     /// `COMPUTE_SHADER` `SHADER_STORAGE_READ` (shade); usage `STORAGE | TRANSFER_SRC`.
     /// Read-only for the host, and only until the slot is recorded again.
     pub fn visibility(&self, frame_slot: u32) -> Option<&Image> {
-        self.visibility.get(frame_slot as usize)
+        self.slots.get(frame_slot as usize)?.visibility.as_ref()
     }
 
     /// The first material's DIG corner grid of `frame_slot` (`None` unless its method is
@@ -910,20 +591,22 @@ impl DisplacementPass {
             return;
         }
         let ctx = &*self.ctx;
-        self.retired.destroy_all(ctx);
-        self.materials.destroy(ctx);
-        self.maps.destroy(ctx);
-        self.depth.destroy(ctx);
-        self.motion.destroy(ctx);
-        self.visibility.destroy(ctx);
-        self.tiles.destroy(ctx);
-        self.shadow_passes.destroy(ctx);
-        self.cone_passes.destroy(ctx);
-        self.corner_pass.destroy(ctx);
-        self.pyramid_pass.destroy(ctx);
-        self.classify.destroy(ctx);
-        self.shade.destroy(ctx);
-        self.traces.destroy(ctx);
+        // SAFETY: this function's contract: no frame recorded with the pass is pending.
+        unsafe {
+            self.retired.destroy_all(ctx);
+            self.materials.destroy(ctx);
+            self.maps.destroy(ctx);
+            self.depth.destroy(ctx);
+            self.motion.destroy(ctx);
+            self.slots.destroy(ctx);
+            self.shadow_passes.destroy(ctx);
+            self.cone_passes.destroy(ctx);
+            self.corner_pass.destroy(ctx);
+            self.pyramid_pass.destroy(ctx);
+            self.classify.destroy(ctx);
+            self.shade.destroy(ctx);
+            self.traces.destroy(ctx);
+        }
         if let Some(pool) = self.query_pool.take() {
             // SAFETY: this function's contract: no pending use.
             unsafe { ctx.device().destroy_query_pool(pool, None) };
@@ -937,71 +620,6 @@ impl DisplacementPass {
         } else {
             Ok(())
         }
-    }
-
-    /// The table index of a live material's handle.
-    fn entry_index(&self, id: MaterialId) -> Result<usize> {
-        self.check_alive()?;
-        match self.materials.get(id.index as usize) {
-            Some(Some(m)) if m.generation == id.generation => Ok(id.index as usize),
-            _ => Err(Error::invalid(
-                "material",
-                format!("{id:?} is not a material of this pass (removed, or of another pass)"),
-            )),
-        }
-    }
-
-    fn entry(&self, id: MaterialId) -> Result<&plan::MaterialEntry> {
-        let i = self.entry_index(id)?;
-        self.materials[i]
-            .as_ref()
-            .ok_or_else(|| Error::Internal("a checked material entry is empty".into()))
-    }
-
-    /// Sets entry `i`'s settings, keeping [`DisplacementPass::settings`] in step.
-    fn with_material_settings(&mut self, i: usize, settings: MaterialSettings) {
-        if let Some(m) = &mut self.materials[i] {
-            m.settings = settings;
-        }
-        if i == self.primary.index as usize {
-            self.primary_settings = PassSettings {
-                method: settings.method,
-                params: settings.params,
-                depth_scale: settings.depth_scale,
-                addressing: settings.addressing,
-                ..self.primary_settings
-            };
-        }
-    }
-
-    /// The map table entry for `field` with `settings`' addressing: an existing one with
-    /// the same content, or a new one with its upload staged (`true`).
-    fn map_for(
-        &mut self,
-        field: &HeightField,
-        settings: &MaterialSettings,
-    ) -> Result<(usize, bool)> {
-        let key = plan::MapKey::of(field, settings.addressing);
-        if let Some(i) = self
-            .maps
-            .iter()
-            .position(|m| m.as_ref().is_some_and(|m| m.key == key))
-        {
-            return Ok((i, false));
-        }
-        let chain = settings.params.lod_threshold.is_some();
-        let entry = plan::MapEntry::new(&self.ctx, field, key, chain)?;
-        let i = match self.maps.iter().position(Option::is_none) {
-            Some(i) => {
-                self.maps[i] = Some(entry);
-                i
-            }
-            None => {
-                self.maps.push(Some(entry));
-                self.maps.len() - 1
-            }
-        };
-        Ok((i, true))
     }
 
     fn owned_pool(&mut self) -> Result<vk::QueryPool> {

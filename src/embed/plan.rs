@@ -19,6 +19,9 @@
 //! | motion pipeline | image format | the motion output on |
 //! | tile lists | (table size, extent) | always |
 //!
+//! What each frame in flight owns (tile lists, visibility, corrected depth, the
+//! timestamp scopes it recorded last) is one [`Slot`] per frame slot.
+//!
 //! A new preparation pass needs a key here, a constructor and a build stage in
 //! `record.rs`.
 
@@ -39,6 +42,7 @@ use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
 use crate::passes::shadow::{ShadowPass, ShadowTrace};
 use crate::passes::trace::TracePass;
+use crate::timing::TimestampScope;
 use ash::vk;
 use std::hash::{Hash, Hasher};
 
@@ -52,10 +56,13 @@ pub(super) enum Fill {
 }
 
 impl Destroy for Fill {
-    fn destroy(&mut self, ctx: &Context) {
-        match self {
-            Fill::Upload(b) => b.destroy(ctx),
-            Fill::Copy(h) => h.destroy(ctx),
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            match self {
+                Fill::Upload(b) => b.destroy(ctx),
+                Fill::Copy(h) => h.destroy(ctx),
+            }
         }
     }
 }
@@ -91,8 +98,11 @@ pub(super) struct Built<T> {
 }
 
 impl<T: Destroy> Destroy for Built<T> {
-    fn destroy(&mut self, ctx: &Context) {
-        self.value.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.value.destroy(ctx);
+        }
     }
 }
 
@@ -145,11 +155,14 @@ impl MapEntry {
 }
 
 impl Destroy for MapEntry {
-    fn destroy(&mut self, ctx: &Context) {
-        self.pending_fill.destroy(ctx);
-        self.cones.destroy(ctx);
-        self.pyramids.destroy(ctx);
-        self.texture.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pending_fill.destroy(ctx);
+            self.cones.destroy(ctx);
+            self.pyramids.destroy(ctx);
+            self.texture.destroy(ctx);
+        }
     }
 }
 
@@ -168,10 +181,13 @@ pub(super) struct MaterialEntry {
 }
 
 impl Destroy for MaterialEntry {
-    fn destroy(&mut self, ctx: &Context) {
-        self.shading.destroy(ctx);
-        self.pending_shading.destroy(ctx);
-        self.corners.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.shading.destroy(ctx);
+            self.pending_shading.destroy(ctx);
+            self.corners.destroy(ctx);
+        }
     }
 }
 
@@ -183,10 +199,50 @@ pub(super) struct DepthParts {
 }
 
 impl Destroy for DepthParts {
-    fn destroy(&mut self, ctx: &Context) {
-        self.pass.destroy(ctx);
-        self.images.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pass.destroy(ctx);
+            self.images.destroy(ctx);
+        }
     }
+}
+
+/// What one frame in flight owns: a frame recorded in the slot uses these, and only
+/// that slot's frames do.
+pub(super) struct Slot {
+    /// The material tile lists.
+    pub tiles: TileLists,
+    /// The light visibility (self-shadowing on).
+    pub visibility: Option<Image>,
+    /// The corrected depth (the corrected-depth output on).
+    pub hit_depth: Option<Image>,
+    /// The owned-pool timestamp scopes the slot recorded last.
+    pub scopes: Vec<TimestampScope>,
+}
+
+impl Destroy for Slot {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.tiles.destroy(ctx);
+            self.visibility.destroy(ctx);
+            self.hit_depth.destroy(ctx);
+        }
+    }
+}
+
+/// Swaps `new[i]` into `field(slot i)`, returning what it replaced (to retire).
+fn swap_per_slot(
+    slots: &mut [Slot],
+    new: Vec<Image>,
+    field: impl Fn(&mut Slot) -> &mut Option<Image>,
+) -> Vec<Image> {
+    slots
+        .iter_mut()
+        .zip(new)
+        .filter_map(|(s, image)| field(s).replace(image))
+        .collect()
 }
 
 /// What one map needs.
@@ -242,29 +298,32 @@ struct Additions {
 }
 
 impl Destroy for Additions {
-    fn destroy(&mut self, ctx: &Context) {
-        self.traces.destroy(ctx);
-        self.pyramid_pass.destroy(ctx);
-        self.corner_pass.destroy(ctx);
-        self.cone_passes.destroy(ctx);
-        self.shadow_passes.destroy(ctx);
-        self.shade.destroy(ctx);
-        for (_, t) in &mut self.textures {
-            t.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.traces.destroy(ctx);
+            self.pyramid_pass.destroy(ctx);
+            self.corner_pass.destroy(ctx);
+            self.cone_passes.destroy(ctx);
+            self.shadow_passes.destroy(ctx);
+            self.shade.destroy(ctx);
+            for (_, t) in &mut self.textures {
+                t.destroy(ctx);
+            }
+            for (_, p) in &mut self.pyramids {
+                p.destroy(ctx);
+            }
+            for (_, c) in &mut self.cones {
+                c.destroy(ctx);
+            }
+            for (_, g) in &mut self.corners {
+                g.destroy(ctx);
+            }
+            self.visibility.destroy(ctx);
+            self.depth.destroy(ctx);
+            self.motion.destroy(ctx);
+            self.tiles.destroy(ctx);
         }
-        for (_, p) in &mut self.pyramids {
-            p.destroy(ctx);
-        }
-        for (_, c) in &mut self.cones {
-            c.destroy(ctx);
-        }
-        for (_, g) in &mut self.corners {
-            g.destroy(ctx);
-        }
-        self.visibility.destroy(ctx);
-        self.depth.destroy(ctx);
-        self.motion.destroy(ctx);
-        self.tiles.destroy(ctx);
     }
 }
 
@@ -274,7 +333,8 @@ pub(super) fn per_slot<T: Destroy>(
     frames: u32,
     mut make: impl FnMut(u32) -> Result<T>,
 ) -> Result<Vec<T>> {
-    let mut made = Guard::new(ctx, Vec::new());
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let mut made = unsafe { Guard::new(ctx, Vec::new()) };
     for s in 0..frames {
         made.push(make(s)?);
     }
@@ -332,7 +392,8 @@ impl DisplacementPass {
         let extent = self.frame.extent;
         let frames = self.frame.frames_in_flight;
         let resized = self.built_extent != extent;
-        let mut add = Guard::new(c, Additions::default());
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut add = unsafe { Guard::new(c, Additions::default()) };
         for &m in &plan.methods {
             if !self.traces.iter().any(|t| t.method() == m) {
                 add.traces.push(TracePass::new(c, m)?);
@@ -395,7 +456,7 @@ impl DisplacementPass {
                 add.corners.push((i, grids));
             }
         }
-        if plan.shadowed_shade && (resized || self.visibility.is_empty()) {
+        if plan.shadowed_shade && (resized || self.slots.iter().all(|s| s.visibility.is_none())) {
             add.visibility = Some(per_slot(c, frames, |s| {
                 Image::new(
                     c,
@@ -408,7 +469,8 @@ impl DisplacementPass {
             })?);
         }
         if plan.depth && (resized || self.depth.is_none()) {
-            let pass = Guard::new(c, HitDepthPass::new(c)?);
+            // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+            let pass = unsafe { Guard::new(c, HitDepthPass::new(c)?) };
             let images = per_slot(c, frames, |s| {
                 Image::new(
                     c,
@@ -433,9 +495,9 @@ impl DisplacementPass {
         }
         if resized
             || self
-                .tiles
+                .slots
                 .first()
-                .is_none_or(|t| t.materials() != plan.table)
+                .is_none_or(|s| s.tiles.materials() != plan.table)
         {
             add.tiles = Some(per_slot(c, frames, |s| {
                 TileLists::new(c, &format!("embed.tiles{s}"), extent, plan.table)
@@ -542,26 +604,59 @@ impl DisplacementPass {
                 retired.retire(std::mem::take(&mut m.corners));
             }
         }
+        // The tile lists first: the first sync makes the slots with them.
+        if let Some(tiles) = add.tiles {
+            if self.slots.is_empty() {
+                self.slots = tiles
+                    .into_iter()
+                    .map(|tiles| Slot {
+                        tiles,
+                        visibility: None,
+                        hit_depth: None,
+                        scopes: Vec::new(),
+                    })
+                    .collect();
+            } else {
+                let old: Vec<TileLists> = self
+                    .slots
+                    .iter_mut()
+                    .zip(tiles)
+                    .map(|(s, t)| std::mem::replace(&mut s.tiles, t))
+                    .collect();
+                retired.retire(old);
+            }
+        }
         if let Some(v) = add.visibility {
-            retired.retire(std::mem::replace(&mut self.visibility, v));
+            retired.retire(swap_per_slot(&mut self.slots, v, |s| &mut s.visibility));
         }
         if !plan.shadowed_shade {
-            retired.retire(std::mem::take(&mut self.visibility));
+            let old: Vec<Image> = self
+                .slots
+                .iter_mut()
+                .filter_map(|s| s.visibility.take())
+                .collect();
+            retired.retire(old);
         }
         if let Some(d) = add.depth {
-            retired.retire(self.depth.replace(d));
+            retired.retire(self.depth.replace(d.pass));
+            retired.retire(swap_per_slot(&mut self.slots, d.images, |s| {
+                &mut s.hit_depth
+            }));
         }
         if !plan.depth {
             retired.retire(self.depth.take());
+            let old: Vec<Image> = self
+                .slots
+                .iter_mut()
+                .filter_map(|s| s.hit_depth.take())
+                .collect();
+            retired.retire(old);
         }
         if let Some(m) = add.motion {
             retired.retire(self.motion.replace(m));
         }
         if plan.motion.is_none() {
             retired.retire(self.motion.take());
-        }
-        if let Some(t) = add.tiles {
-            retired.retire(std::mem::replace(&mut self.tiles, t));
         }
         self.built_extent = self.frame.extent;
     }

@@ -2,6 +2,7 @@
 
 use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
+use crate::gpu::owned::Destroy;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
@@ -90,16 +91,20 @@ impl Buffer {
             .and_then(|a| a.mapped_slice_mut())
             .map(|s| &mut s[..size])
     }
+}
 
+impl Destroy for Buffer {
     /// Destroys the buffer and frees its memory. The GPU must be done with it.
-    pub fn destroy(&mut self, ctx: &Context) {
-        if let Some(allocation) = self.allocation.take() {
-            if let Ok(mut a) = ctx.allocator().lock() {
-                let _ = a.free(allocation);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            if let Some(allocation) = self.allocation.take() {
+                if let Ok(mut a) = ctx.allocator().lock() {
+                    let _ = a.free(allocation);
+                }
+                ctx.device().destroy_buffer(self.raw, None);
+                self.raw = vk::Buffer::null();
             }
-            // SAFETY: caller guarantees the GPU no longer uses the buffer.
-            unsafe { ctx.device().destroy_buffer(self.raw, None) };
-            self.raw = vk::Buffer::null();
         }
     }
 }

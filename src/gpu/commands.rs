@@ -6,6 +6,7 @@ use super::sync::{self, Access};
 use super::{Buffer, Image};
 use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
+use crate::gpu::owned::Destroy;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
@@ -85,16 +86,18 @@ impl OneShot {
         }
         Ok(())
     }
+}
 
+impl Destroy for OneShot {
     /// Destroys the pool (and its buffer) and the fence. Nothing may be pending.
-    pub fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: `submit_and_wait` always waits, so nothing is pending.
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             ctx.device().destroy_fence(self.fence, None);
             ctx.device().destroy_command_pool(self.pool, None);
+            self.fence = vk::Fence::null();
+            self.pool = vk::CommandPool::null();
         }
-        self.fence = vk::Fence::null();
-        self.pool = vk::CommandPool::null();
     }
 }
 
@@ -132,7 +135,8 @@ pub fn staging_buffer(ctx: &Context, name: &str, bytes: &[u8]) -> Result<Buffer>
             Ok(staging)
         }
         None => {
-            staging.destroy(ctx);
+            // SAFETY: built above and never used by a command.
+            unsafe { staging.destroy(ctx) };
             Err(Error::invalid(name, "staging buffer is not mapped"))
         }
     }
@@ -172,7 +176,8 @@ pub fn upload_image(
         unsafe { record_upload_level0(ctx, cmd, &staging, image, after) };
         shot.submit_and_wait(ctx)
     })();
-    staging.destroy(ctx);
+    // SAFETY: the one-shot submission that used it was waited for (or never made).
+    unsafe { staging.destroy(ctx) };
     result
 }
 
@@ -373,6 +378,7 @@ pub fn read_image_level(
             .map(<[u8]>::to_vec)
             .ok_or_else(|| Error::invalid(image.name(), "read-back buffer is not mapped"))
     })();
-    staging.destroy(ctx);
+    // SAFETY: the one-shot submission that used it was waited for (or never made).
+    unsafe { staging.destroy(ctx) };
     result
 }

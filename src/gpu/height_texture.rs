@@ -23,6 +23,7 @@ use super::sync::{self, Access};
 use super::{Buffer, Image};
 use crate::context::Context;
 use crate::error::Result;
+use crate::gpu::owned::Destroy;
 use crate::heightfield::{Addressing, HeightField};
 use ash::vk;
 
@@ -59,9 +60,11 @@ impl HeightTexture {
             unsafe { texture.record_upload(ctx, cmd, &staging) };
             shot.submit_and_wait(ctx)
         })();
-        staging.destroy(ctx);
+        // SAFETY: the one-shot submission that used it was waited for (or never made).
+        unsafe { staging.destroy(ctx) };
         if let Err(e) = result {
-            texture.destroy(ctx);
+            // SAFETY: the one-shot submission that used it was waited for (or never made).
+            unsafe { texture.destroy(ctx) };
             return Err(e);
         }
         Ok(texture)
@@ -83,7 +86,8 @@ impl HeightTexture {
             &format!("heightfield[{}].staging", field.label()),
             field.bytes(),
         )?;
-        let staging = crate::gpu::owned::Guard::new(ctx, staging);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let staging = unsafe { crate::gpu::owned::Guard::new(ctx, staging) };
         let extent = vk::Extent2D {
             width: field.width(),
             height: field.height(),
@@ -112,14 +116,15 @@ impl HeightTexture {
             match image.level_view(ctx, 0, &format!("{name}.level0")) {
                 Ok(v) => Some(v),
                 Err(e) => {
-                    image.destroy(ctx);
+                    // SAFETY: built above and never used by a command.
+                    unsafe { image.destroy(ctx) };
                     return Err(e);
                 }
             }
         } else {
             None
         };
-        match crate::passes::sampler(
+        match crate::gpu::pipeline::sampler(
             ctx,
             "heightfield.sampler",
             vk::Filter::LINEAR,
@@ -136,7 +141,8 @@ impl HeightTexture {
                     // SAFETY: created above, never used.
                     unsafe { ctx.device().destroy_image_view(v, None) };
                 }
-                image.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { image.destroy(ctx) };
                 Err(e)
             }
         }
@@ -388,17 +394,20 @@ impl HeightTexture {
             ..self.descriptor()
         }
     }
+}
 
+impl Destroy for HeightTexture {
     /// Destroys image and sampler.
-    pub fn destroy(&mut self, ctx: &Context) {
-        if let Some(v) = self.base_view.take() {
-            // SAFETY: caller guarantees no pending use.
-            unsafe { ctx.device().destroy_image_view(v, None) };
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            if let Some(v) = self.base_view.take() {
+                ctx.device().destroy_image_view(v, None);
+            }
+            self.image.destroy(ctx);
+            ctx.device().destroy_sampler(self.sampler, None);
+            self.sampler = vk::Sampler::null();
         }
-        self.image.destroy(ctx);
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_sampler(self.sampler, None) };
-        self.sampler = vk::Sampler::null();
     }
 }
 

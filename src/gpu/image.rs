@@ -2,6 +2,7 @@
 
 use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
+use crate::gpu::owned::Destroy;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
@@ -257,20 +258,22 @@ impl Image {
     pub fn range(&self) -> vk::ImageSubresourceRange {
         full_range(self.format, self.mip_levels)
     }
+}
 
+impl Destroy for Image {
     /// Destroys view, image and memory. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        if let Some(allocation) = self.allocation.take() {
-            // SAFETY: caller guarantees the GPU no longer uses the image.
-            unsafe {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            if let Some(allocation) = self.allocation.take() {
                 ctx.device().destroy_image_view(self.view, None);
                 ctx.device().destroy_image(self.raw, None);
+                if let Ok(mut a) = ctx.allocator().lock() {
+                    let _ = a.free(allocation);
+                }
+                self.raw = vk::Image::null();
+                self.view = vk::ImageView::null();
             }
-            if let Ok(mut a) = ctx.allocator().lock() {
-                let _ = a.free(allocation);
-            }
-            self.raw = vk::Image::null();
-            self.view = vk::ImageView::null();
         }
     }
 }

@@ -2,7 +2,9 @@
 //! descriptors, barriers and one-shot submissions for the standalone path.
 //!
 //! Every object gets a debug name at creation. Objects are destroyed explicitly with
-//! `destroy(&Context)`; dropping one that still owns GPU memory logs a warning (a leak).
+//! [`owned::Destroy::destroy`] (an `unsafe fn`: the GPU must be done with them);
+//! dropping one that still owns GPU memory logs a warning (a leak). Nothing here uses the
+//! passes, the orchestrator, materials or meshes.
 
 pub mod buffer;
 pub mod commands;

@@ -5,52 +5,57 @@
 //! again).
 //!
 //! Every GPU object of the crate is destroyed explicitly with the [`Context`] that made
-//! it; these types only decide *when*.
+//! it, by its own `impl Destroy` beside its type; these types only decide *when*.
 
 use crate::context::Context;
 
 /// A GPU object (or a group of them) destroyed explicitly with its context. After
-/// `destroy` the value owns nothing; destroying it again does nothing.
+/// `destroy` the value owns nothing (every handle it freed is null); destroying it again
+/// does nothing.
 pub trait Destroy {
-    /// Destroys the Vulkan objects and frees the memory. The GPU must be done with them:
-    /// no pending command buffer may use them (the owner's contract: a [`Guard`] holds
-    /// objects no command has used yet, a [`RetireQueue`] holds them until the frames
-    /// that could use them have completed).
-    fn destroy(&mut self, ctx: &Context);
+    /// Destroys the Vulkan objects and frees the memory.
+    ///
+    /// # Safety
+    /// The GPU is done with them: no command buffer that may still be pending uses them
+    /// (the owner's contract: a [`Guard`] holds objects no command has used yet, a
+    /// [`RetireQueue`] holds them until the frames that could use them have completed).
+    /// `ctx` is the context (device and allocator) they were made with.
+    unsafe fn destroy(&mut self, ctx: &Context);
 }
 
 impl<T: Destroy> Destroy for Option<T> {
-    fn destroy(&mut self, ctx: &Context) {
+    unsafe fn destroy(&mut self, ctx: &Context) {
         if let Some(mut v) = self.take() {
-            v.destroy(ctx);
+            // SAFETY: this function's contract, passed on.
+            unsafe { v.destroy(ctx) };
         }
     }
 }
 
 impl<T: Destroy> Destroy for Vec<T> {
-    fn destroy(&mut self, ctx: &Context) {
+    unsafe fn destroy(&mut self, ctx: &Context) {
         for mut v in self.drain(..) {
-            v.destroy(ctx);
+            // SAFETY: this function's contract, passed on.
+            unsafe { v.destroy(ctx) };
         }
     }
 }
 
-impl<A: Destroy, B: Destroy> Destroy for (A, B) {
-    fn destroy(&mut self, ctx: &Context) {
-        self.0.destroy(ctx);
-        self.1.destroy(ctx);
+impl<T: Destroy + ?Sized> Destroy for Box<T> {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: this function's contract, passed on.
+        unsafe { (**self).destroy(ctx) };
     }
 }
 
-/// Implements [`Destroy`] by the type's own `destroy(&mut self, &Context)`.
-macro_rules! destroy_by_method {
-    ($($t:ty),* $(,)?) => {
-        $(impl $crate::gpu::owned::Destroy for $t {
-            fn destroy(&mut self, ctx: &$crate::context::Context) {
-                <$t>::destroy(self, ctx)
-            }
-        })*
-    };
+impl<A: Destroy, B: Destroy> Destroy for (A, B) {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: this function's contract, passed on.
+        unsafe {
+            self.0.destroy(ctx);
+            self.1.destroy(ctx);
+        }
+    }
 }
 
 /// A value being built that is destroyed when dropped unless [`Guard::keep`] takes it
@@ -62,7 +67,12 @@ pub struct Guard<'c, T: Destroy> {
 
 impl<'c, T: Destroy> Guard<'c, T> {
     /// Guards `value`, built with `ctx`.
-    pub fn new(ctx: &'c Context, value: T) -> Self {
+    ///
+    /// # Safety
+    /// Until [`Guard::keep`] takes it out, no command buffer that may be pending when the
+    /// guard drops uses `value` (a constructor records nothing with it, or submits and
+    /// waits): dropping the guard destroys it.
+    pub unsafe fn new(ctx: &'c Context, value: T) -> Self {
         Guard {
             ctx,
             value: Some(value),
@@ -96,7 +106,8 @@ impl<T: Destroy> std::ops::DerefMut for Guard<'_, T> {
 
 impl<T: Destroy> Drop for Guard<'_, T> {
     fn drop(&mut self) {
-        self.value.destroy(self.ctx);
+        // SAFETY: `Guard::new`'s contract: nothing pending uses the value yet.
+        unsafe { self.value.destroy(self.ctx) };
     }
 }
 
@@ -135,11 +146,17 @@ impl RetireQueue {
 
     /// Slot `slot` is being recorded again: its previous frame has completed. Destroys
     /// what no other slot still waits for.
-    pub fn release(&mut self, ctx: &Context, slot: u32) {
+    ///
+    /// # Safety
+    /// Every frame recorded earlier in `slot` has completed on the GPU (the slot
+    /// contract), and `ctx` made the resources.
+    pub unsafe fn release(&mut self, ctx: &Context, slot: u32) {
         self.waiting.retain_mut(|(pending, resource)| {
             *pending &= !(1u64 << slot);
             if *pending == 0 {
-                resource.destroy(ctx);
+                // SAFETY: every slot it waited for has completed its frames (this
+                // function's contract for `slot`, earlier calls' for the others).
+                unsafe { resource.destroy(ctx) };
                 false
             } else {
                 true
@@ -147,10 +164,15 @@ impl RetireQueue {
         });
     }
 
-    /// Destroys everything now (the GPU must be idle).
-    pub fn destroy_all(&mut self, ctx: &Context) {
+    /// Destroys everything now.
+    ///
+    /// # Safety
+    /// No frame that could use a waiting resource is still pending (e.g. the device is
+    /// idle), and `ctx` made the resources.
+    pub unsafe fn destroy_all(&mut self, ctx: &Context) {
         for (_, mut resource) in self.waiting.drain(..) {
-            resource.destroy(ctx);
+            // SAFETY: this function's contract.
+            unsafe { resource.destroy(ctx) };
         }
     }
 
@@ -164,36 +186,3 @@ impl RetireQueue {
         self.waiting.is_empty()
     }
 }
-
-destroy_by_method!(
-    crate::gpu::Buffer,
-    crate::gpu::Image,
-    crate::gpu::HeightTexture,
-    crate::gpu::OneShot,
-    crate::gpu::ComputePipeline,
-    crate::gpu::pipeline::FetchPipeline,
-    crate::material::MaterialTextures,
-    crate::material::MaterialStaging,
-    crate::mesh::MeshBuffers,
-    crate::passes::background::BackgroundPass,
-    crate::passes::classify::ClassifyPass,
-    crate::passes::classify::TileLists,
-    crate::passes::cone::ConeMap,
-    crate::passes::cone::ConePass,
-    crate::passes::dig::CornerGrid,
-    crate::passes::dig::DigCornerPass,
-    crate::passes::forward::ForwardPass,
-    crate::passes::gbuffer::GBuffer,
-    crate::passes::gbuffer::GBufferPass,
-    crate::passes::hit_depth::HitDepthPass,
-    crate::passes::motion::MotionPass,
-    crate::passes::pixel_ray_buffer::PixelRayBuffer,
-    crate::passes::camera_motion::CameraMotionPass,
-    crate::passes::camera_motion::CameraMotion,
-    crate::passes::pyramid::Pyramid,
-    crate::passes::pyramid::PyramidPass,
-    crate::passes::shade::ShadePass,
-    crate::passes::shadow::ShadowPass,
-    crate::passes::trace::TracePass,
-    crate::timing::QueryPool,
-);

@@ -2,7 +2,8 @@
 
 use super::Image;
 use crate::context::Context;
-use crate::error::{Result, VkContext};
+use crate::error::{Error, Result, VkContext};
+use crate::gpu::owned::Destroy;
 use crate::shaders::Shader;
 use ash::vk;
 
@@ -22,24 +23,29 @@ pub struct ComputePipeline {
 pub const LOCAL_SIZE: [u32; 2] = [8, 8];
 
 impl ComputePipeline {
-    /// Builds a pipeline from `shader` whose set 0 has the `(binding, type)` pairs of
-    /// `bindings` (numbers may have gaps: a method declares only what it reads) and
-    /// `push_constant_size` bytes of push constants.
+    /// Builds a pipeline from `shader` whose set 0 is the shader's own bindings as its
+    /// SPIR-V declares them ([`Shader::bindings`]: numbers, types, counts) and
+    /// `push_constant_size` bytes of push constants. `declared` is what the pass binds,
+    /// `(binding, type)`: it must be exactly the shader's table ([`check_declared`]), so a
+    /// binding renumbered or retyped in the GLSL is an error here, not a validation
+    /// message at the first dispatch.
     pub fn new(
         ctx: &Context,
         name: &str,
         shader: &Shader,
-        bindings: &[(u32, vk::DescriptorType)],
+        declared: &[(u32, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
+        check_declared(shader, declared)?;
         let dev = ctx.device();
-        let binding_info: Vec<_> = bindings
+        let binding_info: Vec<_> = shader
+            .bindings
             .iter()
-            .map(|&(i, ty)| {
+            .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
-                    .binding(i)
-                    .descriptor_type(ty)
-                    .descriptor_count(1)
+                    .binding(b.binding)
+                    .descriptor_type(b.ty)
+                    .descriptor_count(b.count)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
             .collect();
@@ -180,10 +186,13 @@ impl ComputePipeline {
             }
         }
     }
+}
 
-    /// Destroys pipeline and layouts. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: caller guarantees no pending use.
+impl Destroy for ComputePipeline {
+    /// Destroys pipeline and layouts and nulls their handles (a second call does
+    /// nothing: Vulkan ignores null handles).
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             ctx.device().destroy_pipeline(self.pipeline, None);
             ctx.device().destroy_pipeline_layout(self.layout, None);
@@ -191,7 +200,37 @@ impl ComputePipeline {
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
         self.pipeline = vk::Pipeline::null();
+        self.layout = vk::PipelineLayout::null();
+        self.set_layout = vk::DescriptorSetLayout::null();
     }
+}
+
+/// Checks what a pass binds (`declared`, `(binding, type)` in any order) against the
+/// bindings `shader`'s SPIR-V declares: the same numbers with the same types, every one
+/// in set 0 and a single descriptor (push descriptors of one set); the error names the
+/// shader and the first difference.
+pub fn check_declared(shader: &Shader, declared: &[(u32, vk::DescriptorType)]) -> Result<()> {
+    let mut ours: Vec<(u32, vk::DescriptorType)> = declared.to_vec();
+    ours.sort_by_key(|&(b, _)| b);
+    let theirs: Vec<(u32, vk::DescriptorType)> =
+        shader.bindings.iter().map(|b| (b.binding, b.ty)).collect();
+    if let Some(b) = shader.bindings.iter().find(|b| b.set != 0 || b.count != 1) {
+        return Err(Error::invalid(
+            shader.name,
+            format!(
+                "binding {} ({}) is in set {} with {} descriptors; passes push one set of \
+                 single descriptors",
+                b.binding, b.name, b.set, b.count
+            ),
+        ));
+    }
+    if ours != theirs {
+        return Err(Error::invalid(
+            shader.name,
+            format!("the pass binds {ours:?}, the shader declares {theirs:?}"),
+        ));
+    }
+    Ok(())
 }
 
 /// `(i, types[i])` for every entry: bindings numbered from 0 without gaps.
@@ -233,7 +272,7 @@ impl FetchPipeline {
         push_constant_size: u32,
     ) -> Result<Self> {
         let mut pipeline = ComputePipeline::new(ctx, name, shader, bindings, push_constant_size)?;
-        match crate::passes::sampler(
+        match sampler(
             ctx,
             &format!("{name}.fetch_sampler"),
             vk::Filter::NEAREST,
@@ -241,7 +280,8 @@ impl FetchPipeline {
         ) {
             Ok(sampler) => Ok(FetchPipeline { pipeline, sampler }),
             Err(e) => {
-                pipeline.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { pipeline.destroy(ctx) };
                 Err(e)
             }
         }
@@ -261,13 +301,17 @@ impl FetchPipeline {
             image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         }]
     }
+}
 
+impl Destroy for FetchPipeline {
     /// Destroys the pipeline and the sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
-        // SAFETY: caller guarantees no pending use.
-        unsafe { ctx.device().destroy_sampler(self.sampler, None) };
-        self.sampler = vk::Sampler::null();
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+            ctx.device().destroy_sampler(self.sampler, None);
+            self.sampler = vk::Sampler::null();
+        }
     }
 }
 
@@ -475,4 +519,25 @@ pub unsafe fn set_frame_viewport(ctx: &Context, cmd: vk::CommandBuffer, extent: 
         ctx.device().cmd_set_viewport(cmd, 0, &[viewport]);
         ctx.device().cmd_set_scissor(cmd, 0, &[frame_area(extent)]);
     }
+}
+
+/// Creates a sampler named `name` (no mipmap filtering, every level reachable).
+pub fn sampler(
+    ctx: &Context,
+    name: &str,
+    filter: vk::Filter,
+    address: vk::SamplerAddressMode,
+) -> Result<vk::Sampler> {
+    let info = vk::SamplerCreateInfo::default()
+        .mag_filter(filter)
+        .min_filter(filter)
+        .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+        .address_mode_u(address)
+        .address_mode_v(address)
+        .address_mode_w(address)
+        .max_lod(vk::LOD_CLAMP_NONE);
+    // SAFETY: valid device and create info.
+    let sampler = unsafe { ctx.device().create_sampler(&info, None) }.vk("vkCreateSampler")?;
+    ctx.set_name(sampler, name);
+    Ok(sampler)
 }

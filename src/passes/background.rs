@@ -13,6 +13,7 @@ use crate::abi::ShadeParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::ViewRef;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::passes::gbuffer::GBufferViews;
 use crate::shaders;
@@ -85,9 +86,14 @@ impl BackgroundPass {
             )
         };
     }
+}
 
+impl Destroy for BackgroundPass {
     /// Destroys the pipeline and sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }

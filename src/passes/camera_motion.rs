@@ -11,12 +11,13 @@
 
 use crate::abi::MotionParams;
 use crate::context::Context;
-use crate::embed::{DepthCamera, FrameMotion, MotionSettings};
 use crate::error::Result;
+use crate::gpu::owned::Destroy;
 use crate::gpu::owned::Guard;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{Image, ViewRef};
+use crate::passes::motion::{DepthCamera, FrameMotion, MotionSettings};
 use crate::shaders;
 use ash::vk;
 
@@ -83,10 +84,15 @@ impl CameraMotionPass {
             )
         };
     }
+}
 
+impl Destroy for CameraMotionPass {
     /// Destroys the pipeline and sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }
 
@@ -105,7 +111,8 @@ pub struct CameraMotion {
 impl CameraMotion {
     /// The pass and an image of `extent`.
     pub fn new(ctx: &Context, extent: vk::Extent2D) -> Result<Self> {
-        let pass = Guard::new(ctx, CameraMotionPass::new(ctx)?);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let pass = unsafe { Guard::new(ctx, CameraMotionPass::new(ctx)?) };
         let image = motion_image(ctx, extent)?;
         Ok(CameraMotion {
             pass: pass.keep(),
@@ -114,10 +121,14 @@ impl CameraMotion {
         })
     }
 
-    /// A new image of `extent`; the old one is destroyed (the GPU must be done with it).
-    pub fn resize(&mut self, ctx: &Context, extent: vk::Extent2D) -> Result<()> {
+    /// A new image of `extent`; the old one is destroyed.
+    ///
+    /// # Safety
+    /// No command buffer that may still be pending uses the old image.
+    pub unsafe fn resize(&mut self, ctx: &Context, extent: vk::Extent2D) -> Result<()> {
         let mut old = std::mem::replace(&mut self.image, motion_image(ctx, extent)?);
-        old.destroy(ctx);
+        // SAFETY: this function's contract: the GPU is done with the old image.
+        unsafe { old.destroy(ctx) };
         Ok(())
     }
 
@@ -177,11 +188,16 @@ impl CameraMotion {
             previous,
         }
     }
+}
 
+impl Destroy for CameraMotion {
     /// Destroys the pass and the image. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pass.destroy(ctx);
-        self.image.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pass.destroy(ctx);
+            self.image.destroy(ctx);
+        }
     }
 }
 

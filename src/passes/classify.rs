@@ -28,6 +28,7 @@
 use crate::abi::ClassifyParams;
 use crate::context::Context;
 use crate::error::{Error, Result};
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, LOCAL_SIZE, buffer_write, image_write, storage_view};
 use crate::gpu::{Buffer, ViewRef};
 use crate::shaders;
@@ -98,7 +99,8 @@ impl TileLists {
             Ok(a) => a,
             Err(e) => {
                 let mut tiles = tiles;
-                tiles.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { tiles.destroy(ctx) };
                 return Err(e);
             }
         };
@@ -145,11 +147,16 @@ impl TileLists {
             args_offset: self.args_offset(m),
         }
     }
+}
 
+impl Destroy for TileLists {
     /// Destroys both buffers. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.tiles.destroy(ctx);
-        self.args.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.tiles.destroy(ctx);
+            self.args.destroy(ctx);
+        }
     }
 }
 
@@ -252,7 +259,8 @@ impl ClassifyPass {
             Ok(depth) => Ok(ClassifyPass { plain, depth }),
             Err(e) => {
                 let mut plain = plain;
-                plain.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { plain.destroy(ctx) };
                 Err(e)
             }
         }
@@ -373,10 +381,15 @@ impl ClassifyPass {
             dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&after));
         }
     }
+}
 
+impl Destroy for ClassifyPass {
     /// Destroys both pipelines. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.plain.destroy(ctx);
-        self.depth.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.plain.destroy(ctx);
+            self.depth.destroy(ctx);
+        }
     }
 }

@@ -65,6 +65,7 @@ use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, ConeParams};
 use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::gpu::commands::read_image_level;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{image_write, storage_view};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
@@ -160,7 +161,7 @@ impl ConeMap {
                 | vk::ImageUsageFlags::SAMPLED
                 | vk::ImageUsageFlags::TRANSFER_SRC,
         )?;
-        let sampler = match crate::passes::sampler(
+        let sampler = match crate::gpu::pipeline::sampler(
             ctx,
             &format!("{name}.sampler"),
             vk::Filter::NEAREST,
@@ -168,7 +169,8 @@ impl ConeMap {
         ) {
             Ok(s) => s,
             Err(e) => {
-                image.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { image.destroy(ctx) };
                 return Err(e);
             }
         };
@@ -185,7 +187,8 @@ impl ConeMap {
                 match Pyramid::new(ctx, size, falls, addressing, height_format) {
                     Ok(p) => map.falls.push(p),
                     Err(e) => {
-                        map.destroy(ctx);
+                        // SAFETY: built above and never used by a command.
+                        unsafe { map.destroy(ctx) };
                         return Err(e);
                     }
                 }
@@ -217,18 +220,22 @@ impl ConeMap {
         let texels: &[[f32; 2]] = bytemuck::cast_slice(&bytes);
         Ok(texels.to_vec())
     }
+}
 
+impl Destroy for ConeMap {
     /// Destroys the sampler, image and scratch. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        for mut falls in self.falls.drain(..) {
-            falls.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            for mut falls in self.falls.drain(..) {
+                falls.destroy(ctx);
+            }
+            if self.sampler != vk::Sampler::null() {
+                ctx.device().destroy_sampler(self.sampler, None);
+                self.sampler = vk::Sampler::null();
+            }
+            self.image.destroy(ctx);
         }
-        if self.sampler != vk::Sampler::null() {
-            // SAFETY: caller guarantees no pending use.
-            unsafe { ctx.device().destroy_sampler(self.sampler, None) };
-            self.sampler = vk::Sampler::null();
-        }
-        self.image.destroy(ctx);
     }
 }
 
@@ -264,7 +271,8 @@ impl ConePass {
             ConeKind::Relaxed => match PyramidPass::new(ctx) {
                 Ok(p) => Some(p),
                 Err(e) => {
-                    pipeline.destroy(ctx);
+                    // SAFETY: built above and never used by a command.
+                    unsafe { pipeline.destroy(ctx) };
                     return Err(e);
                 }
             },
@@ -371,12 +379,17 @@ impl ConePass {
             )
         };
     }
+}
 
+impl Destroy for ConePass {
     /// Destroys the pipelines.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
-        if let Some(mut p) = self.falls_pass.take() {
-            p.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+            if let Some(mut p) = self.falls_pass.take() {
+                p.destroy(ctx);
+            }
         }
     }
 }

@@ -17,6 +17,7 @@
 
 use crate::context::Context;
 use crate::error::{Result, VkContext};
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
 use crate::shaders;
 use ash::vk;
@@ -36,7 +37,7 @@ impl DepthResolvePass {
     /// Builds the pipeline (dynamic rendering, `D32_SFLOAT` depth attachment only).
     pub fn new(ctx: &Context) -> Result<Self> {
         let dev = ctx.device();
-        let sampler = crate::passes::sampler(
+        let sampler = crate::gpu::pipeline::sampler(
             ctx,
             "depth_resolve.sampler",
             vk::Filter::NEAREST,
@@ -176,25 +177,27 @@ impl DepthResolvePass {
             dev.cmd_end_rendering(cmd);
         }
     }
+}
 
+impl Destroy for DepthResolvePass {
     /// Destroys the pipeline, layouts and sampler and nulls their handles (a second call
     /// does nothing).
     ///
     /// # Safety
     /// No command buffer that recorded this pass is pending (the host waited on the
     /// fences of every frame that used it, or for the device to idle).
-    pub unsafe fn destroy(&mut self, ctx: &Context) {
-        let dev = ctx.device();
-        // SAFETY: this function's contract (no pending use); null handles are ignored.
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
+            let dev = ctx.device();
             dev.destroy_pipeline(self.pipeline, None);
             dev.destroy_pipeline_layout(self.layout, None);
             dev.destroy_descriptor_set_layout(self.set_layout, None);
             dev.destroy_sampler(self.sampler, None);
+            self.pipeline = vk::Pipeline::null();
+            self.layout = vk::PipelineLayout::null();
+            self.set_layout = vk::DescriptorSetLayout::null();
+            self.sampler = vk::Sampler::null();
         }
-        self.pipeline = vk::Pipeline::null();
-        self.layout = vk::PipelineLayout::null();
-        self.set_layout = vk::DescriptorSetLayout::null();
-        self.sampler = vk::Sampler::null();
     }
 }

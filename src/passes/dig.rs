@@ -26,6 +26,7 @@ use crate::abi::CornerParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::commands::read_image;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, image_write, numbered, storage};
 use crate::gpu::sync::Access;
 use crate::gpu::{HeightTexture, Image, OneShot};
@@ -119,10 +120,15 @@ impl CornerGrid {
             })
             .collect())
     }
+}
 
+impl Destroy for CornerGrid {
     /// Destroys the image.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.image.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.image.destroy(ctx);
+        }
     }
 }
 
@@ -212,9 +218,14 @@ impl DigCornerPass {
             )
         };
     }
+}
 
+impl Destroy for DigCornerPass {
     /// Destroys the pipeline and sampler.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }

@@ -34,6 +34,7 @@
 use crate::abi::{ForwardParams, GBufferParams, NO_HIT_HEIGHT, PixelRayParams};
 use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
+use crate::gpu::owned::Destroy;
 use crate::gpu::owned::Guard;
 use crate::gpu::pipeline::{RasterDesc, image_write, raster_pipeline};
 use crate::gpu::{Buffer, HeightTexture, Image};
@@ -91,21 +92,27 @@ impl ForwardPass {
         })?;
         let dev = ctx.device();
         let name = format!("forward[{method}]");
-        let mut params_buffer = Guard::new(
-            ctx,
-            Buffer::new(
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let mut params_buffer = unsafe {
+            Guard::new(
                 ctx,
-                &format!("{name}.params"),
-                std::mem::size_of::<ForwardParams>() as u64,
-                vk::BufferUsageFlags::UNIFORM_BUFFER,
-                MemoryLocation::CpuToGpu,
-            )?,
-        );
+                Buffer::new(
+                    ctx,
+                    &format!("{name}.params"),
+                    std::mem::size_of::<ForwardParams>() as u64,
+                    vk::BufferUsageFlags::UNIFORM_BUFFER,
+                    MemoryLocation::CpuToGpu,
+                )?,
+            )
+        };
         write_params(&mut params_buffer, params)?;
-        let rays = Guard::new(
-            ctx,
-            PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
-        );
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let rays = unsafe {
+            Guard::new(
+                ctx,
+                PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
+            )
+        };
         let bindings = [
             vk::DescriptorSetLayoutBinding::default()
                 .binding(0)
@@ -302,21 +309,23 @@ impl ForwardPass {
             dev.cmd_end_rendering(cmd);
         }
     }
+}
 
+impl Destroy for ForwardPass {
     /// Destroys the pipeline, its layouts and the parameter buffer. The GPU must be done
     /// with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        let dev = ctx.device();
-        // SAFETY: caller guarantees no pending use; null handles are ignored.
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
+            let dev = ctx.device();
             dev.destroy_pipeline(self.pipeline, None);
             dev.destroy_pipeline_layout(self.layout, None);
             dev.destroy_descriptor_set_layout(self.set_layout, None);
+            self.pipeline = vk::Pipeline::null();
+            self.layout = vk::PipelineLayout::null();
+            self.set_layout = vk::DescriptorSetLayout::null();
+            self.params.destroy(ctx);
+            self.rays.destroy(ctx);
         }
-        self.pipeline = vk::Pipeline::null();
-        self.layout = vk::PipelineLayout::null();
-        self.set_layout = vk::DescriptorSetLayout::null();
-        self.params.destroy(ctx);
-        self.rays.destroy(ctx);
     }
 }

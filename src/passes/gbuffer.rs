@@ -29,6 +29,7 @@
 use crate::abi::{GBufferParams, PixelRayParams};
 use crate::context::Context;
 use crate::error::{Result, VkContext};
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{RasterDesc, raster_pipeline_specialized};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{HostView, Image};
@@ -157,13 +158,18 @@ impl GBuffer {
         ));
         b
     }
+}
 
+impl Destroy for GBuffer {
     /// Destroys the images.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.ray.destroy(ctx);
-        self.normal.destroy(ctx);
-        self.tangent.destroy(ctx);
-        self.depth.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.ray.destroy(ctx);
+            self.normal.destroy(ctx);
+            self.tangent.destroy(ctx);
+            self.depth.destroy(ctx);
+        }
     }
 }
 
@@ -223,10 +229,13 @@ impl GBufferPass {
         let (set_layout, rays) = if mesh {
             (vk::DescriptorSetLayout::null(), None)
         } else {
-            let rays = crate::gpu::owned::Guard::new(
-                ctx,
-                PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
-            );
+            // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+            let rays = unsafe {
+                crate::gpu::owned::Guard::new(
+                    ctx,
+                    PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
+                )
+            };
             let bindings = [vk::DescriptorSetLayoutBinding::default()
                 .binding(0)
                 .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
@@ -261,7 +270,8 @@ impl GBufferPass {
         {
             Ok(l) => l,
             Err(e) => {
-                owned.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { owned.destroy(ctx) };
                 return Err(e);
             }
         };
@@ -309,7 +319,8 @@ impl GBufferPass {
         ) {
             Ok(p) => p,
             Err(e) => {
-                owned.destroy(ctx);
+                // SAFETY: built above and never used by a command.
+                unsafe { owned.destroy(ctx) };
                 return Err(e);
             }
         };
@@ -398,22 +409,24 @@ impl GBufferPass {
         // SAFETY: this function's # Safety contract is `record_draws`'s for one draw.
         unsafe { record_draws(ctx, cmd, target, std::slice::from_ref(&draw), rays) };
     }
+}
 
+impl Destroy for GBufferPass {
     /// Destroys the pipeline, its layouts and the pixel-ray buffer. The GPU must be done
     /// with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: caller guarantees no pending use; null handles are ignored.
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             ctx.device().destroy_pipeline(self.pipeline, None);
             ctx.device().destroy_pipeline_layout(self.layout, None);
             ctx.device()
                 .destroy_descriptor_set_layout(self.set_layout, None);
-        }
-        self.pipeline = vk::Pipeline::null();
-        self.layout = vk::PipelineLayout::null();
-        self.set_layout = vk::DescriptorSetLayout::null();
-        if let Some(mut rays) = self.rays.take() {
-            rays.destroy(ctx);
+            self.pipeline = vk::Pipeline::null();
+            self.layout = vk::PipelineLayout::null();
+            self.set_layout = vk::DescriptorSetLayout::null();
+            if let Some(mut rays) = self.rays.take() {
+                rays.destroy(ctx);
+            }
         }
     }
 }

@@ -16,6 +16,7 @@ use crate::abi::HitDepthParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::ViewRef;
+use crate::gpu::owned::Destroy;
 use crate::passes::classify::MaterialTiles;
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::hit_resolve::{HitResolvePipeline, ResolveViews};
@@ -129,9 +130,14 @@ impl HitDepthPass {
             )
         };
     }
+}
 
+impl Destroy for HitDepthPass {
     /// Destroys the pipeline and sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }

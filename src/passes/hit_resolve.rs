@@ -17,6 +17,7 @@
 
 use crate::context::Context;
 use crate::error::Result;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::passes::classify::{MaterialTiles, TILES_BINDING};
 use crate::passes::gbuffer::GBufferViews;
@@ -106,9 +107,14 @@ impl HitResolvePipeline {
         // the pipeline's push constants; the list is the classification's.
         unsafe { tiles.dispatch(ctx, cmd, &self.pipeline.pipeline, &writes, push) };
     }
+}
 
+impl Destroy for HitResolvePipeline {
     /// Destroys the pipeline and sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }

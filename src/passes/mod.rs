@@ -26,31 +26,6 @@ pub mod shade;
 pub mod shadow;
 pub mod trace;
 
-use crate::context::Context;
-use crate::error::{Result, VkContext};
-use ash::vk;
-
-/// Creates a sampler named `name`.
-pub(crate) fn sampler(
-    ctx: &Context,
-    name: &str,
-    filter: vk::Filter,
-    address: vk::SamplerAddressMode,
-) -> Result<vk::Sampler> {
-    let info = vk::SamplerCreateInfo::default()
-        .mag_filter(filter)
-        .min_filter(filter)
-        .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-        .address_mode_u(address)
-        .address_mode_v(address)
-        .address_mode_w(address)
-        .max_lod(vk::LOD_CLAMP_NONE);
-    // SAFETY: valid device and create info.
-    let sampler = unsafe { ctx.device().create_sampler(&info, None) }.vk("vkCreateSampler")?;
-    ctx.set_name(sampler, name);
-    Ok(sampler)
-}
-
 /// The passes of a frame, in recording order; what timestamps and debug labels name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum PassName {
@@ -113,6 +88,20 @@ impl PassName {
             PassName::HitDepth => "hit_depth",
             PassName::Motion => "motion",
         }
+    }
+
+    /// How many passes of [`PassName::ALL`] the displacement pass records (every one but
+    /// the host's G-buffer pass): its timestamp queries are twice that.
+    pub const fn recorded_by_pass() -> u32 {
+        let mut n = 0;
+        let mut i = 0;
+        while i < PassName::ALL.len() {
+            if !matches!(PassName::ALL[i], PassName::GBuffer) {
+                n += 1;
+            }
+            i += 1;
+        }
+        n
     }
 
     /// Whether the pass runs once after a change (a new map or method) rather than

@@ -15,8 +15,8 @@
 //!   (where the surface seen at the pixel was in the previous frame: DLSS's and FSR's
 //!   default) or its opposite.
 //! * **The previous camera**: the host gives the previous frame's view-projection (world to
-//!   clip) and eye ([`crate::embed::FrameMotion`]); the current camera is the frame's
-//!   ([`crate::embed::ShadeTarget`] or [`crate::embed::DepthCamera`]), the one its G-buffer
+//!   clip) and eye ([`FrameMotion`]); the current camera is the frame's
+//!   ([`crate::embed::ShadeTarget`] or [`DepthCamera`]), the one its G-buffer
 //!   was drawn with.
 //! * **Source** ([`MotionSource`]):
 //!   - `Camera`: the world is static at displaced pixels. Motion = `prev_px(p_hit) -
@@ -54,6 +54,8 @@
 use crate::abi::MotionParams;
 use crate::context::Context;
 use crate::error::{Error, Result};
+use crate::gpu::HostView;
+use crate::gpu::owned::Destroy;
 use crate::passes::classify::MaterialTiles;
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::hit_resolve::{HitResolvePipeline, ResolveViews};
@@ -100,6 +102,27 @@ pub enum MotionSource {
     /// surface's own move taken as a translation, the displacement offset unturned).
     #[default]
     Surface,
+}
+
+/// The motion output's inputs of one frame ([`crate::passes::motion`] documents the
+/// contract).
+#[derive(Clone, Copy, Debug)]
+pub struct FrameMotion {
+    /// The host's motion image (the format of the pass's [`MotionSettings`], one of
+    /// [`MOTION_FORMATS`]; `STORAGE` usage; the frame's size), read and written in place.
+    pub image: HostView,
+    /// The camera the host drew its previous frame with (world to clip and eye).
+    pub previous: DepthCamera,
+}
+
+/// The camera of a frame for the corrected depth when the frame has no
+/// [`crate::embed::ShadeTarget`] (see [`crate::embed::DisplacementPass::record_with_camera`]).
+#[derive(Clone, Copy, Debug)]
+pub struct DepthCamera {
+    /// World to clip of the frame (the G-buffer's; reverse-Z).
+    pub view_proj: Mat4,
+    /// Eye position, world space.
+    pub eye: Vec3,
 }
 
 /// How the motion output writes the host's image.
@@ -284,9 +307,14 @@ impl MotionPass {
             )
         };
     }
+}
 
+impl Destroy for MotionPass {
     /// Destroys the pipeline and sampler. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }

@@ -7,6 +7,7 @@ use crate::abi::PixelRayParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::Buffer;
+use crate::gpu::owned::Destroy;
 use crate::gpu::sync::{self, Access};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
@@ -72,9 +73,14 @@ impl PixelRayBuffer {
             range: vk::WHOLE_SIZE,
         }]
     }
+}
 
+impl Destroy for PixelRayBuffer {
     /// Destroys the buffer. The GPU must be done with it.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.buffer.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.buffer.destroy(ctx);
+        }
     }
 }

@@ -42,6 +42,7 @@ use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, PyramidParams};
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::commands::read_image_level;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::image_write;
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
@@ -149,7 +150,8 @@ impl Pyramid {
             image,
         };
         if let Err(e) = pyramid.create_views(ctx, name) {
-            pyramid.destroy(ctx);
+            // SAFETY: built above and never used by a command.
+            unsafe { pyramid.destroy(ctx) };
             return Err(e);
         }
         if let Some(format) = compact_format(ctx, kind, height_format) {
@@ -165,7 +167,8 @@ impl Pyramid {
             ) {
                 Ok(image) => pyramid.compact = Some(image),
                 Err(e) => {
-                    pyramid.destroy(ctx);
+                    // SAFETY: built above and never used by a command.
+                    unsafe { pyramid.destroy(ctx) };
                     return Err(e);
                 }
             }
@@ -185,7 +188,7 @@ impl Pyramid {
                 .level_view(ctx, level, &format!("{name}.level{level}"))?;
             self.level_views.push(view);
         }
-        self.sampler = crate::passes::sampler(
+        self.sampler = crate::gpu::pipeline::sampler(
             ctx,
             &format!("{name}.sampler"),
             vk::Filter::NEAREST,
@@ -240,22 +243,25 @@ impl Pyramid {
             })
             .collect()
     }
+}
 
+impl Destroy for Pyramid {
     /// Destroys views, sampler and image. The GPU must be done with them.
-    pub fn destroy(&mut self, ctx: &Context) {
-        for view in self.level_views.drain(..) {
-            // SAFETY: caller guarantees no pending use.
-            unsafe { ctx.device().destroy_image_view(view, None) };
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            for view in self.level_views.drain(..) {
+                ctx.device().destroy_image_view(view, None);
+            }
+            if self.sampler != vk::Sampler::null() {
+                ctx.device().destroy_sampler(self.sampler, None);
+                self.sampler = vk::Sampler::null();
+            }
+            if let Some(mut compact) = self.compact.take() {
+                compact.destroy(ctx);
+            }
+            self.image.destroy(ctx);
         }
-        if self.sampler != vk::Sampler::null() {
-            // SAFETY: caller guarantees no pending use.
-            unsafe { ctx.device().destroy_sampler(self.sampler, None) };
-            self.sampler = vk::Sampler::null();
-        }
-        if let Some(mut compact) = self.compact.take() {
-            compact.destroy(ctx);
-        }
-        self.image.destroy(ctx);
     }
 }
 
@@ -487,10 +493,15 @@ impl PyramidPass {
             );
         }
     }
+}
 
+impl Destroy for PyramidPass {
     /// Destroys the pipeline.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }
 

@@ -26,6 +26,7 @@
 use crate::abi::ShadeParams;
 use crate::context::Context;
 use crate::error::Result;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::passes::classify::{MaterialTiles, TILES_BINDING};
@@ -215,9 +216,14 @@ impl ShadePass {
         };
         Ok(())
     }
+}
 
+impl Destroy for ShadePass {
     /// Destroys the pipeline and sampler.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }

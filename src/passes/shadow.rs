@@ -69,6 +69,7 @@
 use crate::abi::{SHADOW_MODE_HARD, SHADOW_MODE_SOFT, ShadeParams, ShadowParams};
 use crate::context::Context;
 use crate::error::{Error, Result};
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::heightfield::Addressing;
@@ -374,10 +375,15 @@ impl ShadowPass {
         };
         Ok(())
     }
+}
 
+impl Destroy for ShadowPass {
     /// Destroys the pipeline and sampler.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
     }
 }
 

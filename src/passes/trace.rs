@@ -26,6 +26,7 @@ use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TRACE_FLAG_LOD, TraceParams};
 use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
+use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
@@ -250,9 +251,47 @@ impl TracePass {
         };
         Ok(())
     }
+}
 
+impl Destroy for TracePass {
     /// Destroys the pipeline and sampler.
-    pub fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.pipeline.destroy(ctx);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::pipeline::check_declared;
+
+    /// What each method's trace pass binds is exactly what its shader declares (binding
+    /// numbers and types reflected from the SPIR-V), for every method.
+    #[test]
+    fn declared_bindings_match_the_shaders() {
+        for &m in Method::ALL {
+            check_declared(&m.shader(), &bindings(m.needs()))
+                .unwrap_or_else(|e| panic!("{}: {e}", m.name()));
+        }
+    }
+
+    /// The declared numbers are the GLSL's (`glsl/common/trace.glsl`) by name.
+    #[test]
+    fn binding_numbers_by_name() {
+        let shader = Method::DigGuarded.shader();
+        for (number, name) in [
+            (PYRAMID_BINDING, "u_pyramid"),
+            (CORNERS_BINDING, "u_corners"),
+            (NORMAL_BINDING, "u_normal"),
+            (TANGENT_BINDING, "u_tangent"),
+            (TILES_BINDING, "u_tiles"),
+        ] {
+            assert_eq!(shader.binding(number).map(|b| b.name), Some(name));
+        }
+        let cone = Method::Cone.shader();
+        assert_eq!(cone.binding(CONE_BINDING).map(|b| b.name), Some("u_cone"));
     }
 }

@@ -23,6 +23,7 @@
 //! [`DisplacementPass::record_shading`]: crate::embed::DisplacementPass::record_shading
 
 use super::{DISCARD, GBUFFER_QUERIES, PassTimes, Renderer};
+use crate::context::Context;
 use crate::embed::Timestamps;
 use crate::error::{Error, Result};
 use crate::gpu::HeightTexture;
@@ -44,9 +45,12 @@ pub(super) struct Forward {
 }
 
 impl Destroy for Forward {
-    fn destroy(&mut self, ctx: &crate::context::Context) {
-        self.height.destroy(ctx);
-        self.passes.destroy(ctx);
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.height.destroy(ctx);
+            self.passes.destroy(ctx);
+        }
     }
 }
 
@@ -105,7 +109,8 @@ impl Renderer {
             height_visible: false,
         });
         // Every frame of this renderer was waited for: nothing reads the old copy.
-        old.destroy(ctx);
+        // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
+        unsafe { old.destroy(ctx) };
         Ok(())
     }
 

@@ -14,6 +14,7 @@ use dispmap::embed::{
     DEPTH_FORMAT, DisplacementPass, FRAME_FORMAT, FrameInputs, HIT_FORMAT, RAY_FORMAT, Timestamps,
 };
 use dispmap::gpu::commands::{read_image, upload_image};
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
@@ -421,15 +422,21 @@ impl RayHost {
         self.slots.destroy();
         let ctx = self.ctx.clone();
         for hit in &mut self.hits {
-            hit.destroy(&ctx);
+            // SAFETY: `slots.destroy()` waited for every frame.
+            unsafe { hit.destroy(&ctx) };
         }
         for color in &mut self.colors {
-            color.destroy(&ctx);
+            // SAFETY: `slots.destroy()` waited for every frame.
+            unsafe { color.destroy(&ctx) };
         }
         if let Some(p) = &mut self.gbuffer_pass {
-            p.destroy(&ctx);
+            // SAFETY: `slots.destroy()` waited for every frame.
+            unsafe { p.destroy(&ctx) };
         }
-        self.gbuffer.destroy(&ctx);
-        self.shot.destroy(&ctx);
+        // SAFETY: `slots.destroy()` waited for every frame.
+        unsafe {
+            self.gbuffer.destroy(&ctx);
+            self.shot.destroy(&ctx);
+        }
     }
 }

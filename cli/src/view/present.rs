@@ -11,6 +11,7 @@
 use anyhow::{Context as _, Result, bail};
 use ash::vk;
 use dispmap::context::Context;
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Buffer, Image};
 use dispmap::passes::shade::COLOR_FORMAT;
@@ -505,7 +506,8 @@ impl Presenter {
             let bytes = 4 * u64::from(extent.width) * u64::from(extent.height);
             if self.readback.as_ref().is_none_or(|b| b.size != bytes) {
                 if let Some(mut old) = self.readback.take() {
-                    old.destroy(ctx);
+                    // SAFETY: each presented frame is waited for (its fence) before `present` returns: nothing reads the old buffer.
+                    unsafe { old.destroy(ctx) };
                 }
                 self.readback = Some(Buffer::new(
                     ctx,
@@ -896,7 +898,8 @@ impl Presenter {
         }
         if self.upload.as_ref().is_none_or(|b| b.size != bytes) {
             if let Some(mut old) = self.upload.take() {
-                old.destroy(ctx);
+                // SAFETY: each presented frame is waited for (its fence) before `present` returns: nothing reads the old buffer.
+                unsafe { old.destroy(ctx) };
             }
             self.upload = Some(Buffer::new(
                 ctx,
@@ -908,7 +911,8 @@ impl Presenter {
         }
         if self.composite.as_ref().is_none_or(|c| c.extent != extent) {
             if let Some(mut old) = self.composite.take() {
-                old.destroy(ctx);
+                // SAFETY: each presented frame is waited for (its fence) before `present` returns: nothing reads the old image.
+                unsafe { old.destroy(ctx) };
             }
             self.composite = Some(Image::new(
                 ctx,
@@ -1017,10 +1021,12 @@ impl Presenter {
             .flatten()
         {
             let mut b = b;
-            b.destroy(ctx);
+            // SAFETY: the caller's contract: nothing is pending.
+            unsafe { b.destroy(ctx) };
         }
         if let Some(mut c) = self.composite.take() {
-            c.destroy(ctx);
+            // SAFETY: the caller's contract: nothing is pending.
+            unsafe { c.destroy(ctx) };
         }
     }
 }

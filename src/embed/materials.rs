@@ -1,0 +1,249 @@
+//! The pass's material table: adding, removing and changing displaced materials, their
+//! height maps and material maps (each change is "change the settings, then sync").
+
+use super::*;
+
+impl DisplacementPass {
+    /// Adds a displaced material: `field` as its height map (shared with a material that
+    /// already has the same map and addressing: one texture, one pyramid, one cone map),
+    /// its method, parameters and depth scale. Returns its handle; its
+    /// [`MaterialId::index`] (the lowest free one) is what the host's G-buffer writes
+    /// for its pixels. The next record uploads the map and builds what the method needs.
+    /// Needs no GPU idle. On error the pass is unchanged.
+    pub fn add_material(
+        &mut self,
+        field: &HeightField,
+        settings: MaterialSettings,
+    ) -> Result<MaterialId> {
+        self.check_alive()?;
+        validate_material(&self.ctx, &settings)?;
+        let index = match self.materials.iter().position(Option::is_none) {
+            Some(i) => i,
+            None if self.materials.len() < MAX_MATERIALS as usize => self.materials.len(),
+            None => {
+                return Err(Error::invalid(
+                    "material",
+                    format!("the table is full ({MAX_MATERIALS} materials)"),
+                ));
+            }
+        };
+        let (map, new_map) = self.map_for(field, &settings)?;
+        let generation = self.next_generation;
+        self.next_generation += 1;
+        let entry = plan::MaterialEntry {
+            generation,
+            settings,
+            map,
+            shading: None,
+            pending_shading: None,
+            corners: Vec::new(),
+        };
+        if index == self.materials.len() {
+            self.materials.push(Some(entry));
+        } else {
+            self.materials[index] = Some(entry);
+        }
+        if let Err(e) = self.sync() {
+            // Never recorded: destroyed at once.
+            // SAFETY: the failed sync recorded nothing with the new entry.
+            unsafe { self.materials[index].take().destroy(&self.ctx) };
+            if index + 1 == self.materials.len() {
+                self.materials.pop();
+            }
+            if new_map {
+                // SAFETY: the failed sync recorded nothing with the new map.
+                unsafe { self.maps[map].take().destroy(&self.ctx) };
+            }
+            return Err(e);
+        }
+        Ok(MaterialId {
+            index: index as u32,
+            generation,
+        })
+    }
+
+    /// Removes a material: its pixels are treated as not displaced from the next record
+    /// on. What only it used (its map when no other material shares it, pipelines, grids)
+    /// is retired like a replaced method's resources. Needs no GPU idle.
+    pub fn remove_material(&mut self, id: MaterialId) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        let entry = self.materials[i].take();
+        // The plan without it only drops resources: nothing is built, so the sync cannot
+        // fail for lack of memory (the tile lists keep their size).
+        let result = self.sync();
+        self.retired.retire(entry);
+        result
+    }
+
+    /// The handles of the live materials, by index.
+    pub fn materials(&self) -> Vec<MaterialId> {
+        self.materials
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| {
+                m.as_ref().map(|m| MaterialId {
+                    index: i as u32,
+                    generation: m.generation,
+                })
+            })
+            .collect()
+    }
+
+    /// A material's settings.
+    pub fn material_settings(&self, id: MaterialId) -> Result<MaterialSettings> {
+        Ok(self.entry(id)?.settings)
+    }
+
+    /// Changes a material's method, parameters and depth scale (not its addressing),
+    /// building only what the new settings need that the pass lacks (a `trace` pipeline,
+    /// a pyramid or cone map of its map, DIG grids; the height texture's mip chain when
+    /// level of detail is switched, filled on the GPU from the old texture by the next
+    /// record) and retiring what nothing uses any more.
+    ///
+    /// GPU-use contract: needs no GPU idle; what is replaced may still be read by frames
+    /// in flight, so it is retired: destroyed once every slot has been recorded again (by
+    /// the slot contract, every frame that could use it has completed), or by
+    /// [`DisplacementPass::destroy`]. Frames recorded before the call keep the old
+    /// settings. On error (invalid settings, an allocation or pipeline failure) the pass
+    /// is unchanged.
+    pub fn set_material_settings(
+        &mut self,
+        id: MaterialId,
+        settings: MaterialSettings,
+    ) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        validate_material(&self.ctx, &settings)?;
+        let old = self.materials[i]
+            .as_ref()
+            .map(|m| m.settings)
+            .unwrap_or(settings);
+        if settings.addressing != old.addressing {
+            return Err(Error::invalid(
+                "addressing",
+                "a material's addressing is fixed: remove it and add it again",
+            ));
+        }
+        self.with_material_settings(i, settings);
+        if let Err(e) = self.sync() {
+            self.with_material_settings(i, old);
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Swaps in a new height map for a material (any size; its addressing). The next
+    /// [`DisplacementPass::record`] uploads it and rebuilds what its method needs (timed
+    /// as `upload`, `pyramid`, `cone`). The old texture and what was derived from it stay
+    /// alive for frames in flight (unless another material still uses them) and are
+    /// retired. Needs no GPU idle. On error the pass is unchanged.
+    pub fn set_material_height_map(&mut self, id: MaterialId, field: &HeightField) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        let settings = self.entry(id)?.settings;
+        let (map, new_map) = self.map_for(field, &settings)?;
+        let old = self.materials[i].as_ref().map_or(map, |m| m.map);
+        if let Some(m) = &mut self.materials[i] {
+            m.map = map;
+        }
+        if let Err(e) = self.sync() {
+            if let Some(m) = &mut self.materials[i] {
+                m.map = old;
+            }
+            if new_map {
+                // SAFETY: the failed sync recorded nothing with the new map.
+                unsafe { self.maps[map].take().destroy(&self.ctx) };
+            }
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Sets a material's maps for `shade` (an albedo and a tangent-space normal map,
+    /// addressed like its height map; [`crate::material`] has their conventions); empty
+    /// [`MaterialImages`] remove them. The next record uploads them (in its `upload`
+    /// scope); replaced maps are retired. On error the material keeps its old maps.
+    pub fn set_material_maps(&mut self, id: MaterialId, images: &MaterialImages) -> Result<()> {
+        self.check_alive()?;
+        let i = self.entry_index(id)?;
+        let ctx = self.ctx.clone();
+        let addressing = self.entry(id)?.settings.addressing;
+        let created = MaterialTextures::create_for_upload(&ctx, images, addressing)?;
+        let (shading, staging) = created.unzip();
+        if let Some(m) = &mut self.materials[i] {
+            if let Some(old) = std::mem::replace(&mut m.shading, shading) {
+                self.retired.retire(old);
+            }
+            // Staging never recorded: no frame reads it.
+            // SAFETY: staging buffers are only read by the next record's upload, which has not happened.
+            unsafe { std::mem::replace(&mut m.pending_shading, staging).destroy(&ctx) };
+        }
+        Ok(())
+    }
+
+    /// The table index of a live material's handle.
+    pub(super) fn entry_index(&self, id: MaterialId) -> Result<usize> {
+        self.check_alive()?;
+        match self.materials.get(id.index as usize) {
+            Some(Some(m)) if m.generation == id.generation => Ok(id.index as usize),
+            _ => Err(Error::invalid(
+                "material",
+                format!("{id:?} is not a material of this pass (removed, or of another pass)"),
+            )),
+        }
+    }
+
+    pub(super) fn entry(&self, id: MaterialId) -> Result<&plan::MaterialEntry> {
+        let i = self.entry_index(id)?;
+        self.materials[i]
+            .as_ref()
+            .ok_or_else(|| Error::Internal("a checked material entry is empty".into()))
+    }
+
+    /// Sets entry `i`'s settings, keeping [`DisplacementPass::settings`] in step.
+    pub(super) fn with_material_settings(&mut self, i: usize, settings: MaterialSettings) {
+        if let Some(m) = &mut self.materials[i] {
+            m.settings = settings;
+        }
+        if i == self.primary.index as usize {
+            self.primary_settings = PassSettings {
+                method: settings.method,
+                params: settings.params,
+                depth_scale: settings.depth_scale,
+                addressing: settings.addressing,
+                ..self.primary_settings
+            };
+        }
+    }
+
+    /// The map table entry for `field` with `settings`' addressing: an existing one with
+    /// the same content, or a new one with its upload staged (`true`).
+    pub(super) fn map_for(
+        &mut self,
+        field: &HeightField,
+        settings: &MaterialSettings,
+    ) -> Result<(usize, bool)> {
+        let key = plan::MapKey::of(field, settings.addressing);
+        if let Some(i) = self
+            .maps
+            .iter()
+            .position(|m| m.as_ref().is_some_and(|m| m.key == key))
+        {
+            return Ok((i, false));
+        }
+        let chain = settings.params.lod_threshold.is_some();
+        let entry = plan::MapEntry::new(&self.ctx, field, key, chain)?;
+        let i = match self.maps.iter().position(Option::is_none) {
+            Some(i) => {
+                self.maps[i] = Some(entry);
+                i
+            }
+            None => {
+                self.maps.push(Some(entry));
+                self.maps.len() - 1
+            }
+        };
+        Ok((i, true))
+    }
+}

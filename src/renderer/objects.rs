@@ -1,0 +1,167 @@
+//! The objects a standalone renderer draws: their meshes and displaced materials
+//! ([`SceneObject`], [`SceneAssets`], [`ObjectAssets`]) and the G-buffer draws they
+//! become.
+
+use super::*;
+
+/// The displaced material of one object of [`Renderer::with_objects`].
+#[derive(Clone, Copy, Debug)]
+pub struct ObjectMaterial<'a> {
+    /// Its height map.
+    pub field: &'a HeightField,
+    /// Its method, parameters, depth scale and addressing.
+    pub settings: MaterialSettings,
+    /// Its albedo and normal map (empty: none).
+    pub images: &'a MaterialImages,
+}
+
+/// One object of a frame of several objects ([`Renderer::with_objects`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SceneObject<'a> {
+    /// Its geometry: the tiled plane (which has no placement: `placement` must be the
+    /// default), a quad, a generated mesh or a loaded one.
+    pub geometry: Geometry,
+    /// Where it sits.
+    pub placement: Placement,
+    /// The loaded mesh of [`Geometry::Mesh`] (needed there, ignored elsewhere).
+    pub mesh: Option<&'a Mesh>,
+    /// Its displaced material; `None`: drawn flat (not displaced, shaded by the
+    /// renderer's background pass).
+    pub material: Option<ObjectMaterial<'a>>,
+}
+
+/// Largest number of objects of [`Renderer::with_objects`].
+pub const MAX_OBJECTS: usize = 256;
+
+/// The objects of a frame of several objects: what the G-buffer pass draws.
+pub(super) struct Objects {
+    /// The meshes' pipeline (the plane's is `Renderer::gbuffer_pass`), when an object
+    /// is not the tiled plane.
+    pub(super) mesh_pass: Option<GBufferPass>,
+    /// The two-sided meshes' pipeline, when an object is a two-sided mesh
+    /// ([`crate::mesh::Mesh::two_sided`]).
+    pub(super) two_sided_pass: Option<GBufferPass>,
+    /// Per object: its vertex buffers (`None`: the tiled plane, drawn by the plane
+    /// pipeline) ...
+    pub(super) meshes: Vec<Option<MeshBuffers>>,
+    /// ... and its material (`None`: flat).
+    pub(super) materials: Vec<Option<MaterialId>>,
+    /// The camera's target and orbit distance (`None`: the tiled plane's camera, when a
+    /// plane is among the objects).
+    pub(super) framing: Option<(glam::Vec3, f32)>,
+}
+
+impl crate::gpu::owned::Destroy for Objects {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.mesh_pass.destroy(ctx);
+            self.two_sided_pass.destroy(ctx);
+            self.meshes.destroy(ctx);
+        }
+    }
+}
+
+/// `settings` as a renderer of several objects keeps them: the method, parameters,
+/// depth scale, addressing and geometry of its primary material (`geometry` and
+/// `material`: the first displaced object's).
+pub(super) fn objects_settings(
+    mut settings: RenderSettings,
+    geometry: Geometry,
+    material: &MaterialSettings,
+) -> RenderSettings {
+    settings.method = material.method;
+    settings.params = material.params;
+    settings.scene.depth_scale = material.depth_scale;
+    settings.scene.addressing = Some(material.addressing);
+    settings.scene.geometry = geometry;
+    settings
+}
+
+impl SceneAssets {
+    /// `settings` as [`Renderer::with_assets`] keeps them with these assets: unchanged
+    /// for one geometry; for several objects, with the first displaced object's
+    /// geometry, method, parameters, depth scale and addressing (its material is the
+    /// pass's primary one).
+    pub fn settings(&self, settings: RenderSettings) -> RenderSettings {
+        match self
+            .objects
+            .iter()
+            .find_map(|o| o.material.as_ref().map(|m| (o.geometry, m.1)))
+        {
+            Some((geometry, material)) => objects_settings(settings, geometry, &material),
+            None => settings,
+        }
+    }
+}
+
+/// The sphere around the objects (each generated or loaded mesh fits the unit sphere
+/// before its placement; the quad spans `[0, 1]²`): its centre and radius.
+pub(super) fn bounding_sphere(objects: &[SceneObject<'_>]) -> (glam::Vec3, f32) {
+    let spheres: Vec<(glam::Vec3, f32)> = objects
+        .iter()
+        .map(|o| {
+            let p = &o.placement;
+            match o.geometry {
+                Geometry::Quad => (
+                    p.matrix().transform_point3(glam::Vec3::new(0.5, 0.0, 0.5)),
+                    p.scale * std::f32::consts::FRAC_1_SQRT_2,
+                ),
+                _ => (p.position, p.scale),
+            }
+        })
+        .collect();
+    let centre = spheres.iter().map(|s| s.0).sum::<glam::Vec3>() / spheres.len().max(1) as f32;
+    let radius = spheres
+        .iter()
+        .map(|(c, r)| (*c - centre).length() + r)
+        .fold(0.0f32, f32::max);
+    (centre, radius)
+}
+
+/// What a scene brings besides the height field and the settings: a loaded mesh (for
+/// [`crate::scene::Geometry::Mesh`]) and the material maps. The generated cube, sphere
+/// and torus need no mesh here.
+#[derive(Clone, Debug, Default)]
+pub struct SceneAssets {
+    /// The loaded mesh.
+    pub mesh: Option<Mesh>,
+    /// Albedo and normal map.
+    pub material: MaterialImages,
+    /// A scene of several objects: when not empty, [`Renderer::with_assets`] draws these
+    /// ([`Renderer::with_objects`]) instead of the one geometry (its field, mesh and
+    /// maps are then unused).
+    pub objects: Vec<ObjectAssets>,
+}
+
+/// One object of a scene of several objects, owned ([`SceneAssets::objects`]).
+#[derive(Clone, Debug)]
+pub struct ObjectAssets {
+    /// Its geometry.
+    pub geometry: Geometry,
+    /// Where it sits.
+    pub placement: Placement,
+    /// The loaded mesh of [`Geometry::Mesh`].
+    pub mesh: Option<Mesh>,
+    /// Its displacement (`None`: flat): height map, settings, material maps.
+    pub material: Option<(HeightField, MaterialSettings, MaterialImages)>,
+}
+
+impl ObjectAssets {
+    /// The object as [`Renderer::with_objects`] takes it.
+    pub fn as_object(&self) -> SceneObject<'_> {
+        SceneObject {
+            geometry: self.geometry,
+            placement: self.placement,
+            mesh: self.mesh.as_ref(),
+            material: self
+                .material
+                .as_ref()
+                .map(|(field, settings, images)| ObjectMaterial {
+                    field,
+                    settings: *settings,
+                    images,
+                }),
+        }
+    }
+}
