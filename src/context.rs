@@ -808,21 +808,20 @@ unsafe extern "system" fn debug_callback(
     user: *mut c_void,
 ) -> vk::Bool32 {
     // SAFETY: the layer passes a valid callback-data pointer for the duration of the call.
-    let message = unsafe { data.as_ref() }
-        .and_then(|d| {
-            // SAFETY: `p_message` is a NUL-terminated string owned by the layer.
-            (!d.p_message.is_null()).then(|| unsafe { CStr::from_ptr(d.p_message) })
-        })
-        .map(|m| m.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    // Only the layers' findings count (validation, synchronization and best-practices
-    // messages are VALIDATION or PERFORMANCE); GENERAL messages are notices, e.g. the
-    // loader's "inserted layer" when VK_INSTANCE_LAYERS enables validation: logged only.
-    let finding = kind.intersects(
-        vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-            | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-    );
-    if !finding {
+    let data = unsafe { data.as_ref() };
+    let text = |p: *const std::ffi::c_char| {
+        // SAFETY: a non-null `p_message` / `p_message_id_name` is a NUL-terminated string
+        // owned by the layer for the duration of the call.
+        (!p.is_null()).then(|| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned())
+    };
+    let message = data.and_then(|d| text(d.p_message)).unwrap_or_default();
+    // Every message of warning or error severity counts, GENERAL ones included (a layer
+    // may report a finding as GENERAL), except the loader's own notices: GENERAL alone,
+    // named "Loader Message" (e.g. "inserted layer" when VK_INSTANCE_LAYERS enables
+    // validation): logged only.
+    let loader_notice = kind == vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+        && data.and_then(|d| text(d.p_message_id_name)).as_deref() == Some("Loader Message");
+    if loader_notice {
         if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
             log::warn!("[vulkan notice, not counted] {message}");
         } else {
@@ -1026,9 +1025,13 @@ mod tests {
         counter: &MessageCounter,
         severity: vk::DebugUtilsMessageSeverityFlagsEXT,
         kind: vk::DebugUtilsMessageTypeFlagsEXT,
+        id_name: Option<&CStr>,
     ) {
         let text = c"a message";
-        let data = vk::DebugUtilsMessengerCallbackDataEXT::default().message(text);
+        let mut data = vk::DebugUtilsMessengerCallbackDataEXT::default().message(text);
+        if let Some(name) = id_name {
+            data = data.message_id_name(name);
+        }
         // SAFETY: the data and its string live across the call; `user` points at a live
         // MessageCounter, as the messenger's does.
         unsafe {
@@ -1047,14 +1050,26 @@ mod tests {
         use vk::DebugUtilsMessageTypeFlagsEXT as T;
         let counter = MessageCounter::default();
         // The loader's notice that VK_INSTANCE_LAYERS inserted the validation layer.
-        deliver(&counter, S::WARNING, T::GENERAL);
-        deliver(&counter, S::ERROR, T::GENERAL);
+        deliver(&counter, S::WARNING, T::GENERAL, Some(c"Loader Message"));
+        deliver(&counter, S::ERROR, T::GENERAL, Some(c"Loader Message"));
         assert_eq!(counter.total(), 0);
-        deliver(&counter, S::WARNING, T::VALIDATION);
-        deliver(&counter, S::ERROR, T::VALIDATION);
-        deliver(&counter, S::WARNING, T::PERFORMANCE);
-        deliver(&counter, S::INFO, T::VALIDATION);
+        deliver(&counter, S::WARNING, T::VALIDATION, None);
+        deliver(&counter, S::ERROR, T::VALIDATION, Some(c"VUID-x"));
+        deliver(&counter, S::WARNING, T::PERFORMANCE, None);
+        deliver(&counter, S::INFO, T::VALIDATION, None);
+        deliver(&counter, S::INFO, T::GENERAL, None);
         assert_eq!((counter.errors(), counter.warnings()), (1, 2));
+        // GENERAL findings of a layer (any other name, or none) count.
+        deliver(&counter, S::WARNING, T::GENERAL, None);
+        deliver(&counter, S::ERROR, T::GENERAL, Some(c"UNASSIGNED-x"));
+        // The loader's name on a message that is not GENERAL alone counts too.
+        deliver(
+            &counter,
+            S::ERROR,
+            T::GENERAL | T::VALIDATION,
+            Some(c"Loader Message"),
+        );
+        assert_eq!((counter.errors(), counter.warnings()), (3, 3));
     }
 
     #[test]

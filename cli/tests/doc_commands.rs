@@ -14,10 +14,10 @@
 //!   session's display, or on an Xvfb server the test starts; where neither exists the
 //!   test prints why it skipped it (a failure where `DISPMAP_NO_SKIP=1`, as in CI).
 
-#[path = "support/xvfb.rs"]
-mod xvfb;
 #[path = "support/skip.rs"]
 mod skip;
+#[path = "support/xvfb.rs"]
+mod xvfb;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

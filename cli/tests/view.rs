@@ -9,10 +9,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-#[path = "support/xvfb.rs"]
-mod xvfb;
 #[path = "support/skip.rs"]
 mod skip;
+#[path = "support/xvfb.rs"]
+mod xvfb;
 use xvfb::start_xvfb;
 
 fn scratch(name: &str) -> PathBuf {
@@ -48,7 +48,10 @@ fn scripted_viewer_presents_the_render_frame_bit_for_bit() {
     let xvfb = match start_xvfb() {
         Ok(x) => x,
         Err(why) => {
-            skip::skip("scripted_viewer_presents_the_render_frame_bit_for_bit", &why);
+            skip::skip(
+                "scripted_viewer_presents_the_render_frame_bit_for_bit",
+                &why,
+            );
             return;
         }
     };
@@ -170,7 +173,10 @@ fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts(
     let xvfb = match start_xvfb() {
         Ok(x) => x,
         Err(why) => {
-            skip::skip("split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts", &why);
+            skip::skip(
+                "split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts",
+                &why,
+            );
             return;
         }
     };
@@ -348,7 +354,10 @@ fn error_overlay_with_level_of_detail_counts_bump_pixels_apart() {
     let xvfb = match start_xvfb() {
         Ok(x) => x,
         Err(why) => {
-            skip::skip("error_overlay_with_level_of_detail_counts_bump_pixels_apart", &why);
+            skip::skip(
+                "error_overlay_with_level_of_detail_counts_bump_pixels_apart",
+                &why,
+            );
             return;
         }
     };
