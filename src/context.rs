@@ -685,9 +685,13 @@ mod tests {
         counter: &MessageCounter,
         severity: vk::DebugUtilsMessageSeverityFlagsEXT,
         kind: vk::DebugUtilsMessageTypeFlagsEXT,
+        id_name: Option<&CStr>,
     ) {
         let text = c"a message";
-        let data = vk::DebugUtilsMessengerCallbackDataEXT::default().message(text);
+        let mut data = vk::DebugUtilsMessengerCallbackDataEXT::default().message(text);
+        if let Some(name) = id_name {
+            data = data.message_id_name(name);
+        }
         // SAFETY: the data and its string live across the call; `user` points at a live
         // MessageCounter, as the messenger's does.
         unsafe {
@@ -706,14 +710,26 @@ mod tests {
         use vk::DebugUtilsMessageTypeFlagsEXT as T;
         let counter = MessageCounter::default();
         // The loader's notice that VK_INSTANCE_LAYERS inserted the validation layer.
-        deliver(&counter, S::WARNING, T::GENERAL);
-        deliver(&counter, S::ERROR, T::GENERAL);
+        deliver(&counter, S::WARNING, T::GENERAL, Some(c"Loader Message"));
+        deliver(&counter, S::ERROR, T::GENERAL, Some(c"Loader Message"));
         assert_eq!(counter.total(), 0);
-        deliver(&counter, S::WARNING, T::VALIDATION);
-        deliver(&counter, S::ERROR, T::VALIDATION);
-        deliver(&counter, S::WARNING, T::PERFORMANCE);
-        deliver(&counter, S::INFO, T::VALIDATION);
+        deliver(&counter, S::WARNING, T::VALIDATION, None);
+        deliver(&counter, S::ERROR, T::VALIDATION, Some(c"VUID-x"));
+        deliver(&counter, S::WARNING, T::PERFORMANCE, None);
+        deliver(&counter, S::INFO, T::VALIDATION, None);
+        deliver(&counter, S::INFO, T::GENERAL, None);
         assert_eq!((counter.errors(), counter.warnings()), (1, 2));
+        // GENERAL findings of a layer (any other name, or none) count.
+        deliver(&counter, S::WARNING, T::GENERAL, None);
+        deliver(&counter, S::ERROR, T::GENERAL, Some(c"UNASSIGNED-x"));
+        // The loader's name on a message that is not GENERAL alone counts too.
+        deliver(
+            &counter,
+            S::ERROR,
+            T::GENERAL | T::VALIDATION,
+            Some(c"Loader Message"),
+        );
+        assert_eq!((counter.errors(), counter.warnings()), (3, 3));
     }
 
     #[test]

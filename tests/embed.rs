@@ -307,7 +307,8 @@ fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
         assert_bit_identical(&got, &expected, &format!("slot {s} after resize"));
     }
 
-    // And back down, again with frames in flight; a record with the old size is refused.
+    // And back down, again with frames in flight (the frames after it record at the new
+    // size and match a standalone frame of it); a refused resize changes nothing.
     host.frame(&mut pass);
     host.frame(&mut pass);
     pass.resize(small).unwrap();

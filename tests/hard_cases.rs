@@ -30,7 +30,10 @@
 //!   a whole relaxed step too): never a hit in open
 //!   air: within one linear step after the reported hit the ray reaches the surface, up
 //!   to the hardware filter's precision (`FILTER_TOLERANCE`). They may report a *later*
-//!   hit (a feature thinner than a step skipped): counted as artifacts and printed;
+//!   hit only past a feature thinner than a step (counted as artifacts and printed):
+//!   within one step before such a hit the ray is in open air, up to the filter's
+//!   precision; a hit deeper inside the surface (an overshoot: a cone step or a search
+//!   that went through the surface) fails;
 //! * `bump`: the hit is the entry point (`uv` = `uv0` bit for bit).
 //!
 //! Rows add what the case is about: the spike found (by `exact` and `dig-guarded`; DIG's
@@ -401,6 +404,12 @@ struct Outcome {
     /// The worst of those touches (the deepest the ray stays above the surface over the
     /// step after such a hit; `-FILTER_TOLERANCE` at worst allowed).
     worst_touch: f64,
+    /// Fixed-step searches: hits more than one step behind the exact first hit (each
+    /// must have the ray in open air within the step before it: a skipped feature).
+    behind: usize,
+    /// The worst of those: the least the surface rises above the ray over the step
+    /// before such a hit (`FILTER_TOLERANCE` at worst allowed; more is an overshoot).
+    worst_overshoot: f64,
     /// Spike rows: pixels whose hit is on the spike.
     spike_found: Option<usize>,
     failures: Vec<String>,
@@ -424,6 +433,7 @@ fn check_method(method: Method, params: &MethodParams, f: &Frame, hits: &[[f32; 
         failures.push(format!("{nonfinite} non-finite pixels"));
     }
     let (mut in_front, mut worst_touch): (usize, f64) = (0, 0.0);
+    let (mut behind, mut worst_overshoot): (usize, f64) = (0, f64::NEG_INFINITY);
     for (i, ((hit, exact), ray)) in hits.iter().zip(f.exact).zip(f.rays).enumerate() {
         let gpu_hit = hit[2] >= 0.0;
         // On a decal `bump` hits wherever there is geometry, and a fixed-step search
@@ -470,6 +480,22 @@ fn check_method(method: Method, params: &MethodParams, f: &Frame, hits: &[[f32; 
                     ));
                 }
             }
+            // Never behind the first surface by more than one step, unless the ray is in
+            // open air within the step before the hit (a feature thinner than a step
+            // skipped, as the method's documentation allows): else an overshoot.
+            if f64::from(hit[2]) - exact.height < -(dt + 1e-6) {
+                behind += 1;
+                let air = (0..=64)
+                    .map(|k| (t - dt * f64::from(k) / 64.0).max(0.0))
+                    .map(|s| f.reference.penetration(ray, s))
+                    .fold(f64::INFINITY, f64::min);
+                worst_overshoot = worst_overshoot.max(air);
+                if air > FILTER_TOLERANCE {
+                    failures.push(format!(
+                        "pixel {i}: hit {hit:?} more than a step behind the first surface and under it over the whole step before (an overshoot: {air:.2e} under at least; ray {ray:?}, exact {exact:?})"
+                    ));
+                }
+            }
         }
     }
     let skim = match method {
@@ -507,6 +533,8 @@ fn check_method(method: Method, params: &MethodParams, f: &Frame, hits: &[[f32; 
         artifact_fraction: error.artifact_fraction,
         in_front,
         worst_touch,
+        behind,
+        worst_overshoot,
         spike_found: None,
         failures,
     }
@@ -769,6 +797,14 @@ fn hard_case_matrix() {
                     o.method.name(),
                     o.in_front,
                     -o.worst_touch
+                );
+            }
+            if o.behind > 0 {
+                eprintln!(
+                    "    {}: {} hits behind the first surface by more than a step (in open air within the step before, up to {:.1e} under)",
+                    o.method.name(),
+                    o.behind,
+                    o.worst_overshoot
                 );
             }
             for f in o.failures {

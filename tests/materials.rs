@@ -320,6 +320,11 @@ fn three_materials_and_flat_geometry_in_one_record_match_single_material_frames(
     teardown(ctx, passes, host);
 }
 
+/// Materials added, given new settings, given another material's map (shared: the map
+/// count drops), removed and re-added (the free index reused, the old handle refused),
+/// each followed by a frame in flight, under validation: the frames in between are
+/// checked by the validation layer only; the last state (material 2 removed) pixel by
+/// pixel: its pixels are left to the host.
 #[test]
 fn materials_added_replaced_and_removed_with_frames_in_flight() {
     let ctx = validated_context();

@@ -13,8 +13,8 @@ use dispmap::passes::pyramid::{PyramidKind, cpu_build};
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, Geometry, Scene};
 use dispmap_cli::measure::Measure as _;
-use dispmap_cli::metrics::ErrorMetrics;
-use dispmap_cli::reference::Reference;
+use dispmap_cli::metrics::{self, ErrorMetrics, MapGeometry};
+use dispmap_cli::reference::{Hit, Ray, Reference};
 
 const ELEVATIONS: [f32; 3] = [30.0, 5.0, 1.0];
 
@@ -47,6 +47,57 @@ struct Run {
     /// Artifact pixels that are not a skim within the method's tolerance (see
     /// `common::unexplained`); `None` for the methods without one.
     unexplained: Option<usize>,
+    /// The artifacts split by the side of the reference's first hit they lie on.
+    sides: Sides,
+}
+
+/// The signed error: a method's artifacts (hits more than [`metrics::ARTIFACT_TEXELS`]
+/// from the reference) by the side of the exact first hit they lie on. In front: the
+/// hit is higher, earlier along the ray than the first surface, so in open air (or a GPU
+/// hit where the reference misses). Behind: lower, later along the ray, past the first
+/// surface (a skipped feature, an overshoot), or a GPU miss where the reference hits.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Sides {
+    /// Fraction of compared pixels more than a texel in front.
+    in_front: f64,
+    /// Fraction of compared pixels more than a texel behind.
+    behind: f64,
+}
+
+/// [`Sides`] of `hits` against the reference hits `exact` of `rays` (pixels without a
+/// ray are not compared).
+fn sides(hits: &[[f32; 4]], exact: &[Option<Hit>], rays: &[Option<Ray>], g: MapGeometry) -> Sides {
+    let (mut compared, mut in_front, mut behind) = (0u64, 0u64, 0u64);
+    for ((hit, exact), _) in hits
+        .iter()
+        .zip(exact)
+        .zip(rays)
+        .filter(|(_, r)| r.is_some())
+    {
+        compared += 1;
+        if !hit.iter().all(|c| c.is_finite()) {
+            continue; // counted as non-finite (asserted 0)
+        }
+        match (hit[2] >= 0.0, exact) {
+            (true, Some(e))
+                if metrics::hit_distance_texels(hit, e, g) > metrics::ARTIFACT_TEXELS =>
+            {
+                if f64::from(hit[2]) > e.height {
+                    in_front += 1;
+                } else {
+                    behind += 1;
+                }
+            }
+            (true, None) => in_front += 1,
+            (false, Some(_)) => behind += 1,
+            _ => {}
+        }
+    }
+    let fraction = |n: u64| n as f64 / compared.max(1) as f64;
+    Sides {
+        in_front: fraction(in_front),
+        behind: fraction(behind),
+    }
 }
 
 /// How far (in heights, the depth being 1) the ray may pass above or below the surface
@@ -113,6 +164,12 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
                     c.iter().map(|c| f64::from(c.iterations)).sum()
                 });
                 let e = m.error;
+                let sides = sides(
+                    &m.hits,
+                    &frame_ref.hits,
+                    &frame_ref.rays,
+                    renderer.map_geometry(),
+                );
                 let unexplained = skim_tolerance(method).map(|tolerance| {
                     common::unexplained(
                         &reference,
@@ -124,12 +181,14 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
                     )
                 });
                 eprintln!(
-                    "{:<11} {:>3} {:>4}deg {:<10} artifacts {:>7.3}% p99 {:>9.4} mean it {:>6.1} total it {:>10.0} nonfinite {} unexplained {:?}",
+                    "{:<11} {:>3} {:>4}deg {:<10} artifacts {:>7.3}% (in front {:>7.3}%, behind {:>7.3}%) p99 {:>9.4} mean it {:>6.1} total it {:>10.0} nonfinite {} unexplained {:?}",
                     method.name(),
                     steps,
                     elevation,
                     field.label(),
                     100.0 * e.artifact_fraction,
+                    100.0 * sides.in_front,
+                    100.0 * sides.behind,
                     e.p99_texels,
                     e.mean_iterations,
                     trace + corners,
@@ -143,6 +202,7 @@ fn sweep(field: &HeightField, methods: &[(Method, u32)]) -> Vec<Run> {
                     error: e,
                     total_iterations: trace + corners,
                     unexplained,
+                    sides,
                 });
             }
         }
@@ -157,8 +217,11 @@ fn find(runs: &[Run], method: Method, elevation: f32) -> &Run {
         .expect("run measured")
 }
 
-/// The methods and quality settings of issue 3.
-const METHODS: [(Method, u32); 10] = [
+/// Every method: issue 3's quality settings, and the documented defaults (64 steps,
+/// 15 for `secant`) where issue 3 set none.
+const METHODS: [(Method, u32); 12] = [
+    (Method::Bump, 1),
+    (Method::Linear, 64),
     (Method::Exact, 1),
     (Method::ConeExact, 1),
     (Method::Cone, 64),
@@ -180,7 +243,101 @@ struct Bounds {
     dig_minus_relief: f64,
 }
 
-fn check(runs: &[Run], bounds: &Bounds) {
+/// A bundled map (the index of its column in [`DOCUMENTED`]).
+#[derive(Clone, Copy, Debug)]
+enum Map {
+    Rocks = 0,
+    Bricks = 1,
+    Mountains = 2,
+}
+
+/// One method's documented accuracy at the test's settings (docs/methods.md, "Accuracy
+/// on the bundled maps", the table's percentages): per map (rocks, bricks, mountains),
+/// the worst over the three elevations of the artifact fraction and of its two sides
+/// ([`Sides`]), in percent.
+struct Documented {
+    method: Method,
+    artifacts: [f64; 3],
+    in_front: [f64; 3],
+    behind: [f64; 3],
+    /// The search is conservative (cone steps, the pyramid's node bounds never pass the
+    /// surface; docs/cones.md, docs/methods.md), so it never stops in open air: no hit in
+    /// front at all, whatever the margin.
+    never_in_front: bool,
+}
+
+/// The documented figures the approximate methods are held to (the exact family's bar,
+/// a tangency a frame at most, is `check`'s). Measured with this test's `--nocapture`
+/// output; docs/methods.md states the same numbers.
+#[rustfmt::skip]
+const DOCUMENTED: [Documented; 9] = [
+    // No parallax: the surface point under the entry (its artifact fraction is ~100% by
+    // design; tests/hard_cases.rs checks the hit is `uv0` bit for bit).
+    Documented { method: Method::Bump, artifacts: [100.0, 99.448, 100.0], in_front: [44.520, 37.467, 47.917], behind: [61.692, 70.089, 60.888], never_in_front: false },
+    Documented { method: Method::Linear, artifacts: [88.536, 90.917, 83.833], in_front: [0.067, 0.073, 0.0], behind: [88.500, 90.844, 83.833], never_in_front: false },
+    Documented { method: Method::Relief, artifacts: [6.505, 7.943, 13.359], in_front: [1.062, 0.750, 0.073], behind: [5.443, 7.193, 13.286], never_in_front: false },
+    Documented { method: Method::Dig, artifacts: [9.104, 9.297, 14.401], in_front: [0.964, 0.688, 0.073], behind: [8.141, 8.609, 14.328], never_in_front: false },
+    Documented { method: Method::Pom, artifacts: [41.620, 49.406, 49.130], in_front: [13.875, 5.318, 12.786], behind: [27.745, 44.089, 36.344], never_in_front: false },
+    Documented { method: Method::Secant, artifacts: [76.281, 88.818, 71.327], in_front: [26.182, 14.401, 24.704], behind: [50.099, 74.417, 47.620], never_in_front: false },
+    Documented { method: Method::Cone, artifacts: [0.062, 0.062, 0.135], in_front: [0.0; 3], behind: [0.062, 0.062, 0.135], never_in_front: true },
+    Documented { method: Method::RelaxedCone, artifacts: [0.062, 0.062, 0.135], in_front: [0.0; 3], behind: [0.062, 0.062, 0.135], never_in_front: true },
+    Documented { method: Method::Pyramid, artifacts: [0.042, 0.076, 0.068], in_front: [0.0; 3], behind: [0.042, 0.076, 0.068], never_in_front: true },
+];
+
+/// The bound a documented figure (percent) allows: 10% more plus 0.01 percentage points
+/// (3.7 of a frame's 36,864 pixels). The hits are deterministic on a given driver, but
+/// which rays skim a ridge moves with the rays' last bits (a G-buffer change moved single
+/// pixels of the pyramid's skims both ways, docs/methods.md), by pixels, not percents: a
+/// regression (a cone step too long, a search without its refinement) moves them by far
+/// more.
+fn bound(documented_percent: f64) -> f64 {
+    (documented_percent * 1.1 + 0.01) / 100.0
+}
+
+/// Every method of [`DOCUMENTED`] within its documented artifact fraction and its
+/// documented error on each side of the surface, at every elevation: all failures listed
+/// at once.
+fn check_documented(runs: &[Run], map: Map) {
+    let mut failures = Vec::new();
+    for d in &DOCUMENTED {
+        let k = map as usize;
+        for &elevation in &ELEVATIONS {
+            let run = find(runs, d.method, elevation);
+            let in_front_bound = if d.never_in_front {
+                0.0
+            } else {
+                bound(d.in_front[k])
+            };
+            for (what, measured, allowed) in [
+                (
+                    "artifacts",
+                    run.error.artifact_fraction,
+                    bound(d.artifacts[k]),
+                ),
+                ("in front", run.sides.in_front, in_front_bound),
+                ("behind", run.sides.behind, bound(d.behind[k])),
+            ] {
+                if measured > allowed {
+                    failures.push(format!(
+                        "{} {map:?} at {elevation} deg: {what} {:.3}% above the bound {:.3}% (documented {:.3}%)",
+                        d.method,
+                        100.0 * measured,
+                        100.0 * allowed,
+                        match what {
+                            "artifacts" => d.artifacts[k],
+                            "in front" => d.in_front[k],
+                            _ => d.behind[k],
+                        }
+                    ));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+fn check(runs: &[Run], bounds: &Bounds, map: Map) {
+    check_documented(runs, map);
     for r in runs {
         assert_eq!(
             r.error.nonfinite_pixels, 0,
@@ -267,6 +424,7 @@ fn rocks() {
             pyramid: 0.001,
             dig_minus_relief: 0.03,
         },
+        Map::Rocks,
     );
 }
 
@@ -281,6 +439,7 @@ fn bricks() {
             pyramid: 0.001,
             dig_minus_relief: 0.015,
         },
+        Map::Bricks,
     );
 }
 
@@ -295,6 +454,7 @@ fn mountains() {
             pyramid: 0.001,
             dig_minus_relief: 0.015,
         },
+        Map::Mountains,
     );
 }
 
@@ -412,8 +572,11 @@ fn secant_segments_refine_the_search() {
     finish(ctx);
 }
 
-/// Clamp-addressed decal: every method keeps the silhouette (misses where the reference
-/// misses) and stays finite; `exact` agrees with the reference there too.
+/// Clamp-addressed decal: every method but `bump` (which hits wherever there is
+/// geometry: no parallax) keeps the silhouette, missing wherever the reference misses
+/// (a fixed-step search may also miss a hit it skipped before the ray left the decal:
+/// counted as an artifact, bounded with the other artifacts below), and stays finite;
+/// `exact` and `cone-exact` agree with the reference on every pixel.
 #[test]
 fn decal_silhouettes_for_every_method() {
     let ctx = validated_context();
@@ -428,8 +591,22 @@ fn decal_silhouettes_for_every_method() {
                 .set_method(method, MethodParams::for_method(method))
                 .unwrap();
             let m = renderer.measure(&frame_ref, 1).unwrap();
-            eprintln!("decal {method}: {:?}", m.error);
+            let (mut outside, mut inside) = (0, 0);
+            for ((hit, exact), ray) in m.hits.iter().zip(&frame_ref.hits).zip(&frame_ref.rays) {
+                match (ray, hit[2] >= 0.0, exact) {
+                    (Some(_), true, None) => outside += 1,
+                    (Some(_), false, Some(_)) => inside += 1,
+                    _ => {}
+                }
+            }
+            eprintln!(
+                "decal {method}: hits where the reference misses {outside}, misses where it hits {inside}; {:?}",
+                m.error
+            );
             assert_eq!(m.error.nonfinite_pixels, 0, "{method}");
+            if method != Method::Bump {
+                assert_eq!(outside, 0, "{method}: hits outside the silhouette");
+            }
             if matches!(method, Method::Exact | Method::ConeExact) {
                 assert_eq!(m.error.artifact_fraction, 0.0, "{method}");
             }

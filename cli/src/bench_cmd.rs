@@ -2,7 +2,7 @@
 //! progress bar, its outputs, and the summary printed at the end.
 
 use crate::args::BenchArgs;
-use crate::finish;
+use crate::finish_with;
 use anyhow::{Context as _, Result, bail};
 use dispmap::context::{Context, ContextOptions};
 use dispmap::method::Method;
@@ -91,56 +91,61 @@ pub(crate) fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Resul
     output::check_folder_writable(&args.out).context("invalid --out")?;
 
     let ctx = Arc::new(Context::headless(options)?);
-    dispmap_cli::frame_limit::check(&ctx, config.frame[0], config.frame[1], "--size")?;
-    let bar = if args.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        let bar = indicatif::ProgressBar::with_draw_target(
-            Some(1),
-            indicatif::ProgressDrawTarget::stderr(),
+    // Everything that uses the device, then `finish_with` checks validation whether it
+    // succeeded or was refused.
+    let result = (|| -> Result<_> {
+        dispmap_cli::frame_limit::check(&ctx, config.frame[0], config.frame[1], "--size")?;
+        let bar = if args.quiet {
+            indicatif::ProgressBar::hidden()
+        } else {
+            let bar = indicatif::ProgressBar::with_draw_target(
+                Some(1),
+                indicatif::ProgressDrawTarget::stderr(),
+            );
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "[{elapsed_precise}] {wide_bar} {percent:>3}% ETA {eta:>4} {msg}",
+                )
+                .expect("the template is valid")
+                .progress_chars("=> "),
+            );
+            bar
+        };
+        eprintln!(
+            "dispmap bench: {} map(s), {} method(s), steps {}, {}x{}, {} frames, on {} ({})",
+            maps.len(),
+            config.methods.len(),
+            args.steps,
+            config.frame[0],
+            config.frame[1],
+            config.frames,
+            ctx.info().name,
+            ctx.info().driver
         );
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "[{elapsed_precise}] {wide_bar} {percent:>3}% ETA {eta:>4} {msg}",
-            )
-            .expect("the template is valid")
-            .progress_chars("=> "),
+        let results = bench::run(&ctx, &config, &maps, size_source.as_ref(), &mut |p| {
+            bar.set_length(p.total);
+            bar.set_position(p.done);
+            bar.set_message(p.stage.clone());
+        });
+        bar.finish_and_clear();
+        let results = results?;
+        let command = command_line();
+        let outputs = bench::stage_outputs(&args.out, &results, &command)?;
+        let written = outputs.paths();
+        print_bench_summary(&results);
+        // What the run is too short or too noisy for: after the tables, where it is read.
+        for warning in bench::verdict::warnings(&results) {
+            eprintln!("warning: {warning}");
+        }
+        println!(
+            "\nwrote {} files to {} in {:.0} s (report.md, results.csv, plots, heat maps)",
+            written.len(),
+            args.out.display(),
+            results.wall.as_secs_f64()
         );
-        bar
-    };
-    eprintln!(
-        "dispmap bench: {} map(s), {} method(s), steps {}, {}x{}, {} frames, on {} ({})",
-        maps.len(),
-        config.methods.len(),
-        args.steps,
-        config.frame[0],
-        config.frame[1],
-        config.frames,
-        ctx.info().name,
-        ctx.info().driver
-    );
-    let results = bench::run(&ctx, &config, &maps, size_source.as_ref(), &mut |p| {
-        bar.set_length(p.total);
-        bar.set_position(p.done);
-        bar.set_message(p.stage.clone());
-    });
-    bar.finish_and_clear();
-    let results = results?;
-    let command = command_line();
-    let outputs = bench::stage_outputs(&args.out, &results, &command)?;
-    let written = outputs.paths();
-    print_bench_summary(&results);
-    // What the run is too short or too noisy for: after the tables, where it is read.
-    for warning in bench::verdict::warnings(&results) {
-        eprintln!("warning: {warning}");
-    }
-    println!(
-        "\nwrote {} files to {} in {:.0} s (report.md, results.csv, plots, heat maps)",
-        written.len(),
-        args.out.display(),
-        results.wall.as_secs_f64()
-    );
-    finish(ctx)?;
+        Ok(outputs)
+    })();
+    let outputs = finish_with(ctx, result)?;
     outputs.commit()?;
     Ok(())
 }

@@ -114,12 +114,29 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
     }
 }
 
-/// Destroys the context, then fails if validation reported anything up to and including
-/// the device's destruction (where the object tracker reports leaked objects).
+/// Destroys the context, then fails if an allocation was left or validation reported
+/// anything up to and including the device's destruction (where the object tracker
+/// reports leaked objects).
 pub(crate) fn finish(ctx: Arc<Context>) -> Result<()> {
     let m = ctx.messages().clone();
+    let left: Vec<String> = match ctx.allocator().lock() {
+        Ok(allocator) => allocator
+            .generate_report()
+            .allocations
+            .iter()
+            .map(|a| a.name.clone())
+            .collect(),
+        Err(_) => vec!["(the allocator's lock is poisoned)".to_owned()],
+    };
     // The last holder: dropping it destroys the device (every renderer is gone).
     drop(ctx);
+    if !left.is_empty() {
+        bail!(
+            "{} GPU allocation(s) left when the device was destroyed: {}",
+            left.len(),
+            left.join(", ")
+        );
+    }
     if m.total() > 0 {
         bail!(
             "Vulkan validation reported {} error(s) and {} warning(s) (see the log above)",
@@ -128,6 +145,18 @@ pub(crate) fn finish(ctx: Arc<Context>) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Ends a run that created `ctx`, whatever its `result`: [`finish`] runs on a refused
+/// run too, so a leak or a validation message on an error path is reported (after the
+/// run's own error), not dropped unchecked.
+pub(crate) fn finish_with<T>(ctx: Arc<Context>, result: Result<T>) -> Result<T> {
+    match (result, finish(ctx)) {
+        (Ok(v), Ok(())) => Ok(v),
+        (Ok(_), Err(checked)) => Err(checked),
+        (Err(e), Ok(())) => Err(e),
+        (Err(e), Err(checked)) => Err(anyhow::anyhow!("{}; and then: {checked}", error_chain(&e))),
+    }
 }
 
 fn info(options: &ContextOptions) -> Result<()> {

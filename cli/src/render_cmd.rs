@@ -3,7 +3,7 @@
 
 use crate::args::{RenderArgs, validate_settings};
 use crate::metrics_report::{CornerPass, CoverageReport, MetricsReport, NO_PIXELS};
-use crate::{finish, render_objects};
+use crate::{finish_with, render_objects};
 use anyhow::{Context as _, Result, bail};
 use clap::ArgMatches;
 use clap::parser::ValueSource;
@@ -233,8 +233,10 @@ pub(crate) fn render(
         bail!("invalid --heatmap-max: {max} is not a positive finite number");
     }
     let ctx = Arc::new(Context::headless(options)?);
-    dispmap_cli::frame_limit::check(&ctx, settings.width, settings.height, "--size")?;
-    {
+    // Everything that uses the device, then `finish_with` checks validation whether it
+    // succeeded or was refused.
+    let result = (|| -> Result<()> {
+        dispmap_cli::frame_limit::check(&ctx, settings.width, settings.height, "--size")?;
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
         let mut coverage = None;
@@ -364,9 +366,10 @@ pub(crate) fn render(
                 println!("{line}");
             }
         }
-    }
+        Ok(())
+    })();
     // Validation clean, then every output at once.
-    finish(ctx)?;
+    finish_with(ctx, result)?;
     outputs.commit()?;
     Ok(())
 }

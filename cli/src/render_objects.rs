@@ -3,7 +3,7 @@
 //! displaced object a material of the pass, and with `--metrics` the whole frame's error
 //! beside one entry per material (`materials`), each traced against its own map.
 
-use crate::{ErrorSummary, Iterations, NO_PIXELS, RenderArgs, finish, timings_line};
+use crate::{ErrorSummary, Iterations, NO_PIXELS, RenderArgs, finish_with, timings_line};
 use anyhow::{Context as _, Result, bail};
 use clap::ArgMatches;
 use clap::parser::ValueSource;
@@ -223,7 +223,9 @@ pub fn render(
 ) -> Result<()> {
     let (field, _, settings, assets, specs) = inputs(args, matches, file, path)?;
     let ctx = Arc::new(Context::headless(options)?);
-    {
+    // Everything that uses the device, then `finish_with` checks validation whether it
+    // succeeded or was refused.
+    let result = (|| -> Result<()> {
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
         let materials = displaced(&renderer, &assets.objects, &specs);
@@ -353,8 +355,9 @@ pub fn render(
                 println!("{line}");
             }
         }
-    }
-    finish(ctx)?;
+        Ok(())
+    })();
+    finish_with(ctx, result)?;
     outputs.commit()?;
     Ok(())
 }

@@ -153,7 +153,14 @@ fn library_sweep_writes_every_output() {
         assert_eq!(r.nonfinite_pixels, 0, "{r:?}");
         assert_eq!(r.error_frames, 1);
         assert!(r.iterations_mean > 0.0 && r.iterations_simd8 >= r.iterations_mean * 0.5);
-        assert!((0.0..=1.0).contains(&r.artifact_fraction));
+        // The documented accuracy of the near-exact methods (docs/methods.md: `pyramid`
+        // at most 0.1% of pixels off by a texel; `cone-exact` exact's, a tangency a frame
+        // at most: 1 of these frames' 5184 pixels); the others' error is the method tests'.
+        match r.method.as_str() {
+            "pyramid" => assert!(r.artifact_fraction <= 0.001, "{r:?}"),
+            "cone-exact" => assert!(r.artifact_fraction <= 1.0 / 5184.0, "{r:?}"),
+            _ => {}
+        }
         let dig = r.method == "dig";
         assert_eq!(r.dig_corners_ms.is_some(), dig, "{r:?}");
         assert_eq!(r.corner_iterations.is_some(), dig, "{r:?}");

@@ -415,6 +415,8 @@ fn out_to_stdout_and_metrics_without_an_image() {
         !out.status.success(),
         "neither --out nor --metrics was accepted"
     );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--out"), "{stderr}");
 }
 
 /// `render --samples 4`: the image is anti-aliased (each pixel the average of a 2x2

@@ -148,21 +148,20 @@ pub(super) unsafe extern "system" fn debug_callback(
     user: *mut c_void,
 ) -> vk::Bool32 {
     // SAFETY: the layer passes a valid callback-data pointer for the duration of the call.
-    let message = unsafe { data.as_ref() }
-        .and_then(|d| {
-            // SAFETY: `p_message` is a NUL-terminated string owned by the layer.
-            (!d.p_message.is_null()).then(|| unsafe { CStr::from_ptr(d.p_message) })
-        })
-        .map(|m| m.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    // Only the layers' findings count (validation, synchronization and best-practices
-    // messages are VALIDATION or PERFORMANCE); GENERAL messages are notices, e.g. the
-    // loader's "inserted layer" when VK_INSTANCE_LAYERS enables validation: logged only.
-    let finding = kind.intersects(
-        vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-            | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-    );
-    if !finding {
+    let data = unsafe { data.as_ref() };
+    let text = |p: *const std::ffi::c_char| {
+        // SAFETY: a non-null `p_message` / `p_message_id_name` is a NUL-terminated string
+        // owned by the layer for the duration of the call.
+        (!p.is_null()).then(|| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned())
+    };
+    let message = data.and_then(|d| text(d.p_message)).unwrap_or_default();
+    // Every message of warning or error severity counts, GENERAL ones included (a layer
+    // may report a finding as GENERAL), except the loader's own notices: GENERAL alone,
+    // named "Loader Message" (e.g. "inserted layer" when VK_INSTANCE_LAYERS enables
+    // validation): logged only.
+    let loader_notice = kind == vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+        && data.and_then(|d| text(d.p_message_id_name)).as_deref() == Some("Loader Message");
+    if loader_notice {
         if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
             log::warn!("[vulkan notice, not counted] {message}");
         } else {

@@ -255,8 +255,6 @@ pub struct Ended {
     pub signal: Option<i32>,
     /// Peak resident memory in bytes.
     pub peak_bytes: u64,
-    /// Wall time.
-    pub elapsed: Duration,
 }
 
 /// Waits for `child`, killing it after `limit`, and returns how it ended with its peak
@@ -276,7 +274,6 @@ pub fn wait_bounded(child: &mut Child, limit: Duration, what: &str) -> Ended {
                 code: exited.then(|| libc::WEXITSTATUS(status)),
                 signal: libc::WIFSIGNALED(status).then(|| libc::WTERMSIG(status)),
                 peak_bytes: usage.ru_maxrss as u64 * 1024,
-                elapsed: start.elapsed(),
             };
         }
         assert!(r == 0, "{what}: wait4 failed");
