@@ -1544,6 +1544,17 @@ fn issue_37_fixtures(dir: &Path) {
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o444)).unwrap();
     }
     std::fs::create_dir_all(dir.join("bench-md/report.md")).unwrap();
+    // The viewer's script and camera path, checked when read.
+    write("script-error.txt", "1 error\n");
+    write("script-late.txt", "0 method pom\n99 screenshot late.png\n");
+    write("script-two.txt", "1 screenshot a.png\n1 screenshot b.png\n");
+    write(
+        "script-same.txt",
+        "0 screenshot a.png\n1 screenshot a.png\n",
+    );
+    write("script-resize.txt", "1 resize 2048x2048\n");
+    write("path-high.txt", "30 0\n30 10 20000\n");
+    write("path-low.txt", "30 0 0.001\n");
 }
 
 /// Issue 37's refused inputs (the files of [`issue_37_fixtures`] in `dir`, outputs into
@@ -1567,6 +1578,11 @@ fn issue_37_refusals(dir: &Path, out: &Path) -> Vec<Refusal> {
         v
     };
     let no_driver: &'static [(&str, &str)] = &[("VK_ICD_FILENAMES", "/nonexistent/icd.json"), ("VK_DRIVER_FILES", "/nonexistent/icd.json")];
+    let view = |more: &[&str]| {
+        let mut v: Vec<String> = ["view", "--frames", "3", "--no-ui"].iter().map(|s| s.to_string()).collect();
+        v.extend(more.iter().map(|s| s.to_string()));
+        v
+    };
     let r = |name, args, expect| Refusal { name, args, env: &[], wrap: &[], expect, absent: &[] };
     vec![
         // 2. The albedo counts in the memory bound.
@@ -1589,6 +1605,17 @@ fn issue_37_refusals(dir: &Path, out: &Path) -> Vec<Refusal> {
         Refusal { env: no_driver, ..r("9: bench read-only results.csv", vec!["bench".into(), "--out".into(), p("bench-csv"), "--quiet".into()], &["--out", "results.csv", "read-only"]) },
         Refusal { env: no_driver, ..r("9: bench report.md a folder", vec!["bench".into(), "--out".into(), p("bench-md"), "--quiet".into()], &["--out", "report.md", "is a folder"]) },
         Refusal { env: no_driver, ..r("9: demo read-only contact_sheet.png", vec!["demo".into(), "--out-dir".into(), p("demo-sheet")], &["--out-dir", "contact_sheet.png", "read-only"]) },
+        // 1, 6, 10. The viewer's script and camera path, checked completely when read
+        // (no display is needed to be refused: nothing opens a window first).
+        r("1: view script `error` on objects", view(&["--scene", &p("objects.toml"), "--script", &p("script-error.txt")]), &["script-error.txt:1", "error overlay is not available"]),
+        r("6: view screenshot past --frames", view(&["--script", &p("script-late.txt")]), &["script-late.txt:2", "frame 99 is past the last frame", "--frames 3"]),
+        r("6: view two screenshots at a frame", view(&["--script", &p("script-two.txt")]), &["script-two.txt:2", "second screenshot at frame 1"]),
+        r("6: view one file for two screenshots", view(&["--script", &p("script-same.txt")]), &["script-same.txt:2", "a.png is also the screenshot of line 1"]),
+        r("10: view camera path height 20000", view(&["--camera-path", &p("path-high.txt")]), &["path-high.txt:2", "camera-height", "20000"]),
+        r("10: view camera path below the near plane", view(&["--camera-path", &p("path-low.txt")]), &["path-low.txt:1", "camera-height", "near plane"]),
+        // 3. The viewer's memory bound, its scripted resizes included.
+        r("3: view 2048x2048 under --max-memory", view(&["--size", "2048x2048", "--max-memory", "150M"]), &["viewing 2048x2048", "needs about", "--max-memory"]),
+        r("3: view scripted resize under --max-memory", view(&["--size", "64x64", "--max-memory", "150M", "--script", &p("script-resize.txt")]), &["viewing 2048x2048", "needs about", "--max-memory"]),
         // 12. A closed standard output takes no file.
         Refusal { wrap: &["sh", "-c", "exec \"$@\" >&-", "sh"], ..r("12: --out - with stdout closed", flags(&["--out", "-"]), &["--out", "standard output is closed"]) },
     ]
