@@ -706,6 +706,28 @@ fn closest_on_triangle(
 mod tests {
     use super::*;
 
+    /// The eye checks of a scene of several objects: inside the closed generated meshes
+    /// by a crossing count, and the distance to the nearest triangle.
+    #[test]
+    fn meshes_enclose_points_inside_and_measure_distances() {
+        use glam::DVec3;
+        let cube = Mesh::cube();
+        assert!(cube.encloses(DVec3::ZERO));
+        assert!(cube.encloses(DVec3::new(0.0, 0.25, 0.433)));
+        assert!(!cube.encloses(DVec3::new(0.0, 3.0, 0.0)));
+        for mesh in [Mesh::sphere(), Mesh::torus()] {
+            assert!(!mesh.encloses(DVec3::new(0.0, 5.0, 0.0)), "{}", mesh.label);
+        }
+        assert!(Mesh::sphere().encloses(DVec3::new(0.1, 0.2, 0.0)));
+        // The torus's hole is outside it.
+        assert!(!Mesh::torus().encloses(DVec3::ZERO));
+        let quad = Mesh::quad();
+        let d = quad.distance_to(DVec3::new(0.5, 0.3, 0.5));
+        assert!((d - 0.3).abs() < 1e-6, "{d}");
+        let d = quad.distance_to(DVec3::new(2.0, 0.0, 0.5));
+        assert!((d - 1.0).abs() < 1e-6, "{d}");
+    }
+
     fn check_frames(mesh: &Mesh) {
         for v in &mesh.vertices {
             let n = Vec3::from_array(v.normal);

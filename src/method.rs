@@ -710,7 +710,7 @@ mod tests {
             .check_loop_limit(&p(MAX_STEPS, 1, None), LOOP_LIMIT)
             .unwrap_err()
             .to_string();
-        assert!(err.contains("--steps"), "{err}");
+        assert!(err.contains("lower steps"), "{err}");
         // DIG's step below the interval: unbounded without eps, 4/eps with it.
         let err = Method::Dig
             .check_loop_limit(&p(150, 1, Some(0.0)), LOOP_LIMIT)

@@ -606,6 +606,19 @@ impl Renderer {
             drawn.meshes.push(buffers);
         }
         drawn.framing = framing;
+        // A material's refusal (its loop budget, its maps) names its object.
+        let of_object = |i: usize| {
+            move |e: Error| match e {
+                Error::InvalidInput { name, message } => {
+                    Error::invalid(format!("object {} {name}", i + 1), message)
+                }
+                other => other,
+            }
+        };
+        let primary_index = objects
+            .iter()
+            .position(|o| o.material.is_some())
+            .unwrap_or(0);
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             primary.field,
@@ -617,7 +630,8 @@ impl Renderer {
                 extent,
                 frames_in_flight: 1,
             },
-        )?;
+        )
+        .map_err(of_object(primary_index))?;
         let mut first_material = true;
         let mut configure = |pass: &mut DisplacementPass| -> Result<()> {
             pass.set_shadows(settings.shadows)?;
@@ -640,12 +654,14 @@ impl Renderer {
                     Some(_) if shared.is_some() => shared,
                     Some(m) if first_material => {
                         first_material = false;
-                        pass.set_material(m.images)?;
+                        pass.set_material(m.images).map_err(of_object(i))?;
                         Some(pass.primary())
                     }
                     Some(m) => {
-                        let id = pass.add_material(m.field, m.settings)?;
-                        pass.set_material_maps(id, m.images)?;
+                        let id = pass
+                            .add_material(m.field, m.settings)
+                            .map_err(of_object(i))?;
+                        pass.set_material_maps(id, m.images).map_err(of_object(i))?;
                         Some(id)
                     }
                 };
