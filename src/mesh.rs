@@ -487,7 +487,7 @@ impl Mesh {
     /// sphere and torus are): a ray from it crosses an odd number of its triangles. The
     /// ray's direction is one no edge or face of the generated meshes lies along.
     pub fn encloses(&self, point: glam::DVec3) -> bool {
-        let dir = glam::DVec3::new(0.5772156649, 0.3183098862, 0.7390851332).normalize();
+        let dir = glam::DVec3::new(0.5773, 0.3317, 0.7453).normalize();
         let crossings = self
             .triangles_f64()
             .filter(|&[a, b, c]| {
