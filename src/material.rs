@@ -29,12 +29,13 @@ use ash::vk;
 /// A; alpha is ignored), row by row from row 0 (`v = 0`), tightly packed. Built from
 /// texels the caller holds ([`RgbaMap::new`], no file decoding) or, with the `decode`
 /// feature, from a file (`load_albedo`, `load_normal_map`) or an
-/// `image::RgbaImage` (`From`).
+/// `image::RgbaImage` (`From`). A clone shares the texels (one copy in memory however
+/// many materials use the map).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RgbaMap {
     width: u32,
     height: u32,
-    texels: Vec<u8>,
+    texels: std::sync::Arc<Vec<u8>>,
 }
 
 impl RgbaMap {
@@ -57,7 +58,7 @@ impl RgbaMap {
         Ok(RgbaMap {
             width,
             height,
-            texels,
+            texels: std::sync::Arc::new(texels),
         })
     }
 
@@ -94,7 +95,7 @@ impl From<image::RgbaImage> for RgbaMap {
         RgbaMap {
             width: image.width(),
             height: image.height(),
-            texels: image.into_raw(),
+            texels: std::sync::Arc::new(image.into_raw()),
         }
     }
 }
@@ -161,7 +162,8 @@ pub fn load_albedo(path: &std::path::Path) -> Result<RgbaMap> {
 pub fn load_normal_map(path: &std::path::Path, green_up: bool) -> Result<RgbaMap> {
     let mut map = load_rgba(path)?;
     if green_up {
-        for texel in map.texels.chunks_exact_mut(4) {
+        // Just decoded: the only holder of its texels (no copy is made).
+        for texel in std::sync::Arc::make_mut(&mut map.texels).chunks_exact_mut(4) {
             texel[1] = 255 - texel[1];
         }
     }

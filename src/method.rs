@@ -298,13 +298,13 @@ impl Method {
         }
         let (option, remedy) = match self {
             Method::Secant if params.segments > 1 => {
-                ("steps and segments", "lower --steps or --segments")
+                ("steps and segments", "lower steps or segments")
             }
             Method::Dig if params.eps.is_some() && bound > 8 * u64::from(params.steps) + 2 => {
-                ("eps", "raise --eps")
+                ("eps", "raise eps")
             }
-            Method::Pom if params.min_steps > params.steps => ("min-steps", "lower --min-steps"),
-            _ => ("steps", "lower --steps"),
+            Method::Pom if params.min_steps > params.steps => ("min-steps", "lower min-steps"),
+            _ => ("steps", "lower steps"),
         };
         let needed = if bound >= u64::MAX / 4 {
             "an unbounded number of".to_owned()
@@ -318,6 +318,25 @@ impl Method {
                  device ends an invocation after {limit} (silently, with a wrong result): {remedy}"
             ),
         ))
+    }
+
+    /// Checks `params` for this method: their ranges ([`MethodParams::validate`]) and,
+    /// for `pom`, `min_steps` (n_min, the head-on sample count) at most `steps`
+    /// (n_max). What a command line and a scene file (each object's `[method]`) are
+    /// checked with; the error names the parameter.
+    pub fn check_params(self, params: &MethodParams) -> Result<()> {
+        params.validate()?;
+        if self == Method::Pom && params.min_steps > params.steps {
+            return Err(Error::invalid(
+                "min-steps",
+                format!(
+                    "{} is above steps {} (pom's head-on sample count n_min must not \
+                     exceed n_max)",
+                    params.min_steps, params.steps
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// What the method needs besides the G-buffer (the renderer builds only that).
@@ -677,7 +696,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            err.contains("--steps or --segments") && err.contains("128064"),
+            err.contains("lower steps or segments") && err.contains("128064"),
             "{err}"
         );
         assert!(
@@ -689,14 +708,14 @@ mod tests {
             .check_loop_limit(&p(MAX_STEPS, 1, None), LOOP_LIMIT)
             .unwrap_err()
             .to_string();
-        assert!(err.contains("--steps"), "{err}");
+        assert!(err.contains("lower steps"), "{err}");
         // DIG's step below the interval: unbounded without eps, 4/eps with it.
         let err = Method::Dig
             .check_loop_limit(&p(150, 1, Some(0.0)), LOOP_LIMIT)
             .unwrap_err()
             .to_string();
         assert!(
-            err.contains("raise --eps") && err.contains("unbounded"),
+            err.contains("raise eps") && err.contains("unbounded"),
             "{err}"
         );
         assert!(

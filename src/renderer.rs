@@ -24,7 +24,7 @@ mod objects;
 mod readback;
 
 pub use objects::{MAX_OBJECTS, ObjectAssets, ObjectMaterial, SceneAssets, SceneObject};
-use objects::{Objects, bounding_sphere, objects_settings};
+use objects::{Objects, bounding_sphere, check_eye, objects_settings};
 
 use crate::context::Context;
 use crate::embed::{
@@ -359,6 +359,16 @@ impl Renderer {
                 }
             }
         }
+        let framing = if objects.iter().any(|o| o.geometry == Geometry::TiledPlane) {
+            None
+        } else {
+            let (centre, radius) = bounding_sphere(objects);
+            Some((
+                centre,
+                crate::scene::framing_distance(radius, settings.scene.camera.fov_y_deg),
+            ))
+        };
+        check_eye(&settings, framing, objects, &placed)?;
         let extent = settings.extent();
         let c = &**ctx;
         let host = HostParts::new(c, extent)?;
@@ -391,15 +401,20 @@ impl Renderer {
                 .transpose()?;
             drawn.meshes.push(buffers);
         }
-        drawn.framing = if objects.iter().any(|o| o.geometry == Geometry::TiledPlane) {
-            None
-        } else {
-            let (centre, radius) = bounding_sphere(objects);
-            Some((
-                centre,
-                crate::scene::framing_distance(radius, settings.scene.camera.fov_y_deg),
-            ))
+        drawn.framing = framing;
+        // A material's refusal (its loop budget, its maps) names its object.
+        let of_object = |i: usize| {
+            move |e: Error| match e {
+                Error::InvalidInput { name, message } => {
+                    Error::invalid(format!("object {} {name}", i + 1), message)
+                }
+                other => other,
+            }
         };
+        let primary_index = objects
+            .iter()
+            .position(|o| o.material.is_some())
+            .unwrap_or(0);
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             primary.field,
@@ -411,7 +426,8 @@ impl Renderer {
                 extent,
                 frames_in_flight: 1,
             },
-        )?;
+        )
+        .map_err(of_object(primary_index))?;
         let mut first_material = true;
         let mut configure = |pass: &mut DisplacementPass| -> Result<()> {
             pass.set_shadows(settings.shadows)?;
@@ -434,12 +450,14 @@ impl Renderer {
                     Some(_) if shared.is_some() => shared,
                     Some(m) if first_material => {
                         first_material = false;
-                        pass.set_material(m.images)?;
+                        pass.set_material(m.images).map_err(of_object(i))?;
                         Some(pass.primary())
                     }
                     Some(m) => {
-                        let id = pass.add_material(m.field, m.settings)?;
-                        pass.set_material_maps(id, m.images)?;
+                        let id = pass
+                            .add_material(m.field, m.settings)
+                            .map_err(of_object(i))?;
+                        pass.set_material_maps(id, m.images).map_err(of_object(i))?;
                         Some(id)
                     }
                 };

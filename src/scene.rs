@@ -137,6 +137,31 @@ pub struct Camera {
     pub distance: Option<f32>,
 }
 
+/// An angle in degrees reduced to `(-360, 360)` in f64, then rounded to f32 once: the
+/// remainder of a float is exact, so every stage of the camera (the raster camera in
+/// f32, the pixel rays in f64) turns by the same angle however large the one given
+/// (3e9 degrees included), and an angle already in the range is kept bit for bit. A
+/// non-finite angle is kept (and refused by [`Scene::validate`]).
+pub fn reduce_degrees(degrees: f64) -> f32 {
+    if degrees.is_finite() {
+        (degrees % 360.0) as f32
+    } else {
+        // Kept as given, for the range check to name.
+        degrees as f32
+    }
+}
+
+impl Camera {
+    /// The same camera with its azimuth reduced ([`reduce_degrees`]): what
+    /// [`Scene::frame_camera`] and [`Scene::camera_looking_at`] build from.
+    pub fn reduced(&self) -> Camera {
+        Camera {
+            azimuth_deg: reduce_degrees(f64::from(self.azimuth_deg)),
+            ..*self
+        }
+    }
+}
+
 impl Default for Camera {
     fn default() -> Self {
         Camera {
@@ -265,6 +290,31 @@ impl Scene {
                 return Err(Error::invalid(name, format!("{value} is not a number")));
             }
         }
+        // The flat surface's nearest point in the frame beyond the near plane (else the
+        // bottom of the frame shows sky where the surface is): the tiled plane at the
+        // eye height, the quad at the orbit distance's height above it.
+        let (name, value, height) = match (self.geometry, c.distance) {
+            (Geometry::TiledPlane, _) => ("camera-height", c.height, f64::from(c.height)),
+            (Geometry::Quad, Some(d)) => (
+                "camera-distance",
+                d,
+                f64::from(d) * f64::from(c.elevation_deg).to_radians().sin(),
+            ),
+            _ => return Ok(()),
+        };
+        let least = min_plane_height(c);
+        if height < least {
+            return Err(Error::invalid(
+                name,
+                format!(
+                    "{value} puts the eye {height:.4} above the surface, which then comes \
+                     nearer than the near plane ({NEAR}) at the frame's bottom edge and is \
+                     cut away there: at elevation {} and field of view {} degrees the eye \
+                     must be at least {least:.4} above it",
+                    c.elevation_deg, c.fov_y_deg
+                ),
+            ));
+        }
         Ok(())
     }
 
@@ -308,7 +358,7 @@ impl Scene {
         };
         let distance = self.orbit_distance();
         let mut camera = self.camera_looking_at(width, height, target, distance);
-        let c = &self.camera;
+        let c = &self.camera.reduced();
         camera.rays = PixelRays::orbit(
             c.elevation_deg,
             c.azimuth_deg,
@@ -332,7 +382,7 @@ impl Scene {
         target: Vec3,
         distance: f32,
     ) -> FrameCamera {
-        let c = &self.camera;
+        let c = &self.camera.reduced();
         let to_eye = direction(c.elevation_deg, c.azimuth_deg);
         let eye = target + distance * to_eye;
         let forward = -to_eye;
@@ -437,7 +487,10 @@ impl Scene {
 
     /// The unit vector towards the light, world space.
     pub fn light_direction(&self) -> Vec3 {
-        direction(self.light.elevation_deg, self.light.azimuth_deg)
+        direction(
+            self.light.elevation_deg,
+            reduce_degrees(f64::from(self.light.azimuth_deg)),
+        )
     }
 
     /// The shading constants of `camera`'s frame ([`ShadeParams::new`]).
@@ -457,6 +510,15 @@ impl Scene {
             self.depth_scale,
         )
     }
+}
+
+/// The least eye height above a flat surface at which the surface's nearest point in
+/// the frame (on its bottom edge: view depth `h cos(fov/2) / sin(e + fov/2)`) is beyond
+/// the near plane [`NEAR`], in f64.
+pub fn min_plane_height(camera: &Camera) -> f64 {
+    let e = f64::from(camera.elevation_deg).to_radians();
+    let half = f64::from(camera.fov_y_deg).to_radians() / 2.0;
+    f64::from(NEAR) * (e + half).sin() / half.cos()
 }
 
 /// The orbit distance that frames a sphere of `radius` (world units) with a vertical

@@ -214,7 +214,7 @@ fn settings_past_the_loop_limit_are_refused() {
     match ctx.info().loop_limit {
         Some(_) => {
             let err = Renderer::new(&ctx, &rocks, s).err().unwrap().to_string();
-            assert!(err.contains("--steps or --segments"), "{err}");
+            assert!(err.contains("steps or segments"), "{err}");
             s.params.segments = 16;
             let mut r = Renderer::new(&ctx, &rocks, s).unwrap();
             r.render().unwrap();

@@ -9,7 +9,7 @@ use dispmap::heightfield::Convention;
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::passes::shadow::{DEFAULT_SHADOW_SAMPLES, ShadowMode, ShadowSettings};
 use dispmap::renderer::RenderSettings;
-use dispmap::scene::{Camera, Geometry, Light, Scene};
+use dispmap::scene::{Camera, Geometry, Light, Scene, reduce_degrees};
 use dispmap_cli::{bench, memory};
 use std::path::PathBuf;
 
@@ -237,8 +237,10 @@ pub(crate) struct CommonArgs {
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub(crate) camera_elevation: f32,
     /// Camera rotation about the vertical axis, degrees.
+    /// (Read in f64 and reduced modulo 360 before it is rounded to f32, so any finite
+    /// angle turns the camera by what it says.)
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub(crate) camera_azimuth: f32,
+    pub(crate) camera_azimuth: f64,
     /// Eye height above the plane in tiles (tiled plane only).
     #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
     pub(crate) camera_height: f32,
@@ -295,19 +297,12 @@ pub(crate) fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
 /// pom's default n_min (`--min-steps`), lowered to `--steps` when that is lower.
 pub(crate) const DEFAULT_MIN_STEPS: u32 = 8;
 
-/// [`RenderSettings::validate`], and pom's n_min at most its n_max (`--min-steps` above
-/// `--steps` would take more samples head-on than at grazing angles).
+/// [`RenderSettings::validate`] and the method's own checks of its values
+/// ([`Method::check_params`]: pom's n_min at most its n_max), which a scene's objects
+/// get too.
 pub(crate) fn validate_settings(settings: &RenderSettings) -> Result<()> {
     settings.validate()?;
-    let p = &settings.params;
-    if settings.method == Method::Pom && p.min_steps > p.steps {
-        bail!(
-            "invalid --min-steps: {} is above --steps {} (pom's head-on sample count n_min \
-             must not exceed n_max)",
-            p.min_steps,
-            p.steps
-        );
-    }
+    settings.method.check_params(&settings.params)?;
     Ok(())
 }
 
@@ -334,7 +329,7 @@ impl CommonArgs {
                 depth_scale: self.depth_scale,
                 camera: Camera {
                     elevation_deg: self.camera_elevation,
-                    azimuth_deg: self.camera_azimuth,
+                    azimuth_deg: reduce_degrees(self.camera_azimuth),
                     fov_y_deg: self.fov,
                     height: self.camera_height,
                     distance: None,
@@ -410,7 +405,7 @@ impl CommonArgs {
             scene.camera.elevation_deg = self.camera_elevation;
         }
         if given("camera_azimuth") {
-            scene.camera.azimuth_deg = self.camera_azimuth;
+            scene.camera.azimuth_deg = reduce_degrees(self.camera_azimuth);
         }
         if given("camera_height") {
             scene.camera.height = self.camera_height;

@@ -52,6 +52,7 @@ pub(crate) fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Resul
         depth: false,
         maps: memory::MethodMaps::together(&config.methods),
         mesh: memory::MeshSize::default(),
+        images: memory::MaterialMaps::default(),
     };
     let sweep_extras = memory::Extras {
         maps: memory::MethodMaps::together(&config.size_methods),
@@ -88,7 +89,23 @@ pub(crate) fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Resul
         memory::check(&estimate, args.max_memory, &what)?;
     }
     // The folder is created and filled only when every result is in (all files at once).
-    output::check_folder_writable(&args.out).context("invalid --out")?;
+    // Each file it will hold is checked now too (a read-only results.csv, a folder
+    // named report.md), not after the run.
+    let mut names = vec!["results.csv".to_owned(), "report.md".to_owned()];
+    for map in maps.iter().map(|m| &m.name) {
+        names.push(bench::report::pareto_file(map));
+        let stem = bench::file_stem(map);
+        for method in &config.methods {
+            names.push(format!("heatmap_{stem}_{}.png", method.name()));
+        }
+        if config.methods.contains(&Method::Dig) {
+            names.push(format!("intervals_{stem}.png"));
+        }
+    }
+    if size_source.is_some() {
+        names.push(bench::report::SIZES_PLOT.to_owned());
+    }
+    output::check_folder_files(&args.out, &names).context("invalid --out")?;
 
     let ctx = Arc::new(Context::headless(options)?);
     // Everything that uses the device, then `finish_with` checks validation whether it

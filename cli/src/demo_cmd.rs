@@ -40,7 +40,14 @@ pub(crate) fn demo(options: &ContextOptions, args: &DemoArgs) -> Result<()> {
         ),
     )?;
     // The folder is checked now, created and filled at the end, all files together.
-    output::check_folder_writable(&args.out_dir).context("invalid --out-dir")?;
+    // Each of its files too: a read-only contact_sheet.png is refused now, not after
+    // every method ran.
+    let mut names: Vec<String> = methods
+        .iter()
+        .map(|m| format!("{}.png", m.name()))
+        .collect();
+    names.extend(["reference.png".to_owned(), "contact_sheet.png".to_owned()]);
+    output::check_folder_files(&args.out_dir, &names).context("invalid --out-dir")?;
     let mut outputs = output::Outputs::new();
     let ctx = Arc::new(Context::headless(options)?);
     // Everything that uses the device, then `finish_with` checks validation whether it

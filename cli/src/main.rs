@@ -55,6 +55,10 @@ fn main() {
     }
     // SIGINT, SIGTERM, SIGHUP during a commit remove its temporary files first.
     output::clean_up_on_signals();
+    // A closed standard output takes no file (`--out -`): refused with the outputs.
+    if console::stdout_closed_at_start() {
+        output::refuse_standard_output("standard output is closed (`>&-`): nothing receives it");
+    }
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let matches = Cli::command().get_matches();
     let cli = match Cli::from_arg_matches(&matches) {

@@ -6,7 +6,8 @@
 //! bytes, the decoded image and the height field it becomes, all held at once) and
 //! rendering (the height field, the GPU's copy of it with its pyramids, the frame's GPU
 //! buffers and read-backs, and with `--metrics` the exact reference: its texels and max
-//! pyramid, [`Reference::memory_bytes`], and its per-pixel rays and hits). The per-texel
+//! pyramid, [`Reference::memory_bytes`], and its per-pixel rays and hits), and the
+//! albedo and normal maps ([`MaterialMaps`]). The per-texel
 //! and per-pixel coefficients are the peak resident memory measured on lavapipe (whose
 //! "GPU" memory is the process's), rounded up (docs/guarantees.md has the
 //! measurements).
@@ -50,6 +51,52 @@ pub struct Extras {
     pub maps: MethodMaps,
     /// A loaded mesh (`geometry = "mesh"`); all zero for none.
     pub mesh: MeshSize,
+    /// The albedo and normal maps ([`MaterialMaps`]); all zero for none.
+    pub images: MaterialMaps,
+}
+
+/// Bytes per texel of an albedo or normal map on the CPU while rendering: its RGBA8
+/// texels (one copy per file, shared by every object that names it).
+const RGBA_HELD_BYTES_PER_TEXEL: u64 = 4;
+/// Bytes per texel of an albedo or normal map on the GPU, per material that uses it: the
+/// `R8G8B8A8` image, its staging buffer and the copy the staging buffer is filled from
+/// (on lavapipe all are the process's memory). An 8000x8000 albedo measured 848 MB at
+/// its peak with a 16x16 frame: about 12 bytes per texel over the process's base, its
+/// held texels included.
+const RGBA_GPU_BYTES_PER_TEXEL: u64 = 12;
+
+/// The albedo and normal maps of a run, for the estimate: the texels held (each file
+/// once), the GPU copies (each material's), and the largest load's transient bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MaterialMaps {
+    /// Bytes of the decoded RGBA8 texels kept while rendering (each file once).
+    pub held: u64,
+    /// Bytes of the GPU images and their staging buffers (each material's own).
+    pub gpu: u64,
+    /// The largest single load's bytes beyond what it keeps: the file and the decoded
+    /// image before its RGBA8 conversion.
+    pub load: u64,
+}
+
+impl MaterialMaps {
+    /// Adds a map of `header`'s size: `first_use` when its file was not counted yet (its
+    /// texels are held once, however many materials use it; each material has its own
+    /// GPU copy).
+    pub fn add(&mut self, header: &ImageHeader, first_use: bool) {
+        let texels = u64::from(header.width) * u64::from(header.height);
+        if first_use {
+            self.held += texels * RGBA_HELD_BYTES_PER_TEXEL;
+            self.load = self
+                .load
+                .max(header.file_bytes + texels * u64::from(header.decoded_bytes_per_pixel));
+        }
+        self.gpu += texels * RGBA_GPU_BYTES_PER_TEXEL;
+    }
+
+    /// Bytes while rendering.
+    pub fn render_bytes(&self) -> u64 {
+        self.held + self.gpu
+    }
 }
 
 /// Bytes a mesh holds while it is read and built, per byte of its files (the bytes read,
@@ -241,14 +288,20 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
     } else {
         (0, 0)
     };
-    // The mesh is read after the map: the map's load and the mesh's are two peaks.
+    // The mesh is read after the map: the map's load and the mesh's are two peaks. The
+    // albedo and normal maps are read after both, beside the field and the mesh.
     let mesh_load = extras.mesh.load_bytes();
     let mesh_render = extras.mesh.render_bytes();
-    let load_peak = map.load_bytes.max(mesh_load) + field;
-    let render_peak = field + gpu + method_maps + frame_bytes + ref_map + ref_frame + mesh_render;
+    let images = extras.images.render_bytes();
+    let image_load = field + mesh_render + extras.images.held + extras.images.load;
+    let load_peak = (map.load_bytes.max(mesh_load) + field).max(image_load);
+    let render_peak =
+        field + gpu + method_maps + frame_bytes + ref_map + ref_frame + mesh_render + images;
     let mut parts = vec![("process", BASE_BYTES)];
     if load_peak > render_peak {
-        if mesh_load > map.load_bytes {
+        if image_load > map.load_bytes.max(mesh_load) + field {
+            parts.push(("albedo and normal maps, loading", image_load - field));
+        } else if mesh_load > map.load_bytes {
             parts.push(("mesh file and parsing", mesh_load));
         } else {
             parts.push(("map file and decoding", map.load_bytes));
@@ -260,6 +313,9 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
             parts.push(("mesh", mesh_render));
         }
         parts.push(("GPU copy of the map", gpu));
+        if images > 0 {
+            parts.push(("albedo and normal maps", images));
+        }
         if method_maps > 0 {
             parts.push(("pyramids and cone maps", method_maps));
         }
@@ -333,17 +389,30 @@ pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: E
             ref_maps += Reference::memory_bytes(m.map.size[0], m.map.size[1]);
         }
     }
-    // The meshes (`extras.mesh`: their sizes summed) are read beside the maps.
-    let load_peak = load_peak + extras.mesh.load_bytes();
+    // The meshes (`extras.mesh`: their sizes summed) are read beside the maps, the
+    // albedo and normal maps after them.
+    let load_peak = (load_peak + extras.mesh.load_bytes())
+        .max(fields + extras.mesh.load_bytes() + extras.images.held + extras.images.load);
     let mesh_render = extras.mesh.render_bytes();
-    let render_peak =
-        fields + gpu + method_maps + grids + frame_bytes + ref_maps + ref_frame + mesh_render;
+    let images = extras.images.render_bytes();
+    let render_peak = fields
+        + gpu
+        + method_maps
+        + grids
+        + frame_bytes
+        + ref_maps
+        + ref_frame
+        + mesh_render
+        + images;
     let mut parts = vec![("process", BASE_BYTES)];
     parts.push(("height fields", fields));
     if mesh_render > 0 {
         parts.push(("meshes", mesh_render));
     }
     parts.push(("GPU copies of the maps", gpu));
+    if images > 0 {
+        parts.push(("albedo and normal maps", images));
+    }
     if method_maps > 0 {
         parts.push(("pyramids and cone maps", method_maps));
     }

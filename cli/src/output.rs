@@ -13,6 +13,7 @@ use std::io::Write;
 use std::os::unix::ffi::OsStrExt;
 use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicPtr, Ordering};
 
 /// What an output path names, with symlinks followed: where the bytes go and how.
@@ -144,11 +145,29 @@ fn check_access(path: &Path, folder: bool, shown: &Path) -> Result<()> {
     Err(io_error(shown, e.kind(), message))
 }
 
+/// Why `-` (standard output) cannot take an output, when it cannot
+/// ([`refuse_standard_output`]).
+static STDOUT_REFUSED: Mutex<Option<String>> = Mutex::new(None);
+
+/// Makes every output named `-` (standard output) an error saying `why`, e.g. when
+/// standard output was closed at the process's start (the Rust runtime then opens it on
+/// `/dev/null`, where a file would be lost).
+pub fn refuse_standard_output(why: &str) {
+    *STDOUT_REFUSED.lock().unwrap_or_else(|p| p.into_inner()) = Some(why.to_owned());
+}
+
 /// Where `path` leads (a symlink to its target) and how it is written; an error for a
 /// folder, a missing or unwritable folder, a read-only file (which is not replaced), a
 /// name that ends in `/` or names no file.
 fn target_of(path: &Path) -> Result<Target> {
     if path == Path::new("-") {
+        if let Some(why) = STDOUT_REFUSED
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .as_ref()
+        {
+            return Err(io_error(path, std::io::ErrorKind::BrokenPipe, why.clone()));
+        }
         return Ok(Target::WriteThrough {
             path: PathBuf::from("/dev/stdout"),
             device: false,
@@ -247,6 +266,19 @@ fn check_folder(path: &Path, resolved: &Path) -> Result<()> {
 /// written through (`/dev/null` discards).
 pub fn check_writable(path: &Path) -> Result<()> {
     target_of(path).map(|_| ())
+}
+
+/// Checks, before any work, that the folder `dir` can take the files `names`
+/// ([`check_folder_writable`]) and that none of them that exists already is in the way
+/// (a folder, a read-only file: [`check_writable`]).
+pub fn check_folder_files(dir: &Path, names: &[String]) -> Result<()> {
+    check_folder_writable(dir)?;
+    if dir.is_dir() {
+        for name in names {
+            target_of(&dir.join(name))?;
+        }
+    }
+    Ok(())
 }
 
 /// Checks that `dir` can take the files of [`Outputs::stage_in`]: an existing writable

@@ -89,6 +89,15 @@ pub(crate) fn render_inputs(
         Some(m) => dispmap_cli::mesh_file::measure(m)?,
         None => memory::MeshSize::default(),
     };
+    // The scene's albedo and normal maps, from their headers.
+    let images = match &scene {
+        Some((file, path)) => dispmap_cli::scene_objects::measure_images(
+            [&file.material],
+            path.parent().unwrap_or(Path::new(".")),
+        )?,
+        None => memory::MaterialMaps::default(),
+    };
+    let scene_path = scene.as_ref().map(|(_, path)| path.to_path_buf());
     let check_memory = |map: memory::MapSize, mesh: memory::MeshSize| {
         let frame = [settings.width, settings.height];
         let what = format!(
@@ -113,6 +122,13 @@ pub(crate) fn render_inputs(
                 ""
             }
         );
+        let what = match &scene_path {
+            Some(path) if images != memory::MaterialMaps::default() => format!(
+                "{what} with the albedo and normal maps of {}",
+                path.display()
+            ),
+            _ => what,
+        };
         let extras = memory::Extras {
             reference: args.metrics.is_some(),
             heatmap: args.heatmap.is_some() || args.interval_map.is_some(),
@@ -122,6 +138,7 @@ pub(crate) fn render_inputs(
                 settings.shadows.mode == ShadowMode::Hard,
             ),
             mesh,
+            images,
         };
         let estimate = memory::estimate(map, frame, extras);
         memory::check(&estimate, args.common.max_memory, &what)
@@ -189,6 +206,12 @@ pub(crate) fn render(
                 .with_context(|| format!("invalid {option}"))?;
         }
     }
+    // Checked before any work, for every kind of scene.
+    if let Some(max) = args.heatmap_max
+        && !(max.is_finite() && max > 0.0)
+    {
+        bail!("invalid --heatmap-max: {max} is not a positive finite number");
+    }
     if let Some(path) = &args.scene {
         let file = dispmap_cli::scene_file::SceneFile::read(path)?;
         if file.has_objects() {
@@ -226,11 +249,6 @@ pub(crate) fn render(
              dig-guarded have one)",
             settings.method
         );
-    }
-    if let Some(max) = args.heatmap_max
-        && !(max.is_finite() && max > 0.0)
-    {
-        bail!("invalid --heatmap-max: {max} is not a positive finite number");
     }
     let ctx = Arc::new(Context::headless(options)?);
     // Everything that uses the device, then `finish_with` checks validation whether it

@@ -84,6 +84,21 @@ struct MaterialMetrics {
     mean_iterations: Option<f64>,
 }
 
+impl MaterialMetrics {
+    /// Its line on the console: the values of its JSON entry (no figure where the JSON
+    /// has null).
+    fn line(&self) -> String {
+        let what = format!(
+            "  material {} ({} on {}): {} pixels",
+            self.index, self.method, self.heightmap, self.pixels
+        );
+        match self.artifact_fraction {
+            Some(a) => format!("{what}, artifacts {:.3}%", 100.0 * a),
+            None => format!("{what}: no pixel shows it, its metrics are null"),
+        }
+    }
+}
+
 /// `render`'s inputs of a scene of several objects (`render` and `view`): refuses the
 /// flags the objects set themselves, applies the others to the scene's settings, checks
 /// the memory bound before any map is read, loads the objects. Returns the first
@@ -126,6 +141,13 @@ pub fn inputs(
         meshes.vertices += size.vertices;
         meshes.triangles += size.triangles;
     }
+    // The albedo and normal maps (each file once, each material's GPU copy).
+    let images = scene_objects::measure_images(
+        specs
+            .iter()
+            .filter_map(|o| o.material.as_ref().map(|m| &m.maps)),
+        path.parent().unwrap_or(Path::new(".")),
+    )?;
     // The memory bound before any map is read (a file's header gives its size; a bundled
     // map is measured once loaded).
     let check = |sizes: &[memory::MapSize]| {
@@ -154,6 +176,7 @@ pub fn inputs(
             heatmap: args.heatmap.is_some(),
             depth: args.depth_out.is_some(),
             maps: memory::MethodMaps::default(),
+            images,
         };
         let what = format!(
             "rendering {}x{} with {} materials of {}{}",
@@ -226,7 +249,12 @@ pub fn render(
     // Everything that uses the device, then `finish_with` checks validation whether it
     // succeeded or was refused.
     let result = (|| -> Result<()> {
-        let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
+        // Each object's loops against the device's budget, named by object and file.
+        scene_objects::check_loop_limits(&specs, path, ctx.info().loop_limit)?;
+        // Its refusals (the eye inside an object, an object's map too large) name the
+        // scene file.
+        let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)
+            .map_err(|e| dispmap_cli::scene_file::in_file(path, e))?;
         renderer.set_depth_output(args.depth_out.is_some())?;
         let materials = displaced(&renderer, &assets.objects, &specs);
         let references: Vec<Reference> = materials
@@ -285,7 +313,7 @@ pub fn render(
         }
         let mut lines = vec![timings_line(&timings)];
         if let (Some(p), Some((error, per_material))) = (&args.metrics, &error) {
-            let entries = materials
+            let entries: Vec<MaterialMetrics> = materials
                 .iter()
                 .zip(per_material)
                 .map(|(d, e)| {
@@ -307,6 +335,22 @@ pub fn render(
                     }
                 })
                 .collect();
+            // The console says what the JSON says: the same values, null where it has
+            // null.
+            let summary = ErrorSummary::from(error);
+            match summary.artifact_fraction {
+                Some(a) => lines.push(format!(
+                    "error: artifacts {:.3}% of {} displaced pixels, non-finite {}",
+                    100.0 * a,
+                    summary.compared_pixels,
+                    error.nonfinite_pixels
+                )),
+                None => lines.push(format!(
+                    "warning: {NO_PIXELS} (non-finite {})",
+                    error.nonfinite_pixels
+                )),
+            }
+            lines.extend(entries.iter().map(MaterialMetrics::line));
             let s = renderer.settings();
             let report = ObjectsMetrics {
                 scene: path.display().to_string(),
@@ -319,7 +363,7 @@ pub fn render(
                 device: &ctx.info().name,
                 driver: &ctx.info().driver,
                 timings_ms: timings.iter().cloned().collect(),
-                error: error.into(),
+                error: summary,
                 warning: (error.compared_pixels == 0).then(|| NO_PIXELS.to_owned()),
                 nonfinite_pixels: error.nonfinite_pixels,
                 iterations: trace_iterations.into(),
@@ -327,23 +371,6 @@ pub fn render(
             };
             let json = serde_json::to_string_pretty(&report)?;
             outputs.stage(p, json.into_bytes())?;
-            lines.push(format!(
-                "error: artifacts {:.3}% of {} displaced pixels, non-finite {}",
-                100.0 * error.artifact_fraction,
-                error.compared_pixels,
-                error.nonfinite_pixels
-            ));
-            for (d, e) in materials.iter().zip(per_material) {
-                let m = d.spec;
-                lines.push(format!(
-                    "  material {} ({} on {}): {} pixels, artifacts {:.3}%",
-                    d.index,
-                    m.settings.method,
-                    m.source.label(),
-                    e.compared_pixels,
-                    100.0 * e.artifact_fraction
-                ));
-            }
         }
         let to_stdout = [&args.out, &args.metrics]
             .iter()

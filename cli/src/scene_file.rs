@@ -60,7 +60,7 @@ use dispmap::material::{self, MaterialImages};
 use dispmap::method::{MaxLevel, Method, MethodParams};
 use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
 use dispmap::renderer::{RenderSettings, SceneAssets};
-use dispmap::scene::{Camera, Geometry, Light, Scene};
+use dispmap::scene::{Camera, Geometry, Light, Scene, reduce_degrees};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -146,9 +146,22 @@ pub struct HeightmapKeys {
     pub addressing: Option<Addressing>,
 }
 
+/// Refuses an empty file name (`mesh = ""`), which names no file: `key` and the scene
+/// file `path` name it in the error.
+pub fn check_file_key(key: &str, value: Option<&Path>, path: &Path) -> Result<()> {
+    if value.is_some_and(|v| v.as_os_str().is_empty()) {
+        return Err(Error::invalid(
+            format!("{key} in {}", path.display()),
+            "is empty: it names no file",
+        ));
+    }
+    Ok(())
+}
+
 impl HeightmapKeys {
     /// Checks the keys together (`key` names the table in errors: `heightmap`).
     pub fn check(&self, key: &str, path: &Path) -> Result<()> {
+        check_file_key(&format!("{key}.path"), self.path.as_deref(), path)?;
         if self.bundled.is_some() && self.path.is_some() {
             return Err(Error::invalid(
                 format!("{key} in {}", path.display()),
@@ -238,6 +251,18 @@ pub struct MaterialKeys {
     pub normal_map_green: Option<GreenAxis>,
 }
 
+impl MaterialKeys {
+    /// Checks the file names (`key` names the table in errors: `material`).
+    pub fn check(&self, key: &str, path: &Path) -> Result<()> {
+        check_file_key(&format!("{key}.albedo"), self.albedo.as_deref(), path)?;
+        check_file_key(
+            &format!("{key}.normal_map"),
+            self.normal_map.as_deref(),
+            path,
+        )
+    }
+}
+
 /// `[camera]`.
 #[derive(Clone, Debug, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -245,7 +270,7 @@ pub struct CameraKeys {
     /// Elevation, degrees.
     pub elevation: Option<f32>,
     /// Azimuth, degrees.
-    pub azimuth: Option<f32>,
+    pub azimuth: Option<f64>,
     /// Vertical field of view, degrees.
     pub fov: Option<f32>,
     /// Eye height (plane).
@@ -262,7 +287,7 @@ pub struct LightKeys {
     /// Elevation, degrees.
     pub elevation: Option<f32>,
     /// Azimuth, degrees.
-    pub azimuth: Option<f32>,
+    pub azimuth: Option<f64>,
     /// Intensity.
     pub intensity: Option<f32>,
     /// Self-shadowing: `off` (default), `hard` or `soft` (`--shadows`).
@@ -387,7 +412,7 @@ impl MapSource {
 }
 
 /// Names the file in an error about one of its values.
-fn in_file(path: &Path, e: Error) -> Error {
+pub fn in_file(path: &Path, e: Error) -> Error {
     match e {
         Error::InvalidInput { name, message } => {
             Error::invalid(format!("{} in {}", name, path.display()), message)
@@ -453,14 +478,14 @@ impl SceneFile {
                     .unwrap_or(Scene::default().depth_scale),
                 camera: Camera {
                     elevation_deg: self.camera.elevation.unwrap_or(c.elevation_deg),
-                    azimuth_deg: self.camera.azimuth.unwrap_or(c.azimuth_deg),
+                    azimuth_deg: self.camera.azimuth.map_or(c.azimuth_deg, reduce_degrees),
                     fov_y_deg: self.camera.fov.unwrap_or(c.fov_y_deg),
                     height: self.camera.height.unwrap_or(c.height),
                     distance: self.camera.distance,
                 },
                 light: Light {
                     elevation_deg: self.light.elevation.unwrap_or(l.elevation_deg),
-                    azimuth_deg: self.light.azimuth.unwrap_or(l.azimuth_deg),
+                    azimuth_deg: self.light.azimuth.map_or(l.azimuth_deg, reduce_degrees),
                     intensity: self.light.intensity.unwrap_or(l.intensity),
                 },
                 addressing: self.heightmap.addressing,
@@ -493,7 +518,9 @@ impl SceneFile {
                 TWO_SIDED_ONLY_MESH,
             ));
         }
+        check_file_key("mesh", self.mesh.as_deref(), path)?;
         self.heightmap.check("heightmap", path)?;
+        self.material.check("material", path)?;
         if !self.object.is_empty() {
             self.check_objects(path)?;
         }

@@ -119,6 +119,9 @@ pub fn specs(file: &SceneFile, path: &Path) -> Result<Vec<ObjectSpec>> {
                 crate::scene_file::TWO_SIDED_ONLY_MESH,
             )));
         }
+        if o.mesh.as_ref().is_some_and(|m| m.as_os_str().is_empty()) {
+            return Err(err(Error::invalid("mesh", "is empty: it names no file")));
+        }
         let placed = o.position.is_some() || o.scale.is_some() || o.rotation.is_some();
         if geometry == Geometry::TiledPlane && placed {
             return Err(err(Error::invalid(
@@ -146,8 +149,12 @@ pub fn specs(file: &SceneFile, path: &Path) -> Result<Vec<ObjectSpec>> {
             Some(h) => {
                 let key = format!("object {} heightmap", i + 1);
                 h.check(&key, path)?;
+                if let Some(m) = &o.material {
+                    m.check(&format!("object {} material", i + 1), path)?;
+                }
                 let (method, params) = o.method.as_ref().unwrap_or(&file.method).resolve(path)?;
-                params.validate().map_err(err)?;
+                // The command line's checks of a method's values, the same code.
+                method.check_params(&params).map_err(err)?;
                 let depth_scale = h.depth_scale.unwrap_or(Scene::default().depth_scale);
                 // The scene's own checks of a depth scale (its range).
                 Scene {
@@ -185,25 +192,91 @@ pub fn specs(file: &SceneFile, path: &Path) -> Result<Vec<ObjectSpec>> {
     Ok(out)
 }
 
-/// Loads the albedo and normal map of `keys` (paths relative to `dir`).
-pub fn load_images(keys: &MaterialKeys, dir: &Path) -> Result<MaterialImages> {
+/// Refuses an object whose method needs more loop iterations per invocation than the
+/// device runs (`loop_limit`, [`dispmap::Method::check_loop_limit`]), naming the object
+/// and the scene file `path`, before anything is uploaded.
+pub fn check_loop_limits(specs: &[ObjectSpec], path: &Path, loop_limit: Option<u32>) -> Result<()> {
+    let Some(limit) = loop_limit else {
+        return Ok(());
+    };
+    for (i, spec) in specs.iter().enumerate() {
+        if let Some(m) = &spec.material {
+            m.settings
+                .method
+                .check_loop_limit(&m.settings.params, limit)
+                .map_err(|e| in_object(path, i, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// An albedo or normal map as loaded: its file and, for a normal map, whether its green
+/// is flipped (`None` for an albedo). Objects naming the same map share one copy.
+type ImageKey = (PathBuf, Option<bool>);
+
+/// The albedo and normal map keys of `keys` (paths relative to `dir`).
+fn image_keys(keys: &MaterialKeys, dir: &Path) -> [Option<ImageKey>; 2] {
     let green_up = keys.normal_map_green.unwrap_or(GreenAxis::Up) == GreenAxis::Up;
+    [
+        keys.albedo.as_ref().map(|p| (dir.join(p), None)),
+        keys.normal_map
+            .as_ref()
+            .map(|p| (dir.join(p), Some(green_up))),
+    ]
+}
+
+/// The albedo and normal maps of `materials` (each one material's keys, paths relative
+/// to `dir`) for the memory estimate, from their files' headers (nothing is decoded):
+/// each file's texels counted once, as [`load`] shares them, and each material's GPU
+/// copies.
+pub fn measure_images<'a>(
+    materials: impl IntoIterator<Item = &'a MaterialKeys>,
+    dir: &Path,
+) -> Result<crate::memory::MaterialMaps> {
+    let mut seen = std::collections::HashSet::new();
+    let mut out = crate::memory::MaterialMaps::default();
+    for keys in materials {
+        for key in image_keys(keys, dir).into_iter().flatten() {
+            let header = dispmap::HeightField::probe(&key.0)?;
+            let first = seen.insert(key);
+            out.add(&header, first);
+        }
+    }
+    Ok(out)
+}
+
+/// Loads the albedo and normal map of `keys` (paths relative to `dir`); a map already in
+/// `loaded` is shared (its texels are not read or held twice).
+fn load_images(
+    keys: &MaterialKeys,
+    dir: &Path,
+    loaded: &mut std::collections::HashMap<ImageKey, material::RgbaMap>,
+) -> Result<MaterialImages> {
+    let [albedo, normal_map] = image_keys(keys, dir).map(|key| {
+        let Some(key) = key else {
+            return Ok(None);
+        };
+        if let Some(map) = loaded.get(&key) {
+            return Ok(Some(map.clone()));
+        }
+        let map = match key.1 {
+            None => material::load_albedo(&key.0)?,
+            Some(green_up) => material::load_normal_map(&key.0, green_up)?,
+        };
+        loaded.insert(key, map.clone());
+        Ok(Some(map))
+    });
     Ok(MaterialImages {
-        albedo: match &keys.albedo {
-            Some(p) => Some(material::load_albedo(&dir.join(p))?),
-            None => None,
-        },
-        normal_map: match &keys.normal_map {
-            Some(p) => Some(material::load_normal_map(&dir.join(p), green_up)?),
-            None => None,
-        },
+        albedo: albedo?,
+        normal_map: normal_map?,
     })
 }
 
 /// Loads every object's height map, mesh and material maps (`path`: the scene file),
-/// in the order of `specs`.
+/// in the order of `specs`; objects naming the same albedo or normal map share it.
 pub fn load(specs: &[ObjectSpec], path: &Path) -> Result<Vec<ObjectAssets>> {
     let dir = path.parent().unwrap_or(Path::new("."));
+    let mut images = std::collections::HashMap::new();
     specs
         .iter()
         .map(|spec| {
@@ -216,7 +289,11 @@ pub fn load(specs: &[ObjectSpec], path: &Path) -> Result<Vec<ObjectAssets>> {
                 None => None,
             };
             let material = match &spec.material {
-                Some(m) => Some((m.source.load()?, m.settings, load_images(&m.maps, dir)?)),
+                Some(m) => Some((
+                    m.source.load()?,
+                    m.settings,
+                    load_images(&m.maps, dir, &mut images)?,
+                )),
                 None => None,
             };
             Ok(ObjectAssets {

@@ -479,3 +479,104 @@ fn supersampled_render_keeps_the_metrics() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--samples"));
     assert!(!dir.join("bad.png").exists());
 }
+
+// ---------------------------------------------------------------------------------------
+// Issue 37 (reliability, fourth round).
+// ---------------------------------------------------------------------------------------
+
+/// The console says what the metrics JSON says: a material no pixel shows (a small cube
+/// inside a larger one) has null metrics in the JSON, and its console line gives no
+/// artifact figure either (not "0 pixels, artifacts 0.000%").
+#[test]
+fn issue_37_console_and_json_agree_on_a_material_without_pixels() {
+    let dir = scratch("issue37-hidden");
+    let scene = dir.join("hidden.toml");
+    std::fs::write(
+        &scene,
+        "size = [16, 16]\n\
+         [[object]]\ngeometry = \"cube\"\n[object.heightmap]\n\
+         [[object]]\ngeometry = \"cube\"\nscale = 0.01\n[object.heightmap]\nbundled = \"bricks\"\n",
+    )
+    .unwrap();
+    let json = dir.join("m.json");
+    let out = dispmap()
+        .args(["render", "--frames", "1", "--scene"])
+        .arg(&scene)
+        .arg("--metrics")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let hidden = &m["materials"][1];
+    assert_eq!(hidden["pixels"], 0, "{m}");
+    assert!(hidden["artifact_fraction"].is_null(), "{m}");
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("material") && l.contains("bricks"))
+        .unwrap_or_else(|| panic!("no line of the hidden material in:\n{stdout}"));
+    assert!(
+        line.contains("0 pixels") && !line.contains('%') && line.contains("null"),
+        "{line}"
+    );
+    // The visible material's line has the JSON's figure.
+    let shown = &m["materials"][0];
+    let fraction = shown["artifact_fraction"].as_f64().unwrap();
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("material") && l.contains("rocks"))
+        .unwrap();
+    assert!(
+        line.contains(&format!("artifacts {:.3}%", 100.0 * fraction)),
+        "{line} vs {shown}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Any finite azimuth turns the camera by its remainder modulo 360, reduced in f64 before
+/// it is rounded: 3e9 + 30 degrees renders the very image of 150 degrees (the f32 angle
+/// was 3e9, and its f32 sine disagreed with the pixel rays' f64 one).
+#[test]
+fn issue_37_large_azimuths_render_their_remainder() {
+    let dir = scratch("issue37-azimuth");
+    let render = |azimuth: &str, name: &str| {
+        let png = dir.join(name);
+        let out = dispmap()
+            .args(["render", "--heightmap"])
+            .arg(asset("rocks_depth.jpg"))
+            .args([
+                "--convention",
+                "depth",
+                "--method",
+                "exact",
+                "--size",
+                "32x24",
+                "--frames",
+                "1",
+                &format!("--camera-azimuth={azimuth}"),
+                "--out",
+            ])
+            .arg(&png)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{azimuth}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        image::open(&png).unwrap().to_rgba8().into_raw()
+    };
+    let reduced = render("150", "a.png");
+    // 3e9 = 8333333 * 360 + 120.
+    assert!(render("3000000030", "b.png") == reduced, "3e9 + 30 degrees");
+    assert!(
+        render("-3000000030", "c.png") == render("-150", "d.png"),
+        "-3e9 - 30 degrees"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

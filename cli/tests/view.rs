@@ -502,3 +502,39 @@ fn a_scene_of_several_objects_lists_every_material() {
         assert!(stderr.contains(line), "no '{line}' in {stderr}");
     }
 }
+
+/// Issue 37: the split view side by side on a window 1 pixel wide (then 2 and 3) is
+/// validation-clean: the right half never lands on a column the left half wrote (both
+/// halves blitted into column 0 were a write-after-write hazard).
+#[test]
+fn side_by_side_on_a_one_pixel_window_is_validation_clean() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            eprintln!("SKIPPED side_by_side_on_a_one_pixel_window_is_validation_clean: {why}");
+            return;
+        }
+    };
+    let dir = scratch("one-pixel");
+    let script = dir.join("script.txt");
+    std::fs::write(
+        &script,
+        "0 split pom\n0 compare side-by-side\n1 resize 2x16\n2 resize 3x16\n",
+    )
+    .unwrap();
+    let shot = dir.join("shot.png");
+    run_checked(
+        dispmap()
+            .env("DISPLAY", &xvfb.display)
+            .env_remove("WAYLAND_DISPLAY")
+            .args([
+                "view", "--size", "1x16", "--frames", "3", "--no-ui", "--script",
+            ])
+            .arg(&script)
+            .arg("--screenshot")
+            .arg(&shot),
+        "view side by side at 1, 2 and 3 pixels wide",
+    );
+    assert_eq!(image::image_dimensions(&shot).unwrap(), (3, 16));
+    std::fs::remove_dir_all(&dir).ok();
+}

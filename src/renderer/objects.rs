@@ -95,6 +95,67 @@ impl SceneAssets {
     }
 }
 
+/// Refuses a camera of a frame of several objects (`framing`: the orbit's target and
+/// distance, `None` with the tiled plane's camera) whose eye is inside a closed object
+/// (the cube, sphere or torus: it would cover no pixel) or nearer to an object's
+/// surface than the near plane (it would be cut away there); `placed`: each object's
+/// mesh as placed (`None` for the tiled plane). The error names the object.
+pub(super) fn check_eye(
+    settings: &RenderSettings,
+    framing: Option<(glam::Vec3, f32)>,
+    objects: &[SceneObject<'_>],
+    placed: &[Option<Mesh>],
+) -> Result<()> {
+    let scene = &settings.scene;
+    let (w, h) = (settings.width, settings.height);
+    let camera = match framing {
+        Some((target, distance)) => {
+            scene.camera_looking_at(w, h, target, scene.camera.distance.unwrap_or(distance))
+        }
+        None => Scene {
+            geometry: Geometry::TiledPlane,
+            ..*scene
+        }
+        .frame_camera(w, h),
+    };
+    let eye = camera.rays.eye;
+    let near = f64::from(crate::scene::NEAR);
+    for (i, (o, mesh)) in objects.iter().zip(placed).enumerate() {
+        let Some(mesh) = mesh else {
+            continue;
+        };
+        let closed = matches!(
+            o.geometry,
+            Geometry::Cube | Geometry::Sphere | Geometry::Torus
+        );
+        let at = format!("({:.4}, {:.4}, {:.4})", eye.x, eye.y, eye.z);
+        if closed && mesh.encloses(eye) {
+            return Err(Error::invalid(
+                "camera",
+                format!(
+                    "the eye at {at} is inside object {} (a {}), which then covers no \
+                     pixel: move the camera (its height, distance, elevation or azimuth) \
+                     or the object",
+                    i + 1,
+                    format!("{:?}", o.geometry).to_lowercase()
+                ),
+            ));
+        }
+        let d = mesh.distance_to(eye);
+        if d < near {
+            return Err(Error::invalid(
+                "camera",
+                format!(
+                    "the eye at {at} is {d:.4} from object {}'s surface, nearer than the \
+                     near plane ({near}), which cuts it away: move the camera or the object",
+                    i + 1
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The sphere around the objects (each generated or loaded mesh fits the unit sphere
 /// before its placement; the quad spans `[0, 1]²`): its centre and radius.
 pub(super) fn bounding_sphere(objects: &[SceneObject<'_>]) -> (glam::Vec3, f32) {

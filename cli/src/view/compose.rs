@@ -163,13 +163,15 @@ pub(super) fn frame_layout(state: &ViewState, frame: [u32; 2]) -> ([u32; 2], Lay
         }
         (Some(_), Compare::SideBySide) => {
             let half = (w.saturating_sub(DIVIDER_PX) / 2).max(1);
-            (
-                [half, h],
-                vec![
-                    part(0, 0, half, 0),
-                    part(1, 0, half, w.saturating_sub(half)),
-                ],
-            )
+            // The right half never overlaps the left one (two copies into one column
+            // are a write-after-write hazard): on a window too narrow for both, it gets
+            // the columns left over, or none.
+            let right_x = w.saturating_sub(half).max(half);
+            let mut parts = vec![part(0, 0, half.min(w), 0)];
+            if right_x < w {
+                parts.push(part(1, 0, (w - right_x).min(half), right_x));
+            }
+            ([half, h], parts)
         }
     };
     (
@@ -241,5 +243,16 @@ mod tests {
         let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), frame);
         assert_eq!(size, [49, 40]);
         assert_eq!(l.parts, vec![part(0, 0, 49, 0), part(1, 0, 49, 51)]);
+        // Windows too narrow for both halves: no column is written twice.
+        for w in 1..8 {
+            let (_, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), [w, 40]);
+            let mut columns = vec![0; w as usize];
+            for p in &l.parts {
+                for x in p.dst_x..p.dst_x + (p.src_x1 - p.src_x0) {
+                    columns[x as usize] += 1;
+                }
+            }
+            assert!(columns.iter().all(|&c| c <= 1), "{w}: {:?}", l.parts);
+        }
     }
 }

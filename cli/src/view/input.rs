@@ -210,6 +210,7 @@ pub(super) fn zoom(scene: &mut Scene, lines: f32) {
             set_distance(scene, d);
         }
     }
+    keep_beyond_near_plane(scene);
 }
 
 /// Sets the orbit distance: on the tiled plane through the eye height (at the current
@@ -223,11 +224,35 @@ pub(super) fn set_distance(scene: &mut Scene, distance: f32) {
         }
         _ => camera.distance = Some(distance.clamp(0.05, 1000.0)),
     }
+    keep_beyond_near_plane(scene);
 }
 
 /// Changes the elevation within `[MIN_ELEVATION, 90]` degrees.
 pub(super) fn tilt(camera: &mut Camera, degrees: f32) {
     camera.elevation_deg = (camera.elevation_deg + degrees).clamp(MIN_ELEVATION, 90.0);
+    // The tiled plane's eye stays high enough for the new elevation.
+    camera.height = camera.height.max(least_height(camera));
+}
+
+/// The least eye height above a flat surface that `render` accepts with `camera`
+/// ([`dispmap::scene::min_plane_height`]), rounded up to f32.
+fn least_height(camera: &Camera) -> f32 {
+    (dispmap::scene::min_plane_height(camera) * (1.0 + 1e-6)) as f32
+}
+
+/// Keeps a zoom's eye beyond the near plane as `render` requires (the tiled plane's
+/// height, the quad's distance); meshes keep their distance.
+fn keep_beyond_near_plane(scene: &mut Scene) {
+    let least = least_height(&scene.camera);
+    let camera = &mut scene.camera;
+    match scene.geometry {
+        Geometry::TiledPlane => camera.height = camera.height.max(least),
+        Geometry::Quad => {
+            let sin = camera.elevation_deg.to_radians().sin().max(1e-6);
+            camera.distance = camera.distance.map(|d| d.max(least / sin * (1.0 + 1e-6)));
+        }
+        _ => {}
+    }
 }
 
 /// Switches to the named bundled map, or (`None`) to the next map in turn: the given

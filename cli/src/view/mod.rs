@@ -6,6 +6,7 @@
 //! for tests and demos.
 
 mod app;
+mod budget;
 mod compose;
 mod headless;
 mod input;
@@ -163,12 +164,21 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
     if !given("size") && scene_size.is_none() {
         (settings.width, settings.height) = DEFAULT_WINDOW;
     }
-    let camera_path = camera_path.as_deref().map(CameraPath::parse).transpose()?;
+    // The camera path and the script checked completely, against this run.
+    let camera_path = camera_path
+        .as_deref()
+        .map(|p| CameraPath::parse(p, &settings.scene))
+        .transpose()?;
+    let run = script::Run {
+        frames: common.frames,
+        objects: !assets.objects.is_empty(),
+    };
     let script = script
         .as_deref()
-        .map(Script::read)
+        .map(|p| Script::read(p, &run))
         .transpose()?
         .unwrap_or_default();
+    budget::check(&field, &label, &settings, split, &script, common.max_memory)?;
     if let Some(path) = &screenshot {
         output::check_writable_as(path, output::Format::Png).context("invalid --screenshot")?;
     }

@@ -59,8 +59,11 @@ pub enum CameraPath {
 }
 
 impl CameraPath {
-    /// Parses `orbit` or reads the file.
-    pub fn parse(arg: &str) -> Result<Self> {
+    /// Parses `orbit` or reads the file; every camera is checked as `render` checks
+    /// one (`scene`: the run's, whose camera each line changes; [`Scene::validate`]),
+    /// the error naming the file and line. Azimuths are read in f64 and reduced modulo
+    /// 360 before they are rounded ([`dispmap::scene::reduce_degrees`]).
+    pub fn parse(arg: &str, scene: &Scene) -> Result<Self> {
         if arg == "orbit" {
             return Ok(CameraPath::Orbit);
         }
@@ -80,10 +83,10 @@ impl CameraPath {
                     n + 1
                 )
             };
-            let values: Vec<f32> = line
+            let values: Vec<f64> = line
                 .split_whitespace()
                 .map(|v| {
-                    v.parse::<f32>()
+                    v.parse::<f64>()
                         .map_err(|_| bad(&format!("'{v}' is not a number")))
                 })
                 .collect::<Result<_>>()?;
@@ -104,11 +107,29 @@ impl CameraPath {
             {
                 return Err(bad(&format!("height {h} is not positive")));
             }
-            points.push(PathPoint {
-                elevation: values[0],
-                azimuth: values[1],
-                height: values.get(2).copied(),
-            });
+            let point = PathPoint {
+                elevation: values[0] as f32,
+                azimuth: dispmap::scene::reduce_degrees(values[1]),
+                height: values.get(2).map(|&h| h as f32),
+            };
+            // The camera this line gives, checked by `render`'s code (the height's
+            // range and the near plane among them), before any window opens.
+            let height = point
+                .height
+                .or_else(|| points.iter().rev().find_map(|p: &PathPoint| p.height))
+                .unwrap_or(scene.camera.height);
+            Scene {
+                camera: dispmap::scene::Camera {
+                    elevation_deg: point.elevation,
+                    azimuth_deg: point.azimuth,
+                    height,
+                    ..scene.camera
+                },
+                ..*scene
+            }
+            .validate()
+            .map_err(|e| bad(&e.to_string()))?;
+            points.push(point);
         }
         if points.is_empty() {
             bail!("invalid --camera-path: {} has no camera", path.display());
@@ -156,6 +177,16 @@ pub enum Action {
     Screenshot(PathBuf),
 }
 
+/// What a script is checked against when it is read ([`Script::read`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Run {
+    /// `--frames`: the frames 0 to `frames - 1` run; an action at a later frame would
+    /// never run.
+    pub frames: u32,
+    /// The scene lists objects: the error overlay is not available.
+    pub objects: bool,
+}
+
 /// A script: actions by frame, in file order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Script {
@@ -164,16 +195,27 @@ pub struct Script {
 }
 
 impl Script {
-    /// Reads and checks a script file (module docs); errors name the file and line.
-    pub fn read(path: &Path) -> Result<Self> {
+    /// Reads and checks a script file (module docs) completely, against `run` too: no
+    /// action after the last frame, no error overlay where the scene has none, one
+    /// screenshot a frame, each to its own file. Errors name the file and line.
+    pub fn read(path: &Path, run: &Run) -> Result<Self> {
         let text = dispmap::input::read_to_string(path, MAX_FILE_BYTES, "a script")
             .with_context(|| format!("invalid --script: cannot read {}", path.display()))?;
-        Self::parse(&text, &path.display().to_string())
+        Self::parse_for(&text, &path.display().to_string(), Some(run))
     }
 
-    /// Parses a script's text; `name` labels errors.
+    /// Parses a script's text, without a run to check it against; `name` labels errors.
+    #[cfg(test)]
     pub fn parse(text: &str, name: &str) -> Result<Self> {
+        Self::parse_for(text, name, None)
+    }
+
+    /// Parses a script's text, checked against `run` when given; `name` labels errors.
+    pub fn parse_for(text: &str, name: &str, run: Option<&Run>) -> Result<Self> {
         let mut events = Vec::new();
+        // The line of each frame's screenshot, and of each screenshot's file.
+        let mut shot_frames = std::collections::HashMap::new();
+        let mut shot_files = std::collections::HashMap::new();
         for (n, line) in text.lines().enumerate() {
             let line = line.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
@@ -312,8 +354,42 @@ impl Script {
             match (&action, arg) {
                 (Action::Error, Some(_)) => return Err(bad("`error` takes no argument".into())),
                 (Action::Flip, Some(_)) => return Err(bad("`flip` takes no argument".into())),
-                _ => events.push((frame, action)),
+                _ => {}
             }
+            if let Some(run) = run {
+                if frame >= run.frames {
+                    return Err(bad(format!(
+                        "frame {frame} is past the last frame: --frames {} runs frames 0 to \
+                         {}, so `{}` would never run",
+                        run.frames,
+                        run.frames.saturating_sub(1),
+                        line.split_whitespace().nth(1).unwrap_or("")
+                    )));
+                }
+                if action == Action::Error && run.objects {
+                    return Err(bad(
+                        "the error overlay is not available for a scene of several objects \
+                         (`render --metrics` measures each material)"
+                            .into(),
+                    ));
+                }
+            }
+            if let Action::Screenshot(path) = &action {
+                if let Some(first) = shot_frames.insert(frame, n + 1) {
+                    return Err(bad(format!(
+                        "a second screenshot at frame {frame} (line {first} takes one): one \
+                         screenshot a frame"
+                    )));
+                }
+                if let Some(first) = shot_files.insert(path.clone(), n + 1) {
+                    return Err(bad(format!(
+                        "{} is also the screenshot of line {first}: each screenshot needs its \
+                         own file",
+                        path.display()
+                    )));
+                }
+            }
+            events.push((frame, action));
         }
         Ok(Script { events })
     }
