@@ -26,6 +26,7 @@ use dispmap::embed::{
 use dispmap::gpu::commands::read_image;
 use dispmap::gpu::pipeline::{RasterDesc, frame_area, raster_pipeline, set_frame_viewport};
 use dispmap::gpu::sync::{self, Access};
+use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::Texels;
 use dispmap::passes::depth_resolve::DepthResolvePass;
@@ -51,10 +52,13 @@ const MOTION_FORMAT: vk::Format = vk::Format::R16G16_SFLOAT;
 const GBUFFER_VERT: Shader = Shader {
     name: "downstream gbuffer.vert",
     spirv: include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer.vert.spv")),
+    // A raster stage: dispmap builds no descriptor layout from it (the host's own).
+    bindings: &[],
 };
 const GBUFFER_FRAG: Shader = Shader {
     name: "downstream gbuffer.frag",
     spirv: include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer.frag.spv")),
+    bindings: &[],
 };
 
 /// The host: its G-buffer pipeline and images, its hit buffer, dispmap's pass, and a
@@ -455,12 +459,12 @@ impl Host {
             self.ctx
                 .device()
                 .destroy_descriptor_set_layout(self.set_layout, None);
+            self.rays.destroy(&self.ctx);
+            self.gbuffer.destroy(&self.ctx);
+            self.hit.destroy(&self.ctx);
+            self.motion.destroy(&self.ctx);
+            self.shot.destroy(&self.ctx);
         }
-        self.rays.destroy(&self.ctx);
-        self.gbuffer.destroy(&self.ctx);
-        self.hit.destroy(&self.ctx);
-        self.motion.destroy(&self.ctx);
-        self.shot.destroy(&self.ctx);
     }
 }
 
