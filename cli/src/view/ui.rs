@@ -210,8 +210,12 @@ impl Gui {
         Ok(())
     }
 
-    /// Destroys the renderer and the pool; the device is idle (the caller waited).
-    pub fn destroy(&mut self, ctx: &Context) {
+    /// Destroys the renderer and the pool.
+    ///
+    /// # Safety
+    /// The device is idle: no pending command buffer uses the panel's pipeline, buffers,
+    /// textures or command pool.
+    pub unsafe fn destroy(&mut self, ctx: &Context) {
         // Dropping the renderer destroys its pipeline, buffers and textures.
         self.renderer = None;
         if self.pool != vk::CommandPool::null() {

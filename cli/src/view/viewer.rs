@@ -193,8 +193,11 @@ impl Viewer {
             window,
             ..
         } = self;
+        // SAFETY: a plain wait on the context's live device.
+        let _ = unsafe { ctx.device().device_wait_idle() };
         if let Some(mut gui) = gui {
-            gui.destroy(&ctx);
+            // SAFETY: the device is idle (waited above): no frame uses the panel's objects.
+            unsafe { gui.destroy(&ctx) };
         }
         presenter.destroy(&ctx);
         drop(right);
