@@ -357,11 +357,6 @@ pub(crate) fn render(
             let json = serde_json::to_string_pretty(&report)?;
             outputs.stage(path, json.into_bytes())?;
         }
-        // With `--out -` (or `--metrics -`) standard output carries the file: the
-        // summary goes to standard error instead.
-        let to_stdout = [&args.out, &args.metrics]
-            .iter()
-            .any(|p| p.as_deref() == Some(Path::new("-")));
         let summary = timings_line(&timings);
         let mut lines = vec![summary];
         if let Some(e) = error.as_ref().filter(|e| e.compared_pixels == 0) {
@@ -377,19 +372,28 @@ pub(crate) fn render(
                 e.nonfinite_pixels
             ));
         }
-        for line in lines {
-            if to_stdout {
-                eprintln!("{line}");
-            } else {
-                println!("{line}");
-            }
-        }
+        print_summary(args, &lines);
         Ok(())
     })();
     // Validation clean, then every output at once.
     finish_with(ctx, result)?;
     outputs.commit()?;
     Ok(())
+}
+
+/// Prints `render`'s console summary: with `--out -` (or `--metrics -`) standard output
+/// carries the file, so the summary goes to standard error instead.
+pub(crate) fn print_summary(args: &RenderArgs, lines: &[String]) {
+    let to_stdout = [&args.out, &args.metrics]
+        .iter()
+        .any(|p| p.as_deref() == Some(Path::new("-")));
+    for line in lines {
+        if to_stdout {
+            eprintln!("{line}");
+        } else {
+            println!("{line}");
+        }
+    }
 }
 
 /// The per-pass times as one line.

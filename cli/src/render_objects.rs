@@ -372,16 +372,7 @@ pub fn render(
             let json = serde_json::to_string_pretty(&report)?;
             outputs.stage(p, json.into_bytes())?;
         }
-        let to_stdout = [&args.out, &args.metrics]
-            .iter()
-            .any(|p| p.as_deref() == Some(Path::new("-")));
-        for line in lines {
-            if to_stdout {
-                eprintln!("{line}");
-            } else {
-                println!("{line}");
-            }
-        }
+        crate::render_cmd::print_summary(args, &lines);
         Ok(())
     })();
     finish_with(ctx, result)?;
