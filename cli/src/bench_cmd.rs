@@ -181,7 +181,7 @@ pub(crate) fn command_line() -> String {
 }
 
 pub(crate) fn print_bench_summary(results: &bench::BenchResults) {
-    use bench::report::{
+    use bench::curves::{
         Measure, Speedup, equal_error_speedup, equal_error_speedup_at_dig, same_setting_speedup,
     };
     let cell = |s: Option<Speedup>| match s {

@@ -6,7 +6,7 @@ mod common;
 
 use common::{finish, validated_context};
 use dispmap::method::Method;
-use dispmap_cli::bench::{self, BenchConfig, MapSpec, Sweep, report};
+use dispmap_cli::bench::{self, BenchConfig, MapSpec, Sweep};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -27,7 +27,7 @@ fn read_csv(path: &Path) -> Vec<bench::RunRow> {
         .iter()
         .map(str::to_owned)
         .collect();
-    assert_eq!(header, report::CSV_HEADER);
+    assert_eq!(header, bench::CSV_HEADER);
     let text_columns = ["sweep", "map", "method", "frame_set"];
     for record in csv::Reader::from_reader(bytes.as_slice()).records() {
         let record = record.unwrap();
@@ -218,7 +218,7 @@ fn library_sweep_writes_every_output() {
             .split(&format!("### {}\n", map.name))
             .nth(1)
             .unwrap_or_else(|| panic!("the verdict has no {} part: {first}", map.name));
-        for target in bench::report::ARTIFACT_TARGETS {
+        for target in bench::curves::ARTIFACT_TARGETS {
             let level = format!("| {} |", bench::verdict::percent(target));
             let line = section
                 .lines()

@@ -9,7 +9,7 @@
 //! fraction, with frame times: the median frame time over the settings' curve, and each
 //! pass's median on the same interpolation.
 
-use super::report::{CurvePoint, TimeToError, time_to_reach};
+use super::curves::{CurvePoint, TimeToError, time_to_reach};
 use super::{BenchResults, RunRow, Sweep};
 use dispmap::method::Method;
 use std::fmt::Write as _;

@@ -69,6 +69,7 @@
 
 pub mod compare;
 mod config;
+pub mod curves;
 mod maps;
 pub mod materials;
 pub mod plot;
@@ -78,7 +79,7 @@ mod run;
 mod sweep;
 pub mod verdict;
 
-pub use report::{CurvePoint, TimeToError, time_to_reach};
+pub use curves::{CurvePoint, TimeToError, time_to_reach};
 
 use crate::output::Outputs;
 use config::trim_float;
@@ -89,7 +90,9 @@ use dispmap::error::Result;
 use dispmap::method::{Method, MethodParams};
 use dispmap::scene::{Camera, Geometry, Scene};
 pub use maps::{MapSpec, bundled_maps, file_stem, resample};
-pub use results::{BenchResults, MapInfo, NamedImage, PassMedians, RunRow, Sweep};
+pub use results::{
+    BenchResults, CSV_HEADER, MapInfo, NamedImage, PassMedians, RunRow, Sweep, csv_bytes,
+};
 use run::{Builds, Tracker, cpu_pyramid_ms, min_of};
 pub use run::{NO_STEPS_WEIGHT, Progress, REFERENCE_WEIGHT, run};
 use std::path::{Path, PathBuf};
@@ -174,7 +177,7 @@ pub fn protocol_scene() -> Scene {
 /// [`crate::output::Outputs::commit`] (which creates `dir`).
 pub fn stage_outputs(dir: &Path, results: &BenchResults, command: &str) -> Result<Outputs> {
     let mut out = Outputs::new();
-    out.stage_in(dir, "results.csv", report::csv_bytes(&results.rows)?)?;
+    out.stage_in(dir, "results.csv", csv_bytes(&results.rows)?)?;
     for map in &results.maps {
         let name = report::pareto_file(&map.name);
         let png = plot::pareto(&dir.join(&name), &map.name, &results.rows)?;

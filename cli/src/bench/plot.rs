@@ -11,7 +11,7 @@
 //! * [`sizes`]: the map-size sweep: method time per frame against map size (log), the
 //!   same relative to the smallest map, and the pyramid's one build (log).
 
-use super::report::curve_rows;
+use super::curves::curve_rows;
 use super::{RunRow, Sweep, has_steps};
 use dispmap::error::{Error, Result};
 use dispmap::method::Method;

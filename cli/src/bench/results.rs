@@ -1,7 +1,8 @@
 //! What a run returns ([`BenchResults`]): one row per run, the medians, the heat maps
-//! and the maps' facts.
+//! and the maps' facts; the rows as `results.csv` ([`csv_bytes`]).
 
 use super::*;
+use dispmap::error::{Error, Result};
 use dispmap::method::Method;
 use std::time::{Duration, SystemTime};
 
@@ -201,4 +202,161 @@ pub struct BenchResults {
     pub wall: Duration,
     /// The material-table numbers, when they ran ([`BenchConfig::materials`]).
     pub materials: Option<materials::MaterialsBench>,
+}
+
+/// `rows` as CSV: a header of [`RunRow`]'s field names, one line per row; empty cells
+/// for absent values.
+pub fn csv_bytes(rows: &[RunRow]) -> Result<Vec<u8>> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let err = |e: &dyn std::fmt::Display| Error::invalid("results.csv", e.to_string());
+    if rows.is_empty() {
+        // serde writes the header with the first row; an empty sweep still gets one.
+        writer.write_record(CSV_HEADER).map_err(|e| err(&e))?;
+    }
+    for row in rows {
+        writer.serialize(row).map_err(|e| err(&e))?;
+    }
+    writer.into_inner().map_err(|e| err(&e))
+}
+
+/// The columns of `results.csv`, in order.
+pub const CSV_HEADER: [&str; 43] = [
+    "sweep",
+    "map",
+    "map_width",
+    "map_height",
+    "method",
+    "steps",
+    "frame_width",
+    "frame_height",
+    "frames",
+    "repeat",
+    "error_frames",
+    "frame_set",
+    "gbuffer_ms",
+    "pyramid_build_ms",
+    "cpu_pyramid_build_ms",
+    "cone_build_ms",
+    "dig_corners_ms",
+    "trace_ms",
+    "shade_ms",
+    "shadow_ms",
+    "method_ms",
+    "method_median_ms",
+    "method_lo_ms",
+    "method_hi_ms",
+    "total_ms",
+    "total_median_ms",
+    "method_median_lo_ms",
+    "method_median_hi_ms",
+    "total_median_lo_ms",
+    "total_median_hi_ms",
+    "iterations_mean",
+    "iterations_p99",
+    "iterations_simd8",
+    "iterations_warp32",
+    "iterations_quads8",
+    "corner_iterations",
+    "mean_texels",
+    "p99_texels",
+    "max_texels",
+    "artifact_fraction",
+    "psnr_db",
+    "nonfinite_pixels",
+    "forward_differing_pixels",
+];
+
+/// A row of the methods sweep on `rocks` with these values (the unit tests').
+#[cfg(test)]
+pub(super) fn sample_row(
+    method: &str,
+    steps: Option<u32>,
+    method_ms: f64,
+    artifacts: f64,
+) -> RunRow {
+    RunRow {
+        sweep: Sweep::Methods,
+        map: "rocks".into(),
+        map_width: 1024,
+        map_height: 1024,
+        method: method.into(),
+        steps,
+        frame_width: 64,
+        frame_height: 36,
+        frames: 2,
+        repeat: 1,
+        error_frames: 1,
+        frame_set: "azimuth (f+0.5)*180deg for f<2; error frames 0".into(),
+        gbuffer_ms: 0.5,
+        pyramid_build_ms: None,
+        cpu_pyramid_build_ms: None,
+        cone_build_ms: None,
+        dig_corners_ms: (method == "dig").then_some(0.25),
+        trace_ms: method_ms,
+        shade_ms: 0.75,
+        shadow_ms: None,
+        method_ms,
+        method_median_ms: method_ms,
+        method_lo_ms: method_ms,
+        method_hi_ms: method_ms,
+        total_ms: method_ms + 1.25,
+        total_median_ms: method_ms + 1.25,
+        method_median_lo_ms: method_ms,
+        method_median_hi_ms: method_ms,
+        total_median_lo_ms: method_ms + 1.25,
+        total_median_hi_ms: method_ms + 1.25,
+        iterations_mean: 12.5,
+        iterations_p99: 40.0,
+        iterations_simd8: 20.0,
+        iterations_warp32: 30.0,
+        iterations_quads8: 18.0,
+        corner_iterations: None,
+        mean_texels: 10.0 * artifacts,
+        p99_texels: 3.0,
+        max_texels: 9.0,
+        artifact_fraction: artifacts,
+        psnr_db: 30.0,
+        nonfinite_pixels: 0,
+        forward_differing_pixels: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(method: &str, steps: Option<u32>, method_ms: f64, artifacts: f64) -> RunRow {
+        sample_row(method, steps, method_ms, artifacts)
+    }
+
+    #[test]
+    fn csv_has_the_header_and_blank_absent_values() {
+        let rows = [
+            row("pom", Some(75), 4.0, 0.125),
+            row("bump", None, 1.0, 0.5),
+        ];
+        let bytes = csv_bytes(&rows).unwrap();
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(header, CSV_HEADER);
+        assert_eq!(
+            lines.next().unwrap(),
+            "methods,rocks,1024,1024,pom,75,64,36,2,1,1,azimuth (f+0.5)*180deg for f<2; error frames 0,\
+             0.5,,,,,4.0,0.75,,4.0,4.0,4.0,4.0,5.25,5.25,4.0,4.0,5.25,5.25,12.5,40.0,20.0,30.0,18.0,,1.25,3.0,9.0,0.125,30.0,0,"
+        );
+        let bump = lines.next().unwrap();
+        assert!(
+            bump.starts_with("methods,rocks,1024,1024,bump,,64"),
+            "{bump}"
+        );
+        assert!(lines.next().is_none());
+        // Round trip through the csv reader.
+        let mut reader = csv::Reader::from_reader(bytes.as_slice());
+        let back: Vec<RunRow> = reader.deserialize().map(|r| r.unwrap()).collect();
+        assert_eq!(back, rows);
+        // An empty sweep still has the header.
+        let empty = String::from_utf8(csv_bytes(&[]).unwrap()).unwrap();
+        assert!(empty.starts_with("sweep,map,"), "{empty}");
+    }
 }

@@ -2,11 +2,11 @@
 //! the exact family costs, DIG's speed-up beside its paper's claim) and the warnings
 //! about statistics the run is too short for.
 
-use super::materials::{DISJOINT_BOUND, MaterialsBench, TENTH_BOUND};
-use super::report::{
+use super::curves::{
     ARTIFACT_TARGETS, Measure, TimeToError, curve, curve_rows, equal_error_speedup,
     lockstep_ceiling, same_setting_speedup, time_to_reach,
 };
+use super::materials::{DISJOINT_BOUND, MaterialsBench, TENTH_BOUND};
 use super::{BenchResults, RunRow, trim_float};
 use dispmap::method::Method;
 use std::fmt::Write as _;
