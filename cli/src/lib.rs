@@ -21,3 +21,4 @@ pub mod output;
 pub mod reference;
 pub mod scene_file;
 pub mod scene_objects;
+pub mod silhouette;

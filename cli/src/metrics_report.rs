@@ -42,6 +42,32 @@ pub(crate) struct MetricsReport<'a> {
     /// DIG methods only: the corner pass's iterations.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(crate) corner_pass: Option<CornerPass>,
+    /// Meshes only: hit or miss near the outlines against the tessellated reference
+    /// (`dispmap_cli::silhouette`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) silhouette: Option<SilhouetteReport>,
+}
+
+/// How the frame's hit-or-miss agrees with the tessellated mesh's within
+/// `dispmap_cli::silhouette::OUTLINE_BAND` pixels of an outline.
+#[derive(Serialize)]
+pub(crate) struct SilhouetteReport {
+    /// Pixels in the band.
+    pub(crate) band_pixels: usize,
+    /// Of those, the pixels where the frame hits exactly where the reference does.
+    pub(crate) agreeing_pixels: usize,
+    /// `agreeing_pixels / band_pixels` (1 for an empty band).
+    pub(crate) agreement: f64,
+}
+
+impl From<dispmap_cli::silhouette::OutlineAgreement> for SilhouetteReport {
+    fn from(a: dispmap_cli::silhouette::OutlineAgreement) -> Self {
+        SilhouetteReport {
+            band_pixels: a.band,
+            agreeing_pixels: a.agreeing,
+            agreement: a.share(),
+        }
+    }
 }
 
 /// Where the G-buffer's coverage and the reference's f64 centre rays disagree.

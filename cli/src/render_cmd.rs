@@ -277,6 +277,10 @@ pub(crate) fn render(
             };
             (timings, renderer.read_color()?, None, hits, rays)
         };
+        let silhouette = match (&args.metrics, mesh_of(&settings, &assets)) {
+            (Some(_), Some(mesh)) => Some(silhouette_agreement(&mesh, &field, &settings, &hits)),
+            _ => None,
+        };
         let covered = heatmap::coverage(&hits, Some(&rays));
         let trace_iterations = heatmap::iteration_stats(&hits, &covered);
         let corners = if dig && (args.metrics.is_some() || args.interval_map.is_some()) {
@@ -353,6 +357,7 @@ pub(crate) fn render(
                 corner_pass: corners
                     .as_ref()
                     .map(|(_, c)| CornerPass::new(heatmap::corner_stats(c), &trace_iterations)),
+                silhouette: silhouette.map(Into::into),
             };
             let json = serde_json::to_string_pretty(&report)?;
             outputs.stage(path, json.into_bytes())?;
@@ -372,6 +377,14 @@ pub(crate) fn render(
                 e.nonfinite_pixels
             ));
         }
+        if let Some(s) = silhouette {
+            lines.push(format!(
+                "silhouette: {:.2}% of {} pixels near an outline hit or miss as the tessellated \
+                 mesh does",
+                100.0 * s.share(),
+                s.band
+            ));
+        }
         print_summary(args, &lines);
         Ok(())
     })();
@@ -379,6 +392,45 @@ pub(crate) fn render(
     finish_with(ctx, result)?;
     outputs.commit()?;
     Ok(())
+}
+
+/// The one mesh of a scene of one geometry: generated (cube, sphere, torus) or loaded.
+fn mesh_of(settings: &RenderSettings, assets: &SceneAssets) -> Option<dispmap::mesh::Mesh> {
+    assets
+        .mesh
+        .clone()
+        .or_else(|| settings.scene.geometry.generated_mesh())
+}
+
+/// The frame's hit or miss near the outlines against the displaced mesh tessellated and
+/// traced along each pixel's f64 centre ray (`dispmap_cli::silhouette`).
+fn silhouette_agreement(
+    mesh: &dispmap::mesh::Mesh,
+    field: &HeightField,
+    settings: &RenderSettings,
+    hits: &[dispmap_cli::metrics::HitTexel],
+) -> dispmap_cli::silhouette::OutlineAgreement {
+    use dispmap_cli::silhouette::{DisplacedMesh, outline_agreement};
+    let camera = settings.scene.frame_camera(settings.width, settings.height);
+    let surface = DisplacedMesh::new(
+        mesh,
+        dispmap::glam::DMat4::IDENTITY,
+        field,
+        settings.scene.addressing(),
+        f64::from(settings.scene.depth_scale),
+    );
+    let (w, h) = (settings.width, settings.height);
+    let rays: Vec<_> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| Some((camera.rays.eye, camera.rays.direction(x, y))))
+        .collect();
+    let reference: Vec<bool> = surface
+        .first_hits(&rays)
+        .iter()
+        .map(Option::is_some)
+        .collect();
+    let frame: Vec<bool> = hits.iter().map(|t| t[2] >= 0.0).collect();
+    outline_agreement(&reference, &frame, w as usize, h as usize)
 }
 
 /// Prints `render`'s console summary: with `--out -` (or `--metrics -`) standard output

@@ -1050,3 +1050,68 @@ fn the_open_vase_shows_its_inner_wall_displaced() {
     drop(one_sided);
     finish(ctx);
 }
+
+/// `render --metrics` on a mesh compares the frame's hit-or-miss near the outlines with the
+/// displaced mesh tessellated and traced in f64 (`dispmap_cli::silhouette`). With the map at
+/// the top the displaced surface is the base mesh, and the sphere's and torus's outlines
+/// agree with the raster's to within the facets (the bound 99.5%); with the map at the
+/// bottom the displaced sphere lies a depth inside the base mesh and the tangent-plane
+/// tracing, which always hits where the base mesh is drawn, keeps the base outline:
+/// measured 50.7% at 320x180 (the limitation docs/guarantees.md names; this assertion
+/// flips when meshes are traced as curved).
+#[test]
+fn outlines_are_measured_against_the_tessellated_mesh() {
+    let dir = scratch("silhouette");
+    let write_flat = |name: &str, value: u8| {
+        let path = dir.join(name);
+        image::GrayImage::from_pixel(16, 16, image::Luma([value]))
+            .save(&path)
+            .unwrap();
+        path
+    };
+    let (top, bottom) = (write_flat("top.png", 255), write_flat("bottom.png", 0));
+    let agreement = |geometry: &str, map: &Path| -> f64 {
+        let json = dir.join(format!("{geometry}.json"));
+        let out = Command::new(env!("CARGO_BIN_EXE_dispmap"))
+            .env("DISPMAP_VALIDATION", "1")
+            .args(["render", "--geometry", geometry, "--heightmap"])
+            .arg(map)
+            .args([
+                "--convention",
+                "height",
+                "--depth-scale",
+                "0.1",
+                "--size",
+                "160x90",
+            ])
+            .args([
+                "--method",
+                "exact",
+                "--camera-elevation",
+                "10",
+                "--frames",
+                "1",
+            ])
+            .arg("--metrics")
+            .arg(&json)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(!stderr.contains("Validation"), "{stderr}");
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let s = &v["silhouette"];
+        let (band, agreeing) = (
+            s["band_pixels"].as_u64().unwrap(),
+            s["agreeing_pixels"].as_u64().unwrap(),
+        );
+        assert!(band > 100 && agreeing <= band, "{geometry}: {s}");
+        s["agreement"].as_f64().unwrap()
+    };
+    for geometry in ["sphere", "torus"] {
+        let a = agreement(geometry, &top);
+        assert!(a >= 0.995, "{geometry}, map at the top: {a}");
+    }
+    let carved = agreement("sphere", &bottom);
+    assert!(carved < 0.9, "sphere, map at the bottom: {carved}");
+}
