@@ -184,6 +184,22 @@ pub unsafe fn record(
         }
     }
     let depth_image = raw_image(frame.depth.texture, "gbuffer.depth")?;
+    // The corrected depth the merge reads (built by set_depth_output for every slot).
+    let source = match merge {
+        Some(_) => {
+            let image = pass
+                .hit_depth(frame.frame_slot)
+                .ok_or_else(|| Error::Texture {
+                    label: "gbuffer.depth".into(),
+                    what: format!(
+                        "the pass has no corrected depth for slot {}",
+                        frame.frame_slot
+                    ),
+                })?;
+            Some((image.raw, image.view))
+        }
+        None => None,
+    };
     let ctx = pass.context().clone();
     let dev = ctx.device();
     // SAFETY: the closure records into the encoder's own open command buffer and does not
@@ -227,18 +243,12 @@ pub unsafe fn record(
                 vk::PipelineStageFlags2::ALL_COMMANDS,
                 vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE,
             );
-            match (merge, &recorded) {
-                (Some(m), Ok(_)) => {
-                    let source =
-                        pass.hit_depth(frame.frame_slot)
-                            .ok_or_else(|| Error::Texture {
-                                label: "gbuffer.depth".into(),
-                                what: "the pass has no corrected depth for this slot".into(),
-                            })?;
+            match (merge.zip(source), &recorded) {
+                (Some((m, (source_image, source_view))), Ok(_)) => {
                     barrier(
                         dev,
                         cmd,
-                        source.raw,
+                        source_image,
                         vk::ImageAspectFlags::COLOR,
                         vk::ImageLayout::GENERAL,
                         vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
@@ -264,7 +274,7 @@ pub unsafe fn record(
                     m.resolve.record(
                         &ctx,
                         cmd,
-                        source.view,
+                        source_view,
                         inputs.gbuffer.tangent.view,
                         inputs.gbuffer.depth.view,
                         inputs.gbuffer.extent,
