@@ -81,8 +81,12 @@
 //! `color`, `motion`, ...). A view's format is not visible to Vulkan's validation of a
 //! storage write, so a wrong one would otherwise render garbage without a message.
 //!
-//! The pass places every barrier between its own passes, including the hit buffer's
-//! write -> read before `shade` (a global memory barrier, so it needs no `vk::Image`).
+//! The pass places every barrier between its own passes: each stage declares what its
+//! dispatches read and write (its shaders' reflected bindings) and one tracker derives
+//! the barriers from each resource's last access (`src/embed/graph.rs`,
+//! [`crate::gpu::track`]); the hit buffer's, being known by its view only, are global
+//! memory barriers. docs/embedding.md's table of entry and exit states is computed from
+//! the same declarations (a test checks it).
 //!
 //! # Materials and the G-buffer
 //!
@@ -189,6 +193,7 @@
 //! (`DEP_DISPMAP_INCLUDE`) for the same point: the corrected depth uses it too.
 
 mod device;
+mod graph;
 mod inputs;
 mod materials;
 mod plan;

@@ -1,9 +1,11 @@
 //! Recording a frame: `[upload] -> [pyramid] -> [cone] -> classify -> [dig_corners] -> trace
-//! -> [shadow] -> [shade] -> [hit_depth]`. Each stage is one method that places its own
-//! barriers next to its dispatches, from the state the stage before it left (the module
-//! docs' table); a per-material stage records one indirect dispatch per live material
-//! over the material's tiles, all in the stage's one timestamp scope.
+//! -> [shadow] -> [shade] -> [hit_depth] -> [motion]`. Each per-frame stage declares what
+//! its dispatches read and write (their shaders' reflected bindings) to the record's
+//! [`FrameGraph`], which places the barriers between the stages (`graph.rs`); a
+//! per-material stage records one indirect dispatch per live material over the material's
+//! tiles, all in the stage's one timestamp scope.
 
+use super::graph::{Entry, FrameGraph, HOST_VISIBILITY, Res};
 use super::plan::{Fill, MapEntry, MaterialEntry};
 use super::{
     DepthCamera, DisplacementPass, FrameInputs, MAX_QUERIES, RecordedFrame, ShadeTarget, Timestamps,
@@ -11,7 +13,6 @@ use super::{
 use crate::abi::ShadeParams;
 use crate::error::{Error, Result};
 use crate::gpu::ViewRef;
-use crate::gpu::sync::{self, Access};
 use crate::method::PyramidKind;
 use crate::passes::PassName;
 use crate::passes::classify::{ClassifyInputs, MaterialTiles};
@@ -25,20 +26,6 @@ use crate::timing::ScopeWriter;
 use ash::vk;
 
 mod stages;
-
-/// Before a pass-owned per-slot image whose contents are discarded and that only the
-/// pass's compute shaders accessed.
-const DISCARD_COMPUTE: Access = Access {
-    stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
-    ..Access::UNDEFINED
-};
-
-/// Before a pass-owned per-slot image whose contents are discarded and that the host
-/// may have accessed in any stage and left in any layout (the corrected depth).
-const DISCARD_ANY: Access = Access {
-    stage: vk::PipelineStageFlags2::ALL_COMMANDS,
-    ..Access::UNDEFINED
-};
 
 impl DisplacementPass {
     /// Records the pass into the host's command buffer `cmd`: the uploads (height map,
@@ -121,23 +108,22 @@ impl DisplacementPass {
         }
         // SAFETY: this function's contract is `begin`'s.
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
-        // SAFETY: this function's contract; `begin` reset the writer's queries; the
-        // classification leaves the host's hits as they are (no hit writes) and orders
-        // its own writes before the passes after it.
+        let mut g = self.graph(inputs, Entry::Shading, visibility.is_some());
+        // SAFETY: this function's contract (the host's hits, and a given visibility, enter
+        // visible to storage reads: `Entry::Shading`); `begin` reset the writer's queries;
+        // the classification leaves the host's hits as they are (no hit writes); the graph
+        // places the barriers between the stages.
         unsafe {
-            self.record_builds(cmd, &mut w, inputs.frame_slot);
-            self.record_classify(cmd, &mut w, inputs, false, None);
+            self.record_builds(cmd, &mut w, inputs.frame_slot)?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, false, None)?;
         }
         let visibility = match visibility {
             Some(v) => Some(v),
-            // SAFETY: this function's contract: the host's hits are visible to storage
-            // reads.
-            None => unsafe { self.record_shadow(cmd, &mut w, inputs, &target)? },
+            // SAFETY: as above.
+            None => unsafe { self.record_shadow(cmd, &mut w, &mut g, inputs, &target)? },
         };
-        // SAFETY: this function's contract: the host's hits and a given visibility are
-        // visible to storage reads; `record_shadow`'s visibility is made so by its exit
-        // barrier.
-        unsafe { self.record_shade(cmd, &mut w, inputs, &target, visibility)? };
+        // SAFETY: as above.
+        unsafe { self.record_shade(cmd, &mut w, &mut g, inputs, &target, visibility)? };
         Ok(self.finish(inputs.frame_slot, w, timestamps))
     }
 
@@ -207,63 +193,30 @@ impl DisplacementPass {
         // SAFETY: this function's contract is `begin`'s.
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
         let slot = inputs.frame_slot;
-        let depth_image = self.hit_depth(slot).map(|i| (i.view, i));
-        if let Some((_, image)) = depth_image {
-            // Discarded: the host's reads of the slot's previous frame (any stage) have
-            // completed by the slot contract; the barrier also orders them (WAR). Written
-            // by `classify` (pixels without displacement) and `hit_depth`.
-            // SAFETY: this function's contract (`cmd` recording outside a render pass); the
-            // image is the slot's, alive until retired after the slot's frames, and may be
-            // discarded (the slot contract).
-            unsafe {
-                sync::transition(
-                    &self.ctx,
-                    cmd,
-                    image,
-                    DISCARD_ANY,
-                    Access::COMPUTE_STORAGE_WRITE,
-                )
-            };
-        }
-        let depth_view = depth_image.map(|(v, _)| v);
-        // SAFETY: this function's contract; `begin` reset the writer's queries, and each
-        // stage follows the state the previous one left (builds, the classification and
-        // its exit barrier, then the corner grids `trace` reads).
+        let mut g = self.graph(inputs, Entry::Frame, false);
+        let depth_view = self.hit_depth(slot).map(|i| i.view);
+        // SAFETY: this function's contract (the host's images enter as the module docs'
+        // table says, the slot's by the slot contract); `begin` reset the writer's
+        // queries; the builds leave every map sampled-readable, and the graph places the
+        // barriers between the stages after them.
         unsafe {
-            self.record_builds(cmd, &mut w, slot);
-            self.record_classify(cmd, &mut w, inputs, true, depth_view);
-            self.record_corners(cmd, &mut w, inputs);
-            self.record_trace(cmd, &mut w, inputs)?;
-        }
-        if inputs.shade.is_some() || self.depth.is_some() || self.motion.is_some() {
-            // The hit buffer stays in GENERAL: a memory barrier orders trace's writes
-            // before the reads of shadow, shade and hit_depth.
-            let hit_barrier = [vk::MemoryBarrier2::default()
-                .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
-                .src_access_mask(vk::AccessFlags2::SHADER_STORAGE_WRITE)
-                .dst_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
-                .dst_access_mask(vk::AccessFlags2::SHADER_STORAGE_READ)];
-            let dep = vk::DependencyInfo::default().memory_barriers(&hit_barrier);
-            // SAFETY: `cmd` is recording outside a render pass (this function's contract).
-            unsafe { self.ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
+            self.record_builds(cmd, &mut w, slot)?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, true, depth_view)?;
+            self.record_corners(cmd, &mut w, &mut g, inputs)?;
+            self.record_trace(cmd, &mut w, &mut g, inputs)?;
         }
         if let Some(target) = &inputs.shade {
-            // SAFETY: this function's contract; the hits are visible to storage reads (the
-            // memory barrier above), and `shade` reads the visibility `record_shadow`
-            // left readable.
+            // SAFETY: as above.
             unsafe {
-                let visibility = self.record_shadow(cmd, &mut w, inputs, target)?;
-                self.record_shade(cmd, &mut w, inputs, target, visibility)?;
+                let visibility = self.record_shadow(cmd, &mut w, &mut g, inputs, target)?;
+                self.record_shade(cmd, &mut w, &mut g, inputs, target, visibility)?;
             }
         }
         if let Some(camera) = camera {
-            // SAFETY: this function's contract; the hits are visible to storage reads (the
-            // memory barrier above, recorded whenever the depth output is on), the image
-            // in `GENERAL` for storage writes (the transition above, `classify`'s exit
-            // barrier).
+            // SAFETY: as above.
             unsafe {
-                self.record_hit_depth(cmd, &mut w, inputs, &camera);
-                self.record_motion(cmd, &mut w, inputs, &camera);
+                self.record_hit_depth(cmd, &mut w, &mut g, inputs, &camera)?;
+                self.record_motion(cmd, &mut w, &mut g, inputs, &camera)?;
             }
         }
         Ok(self.finish(slot, w, timestamps))
@@ -334,6 +287,29 @@ impl DisplacementPass {
         Ok(w)
     }
 
+    /// The record's frame graph: the host's images as `entry` says (a visibility of the
+    /// host's with `host_visibility`), the slot's visibility, corrected depth and corner
+    /// grids discarded.
+    fn graph(&self, inputs: &FrameInputs, entry: Entry, host_visibility: bool) -> FrameGraph {
+        let slot = inputs.frame_slot as usize;
+        let s = &self.slots[slot];
+        let mut g = FrameGraph::new(entry, inputs.shade.is_some(), inputs.motion.is_some());
+        match &s.visibility {
+            _ if host_visibility => g.enter_host(Res::Visibility, HOST_VISIBILITY),
+            Some(v) => g.own(Res::Visibility, v),
+            None => {}
+        }
+        if let Some(d) = &s.hit_depth {
+            g.own(Res::HitDepth, d);
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            if let Some(grid) = m.as_ref().and_then(|m| m.corners.get(slot)) {
+                g.own(Res::Corners(i as u32), &grid.image);
+            }
+        }
+        g
+    }
+
     /// The frame's record: the scopes kept for [`DisplacementPass::timings`].
     fn finish(&mut self, slot: u32, w: ScopeWriter, timestamps: Timestamps) -> RecordedFrame {
         let frame = RecordedFrame {
@@ -369,7 +345,12 @@ impl DisplacementPass {
     ///
     /// # Safety
     /// As [`DisplacementPass::record`].
-    unsafe fn record_builds(&mut self, cmd: vk::CommandBuffer, w: &mut ScopeWriter, slot: u32) {
+    unsafe fn record_builds(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        w: &mut ScopeWriter,
+        slot: u32,
+    ) -> Result<()> {
         let ctx = self.ctx.clone();
         let fills: Vec<(usize, Fill)> = (self.maps.iter_mut().enumerate())
             .filter_map(|(i, m)| Some((i, m.as_mut()?.pending_fill.take()?)))
@@ -434,13 +415,14 @@ impl DisplacementPass {
             // pyramids live until they are retired after the frames that use them.
             unsafe {
                 w.scope(&ctx, cmd, PassName::Pyramid, |cmd| {
-                    let Some(pass) = pass else { return };
+                    let Some(pass) = pass else { return Ok(()) };
                     for map in self.maps.iter().flatten() {
                         for p in map.pyramids.iter().filter(|p| !p.built) {
-                            pass.record(&ctx, cmd, &map.texture, &p.value);
+                            pass.record(&ctx, cmd, &map.texture, &p.value)?;
                         }
                     }
-                })
+                    Ok(())
+                })?
             };
             if pass.is_some() {
                 for map in self.maps.iter_mut().flatten() {
@@ -451,7 +433,7 @@ impl DisplacementPass {
             }
         }
         // SAFETY: `record`'s contract, as above.
-        unsafe { self.record_cones(w, cmd) };
+        unsafe { self.record_cones(w, cmd) }
     }
 
     /// The `cone` scope (cone methods): each unbuilt cone map from its map's (built) cell
@@ -459,12 +441,12 @@ impl DisplacementPass {
     ///
     /// # Safety
     /// As [`DisplacementPass::record`].
-    unsafe fn record_cones(&mut self, w: &mut ScopeWriter, cmd: vk::CommandBuffer) {
+    unsafe fn record_cones(&mut self, w: &mut ScopeWriter, cmd: vk::CommandBuffer) -> Result<()> {
         let ready = |map: &MapEntry| {
             map.cones.iter().any(|c| !c.built) && map.pyramid(PyramidKind::Cell).is_some()
         };
         if !self.maps.iter().flatten().any(ready) {
-            return;
+            return Ok(());
         }
         let ctx = &*self.ctx;
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
@@ -482,11 +464,12 @@ impl DisplacementPass {
                     for cone in map.cones.iter().filter(|c| !c.built) {
                         let kind = cone.value.kind;
                         if let Some(pass) = self.cone_passes.iter().find(|p| p.kind == kind) {
-                            pass.record(ctx, cmd, &map.texture, pyramid, &cone.value);
+                            pass.record(ctx, cmd, &map.texture, pyramid, &cone.value)?;
                         }
                     }
                 }
-            })
+                Ok(())
+            })?
         };
         let mut scratch = Vec::new();
         for map in self.maps.iter_mut().flatten() {
@@ -503,5 +486,6 @@ impl DisplacementPass {
         if !scratch.is_empty() {
             self.retired.retire(scratch);
         }
+        Ok(())
     }
 }

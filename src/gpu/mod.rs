@@ -13,6 +13,7 @@ pub mod image;
 pub mod owned;
 pub mod pipeline;
 pub mod sync;
+pub mod track;
 
 pub use buffer::Buffer;
 pub use commands::OneShot;

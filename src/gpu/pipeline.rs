@@ -4,7 +4,7 @@ use super::Image;
 use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
 use crate::gpu::owned::Destroy;
-use crate::shaders::Shader;
+use crate::shaders::{Shader, ShaderBinding};
 use ash::vk;
 
 /// A compute pipeline, its layout and its push-descriptor set layout.
@@ -17,6 +17,9 @@ pub struct ComputePipeline {
     pub set_layout: vk::DescriptorSetLayout,
     /// Workgroup size in x and y (from the shader's `local_size`, fixed at 8x8).
     pub local_size: [u32; 2],
+    /// The shader's bindings as its SPIR-V declares them ([`Shader::bindings`]): what a
+    /// dispatch reads and writes, for the barrier tracker ([`crate::gpu::track`]).
+    pub bindings: &'static [ShaderBinding],
 }
 
 /// Workgroup size every dispmap compute shader declares (`glsl/common/frame.glsl`).
@@ -88,6 +91,7 @@ impl ComputePipeline {
             layout,
             set_layout,
             local_size: LOCAL_SIZE,
+            bindings: shader.bindings,
         })
     }
 

@@ -236,6 +236,16 @@ pub struct ClassifyPass {
 }
 
 impl ClassifyPass {
+    /// The bindings of the variant with (`hit_depth`) or without the corrected depth, as
+    /// its shader declares them (reflected): what its dispatch reads and writes.
+    pub fn bindings(&self, hit_depth: bool) -> &'static [crate::shaders::ShaderBinding] {
+        if hit_depth {
+            self.depth.pipeline.bindings
+        } else {
+            self.plain.pipeline.bindings
+        }
+    }
+
     /// Builds both pipelines.
     pub fn new(ctx: &Context) -> Result<Self> {
         let size = std::mem::size_of::<ClassifyParams>() as u32;
@@ -266,25 +276,22 @@ impl ClassifyPass {
         }
     }
 
-    /// Records the reset of the lists' arguments (a transfer) and the classification,
-    /// with the barriers around them: on exit the lists and arguments are visible to
-    /// `DRAW_INDIRECT` indirect reads and compute-shader storage reads, and the hit
-    /// buffer's and corrected depth's writes are ordered before (and visible to) later
-    /// compute-shader storage reads and writes (a global memory barrier).
+    /// Records the reset of the lists' arguments: a transfer write of `inputs.lists`'
+    /// argument buffer (the materials' counts zeroed, each live material's dispatch made
+    /// one workgroup high), which [`ClassifyPass::record`] then reads and writes.
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
-    /// * The views belong to that device, with the formats and usages of the module's
-    ///   table, of the lists' extent; when the command buffer executes they are in the
-    ///   layouts of the module's table, the G-buffer's writes visible to compute-shader
-    ///   sampled reads, earlier accesses of the hit buffer and the corrected depth ordered
-    ///   before compute-shader storage writes (the caller's barriers).
-    /// * Earlier GPU accesses of the lists have completed (the slot contract), and
-    ///   everything stays alive until the command buffer has executed.
-    pub unsafe fn record(&self, ctx: &Context, cmd: vk::CommandBuffer, inputs: &ClassifyInputs) {
+    /// * Earlier accesses of the argument buffer are ordered before this transfer write
+    ///   (the caller's barrier), and it stays alive until the command buffer has executed.
+    pub unsafe fn record_reset(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: &ClassifyInputs,
+    ) {
         let lists = inputs.lists;
-        let dev = ctx.device();
         let n = lists.materials as usize;
         let mut init = Vec::with_capacity(n * 5);
         for m in 0..n {
@@ -292,31 +299,31 @@ impl ClassifyPass {
             init.extend_from_slice(&[0, 0, 1, live]);
         }
         init.resize(n * 5, 0);
-        // The reset waits for the previous frame's readers (a WAR dependency; by the
-        // slot contract they have completed, this makes it explicit to validation).
-        let before = [vk::MemoryBarrier2::default()
-            .src_stage_mask(
-                vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER,
-            )
-            .dst_stage_mask(vk::PipelineStageFlags2::ALL_TRANSFER)];
-        let after_reset = [vk::MemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::ALL_TRANSFER)
-            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-            .dst_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
-            .dst_access_mask(
-                vk::AccessFlags2::SHADER_STORAGE_READ | vk::AccessFlags2::SHADER_STORAGE_WRITE,
-            )];
-        let after = [vk::MemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
-            .src_access_mask(vk::AccessFlags2::SHADER_STORAGE_WRITE)
-            .dst_stage_mask(
-                vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER,
-            )
-            .dst_access_mask(
-                vk::AccessFlags2::INDIRECT_COMMAND_READ
-                    | vk::AccessFlags2::SHADER_STORAGE_READ
-                    | vk::AccessFlags2::SHADER_STORAGE_WRITE,
-            )];
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass; the update is `args_bytes(materials)` bytes (a multiple of 4, at most
+        // 20 * MAX_MATERIALS < 65536) of a live TRANSFER_DST buffer.
+        unsafe {
+            ctx.device()
+                .cmd_update_buffer(cmd, lists.args.raw, 0, bytemuck::cast_slice(&init))
+        };
+    }
+
+    /// Records the classification: the tile lists (and, with `write_hits`, the hit texels
+    /// of pixels without displacement; with `hit_depth`, their corrected depth), after
+    /// [`ClassifyPass::record_reset`]. Its accesses are its shader's bindings
+    /// ([`ClassifyPass::bindings`]); the caller's barriers order them.
+    ///
+    /// # Safety
+    /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
+    ///   render pass instance, for a queue of the context's queue family.
+    /// * The views belong to that device, with the formats and usages of the module's
+    ///   table, of the lists' extent; when the command buffer executes they are in the
+    ///   layouts of the module's table, and earlier accesses of every binding (the reset
+    ///   included) are ordered before and visible to this dispatch's (the caller's
+    ///   barriers).
+    /// * Everything stays alive until the command buffer has executed.
+    pub unsafe fn record(&self, ctx: &Context, cmd: vk::CommandBuffer, inputs: &ClassifyInputs) {
+        let lists = inputs.lists;
         let pipeline = if inputs.hit_depth.is_some() {
             &self.depth
         } else {
@@ -359,17 +366,10 @@ impl ClassifyPass {
             pad: [0; 3],
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the update is `args_bytes(materials)` bytes (a multiple of 4, at most
-        // 20 * MAX_MATERIALS < 65536) of a live TRANSFER_DST buffer; the writes match the
-        // pipeline's set 0 and name live resources in the layouts of the module's table;
-        // the push constants are the `ClassifyParams` the layout was built with.
+        // pass; the writes match the pipeline's set 0 and name live resources in the
+        // layouts of the module's table, their earlier accesses ordered before; the push
+        // constants are the `ClassifyParams` the layout was built with.
         unsafe {
-            dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&before));
-            dev.cmd_update_buffer(cmd, lists.args.raw, 0, bytemuck::cast_slice(&init));
-            dev.cmd_pipeline_barrier2(
-                cmd,
-                &vk::DependencyInfo::default().memory_barriers(&after_reset),
-            );
             pipeline.pipeline.dispatch(
                 ctx,
                 cmd,
@@ -378,7 +378,6 @@ impl ClassifyPass {
                 extent.width,
                 extent.height,
             );
-            dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&after));
         }
     }
 }

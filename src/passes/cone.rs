@@ -67,7 +67,8 @@ use crate::error::{Error, Result};
 use crate::gpu::commands::read_image_level;
 use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{image_write, storage_view};
-use crate::gpu::sync::{self, Access};
+use crate::gpu::sync::Access;
+use crate::gpu::track::{Target, Tracker, binding_access};
 use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
 use crate::heightfield::Addressing;
 use crate::method::{ConeKind, PyramidKind};
@@ -305,7 +306,7 @@ impl ConePass {
         height: &HeightTexture,
         pyramid: &Pyramid,
         cone: &ConeMap,
-    ) {
+    ) -> Result<()> {
         debug_assert_eq!(pyramid.kind, PyramidKind::Cell);
         debug_assert_eq!(cone.kind, self.kind);
         if let Some(falls_pass) = &self.falls_pass {
@@ -315,20 +316,20 @@ impl ConePass {
                 // render pass; the height texture is sampled-readable; the falls
                 // pyramids are the cone map's own, alive, and no access of them is
                 // pending.
-                unsafe { falls_pass.record(ctx, cmd, height, falls) };
+                unsafe { falls_pass.record(ctx, cmd, height, falls)? };
             }
         }
+        // The cone map enters discarded (no access pending: this function's contract);
+        // the tracker places its barriers from the dispatch's declared access.
+        let mut t = Tracker::new();
+        t.enter((), Access::UNDEFINED);
+        let target = |()| Target::Image(cone.image.raw, cone.image.range());
+        let out = self.pipeline.bindings.iter().find(|b| b.name == "u_cone");
+        let out = out.ok_or_else(|| Error::Internal("the cone shader has no u_cone".into()))?;
+        t.declare((), binding_access(out))?;
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the cone map is alive and its contents may be discarded.
-        unsafe {
-            sync::transition(
-                ctx,
-                cmd,
-                &cone.image,
-                Access::UNDEFINED,
-                Access::COMPUTE_STORAGE_WRITE,
-            )
-        };
+        unsafe { t.flush(ctx, cmd, target)? };
         let heights = [height.descriptor()];
         let pyramids = [pyramid.descriptor()];
         let out = storage_view(cone.image.view);
@@ -368,16 +369,10 @@ impl ConePass {
                 cone.size[1],
             )
         };
-        // SAFETY: as above; the cone map is in `GENERAL`, written by the dispatch.
-        unsafe {
-            sync::transition(
-                ctx,
-                cmd,
-                &cone.image,
-                Access::COMPUTE_STORAGE_WRITE,
-                Access::COMPUTE_SAMPLED,
-            )
-        };
+        // Left for the frames' sampled reads, as every build leaves its maps.
+        t.declare((), Access::COMPUTE_SAMPLED)?;
+        // SAFETY: as above.
+        unsafe { t.flush(ctx, cmd, target) }
     }
 }
 

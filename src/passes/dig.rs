@@ -138,6 +138,11 @@ pub struct DigCornerPass {
 }
 
 impl DigCornerPass {
+    /// The bindings its shader declares (reflected): what a dispatch reads and writes.
+    pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline.pipeline.bindings
+    }
+
     /// Builds the pipeline.
     pub fn new(ctx: &Context) -> Result<Self> {
         Ok(DigCornerPass {

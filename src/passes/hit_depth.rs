@@ -69,6 +69,11 @@ pub struct HitDepthPass {
 }
 
 impl HitDepthPass {
+    /// The bindings its shader declares (reflected): what a dispatch reads and writes.
+    pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline.bindings()
+    }
+
     /// Builds the pipeline.
     pub fn new(ctx: &Context) -> Result<Self> {
         Ok(HitDepthPass {

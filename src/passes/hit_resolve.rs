@@ -50,6 +50,11 @@ pub struct HitResolvePipeline {
 }
 
 impl HitResolvePipeline {
+    /// The bindings its shader declares (reflected): what a dispatch reads and writes.
+    pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline.pipeline.bindings
+    }
+
     /// Builds the pipeline of `shader` named `name`, with `push_constant_size` bytes of
     /// push constants.
     pub fn new(

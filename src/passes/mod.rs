@@ -5,9 +5,10 @@
 //! request `hit_depth` (the corrected depth of the displaced surface), `motion` (the
 //! motion vectors of displaced pixels) and `depth_resolve` (graphics: that depth into a depth
 //! attachment). Every pass only records into a command buffer it is given; the one
-//! orchestrator, [`crate::embed::DisplacementPass`], places the barriers between the
-//! compute passes (`src/embed/record.rs`, one method per stage), and its host (an engine,
-//! or [`crate::renderer::Renderer`]) the G-buffer's and the entry barriers.
+//! orchestrator, [`crate::embed::DisplacementPass`], declares each stage's accesses (its
+//! shaders' reflected bindings) to its frame graph, whose [`crate::gpu::track::Tracker`]
+//! places the barriers between the compute passes, and its host (an engine, or
+//! [`crate::renderer::Renderer`]) the G-buffer's and the entry barriers.
 
 pub mod background;
 pub mod camera_motion;

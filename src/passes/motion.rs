@@ -240,6 +240,11 @@ pub struct MotionPass {
 }
 
 impl MotionPass {
+    /// The bindings its shader declares (reflected): what a dispatch reads and writes.
+    pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline.bindings()
+    }
+
     /// Builds the pipeline for a motion image of `format` (one of [`MOTION_FORMATS`]).
     pub fn new(ctx: &Context, format: vk::Format) -> Result<Self> {
         let (name, shader) = if format == vk::Format::R32G32_SFLOAT {

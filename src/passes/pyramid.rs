@@ -44,7 +44,8 @@ use crate::error::Result;
 use crate::gpu::commands::read_image_level;
 use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::image_write;
-use crate::gpu::sync::{self, Access};
+use crate::gpu::sync::Access;
+use crate::gpu::track::{Target, Tracker, binding_access};
 use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
 use crate::heightfield::{Addressing, HeightField};
 pub use crate::method::PyramidKind;
@@ -325,15 +326,21 @@ impl PyramidPass {
         cmd: vk::CommandBuffer,
         height: &HeightTexture,
         pyramid: &Pyramid,
-    ) {
-        // Every level is written, and (as `src`) read, by storage access below.
-        let storage_rw = Access {
-            access: vk::AccessFlags2::SHADER_STORAGE_WRITE | vk::AccessFlags2::SHADER_STORAGE_READ,
-            ..Access::COMPUTE_STORAGE_WRITE
+    ) -> Result<()> {
+        // Each level (and the compact copy) is a resource of the build's tracker, which
+        // places every barrier from the dispatches' declared accesses; all enter
+        // discarded (no access pending: this function's contract).
+        let mut t = Tracker::new();
+        let levels = pyramid.levels();
+        for level in 0..levels {
+            t.enter(Some(level), Access::UNDEFINED);
+        }
+        t.enter(None, Access::UNDEFINED);
+        let target = |key: Option<u32>| match (key, &pyramid.compact) {
+            (Some(level), _) => Target::Image(pyramid.image.raw, pyramid.level_range(level)),
+            (None, Some(compact)) => Target::Image(compact.raw, compact.range()),
+            (None, None) => Target::Memory,
         };
-        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the pyramid is alive and its contents may be discarded.
-        unsafe { sync::transition(ctx, cmd, &pyramid.image, Access::UNDEFINED, storage_rw) };
         let heights = [height.descriptor()];
         let storage = |level: u32| {
             [vk::DescriptorImageInfo {
@@ -346,36 +353,30 @@ impl PyramidPass {
             Addressing::Repeat => ADDRESSING_REPEAT,
             Addressing::Clamp => ADDRESSING_CLAMP,
         };
-        let levels = pyramid.levels();
         let mut level = 0;
         while level < levels {
-            if level > 0 {
-                // SAFETY: this function's # Safety contract (`cmd` recording outside a
-                // render pass, the pyramid alive); level `level - 1` is in `GENERAL`,
-                // written by the previous dispatch.
-                unsafe {
-                    sync::record(
-                        ctx,
-                        cmd,
-                        &[sync::image_barrier(
-                            pyramid.image.raw,
-                            pyramid.level_range(level - 1),
-                            Access::COMPUTE_STORAGE_WRITE,
-                            Access::COMPUTE_STORAGE_READ,
-                        )],
-                    )
-                };
-            }
             // Up to three levels per dispatch, as many as there are from this one.
             let count = (levels - level).min(3);
             // Level 0 reads the height map only; its `src` binding (statically used by
             // the shader, not read on that path) names level 0 itself, so no later
             // dispatch's write follows an unsynchronised read. A dispatch of fewer
             // levels binds its own level as `next` / `next2` (not written on that path).
-            let src = storage(level.saturating_sub(1));
-            let dst = storage(level);
-            let next = storage(if count >= 2 { level + 1 } else { level });
-            let next2 = storage(if count == 3 { level + 2 } else { level });
+            let bound = [
+                level.saturating_sub(1),
+                level,
+                if count >= 2 { level + 1 } else { level },
+                if count == 3 { level + 2 } else { level },
+            ];
+            // The shader's storage bindings in order: `src` (read), `dst`, `next`,
+            // `next2` (written), as its reflection says.
+            let storage_bindings = self.pipeline.bindings.iter().skip(1);
+            for (b, l) in storage_bindings.zip(bound) {
+                t.declare(Some(l), binding_access(b))?;
+            }
+            // SAFETY: this function's # Safety contract (`cmd` recording outside a render
+            // pass, the pyramid alive and discarded on entry).
+            unsafe { t.flush(ctx, cmd, target)? };
+            let [src, dst, next, next2] = bound.map(storage);
             let writes = [
                 image_write(BINDINGS[0].0, BINDINGS[0].1, &heights),
                 image_write(BINDINGS[1].0, BINDINGS[1].1, &src),
@@ -427,28 +428,21 @@ impl PyramidPass {
             level += count;
         }
         let Some(compact) = &pyramid.compact else {
-            // SAFETY: this function's # Safety contract (`cmd` recording outside a render
-            // pass, the pyramid alive); every level is in `GENERAL` (the first transition).
-            unsafe {
-                sync::transition(
-                    ctx,
-                    cmd,
-                    &pyramid.image,
-                    storage_rw,
-                    Access::COMPUTE_SAMPLED,
-                )
-            };
-            return;
+            // Left for the frames' sampled reads, as every build leaves its maps.
+            for level in 0..levels {
+                t.declare(Some(level), Access::COMPUTE_SAMPLED)?;
+            }
+            // SAFETY: as above.
+            return unsafe { t.flush(ctx, cmd, target) };
         };
         // The traversal's copy: every level blitted (nearest, same size: the exact
         // float -> unorm conversion of values that are texels), padding included.
-        // SAFETY: this function's # Safety contract (`cmd` recording outside a render
-        // pass, the pyramid and its copy alive, no access of the copy pending); the chain
-        // is in `GENERAL` (the first transition), written by the dispatches above.
-        unsafe {
-            sync::transition(ctx, cmd, &pyramid.image, storage_rw, Access::TRANSFER_READ);
-            sync::transition(ctx, cmd, compact, Access::UNDEFINED, Access::TRANSFER_WRITE);
+        for level in 0..levels {
+            t.declare(Some(level), Access::TRANSFER_READ)?;
         }
+        t.declare(None, Access::TRANSFER_WRITE)?;
+        // SAFETY: as above; the copy is alive with no access pending.
+        unsafe { t.flush(ctx, cmd, target)? };
         let layers = |level: u32| vk::ImageSubresourceLayers {
             aspect_mask: vk::ImageAspectFlags::COLOR,
             mip_level: level,
@@ -484,14 +478,11 @@ impl PyramidPass {
                 &regions,
                 vk::Filter::NEAREST,
             );
-            sync::transition(
-                ctx,
-                cmd,
-                compact,
-                Access::TRANSFER_WRITE,
-                Access::COMPUTE_SAMPLED,
-            );
         }
+        // Left for the frames' sampled reads.
+        t.declare(None, Access::COMPUTE_SAMPLED)?;
+        // SAFETY: as above.
+        unsafe { t.flush(ctx, cmd, target) }
     }
 }
 

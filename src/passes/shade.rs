@@ -81,6 +81,11 @@ pub struct ShadePass {
 }
 
 impl ShadePass {
+    /// The bindings its shader declares (reflected): what a dispatch reads and writes.
+    pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline.pipeline.bindings
+    }
+
     /// Builds the pipeline (no self-shadowing).
     pub fn new(ctx: &Context) -> Result<Self> {
         Self::build(ctx, false)

@@ -236,6 +236,11 @@ pub struct ShadowPass {
 }
 
 impl ShadowPass {
+    /// The bindings its shader declares (reflected): what a dispatch reads and writes.
+    pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline.pipeline.bindings
+    }
+
     /// Builds the pipeline of `trace`.
     pub fn new(ctx: &Context, trace: ShadowTrace) -> Result<Self> {
         let mut bindings = vec![(0, STORAGE), (1, SAMPLED), (2, SAMPLED), (3, SAMPLED)];

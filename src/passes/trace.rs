@@ -103,6 +103,11 @@ pub struct TracePass {
 }
 
 impl TracePass {
+    /// The bindings its shader declares (reflected): what a dispatch reads and writes.
+    pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline.pipeline.bindings
+    }
+
     /// Builds the pipeline of `method`.
     pub fn new(ctx: &Context, method: Method) -> Result<Self> {
         let name = format!("trace[{}]", method.name());

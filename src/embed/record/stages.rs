@@ -1,5 +1,6 @@
-//! The per-frame stages of a record, one method each with the barriers it places:
-//! `classify`, the DIG corners, `trace`, `shadow`, `shade`, `hit_depth` and `motion`.
+//! The per-frame stages of a record, one method each: `classify`, the DIG corners,
+//! `trace`, `shadow`, `shade`, `hit_depth` and `motion`. Each declares its dispatches to
+//! the frame graph, which records the barriers they need before the stage.
 
 use super::*;
 
@@ -8,16 +9,17 @@ impl DisplacementPass {
     /// texels of pixels without displacement; with `hit_depth`, their corrected depth).
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; `hit_depth` (the slot's corrected depth) is in
-    /// `GENERAL`, earlier accesses ordered before compute-shader storage writes.
+    /// As [`DisplacementPass::record`]; `g` is this record's graph and `hit_depth` the
+    /// slot's corrected depth's view.
     pub(super) unsafe fn record_classify(
         &self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
+        g: &mut FrameGraph,
         inputs: &FrameInputs,
         write_hits: bool,
         hit_depth: Option<vk::ImageView>,
-    ) {
+    ) -> Result<()> {
         let ctx = &*self.ctx;
         let lists = &self.slots[inputs.frame_slot as usize].tiles;
         let mut live: Vec<bool> = self.materials.iter().map(Option::is_some).collect();
@@ -34,33 +36,41 @@ impl DisplacementPass {
             lists,
             live: &live,
         };
+        let bindings = self.classify.bindings(hit_depth.is_some());
+        let skip: &[Res] = if write_hits { &[] } else { &[Res::Hit] };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body: the G-buffer is in its entry state, the
-        // hit buffer in `GENERAL` (the host's barrier), the corrected depth transitioned by
-        // the caller; the slot's lists were last read by the slot's previous frame, which
-        // has completed (the slot contract).
+        // queries reset by `begin`). In the body: the graph's barriers order the reset
+        // after the lists' last readers (the slot's previous frame) and the
+        // classification after the reset and the earlier accesses of its images.
         unsafe {
             w.scope(ctx, cmd, PassName::Classify, |cmd| {
-                self.classify.record(ctx, cmd, &classify)
+                g.declare(Res::Args, super::super::graph::ARGS_RESET)?;
+                g.flush(ctx, cmd, PassName::Classify)?;
+                self.classify.record_reset(ctx, cmd, &classify);
+                g.dispatch(bindings, 0, skip)?;
+                g.flush(ctx, cmd, PassName::Classify)?;
+                self.classify.record(ctx, cmd, &classify);
+                Ok(())
             })
-        };
+        }
     }
 
-    /// The DIG corner pass of each DIG material: its slot's grid discarded -> storage
-    /// write, the pass, then -> sampled by `trace`.
+    /// The DIG corner pass of each DIG material into its slot's grid (which `trace` then
+    /// samples).
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`].
+    /// As [`DisplacementPass::record`]; `g` is this record's graph.
     pub(super) unsafe fn record_corners(
         &self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
+        g: &mut FrameGraph,
         inputs: &FrameInputs,
-    ) {
+    ) -> Result<()> {
         let ctx = &*self.ctx;
         let slot = inputs.frame_slot as usize;
         let Some(pass) = &self.corner_pass else {
-            return;
+            return Ok(());
         };
         let grids: Vec<_> = self
             .live(inputs.frame_slot)
@@ -68,28 +78,20 @@ impl DisplacementPass {
             .filter_map(|(t, m, map)| Some((t.material, m.corners.get(slot)?, map, m)))
             .collect();
         if grids.is_empty() {
-            return;
+            return Ok(());
         }
-        for (_, grid, _, _) in &grids {
-            // The slot's previous frame (the last reader) has completed: discarded.
-            // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the grid
-            // is the slot's, alive until retired after the slot's frames, and by the slot
-            // contract its last reader has completed, so it may be discarded.
-            unsafe {
-                sync::transition(
-                    ctx,
-                    cmd,
-                    &grid.image,
-                    DISCARD_COMPUTE,
-                    Access::COMPUTE_STORAGE_WRITE,
-                )
-            };
+        for (material, _, _, _) in &grids {
+            g.dispatch(pass.bindings(), *material, &[])?;
         }
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the grids
+        // are the slot's (alive until retired after the slot's frames; their last reader,
+        // the slot's previous frame, has completed).
+        unsafe { g.flush(ctx, cmd, PassName::DigCorners)? };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body (inside this block): the host's G-buffer
-        // is in its entry state (sampled-readable, `record`'s contract), the height
-        // textures sampled-readable (their fill), the grids in `GENERAL` for storage writes
-        // (the transitions above) and made for this extent.
+        // queries reset by `begin`). In the body (inside this block): the graph's barriers
+        // above made every binding ready (the G-buffer in its entry state, the height
+        // textures sampled-readable, the grids in `GENERAL` for storage writes); the grids
+        // are made for this extent.
         unsafe {
             w.scope(ctx, cmd, PassName::DigCorners, |cmd| {
                 for (material, grid, map, m) in &grids {
@@ -107,31 +109,18 @@ impl DisplacementPass {
                 }
             })
         };
-        for (_, grid, _, _) in &grids {
-            // SAFETY: `record`'s contract; the grid is in `GENERAL`, written by the corner
-            // pass.
-            unsafe {
-                sync::transition(
-                    ctx,
-                    cmd,
-                    &grid.image,
-                    Access::COMPUTE_STORAGE_WRITE,
-                    Access::COMPUTE_SAMPLED,
-                )
-            };
-        }
+        Ok(())
     }
 
-    /// Each material's method into the hit buffer over its tiles (the buffer enters in
-    /// `GENERAL`: the host's barrier; `classify`'s writes ordered before by its exit
-    /// barrier).
+    /// Each material's method into the hit buffer over its tiles.
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`].
+    /// As [`DisplacementPass::record`]; `g` is this record's graph.
     pub(super) unsafe fn record_trace(
         &self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
+        g: &mut FrameGraph,
         inputs: &FrameInputs,
     ) -> Result<()> {
         let ctx = &*self.ctx;
@@ -140,24 +129,30 @@ impl DisplacementPass {
             extent: self.frame.extent,
         };
         let slot = inputs.frame_slot as usize;
-        let live = self.live(inputs.frame_slot);
+        let mut live = Vec::new();
+        for (tiles, m, map) in self.live(inputs.frame_slot) {
+            let method = m.settings.method;
+            let Some(trace) = self.traces.iter().find(|t| t.method() == method) else {
+                return Err(Error::Internal(format!(
+                    "no trace pipeline for {}",
+                    method.name()
+                )));
+            };
+            g.dispatch(trace.bindings(), tiles.material, &[])?;
+            live.push((tiles, m, map, trace));
+        }
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass).
+        unsafe { g.flush(ctx, cmd, PassName::Trace)? };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body (inside this block): the G-buffer is in
-        // its entry state and the hit buffer in `GENERAL` (the host's barriers, `record`'s
-        // contract); the height textures, pyramids and cone maps are sampled-readable
-        // (their builds), the slot's corner grids too (`record_corners`); the tile lists
-        // are the classification's.
+        // queries reset by `begin`). In the body (inside this block): the graph's barriers
+        // above made every binding ready (the G-buffer in its entry state, the hit buffer
+        // and tile lists ordered after the classification, the maps sampled-readable, the
+        // slot's corner grids sampled-readable after `record_corners`).
         unsafe {
             w.scope(ctx, cmd, PassName::Trace, |cmd| {
-                for (tiles, m, map) in &live {
+                for (tiles, m, map, trace) in &live {
                     let s = &m.settings;
                     let needs = s.method.needs();
-                    let Some(trace) = self.traces.iter().find(|t| t.method() == s.method) else {
-                        return Err(Error::Internal(format!(
-                            "no trace pipeline for {}",
-                            s.method.name()
-                        )));
-                    };
                     trace.record(
                         ctx,
                         cmd,
@@ -198,16 +193,17 @@ impl DisplacementPass {
         )
     }
 
-    /// Self-shadowing (when on): the slot's visibility image discarded -> storage write,
-    /// the `shadow` pass of each material over its hits, then -> storage read by `shade`.
-    /// Returns the visibility view (`None` when self-shadowing is off).
+    /// Self-shadowing (when on): the `shadow` pass of each material over its hits into
+    /// the slot's visibility image, which `shade` then reads. Returns the visibility view
+    /// (`None` when self-shadowing is off).
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; the hits are visible to storage reads.
+    /// As [`DisplacementPass::record`]; `g` is this record's graph.
     pub(super) unsafe fn record_shadow(
         &self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
+        g: &mut FrameGraph,
         inputs: &FrameInputs,
         target: &ShadeTarget,
     ) -> Result<Option<vk::ImageView>> {
@@ -215,33 +211,27 @@ impl DisplacementPass {
         let Some(image) = &self.slots[inputs.frame_slot as usize].visibility else {
             return Ok(None);
         };
-        // The slot's previous frame (the last reader) has completed: discarded.
+        let mut live = Vec::new();
+        for (tiles, m, map) in self.live(inputs.frame_slot) {
+            let trace = ShadowTrace::for_method(self.shadows.mode, m.settings.method);
+            let Some(pass) = self.shadow_passes.iter().find(|p| p.trace() == trace) else {
+                return Err(Error::Internal("no shadow pipeline".into()));
+            };
+            g.dispatch(pass.bindings(), tiles.material, &[])?;
+            live.push((tiles, m, map, pass));
+        }
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the
-        // visibility image is the slot's, alive until retired after the slot's frames,
-        // and by the slot contract its last reader has completed, so it may be discarded.
-        unsafe {
-            sync::transition(
-                ctx,
-                cmd,
-                image,
-                DISCARD_COMPUTE,
-                Access::COMPUTE_STORAGE_WRITE,
-            )
-        };
-        let live = self.live(inputs.frame_slot);
+        // visibility image is the slot's, alive until retired after the slot's frames, and
+        // its last reader has completed (the slot contract).
+        unsafe { g.flush(ctx, cmd, PassName::Shadow)? };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body (inside this block): the hits are visible
-        // to storage reads (this function's contract), the G-buffer is in its entry
-        // state, the height textures and pyramids sampled-readable (their builds), the
-        // visibility in `GENERAL` for storage writes (the transition above).
+        // queries reset by `begin`). In the body (inside this block): the graph's barriers
+        // above made every binding ready (the hits visible to storage reads, the
+        // visibility in `GENERAL` for storage writes, the maps sampled-readable).
         unsafe {
             w.scope(ctx, cmd, PassName::Shadow, |cmd| {
-                for (tiles, m, map) in &live {
+                for (tiles, m, map, pass) in &live {
                     let s = &m.settings;
-                    let trace = ShadowTrace::for_method(self.shadows.mode, s.method);
-                    let Some(pass) = self.shadow_passes.iter().find(|p| p.trace() == trace) else {
-                        return Err(Error::Internal("no shadow pipeline".into()));
-                    };
                     let params = ShadowPass::params(
                         &self.shadows,
                         s.params.steps,
@@ -265,17 +255,6 @@ impl DisplacementPass {
                 Ok(())
             })?
         };
-        // SAFETY: `record`'s contract; the visibility is in `GENERAL`, written by the
-        // shadow pass.
-        unsafe {
-            sync::transition(
-                ctx,
-                cmd,
-                image,
-                Access::COMPUTE_STORAGE_WRITE,
-                Access::COMPUTE_STORAGE_READ,
-            )
-        };
         Ok(Some(image.view))
     }
 
@@ -284,24 +263,29 @@ impl DisplacementPass {
     /// displaced; the host's barrier).
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; the hits and the visibility are visible to
-    /// storage reads.
+    /// As [`DisplacementPass::record`]; `g` is this record's graph, in which
+    /// `visibility` (if any) is [`Res::Visibility`].
     pub(super) unsafe fn record_shade(
         &self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
+        g: &mut FrameGraph,
         inputs: &FrameInputs,
         target: &ShadeTarget,
         visibility: Option<vk::ImageView>,
     ) -> Result<()> {
         let ctx = &*self.ctx;
         let live = self.live(inputs.frame_slot);
+        for (tiles, _, _) in &live {
+            g.dispatch(self.shade.bindings(), tiles.material, &[])?;
+        }
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass).
+        unsafe { g.flush(ctx, cmd, PassName::Shade)? };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body (inside this block): the hits and the
-        // visibility are visible to storage reads (this function's contract), the
-        // G-buffer is in its entry state and the colour image in `GENERAL` (the host's
-        // barriers), the height textures and material maps sampled-readable (their
-        // uploads).
+        // queries reset by `begin`). In the body (inside this block): the graph's barriers
+        // above made every binding ready (the hits and the visibility visible to storage
+        // reads, the colour image in `GENERAL` with the host's colour, the G-buffer in its
+        // entry state, the maps sampled-readable).
         unsafe {
             w.scope(ctx, cmd, PassName::Shade, |cmd| {
                 for (tiles, m, map) in &live {
@@ -331,32 +315,38 @@ impl DisplacementPass {
     /// The corrected depth of each material's pixels (`classify` wrote the others').
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; the hits are visible to storage reads; the slot's
-    /// image is in `GENERAL`, earlier accesses ordered before storage writes.
+    /// As [`DisplacementPass::record`]; `g` is this record's graph.
     pub(super) unsafe fn record_hit_depth(
         &self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
+        g: &mut FrameGraph,
         inputs: &FrameInputs,
         camera: &DepthCamera,
-    ) {
+    ) -> Result<()> {
         let ctx = &*self.ctx;
         let (Some(depth), Some(image)) = (
             &self.depth,
             &self.slots[inputs.frame_slot as usize].hit_depth,
         ) else {
-            return;
+            return Ok(());
         };
         let e = self.frame.extent;
         let live = self.live(inputs.frame_slot);
+        for (tiles, _, _) in &live {
+            g.dispatch(depth.bindings(), tiles.material, &[])?;
+        }
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass); the image is
+        // the slot's, alive until retired after the slot's frames.
+        unsafe { g.flush(ctx, cmd, PassName::HitDepth)? };
         // The frame's matrices once; each material sets its depth scale.
         let base =
             crate::abi::HitDepthParams::new(camera.view_proj, camera.eye, [e.width, e.height], 0.0);
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body (inside this block): the hits are visible
-        // to storage reads (this function's contract), the G-buffer is in its entry
-        // state, the corrected depth in `GENERAL` for storage writes (this function's
-        // contract).
+        // queries reset by `begin`). In the body (inside this block): the graph's barriers
+        // above made every binding ready (the hits visible to storage reads, the
+        // corrected depth in `GENERAL` after the classification's writes, the G-buffer in
+        // its entry state).
         unsafe {
             w.scope(ctx, cmd, PassName::HitDepth, |cmd| {
                 for (tiles, m, _) in &live {
@@ -378,30 +368,35 @@ impl DisplacementPass {
                 }
             })
         };
+        Ok(())
     }
 
     /// Records `motion` (with the motion output on): one dispatch per live material,
     /// writing the host's motion image in place.
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; the hits are visible to compute-shader storage
-    /// reads (the barrier after `trace`), and the host's motion image is in `GENERAL`, its
-    /// writes visible to compute-shader storage reads and writes (the entry contract).
+    /// As [`DisplacementPass::record`]; `g` is this record's graph.
     pub(super) unsafe fn record_motion(
         &mut self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
+        g: &mut FrameGraph,
         inputs: &FrameInputs,
         camera: &DepthCamera,
-    ) {
+    ) -> Result<()> {
         let ctx = &*self.ctx;
         let (Some(pass), Some(frame), Some(settings)) =
             (&self.motion, &inputs.motion, &self.motion_on)
         else {
-            return;
+            return Ok(());
         };
         let e = self.frame.extent;
         let live = self.live(inputs.frame_slot);
+        for (tiles, _, _) in &live {
+            g.dispatch(pass.bindings(), tiles.material, &[])?;
+        }
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass).
+        unsafe { g.flush(ctx, cmd, PassName::Motion)? };
         // The frame's matrices once; each material sets its depth scale.
         let base = crate::abi::MotionParams::new(
             camera.view_proj,
@@ -412,9 +407,10 @@ impl DisplacementPass {
             settings,
         );
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body (inside this block): the hits are visible
-        // to storage reads and the motion image is in `GENERAL` with the host's writes
-        // visible (this function's contract), the G-buffer in its entry state.
+        // queries reset by `begin`). In the body (inside this block): the graph's barriers
+        // above made every binding ready (the hits visible to storage reads, the motion
+        // image in `GENERAL` with the host's writes visible, the G-buffer in its entry
+        // state).
         unsafe {
             w.scope(ctx, cmd, PassName::Motion, |cmd| {
                 for (tiles, m, _) in &live {
@@ -436,5 +432,6 @@ impl DisplacementPass {
                 }
             })
         };
+        Ok(())
     }
 }
