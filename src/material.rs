@@ -170,10 +170,60 @@ pub fn load_normal_map(path: &std::path::Path, green_up: bool) -> Result<RgbaMap
     Ok(map)
 }
 
-/// The uploaded maps and their sampler.
+/// What makes two uploaded maps the same image: a 64-bit hash of the texels, the size
+/// and the format (an albedo and a normal map of one file differ by format).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct MapKey {
+    hash: u64,
+    size: [u32; 2],
+    format: vk::Format,
+}
+
+impl MapKey {
+    fn of(map: &RgbaMap, format: vk::Format) -> Self {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        map.texels().hash(&mut h);
+        MapKey {
+            hash: h.finish(),
+            size: [map.width(), map.height()],
+            format,
+        }
+    }
+}
+
+/// One uploaded map, held by every material whose map has the same key: one GPU image
+/// however many materials (objects) name the same texels.
+struct SharedImage {
+    key: MapKey,
+    image: Image,
+}
+
+impl Destroy for SharedImage {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract, passed on.
+        unsafe { self.image.destroy(ctx) };
+    }
+}
+
+/// Releases one holder's share of `shared`: the value is destroyed by its last holder.
+///
+/// # Safety
+/// Destroy's contract for this holder: no pending command uses the value through it.
+/// Every holder is released under the same contract, so when the last one is, no
+/// pending command uses the value through any of them.
+unsafe fn release<T: Destroy>(shared: &mut Option<std::sync::Arc<T>>, ctx: &Context) {
+    if let Some(mut last) = shared.take().and_then(std::sync::Arc::into_inner) {
+        // SAFETY: this function's contract; this was the last holder.
+        unsafe { last.destroy(ctx) };
+    }
+}
+
+/// The uploaded maps and their sampler. Materials whose maps have the same texels (and
+/// format) share one image ([`MaterialTextures::create_sharing`]).
 pub struct MaterialTextures {
-    albedo: Option<Image>,
-    normal_map: Option<Image>,
+    albedo: Option<std::sync::Arc<SharedImage>>,
+    normal_map: Option<std::sync::Arc<SharedImage>>,
     sampler: vk::Sampler,
 }
 
@@ -185,6 +235,20 @@ impl MaterialTextures {
         ctx: &Context,
         images: &MaterialImages,
         addressing: Addressing,
+    ) -> Result<Option<(Self, MaterialStaging)>> {
+        Self::create_sharing(ctx, images, addressing, std::iter::empty())
+    }
+
+    /// [`MaterialTextures::create_for_upload`], sharing the image of a map that one of
+    /// `others` (textures of other materials, each with its staging while its upload is
+    /// still to be recorded) already has with the same texels and format instead of
+    /// making a second one: its staging is shared too while pending, and the record
+    /// uploads it once ([`MaterialStaging::drop_repeats`]).
+    pub fn create_sharing<'a>(
+        ctx: &Context,
+        images: &MaterialImages,
+        addressing: Addressing,
+        others: impl Iterator<Item = (&'a MaterialTextures, Option<&'a MaterialStaging>)> + Clone,
     ) -> Result<Option<(Self, MaterialStaging)>> {
         if images.albedo.is_none() && images.normal_map.is_none() {
             return Ok(None);
@@ -218,13 +282,30 @@ impl MaterialTextures {
         ];
         for (k, (map, format, name)) in maps.into_iter().enumerate() {
             let Some(map) = map else { continue };
-            let (image, buffer) = create_map(ctx, map, format, name)?;
+            let key = MapKey::of(map, format);
+            let existing = others.clone().find_map(|(t, pending)| {
+                let (image, staged) = [&t.albedo, &t.normal_map]
+                    .into_iter()
+                    .zip(pending.map_or([None, None], |p| [p.0[0].as_ref(), p.0[1].as_ref()]))
+                    .find(|(image, _)| image.as_ref().is_some_and(|i| i.key == key))?;
+                Some((image.clone()?, staged.cloned()))
+            });
+            let (image, buffer) = match existing {
+                Some(shared) => shared,
+                None => {
+                    let (image, buffer) = create_map(ctx, map, format, name)?;
+                    (
+                        std::sync::Arc::new(SharedImage { key, image }),
+                        Some(std::sync::Arc::new(buffer)),
+                    )
+                }
+            };
             if k == 0 {
                 textures.albedo = Some(image);
             } else {
                 textures.normal_map = Some(image);
             }
-            staging.0[k] = Some(buffer);
+            staging.0[k] = buffer;
         }
         Ok(Some((textures.keep(), staging.keep())))
     }
@@ -245,7 +326,9 @@ impl MaterialTextures {
         for (image, buffer) in [&self.albedo, &self.normal_map].into_iter().zip(&staging.0) {
             if let (Some(image), Some(buffer)) = (image, buffer) {
                 // SAFETY: this function's contract.
-                unsafe { record_upload_level0(ctx, cmd, buffer, image, Access::COMPUTE_SAMPLED) };
+                unsafe {
+                    record_upload_level0(ctx, cmd, buffer, &image.image, Access::COMPUTE_SAMPLED)
+                };
             }
         }
     }
@@ -256,10 +339,10 @@ impl MaterialTextures {
         this: Option<&Self>,
         fallback: &HeightTexture,
     ) -> [[vk::DescriptorImageInfo; 1]; 2] {
-        let of = |image: Option<&Image>, sampler| match image {
+        let of = |image: Option<&std::sync::Arc<SharedImage>>, sampler| match image {
             Some(image) => vk::DescriptorImageInfo {
                 sampler,
-                image_view: image.view,
+                image_view: image.image.view,
                 image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
             },
             None => fallback.descriptor(),
@@ -275,33 +358,50 @@ impl MaterialTextures {
 }
 
 impl Destroy for MaterialTextures {
-    /// Destroys images and sampler. The GPU must be done with them.
+    /// Destroys the sampler and releases the images (each destroyed by the last
+    /// material holding it). The GPU must be done with them.
     unsafe fn destroy(&mut self, ctx: &Context) {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
-            for image in [&mut self.albedo, &mut self.normal_map]
-                .into_iter()
-                .flatten()
-            {
-                image.destroy(ctx);
-            }
-            self.albedo = None;
-            self.normal_map = None;
+            release(&mut self.albedo, ctx);
+            release(&mut self.normal_map, ctx);
             ctx.device().destroy_sampler(self.sampler, None);
             self.sampler = vk::Sampler::null();
         }
     }
 }
 
-/// The staging buffers of [`MaterialTextures::create_for_upload`] (albedo, normal map).
-pub struct MaterialStaging([Option<Buffer>; 2]);
+/// The staging buffers of [`MaterialTextures::create_for_upload`] (albedo, normal map),
+/// shared with the materials that share the image they fill.
+pub struct MaterialStaging([Option<std::sync::Arc<Buffer>>; 2]);
+
+impl MaterialStaging {
+    /// Keeps one copy of each staging buffer in `stagings` (the record's pending uploads):
+    /// a buffer shared by several materials fills their one image once (two copies into
+    /// one image would be a write-after-write hazard). What is dropped is a second
+    /// holder of a buffer still held by the one kept.
+    pub fn drop_repeats<'a>(stagings: impl Iterator<Item = &'a mut MaterialStaging>) {
+        let mut seen: Vec<*const Buffer> = Vec::new();
+        for slot in stagings.flat_map(|s| s.0.iter_mut()) {
+            if let Some(buffer) = slot {
+                let ptr = std::sync::Arc::as_ptr(buffer);
+                if seen.contains(&ptr) {
+                    *slot = None;
+                } else {
+                    seen.push(ptr);
+                }
+            }
+        }
+    }
+}
 
 impl Destroy for MaterialStaging {
-    /// Destroys the buffers. The GPU must be done with them.
+    /// Releases the buffers (each destroyed by its last holder). The GPU must be done
+    /// with them.
     unsafe fn destroy(&mut self, ctx: &Context) {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
-            self.0.iter_mut().for_each(|b| b.destroy(ctx));
+            self.0.iter_mut().for_each(|b| release(b, ctx));
         }
     }
 }

@@ -58,20 +58,22 @@ pub struct Extras {
 /// Bytes per texel of an albedo or normal map on the CPU while rendering: its RGBA8
 /// texels (one copy per file, shared by every object that names it).
 const RGBA_HELD_BYTES_PER_TEXEL: u64 = 4;
-/// Bytes per texel of an albedo or normal map on the GPU, per material that uses it: the
+/// Bytes per texel of an albedo or normal map on the GPU, once per file however many
+/// materials use it (they share one image: `MaterialTextures::create_sharing`): the
 /// `R8G8B8A8` image, its staging buffer and the copy the staging buffer is filled from
 /// (on lavapipe all are the process's memory). An 8000x8000 albedo measured 848 MB at
 /// its peak with a 16x16 frame: about 12 bytes per texel over the process's base, its
 /// held texels included.
 const RGBA_GPU_BYTES_PER_TEXEL: u64 = 12;
 
-/// The albedo and normal maps of a run, for the estimate: the texels held (each file
-/// once), the GPU copies (each material's), and the largest load's transient bytes.
+/// The albedo and normal maps of a run, for the estimate: the texels held and the GPU
+/// copies (each file once), and the largest load's transient bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MaterialMaps {
     /// Bytes of the decoded RGBA8 texels kept while rendering (each file once).
     pub held: u64,
-    /// Bytes of the GPU images and their staging buffers (each material's own).
+    /// Bytes of the GPU images and their staging buffers (each file once: the
+    /// materials naming it share its image).
     pub gpu: u64,
     /// The largest single load's bytes beyond what it keeps: the file and the decoded
     /// image before its RGBA8 conversion.
@@ -80,17 +82,43 @@ pub struct MaterialMaps {
 
 impl MaterialMaps {
     /// Adds a map of `header`'s size: `first_use` when its file was not counted yet (its
-    /// texels are held once, however many materials use it; each material has its own
-    /// GPU copy).
+    /// texels and its GPU image are held once, however many materials use it).
     pub fn add(&mut self, header: &ImageHeader, first_use: bool) {
-        let texels = u64::from(header.width) * u64::from(header.height);
         if first_use {
-            self.held += texels * RGBA_HELD_BYTES_PER_TEXEL;
+            let texels = u64::from(header.width) * u64::from(header.height);
+            self.add_loaded([header.width, header.height]);
             self.load = self
                 .load
                 .max(header.file_bytes + texels * u64::from(header.decoded_bytes_per_pixel));
         }
+    }
+
+    /// Adds a map already loaded, of `size` texels (each distinct map once).
+    pub fn add_loaded(&mut self, size: [u32; 2]) {
+        let texels = u64::from(size[0]) * u64::from(size[1]);
+        self.held += texels * RGBA_HELD_BYTES_PER_TEXEL;
         self.gpu += texels * RGBA_GPU_BYTES_PER_TEXEL;
+    }
+
+    /// The maps of loaded materials: each distinct map once (clones of one
+    /// [`dispmap::material::RgbaMap`] share their texels, and the renderer shares the
+    /// image of maps with the same texels).
+    pub fn of_loaded<'a>(
+        materials: impl IntoIterator<Item = &'a dispmap::material::MaterialImages>,
+    ) -> Self {
+        let mut out = MaterialMaps::default();
+        let mut seen = Vec::new();
+        for images in materials {
+            for map in [&images.albedo, &images.normal_map].into_iter().flatten() {
+                // Clones share their texels: one map, one address.
+                let at = map.texels().as_ptr();
+                if !seen.contains(&at) {
+                    seen.push(at);
+                    out.add_loaded([map.width(), map.height()]);
+                }
+            }
+        }
+        out
     }
 
     /// Bytes while rendering.

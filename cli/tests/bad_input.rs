@@ -1737,22 +1737,27 @@ fn issue_37_inputs_are_refused_naming_them() {
 }
 
 /// The albedo and normal maps are in the memory estimate, and objects naming one file
-/// share its texels: four cubes naming one 2048x2048 albedo add no more to the measured
-/// peak than they add to the estimate (one copy of the texels, each material's GPU copy).
+/// share one copy of it, on the CPU and on the GPU: four cubes naming one 4096x4096
+/// albedo add to the estimate what one cube naming it adds (one copy), a `--max-memory`
+/// between that estimate and what four GPU copies would need accepts the run, and its
+/// measured peak stays under the bound (with a GPU image per material it measured
+/// above it: four images, staging buffers and upload copies).
 #[test]
 fn issue_37_albedo_maps_are_in_the_estimate_and_shared() {
     let dir = scratch("albedo-memory");
+    const SIDE: u32 = 4096;
     let mut png = Vec::new();
-    image::RgbImage::from_pixel(2048, 2048, image::Rgb([90, 120, 60]))
+    image::RgbImage::from_pixel(SIDE, SIDE, image::Rgb([90, 120, 60]))
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .unwrap();
     std::fs::write(dir.join("albedo.png"), png).unwrap();
-    let scene = |name: &str, albedo: bool| {
+    let scene = |name: &str, objects: i32, albedo: bool| {
         let mut text = String::from("size = [16, 16]\n");
-        for x in [-3, -1, 1, 3] {
+        for k in 0..objects {
             text.push_str(&format!(
-                "[[object]]\ngeometry = \"cube\"\nposition = [{x}, 0, 0]\nscale = 0.5\n\
-                 [object.heightmap]\n"
+                "[[object]]\ngeometry = \"cube\"\nposition = [{}, 0, 0]\nscale = 0.5\n\
+                 [object.heightmap]\n",
+                2 * k - 3
             ));
             if albedo {
                 text.push_str("[object.material]\nalbedo = \"albedo.png\"\n");
@@ -1762,7 +1767,8 @@ fn issue_37_albedo_maps_are_in_the_estimate_and_shared() {
         std::fs::write(&path, text).unwrap();
         path
     };
-    let measure = |scene: &Path| {
+    // The estimate `render` checks --max-memory against, in bytes (from its refusal).
+    let estimate = |scene: &Path| {
         let refused = dispmap()
             .args(["render", "--frames", "1", "--max-memory", "1", "--scene"])
             .arg(scene)
@@ -1777,9 +1783,15 @@ fn issue_37_albedo_maps_are_in_the_estimate_and_shared() {
             .and_then(|rest| rest.split(" MiB").next())
             .and_then(|n| n.parse().ok())
             .unwrap_or_else(|| panic!("no estimate in: {stderr}"));
+        (mib * f64::from(1u32 << 20)) as i64
+    };
+    // The run's exit code and peak resident memory, with --max-memory `bound`.
+    let run = |scene: &Path, bound: i64| {
         let mut cmd = dispmap();
         cmd.args(["render", "--frames", "1", "--scene"])
             .arg(scene)
+            .arg("--max-memory")
+            .arg(bound.to_string())
             .arg("--out")
             .arg(dir.join("out.png"))
             .stdout(Stdio::null())
@@ -1788,25 +1800,51 @@ fn issue_37_albedo_maps_are_in_the_estimate_and_shared() {
         let ended = hostile::wait_bounded(&mut child, HANG, "render");
         let mut stderr = String::new();
         std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
-        assert_eq!(ended.code, Some(0), "{stderr}");
-        (
-            (mib * f64::from(1u32 << 20)) as i64,
-            ended.peak_bytes as i64,
-        )
+        assert_eq!(ended.code, Some(0), "under --max-memory {bound}: {stderr}");
+        ended.peak_bytes as i64
     };
-    let (with_estimate, with_peak) = measure(&scene("with.toml", true));
-    let (without_estimate, without_peak) = measure(&scene("without.toml", false));
-    let (added, estimated) = (with_peak - without_peak, with_estimate - without_estimate);
+    let four = scene("four.toml", 4, true);
+    let four_plain = scene("four-plain.toml", 4, false);
+    let (one, one_plain) = (scene("one.toml", 1, true), scene("one-plain.toml", 1, false));
+    let added_four = estimate(&four) - estimate(&four_plain);
+    let added_one = estimate(&one) - estimate(&one_plain);
+    let texels = i64::from(SIDE) * i64::from(SIDE);
     eprintln!(
-        "four objects naming one 2048x2048 albedo add {} MiB, estimated {} MiB",
-        added >> 20,
-        estimated >> 20
+        "one {SIDE}x{SIDE} albedo adds {} MiB to the estimate of one cube and {} MiB to that \
+         of four cubes naming it",
+        added_one >> 20,
+        added_four >> 20
+    );
+    // One copy: four objects add what one adds (the estimates are printed to 0.1 MiB).
+    assert!(
+        (added_four - added_one).abs() <= 1 << 18,
+        "four objects naming one albedo add {added_four} bytes, one adds {added_one}"
+    );
+    assert!(added_one >= 12 * texels, "{added_one}");
+    // A bound that one copy fits and four GPU copies (12 bytes per texel each) would not.
+    let bound = estimate(&four) + (1 << 20);
+    assert!(bound < estimate(&four_plain) + 4 * 12 * texels);
+    let peak = run(&four, bound);
+    let peak_plain = run(&four_plain, bound);
+    eprintln!(
+        "four objects naming one {SIDE}x{SIDE} albedo: peak {} MiB under --max-memory {} MiB \
+         (the albedo adds {} MiB, estimated {} MiB)",
+        peak >> 20,
+        bound >> 20,
+        (peak - peak_plain) >> 20,
+        added_four >> 20
     );
     assert!(
-        added <= estimated,
-        "the albedo adds {} MiB, more than its estimate {} MiB",
-        added >> 20,
-        estimated >> 20
+        peak <= bound,
+        "peaked at {} MiB, above the --max-memory {} MiB the run was accepted under",
+        peak >> 20,
+        bound >> 20
+    );
+    assert!(
+        peak - peak_plain <= added_four,
+        "the albedo adds {} MiB to the peak, more than its estimate {} MiB",
+        (peak - peak_plain) >> 20,
+        added_four >> 20
     );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -163,13 +163,17 @@ impl DisplacementPass {
     /// Sets a material's maps for `shade` (an albedo and a tangent-space normal map,
     /// addressed like its height map; [`crate::material`] has their conventions); empty
     /// [`MaterialImages`] remove them. The next record uploads them (in its `upload`
-    /// scope); replaced maps are retired. On error the material keeps its old maps.
+    /// scope); replaced maps are retired. A map with the same texels as one another
+    /// material already has shares its image (one GPU copy). On error the material keeps
+    /// its old maps.
     pub fn set_material_maps(&mut self, id: MaterialId, images: &MaterialImages) -> Result<()> {
         self.check_alive()?;
         let i = self.entry_index(id)?;
         let ctx = self.ctx.clone();
         let addressing = self.entry(id)?.settings.addressing;
-        let created = MaterialTextures::create_for_upload(&ctx, images, addressing)?;
+        let others = (self.materials.iter().flatten())
+            .filter_map(|m| Some((m.shading.as_ref()?, m.pending_shading.as_ref())));
+        let created = MaterialTextures::create_sharing(&ctx, images, addressing, others)?;
         let (shading, staging) = created.unzip();
         if let Some(m) = &mut self.materials[i] {
             if let Some(old) = std::mem::replace(&mut m.shading, shading) {

@@ -355,10 +355,12 @@ impl DisplacementPass {
         let fills: Vec<(usize, Fill)> = (self.maps.iter_mut().enumerate())
             .filter_map(|(i, m)| Some((i, m.as_mut()?.pending_fill.take()?)))
             .collect();
-        let shading: Vec<(usize, crate::material::MaterialStaging)> =
+        let mut shading: Vec<(usize, crate::material::MaterialStaging)> =
             (self.materials.iter_mut().enumerate())
                 .filter_map(|(i, m)| Some((i, m.as_mut()?.pending_shading.take()?)))
                 .collect();
+        // A map shared by several materials is uploaded once.
+        crate::material::MaterialStaging::drop_repeats(shading.iter_mut().map(|(_, s)| s));
         if !fills.is_empty() || !shading.is_empty() {
             // SAFETY: `record`'s contract: `cmd` is recording outside a render pass on the
             // context's queue family, after `begin` reset the writer's queries (the scope's
