@@ -23,8 +23,8 @@ use dispmap::method::{Method, MethodParams};
 use dispmap::renderer::{RenderSettings, Renderer};
 use dispmap::scene::{Camera, MIN_COS, NEAR, Scene};
 
-/// The CLI's default frame: at 2 degrees its first row below the horizon meets the plane
-/// about 240 tiles away.
+/// The CLI's default frame: at 2 degrees (eye 0.25 high) its first row below the horizon
+/// meets the plane 200 tiles away.
 const SIZE: (u32, u32) = (640, 360);
 
 /// Relative error allowed on either depth against the f64 ray's: a few f32 ulps of the

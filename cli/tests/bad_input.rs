@@ -1597,6 +1597,10 @@ fn issue_37_fixtures(dir: &Path) {
         "0 screenshot a.png\n1 screenshot a.png\n",
     );
     write("script-resize.txt", "1 resize 2048x2048\n");
+    write(
+        "script-resize-1024.txt",
+        "# the albedo counts too\n1 resize 1024x1024\n",
+    );
     write("path-high.txt", "30 0\n30 10 20000\n");
     write("path-low.txt", "30 0 0.001\n");
 }
@@ -1659,7 +1663,10 @@ fn issue_37_refusals(dir: &Path, out: &Path) -> Vec<Refusal> {
         r("10: view camera path below the near plane", view(&["--camera-path", &p("path-low.txt")]), &["path-low.txt:1", "camera-height", "near plane"]),
         // 3. The viewer's memory bound, its scripted resizes included.
         r("3: view 2048x2048 under --max-memory", view(&["--size", "2048x2048", "--max-memory", "150M"]), &["viewing 2048x2048", "needs about", "--max-memory"]),
-        r("3: view scripted resize under --max-memory", view(&["--size", "64x64", "--max-memory", "150M", "--script", &p("script-resize.txt")]), &["viewing 2048x2048", "needs about", "--max-memory"]),
+        r("3: view scripted resize under --max-memory", view(&["--size", "64x64", "--max-memory", "150M", "--script", &p("script-resize.txt")]), &["script-resize.txt:1", "viewing 2048x2048", "needs about", "--max-memory"]),
+        // 2, 3. The viewer's bound counts the scene's albedo (at 1024x1024 the frame
+        // alone fits 500M: 405 MiB; with the 4096x4096 albedo 661 MiB).
+        r("2, 3: view albedo scene resized above --max-memory", view(&["--scene", &p("albedo.toml"), "--max-memory", "500M", "--script", &p("script-resize-1024.txt")]), &["script-resize-1024.txt:2", "viewing 1024x1024", "albedo and normal maps", "needs about"]),
         // 12. A closed standard output takes no file.
         Refusal { wrap: &["sh", "-c", "exec \"$@\" >&-", "sh"], ..r("12: --out - with stdout closed", flags(&["--out", "-"]), &["--out", "standard output is closed"]) },
     ]
@@ -1805,7 +1812,10 @@ fn issue_37_albedo_maps_are_in_the_estimate_and_shared() {
     };
     let four = scene("four.toml", 4, true);
     let four_plain = scene("four-plain.toml", 4, false);
-    let (one, one_plain) = (scene("one.toml", 1, true), scene("one-plain.toml", 1, false));
+    let (one, one_plain) = (
+        scene("one.toml", 1, true),
+        scene("one-plain.toml", 1, false),
+    );
     let added_four = estimate(&four) - estimate(&four_plain);
     let added_one = estimate(&one) - estimate(&one_plain);
     let texels = i64::from(SIDE) * i64::from(SIDE);

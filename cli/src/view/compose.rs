@@ -201,6 +201,10 @@ mod tests {
             shadows: ShadowSettings::default(),
         };
         ViewState {
+            bound: crate::view::budget::Bound {
+                limit: None,
+                given: false,
+            },
             maps: Vec::new(),
             map: 0,
             assets: SceneAssets::default(),

@@ -173,12 +173,14 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         frames: common.frames,
         objects: !assets.objects.is_empty(),
     };
+    let script_name = script
+        .as_deref()
+        .map_or(String::new(), |p| p.display().to_string());
     let script = script
         .as_deref()
         .map(|p| Script::read(p, &run))
         .transpose()?
         .unwrap_or_default();
-    budget::check(&field, &label, &settings, split, &script, common.max_memory)?;
     if let Some(path) = &screenshot {
         output::check_writable_as(path, output::Format::Png).context("invalid --screenshot")?;
     }
@@ -194,17 +196,8 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         s.params.steps = common.steps.unwrap_or(right.default_steps());
         s.validate()?;
     }
-    let headless = headless.then(|| Headless {
-        frames: common.frames,
-        camera_path,
-        script,
-        screenshot: screenshot.clone(),
-        pending_resize: None,
-        waiting_error: false,
-        applied: None,
-        waited: 0,
-    });
     let state = ViewState {
+        bound: budget::Bound::new(common.max_memory),
         maps: vec![(label, Arc::new(field))],
         map: 0,
         assets,
@@ -219,6 +212,18 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         panel: true,
         help: false,
     };
+    // The memory bound of the start and of every scripted change.
+    budget::check(&state, &script, &script_name, common.max_memory)?;
+    let headless = headless.then(|| Headless {
+        frames: common.frames,
+        camera_path,
+        script,
+        screenshot: screenshot.clone(),
+        pending_resize: None,
+        waiting_error: false,
+        applied: None,
+        waited: 0,
+    });
     let event_loop = EventLoop::new().context(
         "cannot open a window: no display server (set DISPLAY or WAYLAND_DISPLAY, or run \
          under Xvfb)",

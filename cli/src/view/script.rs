@@ -192,6 +192,8 @@ pub struct Run {
 pub struct Script {
     /// `(frame, action)`.
     pub events: Vec<(u32, Action)>,
+    /// The line of each event in its file (1-based), for messages.
+    pub lines: Vec<usize>,
 }
 
 impl Script {
@@ -212,7 +214,7 @@ impl Script {
 
     /// Parses a script's text, checked against `run` when given; `name` labels errors.
     pub fn parse_for(text: &str, name: &str, run: Option<&Run>) -> Result<Self> {
-        let mut events = Vec::new();
+        let (mut events, mut lines) = (Vec::new(), Vec::new());
         // The line of each frame's screenshot, and of each screenshot's file.
         let mut shot_frames = std::collections::HashMap::new();
         let mut shot_files = std::collections::HashMap::new();
@@ -390,8 +392,9 @@ impl Script {
                 }
             }
             events.push((frame, action));
+            lines.push(n + 1);
         }
-        Ok(Script { events })
+        Ok(Script { events, lines })
     }
 }
 

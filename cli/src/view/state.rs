@@ -10,6 +10,9 @@ use std::sync::Arc;
 
 /// What the keys change (and the script).
 pub(super) struct ViewState {
+    /// The memory bound frames are kept under (a larger window renders a smaller frame,
+    /// scaled to it).
+    pub(super) bound: super::budget::Bound,
     /// Name and field of each map: the given one first, the bundled ones added when
     /// switched to.
     pub(super) maps: Vec<(String, Arc<HeightField>)>,

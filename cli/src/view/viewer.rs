@@ -11,12 +11,12 @@ use super::script::{Action, CameraPath};
 use super::state::{Snapshot, ViewState, material_lines, side_of, title};
 use super::stats::{Stats, push_history};
 use super::{RESIZE_TIMEOUT, STATS_PERIOD};
-use super::{panel, present, ui};
+use super::{budget, panel, present, ui};
 use crate::finish;
 use anyhow::{Context as _, Result, bail};
 use dispmap::context::{Context, ContextOptions};
 use dispmap::renderer::{RenderSettings, Renderer};
-use dispmap_cli::output;
+use dispmap_cli::{memory, output};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -57,6 +57,9 @@ pub(super) struct Viewer {
     pub(super) built_map: usize,
     /// The window size the swapchain was last made for.
     pub(super) window_size: [u32; 2],
+    /// A window above the memory bound and the smaller frame rendered for it
+    /// ([`super::budget::Bound::fit`]), once said.
+    pub(super) fitted: Option<([u32; 2], [u32; 2])>,
     /// The error overlay was asked for: its reference starts after the next render.
     pub(super) error_requested: bool,
     /// The last state the renderers accepted.
@@ -99,7 +102,9 @@ impl Viewer {
         let extent = presenter.extent();
         let mut settings = state.settings;
         if extent.width > 0 && extent.height > 0 {
-            (settings.width, settings.height) = (extent.width, extent.height);
+            // The window system may give more than was asked: kept under the bound.
+            let window = [extent.width, extent.height];
+            [settings.width, settings.height] = state.bound.fit(&budget::Sizing::of(state), window);
         }
         let field = &state.maps[state.map].1;
         let build = |s: RenderSettings| Renderer::with_assets(&ctx, field, s, &state.assets);
@@ -173,6 +178,7 @@ impl Viewer {
             job: None,
             built_map: state.map,
             window_size: [size.width, size.height],
+            fitted: None,
             error_requested: false,
             good: None,
             history: [VecDeque::new(), VecDeque::new()],
@@ -246,6 +252,31 @@ impl Viewer {
             }
         }
         Ok(())
+    }
+
+    /// The frame rendered for a window of `window` pixels: the window's size, or under
+    /// the memory bound the largest frame of its shape that fits (scaled to the window
+    /// when presented), said on the console and in the panel when it starts.
+    fn fit(&mut self, state: &ViewState, window: [u32; 2]) -> [u32; 2] {
+        let frame = state.bound.fit(&budget::Sizing::of(state), window);
+        let fitted = (frame != window).then_some((window, frame));
+        if fitted.is_some() && fitted != self.fitted {
+            let limit = state.bound.limit.unwrap_or(0);
+            let line = format!(
+                "the {}x{} window needs more than the {} of {}: rendering {}x{}, scaled \
+                 to the window",
+                window[0],
+                window[1],
+                memory::human(limit),
+                state.bound.source(),
+                frame[0],
+                frame[1]
+            );
+            eprintln!("view: {line}");
+            self.notice = Some((line, Instant::now()));
+        }
+        self.fitted = fitted;
+        frame
     }
 
     pub(super) fn frame_key(&self, state: &ViewState) -> FrameKey {
@@ -327,7 +358,7 @@ impl Viewer {
             }
         }
         let e = self.presenter.extent();
-        let frame = [e.width, e.height];
+        let frame = self.fit(state, [e.width, e.height]);
         if let Err(err) = self.sync(state, frame_layout(state, frame).0) {
             if headless.is_some() {
                 return Err(err);
