@@ -371,6 +371,18 @@ fn materials_added_replaced_and_removed_with_frames_in_flight() {
     pass.set_material_settings(b, shared).unwrap();
     assert_eq!(pass.map_count(), 2, "b now shares material 0's map");
     run(&mut host, &mut pass);
+    // Two materials naming one albedo share its image: c makes it and stages its upload,
+    // b shares both; c is removed before any record, and the record still fills the
+    // image b samples (validation reports a read of an image never filled, and a
+    // second copy into it).
+    let albedo =
+        dispmap::material::RgbaMap::new(4, 4, [200, 40, 40, 255].repeat(16), "albedo").unwrap();
+    let images = dispmap::material::MaterialImages {
+        albedo: Some(albedo),
+        normal_map: None,
+    };
+    pass.set_material_maps(c, &images).unwrap();
+    pass.set_material_maps(b, &images).unwrap();
     pass.remove_material(c).unwrap();
     assert!(
         pass.set_material_settings(c, mats[2].settings).is_err(),
