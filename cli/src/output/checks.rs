@@ -274,7 +274,7 @@ pub fn check_folder_files(dir: &Path, names: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// Checks that `dir` can take the files of [`Outputs::stage_in`]: an existing writable
+/// Checks that `dir` can take the files of [`Outputs::stage_in`](super::Outputs::stage_in): an existing writable
 /// folder, or a missing one whose nearest existing ancestor is a writable folder (it is
 /// created only when the outputs are committed).
 pub fn check_folder_writable(dir: &Path) -> Result<()> {
