@@ -194,9 +194,11 @@
 
 mod device;
 mod graph;
+mod host_map;
 mod inputs;
 mod materials;
 mod plan;
+mod prepare;
 mod record;
 
 pub use device::{
@@ -237,6 +239,7 @@ pub use crate::passes::shade::COLOR_FORMAT;
 pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
 pub use crate::passes::trace::HIT_FORMAT;
 pub use crate::timing::{TimestampScope, read_timestamps};
+pub use host_map::{HOST_HEIGHT_FORMATS, HeightChannel, HostHeightMap};
 pub use inputs::{
     FrameInputs, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget, Timestamps,
 };
@@ -289,6 +292,9 @@ pub struct DisplacementPass {
     built_extent: vk::Extent2D,
     query_pool: Option<vk::QueryPool>,
     retired: RetireQueue,
+    /// The retire queue's length when a preparation was recorded since the last frame
+    /// ([`DisplacementPass::record_preparation`]).
+    prepared_mark: Option<usize>,
     /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
     shadows: ShadowSettings,
     destroyed: bool,
@@ -336,6 +342,7 @@ impl DisplacementPass {
             built_extent: vk::Extent2D::default(),
             query_pool: None,
             retired: RetireQueue::new(settings.frames_in_flight),
+            prepared_mark: None,
             shadows: ShadowSettings::default(),
             destroyed: false,
             ctx,

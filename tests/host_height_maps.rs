@@ -1,0 +1,627 @@
+//! Height maps the host owns on the GPU (`DisplacementPass::add_host_material`), under
+//! validation (core + synchronization: zero messages, no allocation left):
+//!
+//! * a `BC4_UNORM` image with a full mip chain, its blocks encoded here from known
+//!   texels; the alpha channel of an `R8G8B8A8_UNORM` normal map with mips; an
+//!   `R16_UNORM` image: each host map's frame (hits and shaded colour, `exact` and `cone`)
+//!   is bit-identical to the same material given as texels decoded the same way, and
+//!   `exact`'s hits agree with the CPU reference traced on those texels (0 artifacts);
+//! * the preparation (pyramids, cone maps) recorded by the host into its own command
+//!   buffer before the first frame: that frame records and times none of it.
+//!
+//! lavapipe decodes BC4 with llvmpipe's JIT (`lp_build_fetch_rgtc_rgba_aos` ->
+//! `s3tc_dxt5_alpha_channel` / `lp_build_lerpdxta`, 8-bit results), not with the
+//! `(a0 (8 - c) + a1 (c - 1)) / 7` of Mesa's C fetch (`texcompress_rgtc_tmp.h`):
+//! [`bc4_decode`] is that arithmetic, and the test checks it against the GPU through
+//! the cell pyramid (its level 0 is the maximum of 4 decoded texels).
+
+mod common;
+
+use ash::vk;
+use common::host::{GBufferTexels, RayHost};
+use common::{finish, unexplained, validated_context};
+use dispmap::Context;
+use dispmap::embed::{
+    DisplacementPass, HeightChannel, HostHeightMap, MaterialSettings, PassName, PassSettings,
+    Timestamps,
+};
+use dispmap::gpu::commands::staging_buffer;
+use dispmap::gpu::owned::Destroy;
+use dispmap::gpu::sync::{self, Access};
+use dispmap::gpu::{Image, OneShot};
+use dispmap::heightfield::{Addressing, HeightField, Texels};
+use dispmap::method::{Method, MethodParams};
+use dispmap::passes::pyramid::{PyramidKind, cpu_build};
+use dispmap::scene::{Camera, Scene};
+use dispmap_cli::metrics::{self, MapGeometry};
+use dispmap_cli::reference::Reference;
+
+const EXTENT: vk::Extent2D = vk::Extent2D {
+    width: 96,
+    height: 64,
+};
+const SLOTS: usize = 2;
+const HOST_COLOR: [u8; 4] = [11, 22, 33, 255];
+const DEPTH_SCALE: f32 = 0.08;
+/// A float-precision tangency, in heights (as tests/methods.rs).
+const TANGENCY: f64 = 1e-6;
+
+/// llvmpipe's BC4 (RGTC1 unorm) interpolation of code `c` between endpoints `a0`, `a1`
+/// (`lp_build_lerpdxta`): 16-bit integer weights `255 * 64 / 7` or `255 * 64 / 5` times
+/// `c - 1`, shifted by 6; the endpoint difference times the weight, its 16-bit two's
+/// complement shifted right by 8 (logically), added to `a0` modulo 256. Codes 0 and 1
+/// are the endpoints; with `a0 <= a1`, 6 is 0 and 7 is 255.
+fn bc4_decode(a0: u8, a1: u8, c: u8) -> u8 {
+    let eight = a0 > a1;
+    match c {
+        0 => a0,
+        1 => a1,
+        6 if !eight => 0,
+        7 if !eight => 255,
+        _ => {
+            let w: i32 = if eight { 255 * 64 / 7 } else { 255 * 64 / 5 };
+            let weight = ((w * i32::from(c - 1)) as u16 >> 6) as i32;
+            let product = ((i32::from(a1) - i32::from(a0)) * weight) as u16;
+            a0.wrapping_add((product >> 8) as u8)
+        }
+    }
+}
+
+/// Mesa's C fetch of the same code (`texcompress_rgtc_tmp.h`), for the comparison.
+fn bc4_decode_c(a0: u8, a1: u8, c: u8) -> u8 {
+    let (a0i, a1i, ci) = (u32::from(a0), u32::from(a1), u32::from(c));
+    match c {
+        0 => a0,
+        1 => a1,
+        _ if a0 > a1 => ((a0i * (8 - ci) + a1i * (ci - 1)) / 7) as u8,
+        2..=5 => ((a0i * (6 - ci) + a1i * (ci - 1)) / 5) as u8,
+        6 => 0,
+        _ => 255,
+    }
+}
+
+/// A BC4 encoding of `w x h` texels (rows from row 0) and its decoding (`bc4_decode`):
+/// per 4x4 block the endpoints are the block's maximum and minimum (8-value mode) and
+/// each texel takes the nearest decoded code. Blocks past the edge repeat the edge.
+fn bc4_encode(texels: &[u8], w: u32, h: u32) -> (Vec<u8>, Vec<u8>) {
+    let (bw, bh) = (w.div_ceil(4), h.div_ceil(4));
+    let mut blocks = Vec::with_capacity((bw * bh * 8) as usize);
+    let mut decoded = vec![0u8; (w * h) as usize];
+    for by in 0..bh {
+        for bx in 0..bw {
+            let at = |i: u32, j: u32| {
+                let (x, y) = ((bx * 4 + i).min(w - 1), (by * 4 + j).min(h - 1));
+                texels[(y * w + x) as usize]
+            };
+            let values: Vec<u8> = (0..16).map(|k| at(k % 4, k / 4)).collect();
+            let (a0, a1) = (
+                values.iter().copied().max().unwrap(),
+                values.iter().copied().min().unwrap(),
+            );
+            let palette: Vec<u8> = (0..8).map(|c| bc4_decode(a0, a1, c)).collect();
+            let mut bits = 0u64;
+            for (k, &v) in values.iter().enumerate() {
+                let code = if a0 == a1 {
+                    0
+                } else {
+                    (0..8u8)
+                        .min_by_key(|&c| (i32::from(palette[c as usize]) - i32::from(v)).abs())
+                        .unwrap()
+                };
+                bits |= u64::from(code) << (3 * k);
+                let (x, y) = (bx * 4 + k as u32 % 4, by * 4 + k as u32 / 4);
+                if x < w && y < h {
+                    decoded[(y * w + x) as usize] = palette[code as usize];
+                }
+            }
+            blocks.push(a0);
+            blocks.push(a1);
+            blocks.extend_from_slice(&bits.to_le_bytes()[..6]);
+        }
+    }
+    (blocks, decoded)
+}
+
+/// Mesa's C decode of `blocks` (the comparison only).
+fn bc4_decode_blocks_c(blocks: &[u8], w: u32, h: u32) -> Vec<u8> {
+    let bw = w.div_ceil(4);
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let b = &blocks[((y / 4 * bw + x / 4) * 8) as usize..][..8];
+            let mut bits = [0u8; 8];
+            bits[..6].copy_from_slice(&b[2..8]);
+            let k = (y % 4) * 4 + x % 4;
+            let code = ((u64::from_le_bytes(bits) >> (3 * k)) & 7) as u8;
+            bc4_decode_c(b[0], b[1], code)
+        })
+        .collect()
+}
+
+/// The known texels: ridges, a crater and steps (8 bits), `w x h`.
+fn texels8(w: u32, h: u32, seed: f32) -> Vec<u8> {
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+            let tau = std::f32::consts::TAU;
+            let ridges = 0.5 + 0.3 * (tau * (3.0 * u + seed)).sin() * (tau * 2.0 * v).cos();
+            let d = ((u - 0.6).powi(2) + (v - 0.4).powi(2)).sqrt();
+            let crater = if d < 0.15 {
+                -0.35 * (1.0 - d / 0.15)
+            } else {
+                0.0
+            };
+            let steps = 0.1 * ((4.0 * u).floor() / 4.0);
+            ((ridges + crater + steps).clamp(0.0, 1.0) * 255.0).round() as u8
+        })
+        .collect()
+}
+
+/// The 2x2 box mean of a `w x h` 8-bit level (odd sizes keep the last texel).
+fn downsample(texels: &[u8], w: u32, h: u32) -> (Vec<u8>, u32, u32) {
+    let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+    let at = |x: u32, y: u32| u32::from(texels[(y.min(h - 1) * w + x.min(w - 1)) as usize]);
+    let level = (0..nh)
+        .flat_map(|y| (0..nw).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let s = at(2 * x, 2 * y)
+                + at(2 * x + 1, 2 * y)
+                + at(2 * x, 2 * y + 1)
+                + at(2 * x + 1, 2 * y + 1);
+            ((s + 2) / 4) as u8
+        })
+        .collect();
+    (level, nw, nh)
+}
+
+/// A host image of `format` with `levels` (bytes of each level, tightly packed), created,
+/// filled and left in `SHADER_READ_ONLY_OPTIMAL` visible to compute-shader sampled reads
+/// (the host's part of the contract), the way an engine streams its textures.
+fn host_image(
+    ctx: &Context,
+    shot: &OneShot,
+    name: &str,
+    format: vk::Format,
+    extent: vk::Extent2D,
+    levels: &[Vec<u8>],
+) -> Image {
+    let image = Image::new(
+        ctx,
+        name,
+        format,
+        extent,
+        levels.len() as u32,
+        vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
+    )
+    .unwrap();
+    let bytes: Vec<u8> = levels.concat();
+    let mut staging = staging_buffer(ctx, &format!("{name}.staging"), &bytes).unwrap();
+    let mut offset = 0u64;
+    let regions: Vec<vk::BufferImageCopy> = levels
+        .iter()
+        .enumerate()
+        .map(|(l, data)| {
+            let region = vk::BufferImageCopy::default()
+                .buffer_offset(offset)
+                .image_subresource(vk::ImageSubresourceLayers {
+                    aspect_mask: vk::ImageAspectFlags::COLOR,
+                    mip_level: l as u32,
+                    base_array_layer: 0,
+                    layer_count: 1,
+                })
+                .image_extent(vk::Extent3D {
+                    width: (extent.width >> l).max(1),
+                    height: (extent.height >> l).max(1),
+                    depth: 1,
+                });
+            offset += data.len() as u64;
+            region
+        })
+        .collect();
+    let cmd = shot.begin(ctx).unwrap();
+    // SAFETY: `cmd` was begun by `shot.begin` and is submitted and waited for below, while
+    // the image and the staging buffer live; the new image has no earlier access; the
+    // regions lie in the image's levels and the buffer (one tightly packed level each).
+    unsafe {
+        sync::transition(ctx, cmd, &image, Access::UNDEFINED, Access::TRANSFER_WRITE);
+        ctx.device().cmd_copy_buffer_to_image(
+            cmd,
+            staging.raw,
+            image.raw,
+            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+            &regions,
+        );
+        sync::transition(
+            ctx,
+            cmd,
+            &image,
+            Access::TRANSFER_WRITE,
+            Access::COMPUTE_SAMPLED,
+        );
+    }
+    shot.submit_and_wait(ctx).unwrap();
+    // SAFETY: the copy that read it was waited for.
+    unsafe { staging.destroy(ctx) };
+    image
+}
+
+fn describe(image: &Image, channel: HeightChannel) -> HostHeightMap {
+    HostHeightMap {
+        image: image.raw,
+        format: image.format,
+        extent: image.extent,
+        mip_levels: image.mip_levels,
+        usage: image.usage,
+        channel,
+    }
+}
+
+/// The three host maps and the texel fields they must equal (decoded the same way).
+struct Maps {
+    images: Vec<Image>,
+    hosts: Vec<HostHeightMap>,
+    fields: Vec<HeightField>,
+}
+
+fn maps(ctx: &Context, shot: &OneShot) -> Maps {
+    // BC4 with every mip level, each encoded from the box-filtered texels of the level
+    // above.
+    let (w, h) = (64u32, 64u32);
+    let mut level = texels8(w, h, 0.0);
+    let (mut lw, mut lh) = (w, h);
+    let mut bc4_levels = Vec::new();
+    let mut decoded0 = Vec::new();
+    let mut c_mismatch = 0;
+    loop {
+        let (blocks, decoded) = bc4_encode(&level, lw, lh);
+        if bc4_levels.is_empty() {
+            decoded0 = decoded.clone();
+            let c = bc4_decode_blocks_c(&blocks, lw, lh);
+            c_mismatch = c.iter().zip(&decoded).filter(|(a, b)| a != b).count();
+        }
+        bc4_levels.push(blocks);
+        if lw == 1 && lh == 1 {
+            break;
+        }
+        (level, lw, lh) = downsample(&level, lw, lh);
+    }
+    eprintln!(
+        "BC4 level 0: {c_mismatch} of {} texels decode differently with Mesa's C fetch",
+        w * h
+    );
+    let extent = |w, h| vk::Extent2D {
+        width: w,
+        height: h,
+    };
+    let bc4 = host_image(
+        ctx,
+        shot,
+        "host.bc4",
+        vk::Format::BC4_UNORM_BLOCK,
+        extent(w, h),
+        &bc4_levels,
+    );
+    let bc4_field = HeightField::from_texels(w, h, Texels::R8(decoded0), "bc4 decoded").unwrap();
+
+    // The alpha of an RGBA8 normal map (a tilted normal in rgb), with mips.
+    let (nw, nh) = (64u32, 32u32);
+    let mut alpha = texels8(nw, nh, 0.37);
+    let alpha0 = alpha.clone();
+    let (mut lw, mut lh) = (nw, nh);
+    let mut rgba_levels = Vec::new();
+    loop {
+        rgba_levels.push(
+            alpha
+                .iter()
+                .flat_map(|&a| [160, 110, 230, a])
+                .collect::<Vec<u8>>(),
+        );
+        if lw == 1 && lh == 1 {
+            break;
+        }
+        (alpha, lw, lh) = downsample(&alpha, lw, lh);
+    }
+    let rgba = host_image(
+        ctx,
+        shot,
+        "host.normal_map",
+        vk::Format::R8G8B8A8_UNORM,
+        extent(nw, nh),
+        &rgba_levels,
+    );
+    let alpha_field = HeightField::from_texels(nw, nh, Texels::R8(alpha0), "normal alpha").unwrap();
+
+    // R16, one level, not a power of two.
+    let (rw, rh) = (48u32, 40u32);
+    let r16: Vec<u16> = (0..rh)
+        .flat_map(|y| (0..rw).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let (u, v) = (x as f32 / rw as f32, y as f32 / rh as f32);
+            let t = 0.5 + 0.25 * (9.0 * u).sin() + 0.2 * (7.0 * v + 3.0 * u).cos();
+            (t.clamp(0.0, 1.0) * 65535.0).round() as u16
+        })
+        .collect();
+    let r16_image = host_image(
+        ctx,
+        shot,
+        "host.r16",
+        vk::Format::R16_UNORM,
+        extent(rw, rh),
+        &[bytemuck::cast_slice(&r16).to_vec()],
+    );
+    let r16_field = HeightField::from_texels(rw, rh, Texels::R16(r16), "r16").unwrap();
+
+    Maps {
+        hosts: vec![
+            describe(&bc4, HeightChannel::R),
+            describe(&rgba, HeightChannel::A),
+            describe(&r16_image, HeightChannel::R),
+        ],
+        images: vec![bc4, rgba, r16_image],
+        fields: vec![bc4_field, alpha_field, r16_field],
+    }
+}
+
+fn settings(method: Method) -> MaterialSettings {
+    MaterialSettings {
+        method,
+        params: MethodParams::for_method(method),
+        depth_scale: DEPTH_SCALE,
+        addressing: Addressing::Repeat,
+    }
+}
+
+/// The band of pixel column `x`: map 0, 1 or 2.
+fn band(x: u32) -> usize {
+    (x * 3 / EXTENT.width) as usize
+}
+
+/// The f16 bits of `±(index + 1)` (the G-buffer's material encoding; exact for small
+/// integers).
+fn material_bits(index: u32, negative: bool) -> u16 {
+    let v = (index + 1) as f32;
+    let e = v.log2().floor() as i32;
+    let m = v / 2f32.powi(e) - 1.0;
+    let sign = if negative { 0x8000 } else { 0 };
+    sign | (((e + 15) as u16) << 10) | ((m * 1024.0).round() as u16)
+}
+
+/// The G-buffer with band `b`'s pixels given material `ids[b]`.
+fn assign(base: &GBufferTexels, ids: [u32; 3]) -> GBufferTexels {
+    let mut g = base.clone();
+    for y in 0..EXTENT.height {
+        for x in 0..EXTENT.width {
+            let i = (y * EXTENT.width + x) as usize;
+            let negative = g.tangent[i][3] & 0x8000 != 0;
+            if g.tangent[i][3] != 0 {
+                g.tangent[i][3] = material_bits(ids[band(x)], negative);
+            }
+        }
+    }
+    g
+}
+
+fn camera() -> (Scene, (glam::Mat4, glam::Vec3)) {
+    let scene = Scene {
+        depth_scale: DEPTH_SCALE,
+        camera: Camera {
+            elevation_deg: 20.0,
+            ..Camera::default()
+        },
+        ..Scene::default()
+    };
+    let cam = scene.frame_camera(EXTENT.width, EXTENT.height);
+    (scene, (cam.view_proj, cam.eye))
+}
+
+/// The pass's passes that prepare maps.
+const PREPARATION: [PassName; 3] = [PassName::Upload, PassName::Pyramid, PassName::Cone];
+
+#[test]
+fn host_bc4_alpha_and_r16_maps_match_their_decoded_texels() {
+    let ctx = validated_context();
+    let shot = OneShot::new(&ctx, "test.shot").unwrap();
+    let mut maps = maps(&ctx, &shot);
+    let (scene, cam) = camera();
+    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
+    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
+    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
+    let base = host.read_gbuffer();
+    let rays = host.read_rays();
+
+    // Materials 0, 2, 4: the texels; 1, 3, 5: the host's images.
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &maps.fields[0],
+        PassSettings {
+            method: Method::Exact,
+            params: MethodParams::for_method(Method::Exact),
+            depth_scale: DEPTH_SCALE,
+            addressing: Addressing::Repeat,
+            extent: EXTENT,
+            frames_in_flight: SLOTS as u32,
+        },
+    )
+    .unwrap();
+    let mut texel_ids = vec![pass.primary()];
+    let mut host_ids = Vec::new();
+    for (k, (field, map)) in maps.fields.iter().zip(&maps.hosts).enumerate() {
+        if k > 0 {
+            texel_ids.push(pass.add_material(field, settings(Method::Exact)).unwrap());
+        }
+        host_ids.push(
+            pass.add_host_material(map, settings(Method::Exact))
+                .unwrap(),
+        );
+    }
+    assert_eq!(pass.map_count(), 6);
+    // A second material on the same host image and channel shares its map.
+    let shared = pass
+        .add_host_material(&maps.hosts[0], settings(Method::Exact))
+        .unwrap();
+    assert_eq!(pass.map_count(), 6);
+    pass.remove_material(shared).unwrap();
+
+    for method in [Method::Exact, Method::Cone] {
+        for &id in texel_ids.iter().chain(&host_ids) {
+            pass.set_material_settings(id, settings(method)).unwrap();
+        }
+        // The host prepares the maps in its own command buffer before the frames.
+        assert!(pass.preparation_pending());
+        let cmd = shot.begin(&ctx).unwrap();
+        // SAFETY: `cmd` was begun above and is submitted (and waited for) before the
+        // next record; the host images are SHADER_READ_ONLY_OPTIMAL, visible to compute
+        // sampled reads (`host_image` waited for their fill).
+        let prepared = unsafe { pass.record_preparation(cmd, Timestamps::Off) }.unwrap();
+        shot.submit_and_wait(&ctx).unwrap();
+        // Exact's cell pyramids first, then (the pyramids kept) cone's cone maps.
+        let built = match method {
+            Method::Exact => PassName::Pyramid,
+            _ => PassName::Cone,
+        };
+        assert!(
+            prepared.passes.contains(&built),
+            "{method}: {:?}",
+            prepared.passes
+        );
+        assert!(!pass.preparation_pending());
+
+        let mut frames = Vec::new();
+        for (s, ids) in [&texel_ids, &host_ids].into_iter().enumerate() {
+            let ids = [ids[0].index(), ids[1].index(), ids[2].index()];
+            host.upload_gbuffer(&assign(&base, ids));
+            let recorded = host.submit_shaded_timed(&mut pass, s, cam, HOST_COLOR);
+            assert!(
+                !recorded.passes.iter().any(|p| PREPARATION.contains(p)),
+                "{method}: the frame prepared again: {:?}",
+                recorded.passes
+            );
+            let hits = host.hits(s);
+            let colors = host.colors(s);
+            let timed = pass.timings(s as u32).unwrap();
+            assert!(
+                !timed.iter().any(|(p, _)| PREPARATION.contains(p)),
+                "{method}: {timed:?}"
+            );
+            frames.push((hits, colors));
+        }
+        let [(texel_hits, texel_colors), (host_hits, host_colors)] = &frames[..] else {
+            unreachable!()
+        };
+        let mut compared = [0usize; 3];
+        for y in 0..EXTENT.height {
+            for x in 0..EXTENT.width {
+                let i = (y * EXTENT.width + x) as usize;
+                assert_eq!(
+                    texel_hits[i].map(f32::to_bits),
+                    host_hits[i].map(f32::to_bits),
+                    "{method}, map {} pixel ({x}, {y})",
+                    band(x)
+                );
+                assert_eq!(
+                    texel_colors[i], host_colors[i],
+                    "{method} colour ({x}, {y})"
+                );
+                if rays[i].is_some() {
+                    compared[band(x)] += 1;
+                }
+            }
+        }
+        assert!(compared.iter().all(|&n| n > 500), "{compared:?}");
+
+        if method == Method::Exact {
+            for (b, field) in maps.fields.iter().enumerate() {
+                let reference = Reference::new(field, Addressing::Repeat);
+                let band_rays: Vec<_> = (0..rays.len())
+                    .map(|i| rays[i].filter(|_| band(i as u32 % EXTENT.width) == b))
+                    .collect();
+                let exact = reference.trace(&band_rays);
+                let geometry = MapGeometry {
+                    map_width: field.width(),
+                    map_height: field.height(),
+                    depth_scale: f64::from(DEPTH_SCALE),
+                };
+                let m = metrics::hit_errors(host_hits, &exact, &band_rays, geometry);
+                let artifacts = (m.artifact_fraction * m.compared_pixels as f64).round() as usize;
+                let left = unexplained(
+                    &reference, &band_rays, &exact, host_hits, geometry, TANGENCY,
+                );
+                eprintln!(
+                    "exact on host map {b}: {} pixels, {artifacts} artifacts, {left} unexplained",
+                    m.compared_pixels
+                );
+                assert_eq!(m.nonfinite_pixels, 0);
+                assert!(m.compared_pixels > 500);
+                assert_eq!(artifacts, 0, "host map {b}");
+            }
+            // The GPU's decoding of each host map is the texels': the cell pyramids
+            // (level 0: the maximum of a cell's 4 texels, as the shaders sample them)
+            // equal the CPU build on the decoded texels, in the texels' own precision
+            // (8 or 16 bits; the BC4 map's pyramid holds the sampled floats, and
+            // lavapipe converts an 8-bit unorm `c` as `c * (1 / 255)` in f32, which is
+            // one ulp above `c / 255` for some `c`: counted below).
+            for (b, field) in maps.fields.iter().enumerate() {
+                let levels = pass
+                    .material_pyramid(host_ids[b])
+                    .expect("exact's cell pyramid is built")
+                    .read_levels(&ctx, &shot)
+                    .unwrap();
+                let want = cpu_build(field, Addressing::Repeat, PyramidKind::Cell);
+                let scale = if b == 2 { 65535.0 } else { 255.0 };
+                let quantised = |v: &[f32]| {
+                    v.iter()
+                        .map(|x| (x * scale).round() as u32)
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(levels.len(), want.len());
+                for (l, (got, want)) in levels.iter().zip(&want).enumerate() {
+                    assert_eq!(
+                        quantised(got),
+                        quantised(want),
+                        "host map {b} pyramid level {l}"
+                    );
+                }
+                if b == 0 {
+                    let texels: Vec<f32> = (0..field.height())
+                        .flat_map(|j| (0..field.width()).map(move |i| (i, j)))
+                        .map(|(i, j)| (field.texel(i, j) * 255.0).round() * (1.0f32 / 255.0))
+                        .collect();
+                    let as_gpu = HeightField::from_texels(
+                        field.width(),
+                        field.height(),
+                        Texels::R32F(texels),
+                        "c * (1 / 255)",
+                    )
+                    .unwrap();
+                    let gpu_way = cpu_build(&as_gpu, Addressing::Repeat, PyramidKind::Cell);
+                    let same = |a: &[f32], b: &[f32]| {
+                        a.iter()
+                            .zip(b)
+                            .filter(|(x, y)| x.to_bits() == y.to_bits())
+                            .count()
+                    };
+                    eprintln!(
+                        "BC4 pyramid level 0: {} of {} values bit-equal to c / 255, {} to c * (1 / 255)",
+                        same(&levels[0], &want[0]),
+                        want[0].len(),
+                        same(&levels[0], &gpu_way[0])
+                    );
+                }
+            }
+        }
+    }
+
+    host.destroy();
+    // SAFETY: `host.destroy()` waited for every frame; the one-shots were waited for.
+    unsafe {
+        pass.destroy();
+        for image in &mut maps.images {
+            image.destroy(&ctx);
+        }
+        let mut shot = shot;
+        shot.destroy(&ctx);
+    }
+    drop(pass);
+    finish(ctx);
+}
