@@ -195,6 +195,15 @@ fn host_image(
         vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
     )
     .unwrap();
+    fill(ctx, shot, &image, Access::UNDEFINED, levels);
+    image
+}
+
+/// Copies `levels` into `image` (last accessed as `before`, e.g. sampled by frames that
+/// have completed) and leaves it in `SHADER_READ_ONLY_OPTIMAL` visible to compute-shader
+/// sampled reads.
+fn fill(ctx: &Context, shot: &OneShot, image: &Image, before: Access, levels: &[Vec<u8>]) {
+    let (name, extent) = (image.name(), image.extent);
     let bytes: Vec<u8> = levels.concat();
     let mut staging = staging_buffer(ctx, &format!("{name}.staging"), &bytes).unwrap();
     let mut offset = 0u64;
@@ -224,7 +233,7 @@ fn host_image(
     // the image and the staging buffer live; the new image has no earlier access; the
     // regions lie in the image's levels and the buffer (one tightly packed level each).
     unsafe {
-        sync::transition(ctx, cmd, &image, Access::UNDEFINED, Access::TRANSFER_WRITE);
+        sync::transition(ctx, cmd, image, before, Access::TRANSFER_WRITE);
         ctx.device().cmd_copy_buffer_to_image(
             cmd,
             staging.raw,
@@ -235,7 +244,7 @@ fn host_image(
         sync::transition(
             ctx,
             cmd,
-            &image,
+            image,
             Access::TRANSFER_WRITE,
             Access::COMPUTE_SAMPLED,
         );
@@ -243,7 +252,6 @@ fn host_image(
     shot.submit_and_wait(ctx).unwrap();
     // SAFETY: the copy that read it was waited for.
     unsafe { staging.destroy(ctx) };
-    image
 }
 
 fn describe(image: &Image, channel: HeightChannel) -> HostHeightMap {
@@ -619,6 +627,316 @@ fn host_bc4_alpha_and_r16_maps_match_their_decoded_texels() {
         for image in &mut maps.images {
             image.destroy(&ctx);
         }
+        let mut shot = shot;
+        shot.destroy(&ctx);
+    }
+    drop(pass);
+    finish(ctx);
+}
+
+/// The bytes of every live allocation of the context, by name.
+fn allocations(ctx: &Context) -> Vec<(String, u64)> {
+    let report = ctx.allocator().lock().unwrap().generate_report();
+    report
+        .allocations
+        .iter()
+        .map(|a| (a.name.clone(), a.size))
+        .collect()
+}
+
+/// A 4096² BC4 map with its full mip chain, prepared by the host in its own command
+/// buffer before the first frame that uses it: that frame (96x64) records and times no
+/// preparation, and traces the map. Prints (`--nocapture`) the preparation's
+/// milliseconds (lavapipe's cell pyramid of the map: about 0.9 s) and what the pass
+/// allocated for the map, by allocation (the `R32_SFLOAT` cell pyramid: 85.3 MiB).
+#[test]
+fn a_4096_bc4_map_prepared_by_the_host_before_its_first_frame() {
+    let ctx = validated_context();
+    let shot = OneShot::new(&ctx, "test.shot").unwrap();
+    let side = 4096u32;
+    let started = std::time::Instant::now();
+    let mut level = texels8(side, side, 0.2);
+    let (mut lw, mut lh) = (side, side);
+    let mut levels = Vec::new();
+    loop {
+        levels.push(bc4_encode(&level, lw, lh).0);
+        if lw == 1 && lh == 1 {
+            break;
+        }
+        (level, lw, lh) = downsample(&level, lw, lh);
+    }
+    let extent = vk::Extent2D {
+        width: side,
+        height: side,
+    };
+    let mut image = host_image(
+        &ctx,
+        &shot,
+        "host.bc4",
+        vk::Format::BC4_UNORM_BLOCK,
+        extent,
+        &levels,
+    );
+    eprintln!(
+        "host image: {} levels, {:.2} MiB of blocks, encoded and uploaded in {:.1} s",
+        levels.len(),
+        levels.iter().map(Vec::len).sum::<usize>() as f64 / 1048576.0,
+        started.elapsed().as_secs_f64()
+    );
+    let (scene, cam) = camera();
+    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
+    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
+    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
+    let base = host.read_gbuffer();
+    let small = HeightField::from_texels(4, 4, Texels::R8(vec![128; 16]), "small").unwrap();
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &small,
+        PassSettings {
+            method: Method::Exact,
+            params: MethodParams::for_method(Method::Exact),
+            depth_scale: DEPTH_SCALE,
+            addressing: Addressing::Repeat,
+            extent: EXTENT,
+            frames_in_flight: SLOTS as u32,
+        },
+    )
+    .unwrap();
+    // A first frame builds the small map's preparation.
+    host.upload_gbuffer(&assign(&base, [0, 0, 0]));
+    host.submit_shaded(&mut pass, 0, cam, HOST_COLOR);
+    host.wait_all();
+    let before = allocations(&ctx);
+    let id = pass
+        .add_host_material(&describe(&image, HeightChannel::R), settings(Method::Exact))
+        .unwrap();
+    assert!(pass.preparation_pending());
+
+    // SAFETY: a timestamp pool of the device, destroyed below after its queries are read.
+    let pool = unsafe {
+        ctx.device().create_query_pool(
+            &vk::QueryPoolCreateInfo::default()
+                .query_type(vk::QueryType::TIMESTAMP)
+                .query_count(dispmap::embed::MAX_QUERIES),
+            None,
+        )
+    }
+    .unwrap();
+    let cmd = shot.begin(&ctx).unwrap();
+    // SAFETY: `cmd` is submitted and waited for before the next record; the host image is
+    // SHADER_READ_ONLY_OPTIMAL, visible to compute sampled reads (`host_image`); the pool
+    // has MAX_QUERIES queries, used by nothing else.
+    let prepared = unsafe {
+        pass.record_preparation(
+            cmd,
+            Timestamps::Host {
+                pool,
+                first_query: 0,
+            },
+        )
+    }
+    .unwrap();
+    let started = std::time::Instant::now();
+    shot.submit_and_wait(&ctx).unwrap();
+    let wall = started.elapsed().as_secs_f64();
+    // SAFETY: the queries' command buffer completed (waited above).
+    let timed = unsafe { dispmap::embed::read_timestamps(&ctx, &prepared.timestamps) }.unwrap();
+    eprintln!("preparation (host command buffer): {timed:?}, submit to idle {wall:.2} s");
+    assert!(prepared.passes.contains(&PassName::Pyramid));
+    let after = allocations(&ctx);
+    let added: Vec<&(String, u64)> = after.iter().filter(|a| !before.contains(a)).collect();
+    let total: u64 = added.iter().map(|a| a.1).sum();
+    for (name, size) in &added {
+        eprintln!("  {name}: {:.2} MiB", *size as f64 / 1048576.0);
+    }
+    eprintln!(
+        "the pass allocated {:.2} MiB for the host's 4096² BC4 map (exact)",
+        total as f64 / 1048576.0
+    );
+
+    // The first frame with it: no preparation recorded or timed.
+    host.upload_gbuffer(&assign(&base, [id.index(); 3]));
+    let recorded = host.submit_shaded_timed(&mut pass, 1, cam, HOST_COLOR);
+    host.wait(1);
+    let frame = pass.timings(1).unwrap();
+    eprintln!("first frame with it: {frame:?}");
+    assert!(!recorded.passes.iter().any(|p| PREPARATION.contains(p)));
+    assert!(!frame.iter().any(|(p, _)| PREPARATION.contains(p)));
+    let hits = host.hits(1);
+    assert!(hits.iter().any(|h| h[2] >= 0.0), "the map is traced");
+
+    host.destroy();
+    // SAFETY: every frame and one-shot completed (waited above).
+    unsafe {
+        ctx.device().destroy_query_pool(pool, None);
+        pass.destroy();
+        image.destroy(&ctx);
+        let mut shot = shot;
+        shot.destroy(&ctx);
+    }
+    drop(pass);
+    finish(ctx);
+}
+
+/// The host rewrites its image's contents and says so (`host_height_map_changed`): the
+/// next preparation rebuilds the map's pyramid, and frames match the new texels; the old
+/// preparation is retired (the map count does not grow). Descriptions dispmap can check
+/// are refused naming the host height map; a preparation cannot use the pass's own
+/// timestamp pool.
+#[test]
+fn host_map_changed_in_place_and_bad_descriptions_refused() {
+    let ctx = validated_context();
+    let shot = OneShot::new(&ctx, "test.shot").unwrap();
+    let (w, h) = (40u32, 36u32);
+    let texels = |seed: f32| -> Vec<u16> {
+        (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+                let t = 0.5 + 0.3 * (6.0 * u + seed).sin() * (5.0 * v - seed).cos();
+                (t.clamp(0.0, 1.0) * 65535.0).round() as u16
+            })
+            .collect()
+    };
+    let extent = vk::Extent2D {
+        width: w,
+        height: h,
+    };
+    let bytes = |t: &[u16]| vec![bytemuck::cast_slice(t).to_vec()];
+    let first = texels(0.0);
+    let mut image = host_image(
+        &ctx,
+        &shot,
+        "host.r16",
+        vk::Format::R16_UNORM,
+        extent,
+        &bytes(&first),
+    );
+    let field = |t: Vec<u16>| HeightField::from_texels(w, h, Texels::R16(t), "r16").unwrap();
+    let (scene, cam) = camera();
+    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
+    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
+    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
+    let base = host.read_gbuffer();
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &field(first),
+        PassSettings {
+            method: Method::Exact,
+            params: MethodParams::for_method(Method::Exact),
+            depth_scale: DEPTH_SCALE,
+            addressing: Addressing::Repeat,
+            extent: EXTENT,
+            frames_in_flight: SLOTS as u32,
+        },
+    )
+    .unwrap();
+    let map = describe(&image, HeightChannel::R);
+    let id = pass
+        .add_host_material(&map, settings(Method::Exact))
+        .unwrap();
+    let frame = |pass: &mut DisplacementPass, host: &mut RayHost, m: u32, s: usize| {
+        host.upload_gbuffer(&assign(&base, [m; 3]));
+        host.submit_shaded(pass, s, cam, HOST_COLOR);
+        (host.hits(s), host.colors(s))
+    };
+    for round in 0..2 {
+        let texel_frame = frame(&mut pass, &mut host, 0, 0);
+        let host_frame = frame(&mut pass, &mut host, id.index(), 1);
+        let bits = |f: &(Vec<[f32; 4]>, Vec<[u8; 4]>)| {
+            f.0.iter().map(|h| h.map(f32::to_bits)).collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&texel_frame), bits(&host_frame), "round {round} hits");
+        assert_eq!(texel_frame.1, host_frame.1, "round {round} colours");
+        assert!(texel_frame.0.iter().filter(|h| h[2] >= 0.0).count() > 1000);
+        assert_eq!(pass.map_count(), 2);
+        if round == 1 {
+            break;
+        }
+        // New contents: the host waits for the frames that sample the image, writes it,
+        // says so, and prepares the map again before the next frame.
+        let second = texels(1.3);
+        host.wait_all();
+        fill(
+            &ctx,
+            &shot,
+            &image,
+            Access::COMPUTE_SAMPLED,
+            &bytes(&second),
+        );
+        pass.host_height_map_changed(image.raw).unwrap();
+        pass.set_height_map(&field(second)).unwrap();
+        assert!(pass.preparation_pending());
+        let cmd = shot.begin(&ctx).unwrap();
+        // SAFETY: `cmd` is submitted and waited for before the next record; the image was
+        // refilled and left sampled-readable (`fill`, waited for).
+        let refused = unsafe { pass.record_preparation(cmd, Timestamps::Owned) };
+        assert!(
+            matches!(refused, Err(dispmap::Error::InvalidInput { ref name, .. }) if name == "timestamps")
+        );
+        // SAFETY: as above.
+        let prepared = unsafe { pass.record_preparation(cmd, Timestamps::Off) }.unwrap();
+        shot.submit_and_wait(&ctx).unwrap();
+        assert!(
+            prepared.passes.contains(&PassName::Pyramid),
+            "{:?}",
+            prepared.passes
+        );
+        assert!(
+            prepared.passes.contains(&PassName::Upload),
+            "{:?}",
+            prepared.passes
+        );
+    }
+    // An image no material uses changes nothing.
+    pass.host_height_map_changed(vk::Image::null()).unwrap();
+    assert!(!pass.preparation_pending());
+
+    let bad = [
+        HostHeightMap {
+            image: vk::Image::null(),
+            ..map
+        },
+        HostHeightMap {
+            format: vk::Format::R8G8B8A8_SRGB,
+            ..map
+        },
+        HostHeightMap {
+            channel: HeightChannel::A,
+            ..map
+        },
+        HostHeightMap {
+            usage: vk::ImageUsageFlags::TRANSFER_DST,
+            ..map
+        },
+        HostHeightMap {
+            mip_levels: 7,
+            ..map
+        },
+        HostHeightMap {
+            extent: vk::Extent2D {
+                width: 0,
+                height: h,
+            },
+            ..map
+        },
+    ];
+    for b in bad {
+        match pass.add_host_material(&b, settings(Method::Exact)) {
+            Err(dispmap::Error::InvalidInput { name, message }) => {
+                assert_eq!(name, "host height map", "{message}");
+                eprintln!("refused: {message}");
+            }
+            other => panic!("{b:?} not refused: {other:?}"),
+        }
+    }
+    assert_eq!(pass.materials().len(), 2);
+
+    host.destroy();
+    // SAFETY: every frame and one-shot completed (`host.destroy` waited).
+    unsafe {
+        pass.destroy();
+        image.destroy(&ctx);
         let mut shot = shot;
         shot.destroy(&ctx);
     }

@@ -11,6 +11,7 @@
 //! | `trace` pipeline | method | a live material uses the method |
 //! | pyramid / DIG corner / cone pipelines | (cone kind) | a live material needs them |
 //! | height texture | map content, size, format, addressing | `add_material` / `set_material_height_map` (the upload is staged there); its mip chain follows level of detail |
+//! | host height texture (views of the host's image) | image, channel, levels, size, format, addressing, contents version | `add_host_material` / `set_material_host_height_map` / `host_height_map_changed` (nothing to upload; the mip chain is the host's) |
 //! | pyramid | (map, kind) | a material on the map needs it (its method, hard shadows' cell pyramid, a cone map's input) |
 //! | cone map | (map, kind) | a material on the map uses a cone method |
 //! | DIG corner grids | (material, block, extent) | the material is a DIG method |

@@ -13,6 +13,10 @@
 //!
 //! Two views: [`HeightTexture::descriptor`] binds level 0 alone, what every pass reads
 //! unless level of detail is on, and [`HeightTexture::descriptor_lod`] the whole chain.
+//! A host engine's own image can be a height texture too ([`HeightTexture::from_host`]):
+//! dispmap's views of it put the height channel in `r`, its mip chain is the host's, and
+//! nothing is uploaded or filled (`crate::embed::HostHeightMap`).
+//!
 //! The single-level view is not only tidier: lavapipe compiles its samplers for the
 //! view's level count, and through a view with a mip chain every filtered fetch took the
 //! general path (measured at 640x360: `bump`'s trace 14.4 -> 5.8 ms, its shade 15.6 ->
