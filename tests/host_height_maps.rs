@@ -943,3 +943,63 @@ fn host_map_changed_in_place_and_bad_descriptions_refused() {
     drop(pass);
     finish(ctx);
 }
+
+/// A preparation submitted on its own (its own command buffer and fence, not waited
+/// for), then the map it prepared replaced before the next frame, with one frame in
+/// flight: what the preparation reads and writes (the staging buffer, the texture, the
+/// pyramid) must outlive the next frame, whose fence is the first that covers the
+/// preparation. Synchronization and object-lifetime validation report any of them
+/// destroyed while the preparation may still run.
+#[test]
+fn a_preparation_submitted_apart_keeps_what_it_uses_past_the_next_frame() {
+    let ctx = validated_context();
+    let (scene, _) = camera();
+    let mut host = RayHost::new(ctx.clone(), EXTENT, 1);
+    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
+    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
+    let base = host.read_gbuffer();
+    host.upload_gbuffer(&assign(&base, [0; 3]));
+    let field =
+        |seed| HeightField::from_texels(64, 64, Texels::R8(texels8(64, 64, seed)), "r8").unwrap();
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &field(0.0),
+        PassSettings {
+            method: Method::Exact,
+            params: MethodParams::for_method(Method::Exact),
+            depth_scale: DEPTH_SCALE,
+            addressing: Addressing::Repeat,
+            extent: EXTENT,
+            frames_in_flight: 1,
+        },
+    )
+    .unwrap();
+    host.submit(&mut pass, 0);
+    host.wait(0);
+    pass.set_height_map(&field(0.5)).unwrap();
+    let mut prep = common::frames::FrameSlots::new(ctx.clone(), 1);
+    let cmd = prep.begin(0);
+    // SAFETY: `cmd` (begun above, outside a render pass, on the context's queue family)
+    // is submitted below, before the next record.
+    let prepared = unsafe { pass.record_preparation(cmd, Timestamps::Off) }.unwrap();
+    assert_eq!(
+        prepared.passes,
+        [PassName::Upload, PassName::Pyramid],
+        "the new map's upload and pyramid"
+    );
+    prep.submit(0);
+    // Replaced before any frame used it: the prepared texture and pyramid are retired.
+    pass.set_height_map(&field(0.9)).unwrap();
+    for _ in 0..3 {
+        host.submit(&mut pass, 0);
+    }
+    let hits = host.hits(0);
+    assert!(hits.iter().filter(|h| h[2] >= 0.0).count() > 1000);
+    assert!(hits.iter().flatten().all(|v| v.is_finite()));
+    prep.destroy();
+    host.destroy();
+    // SAFETY: every frame completed (`host.destroy` waited).
+    unsafe { pass.destroy() };
+    drop(pass);
+    finish(ctx);
+}
