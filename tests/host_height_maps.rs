@@ -13,7 +13,8 @@
 //! `s3tc_dxt5_alpha_channel` / `lp_build_lerpdxta`, 8-bit results), not with the
 //! `(a0 (8 - c) + a1 (c - 1)) / 7` of Mesa's C fetch (`texcompress_rgtc_tmp.h`):
 //! [`bc4_decode`] is that arithmetic, and the test checks it against the GPU through
-//! the cell pyramid (its level 0 is the maximum of 4 decoded texels).
+//! the cell pyramid (its level 0 is the maximum of 4 decoded texels). On another driver
+//! the BC4 map's comparisons are skipped (a GPU decodes BC4 at its own precision).
 
 mod common;
 
@@ -431,6 +432,16 @@ fn host_bc4_alpha_and_r16_maps_match_their_decoded_texels() {
     let ctx = validated_context();
     let shot = OneShot::new(&ctx, "test.shot").unwrap();
     let mut maps = maps(&ctx, &shot);
+    // The BC4 map's texels are decoded as llvmpipe decodes them: on another driver (a
+    // GPU decodes BC4 at its own precision) its band is not compared.
+    let llvmpipe = ctx.info().name.contains("llvmpipe");
+    if !llvmpipe {
+        eprintln!(
+            "{}: not llvmpipe, the BC4 map is not compared",
+            ctx.info().name
+        );
+    }
+    let checked = |b: usize| b != 0 || llvmpipe;
     let (scene, cam) = camera();
     let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
     let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
@@ -521,6 +532,9 @@ fn host_bc4_alpha_and_r16_maps_match_their_decoded_texels() {
         for y in 0..EXTENT.height {
             for x in 0..EXTENT.width {
                 let i = (y * EXTENT.width + x) as usize;
+                if !checked(band(x)) {
+                    continue;
+                }
                 assert_eq!(
                     texel_hits[i].map(f32::to_bits),
                     host_hits[i].map(f32::to_bits),
@@ -536,10 +550,13 @@ fn host_bc4_alpha_and_r16_maps_match_their_decoded_texels() {
                 }
             }
         }
-        assert!(compared.iter().all(|&n| n > 500), "{compared:?}");
+        assert!(
+            (0..3).all(|b| !checked(b) || compared[b] > 500),
+            "{compared:?}"
+        );
 
         if method == Method::Exact {
-            for (b, field) in maps.fields.iter().enumerate() {
+            for (b, field) in maps.fields.iter().enumerate().filter(|(b, _)| checked(*b)) {
                 let reference = Reference::new(field, Addressing::Repeat);
                 let band_rays: Vec<_> = (0..rays.len())
                     .map(|i| rays[i].filter(|_| band(i as u32 % EXTENT.width) == b))
@@ -569,7 +586,7 @@ fn host_bc4_alpha_and_r16_maps_match_their_decoded_texels() {
             // (8 or 16 bits; the BC4 map's pyramid holds the sampled floats, and
             // lavapipe converts an 8-bit unorm `c` as `c * (1 / 255)` in f32, which is
             // one ulp above `c / 255` for some `c`: counted below).
-            for (b, field) in maps.fields.iter().enumerate() {
+            for (b, field) in maps.fields.iter().enumerate().filter(|(b, _)| checked(*b)) {
                 let levels = pass
                     .material_pyramid(host_ids[b])
                     .expect("exact's cell pyramid is built")
