@@ -797,7 +797,9 @@ fn a_4096_bc4_map_prepared_by_the_host_before_its_first_frame() {
 
 /// The host rewrites its image's contents and says so (`host_height_map_changed`): the
 /// next preparation rebuilds the map's pyramid, and frames match the new texels; the old
-/// preparation is retired (the map count does not grow). Descriptions dispmap can check
+/// preparation is retired (the map count does not grow). Then another image for the
+/// material (`set_material_host_height_map`), built by the next record: frames match its
+/// texels. Descriptions dispmap can check
 /// are refused naming the host height map; a preparation cannot use the pass's own
 /// timestamp pool.
 #[test]
@@ -857,7 +859,8 @@ fn host_map_changed_in_place_and_bad_descriptions_refused() {
         host.submit_shaded(pass, s, cam, HOST_COLOR);
         (host.hits(s), host.colors(s))
     };
-    for round in 0..2 {
+    let mut other = None;
+    for round in 0..3 {
         let texel_frame = frame(&mut pass, &mut host, 0, 0);
         let host_frame = frame(&mut pass, &mut host, id.index(), 1);
         let bits = |f: &(Vec<[f32; 4]>, Vec<[u8; 4]>)| {
@@ -867,8 +870,26 @@ fn host_map_changed_in_place_and_bad_descriptions_refused() {
         assert_eq!(texel_frame.1, host_frame.1, "round {round} colours");
         assert!(texel_frame.0.iter().filter(|h| h[2] >= 0.0).count() > 1000);
         assert_eq!(pass.map_count(), 2);
-        if round == 1 {
+        if round == 2 {
             break;
+        }
+        if round == 1 {
+            // Another host image for the material (the default path: the next record
+            // builds its pyramid); the old image's map is retired.
+            let third = texels(2.1);
+            let image2 = host_image(
+                &ctx,
+                &shot,
+                "host.r16b",
+                vk::Format::R16_UNORM,
+                extent,
+                &bytes(&third),
+            );
+            pass.set_material_host_height_map(id, &describe(&image2, HeightChannel::R))
+                .unwrap();
+            pass.set_height_map(&field(third)).unwrap();
+            other = Some(image2);
+            continue;
         }
         // New contents: the host waits for the frames that sample the image, writes it,
         // says so, and prepares the map again before the next frame.
@@ -954,6 +975,9 @@ fn host_map_changed_in_place_and_bad_descriptions_refused() {
     unsafe {
         pass.destroy();
         image.destroy(&ctx);
+        if let Some(mut image2) = other {
+            image2.destroy(&ctx);
+        }
         let mut shot = shot;
         shot.destroy(&ctx);
     }
