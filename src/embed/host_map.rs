@@ -235,11 +235,10 @@ impl DisplacementPass {
         let mut swaps = Vec::new();
         for &old in &stale {
             let Some(m) = &self.maps[old] else { continue };
-            let (plan::MapSource::Host { map, version }, addressing) =
-                (m.key.host_source().expect("a host map"), m.key.addressing)
-            else {
+            let Some(plan::MapSource::Host { map, version }) = m.key.host_source() else {
                 continue;
             };
+            let addressing = m.key.addressing;
             match self.host_map_for(&map, addressing, Some(version + 1)) {
                 Ok((new, _)) => swaps.push((old, new)),
                 Err(e) => {
