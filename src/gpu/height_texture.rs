@@ -34,7 +34,8 @@ use ash::vk;
 /// The uploaded height field.
 pub struct HeightTexture {
     /// The image (`R8_UNORM`, `R16_UNORM` or `R32_SFLOAT`), in
-    /// `SHADER_READ_ONLY_OPTIMAL` after upload.
+    /// `SHADER_READ_ONLY_OPTIMAL` after upload; for a host's image
+    /// ([`HeightTexture::from_host`]) the host's, borrowed, with dispmap's swizzled view.
     pub image: Image,
     /// Bilinear sampler with the addressing mode (repeat or clamp to edge).
     pub sampler: vk::Sampler,
