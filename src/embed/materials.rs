@@ -17,17 +17,32 @@ impl DisplacementPass {
     ) -> Result<MaterialId> {
         self.check_alive()?;
         validate_material(&self.ctx, &settings)?;
-        let index = match self.materials.iter().position(Option::is_none) {
-            Some(i) => i,
-            None if self.materials.len() < MAX_MATERIALS as usize => self.materials.len(),
-            None => {
-                return Err(Error::invalid(
-                    "material",
-                    format!("the table is full ({MAX_MATERIALS} materials)"),
-                ));
-            }
-        };
+        let index = self.free_index()?;
         let (map, new_map) = self.map_for(field, &settings)?;
+        self.insert_material(index, settings, map, new_map)
+    }
+
+    /// The table index a new material gets: the lowest free one.
+    pub(super) fn free_index(&self) -> Result<usize> {
+        match self.materials.iter().position(Option::is_none) {
+            Some(i) => Ok(i),
+            None if self.materials.len() < MAX_MATERIALS as usize => Ok(self.materials.len()),
+            None => Err(Error::invalid(
+                "material",
+                format!("the table is full ({MAX_MATERIALS} materials)"),
+            )),
+        }
+    }
+
+    /// Puts a material with `settings` on map `map` (`new_map`: made for it, destroyed
+    /// if the sync fails) at `index` ([`DisplacementPass::free_index`]) and syncs.
+    pub(super) fn insert_material(
+        &mut self,
+        index: usize,
+        settings: MaterialSettings,
+        map: usize,
+        new_map: bool,
+    ) -> Result<MaterialId> {
         let generation = self.next_generation;
         self.next_generation += 1;
         let entry = plan::MaterialEntry {
@@ -90,6 +105,14 @@ impl DisplacementPass {
             .collect()
     }
 
+    /// A material's method pyramid once a record or preparation has built it (`None`
+    /// for methods without one, or before the build; as [`DisplacementPass::pyramid`]).
+    pub fn material_pyramid(&self, id: MaterialId) -> Option<&Pyramid> {
+        let m = self.entry(id).ok()?;
+        let kind = m.settings.method.needs().pyramid?;
+        self.maps[m.map].as_ref()?.pyramid(kind)
+    }
+
     /// A material's settings.
     pub fn material_settings(&self, id: MaterialId) -> Result<MaterialSettings> {
         Ok(self.entry(id)?.settings)
@@ -143,6 +166,12 @@ impl DisplacementPass {
         let i = self.entry_index(id)?;
         let settings = self.entry(id)?.settings;
         let (map, new_map) = self.map_for(field, &settings)?;
+        self.swap_material_map(i, map, new_map)
+    }
+
+    /// Points material `i` at map `map` (`new_map`: made for it, destroyed if the sync
+    /// fails) and syncs; on error the material keeps its old map.
+    pub(super) fn swap_material_map(&mut self, i: usize, map: usize, new_map: bool) -> Result<()> {
         let old = self.materials[i].as_ref().map_or(map, |m| m.map);
         if let Some(m) = &mut self.materials[i] {
             m.map = map;
@@ -238,7 +267,12 @@ impl DisplacementPass {
         }
         let chain = settings.params.lod_threshold.is_some();
         let entry = plan::MapEntry::new(&self.ctx, field, key, chain)?;
-        let i = match self.maps.iter().position(Option::is_none) {
+        Ok((self.push_map(entry), true))
+    }
+
+    /// Puts `entry` in the map table's first free place; its index.
+    pub(super) fn push_map(&mut self, entry: plan::MapEntry) -> usize {
+        match self.maps.iter().position(Option::is_none) {
             Some(i) => {
                 self.maps[i] = Some(entry);
                 i
@@ -247,7 +281,6 @@ impl DisplacementPass {
                 self.maps.push(Some(entry));
                 self.maps.len() - 1
             }
-        };
-        Ok((i, true))
+        }
     }
 }

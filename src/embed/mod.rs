@@ -72,6 +72,7 @@
 //! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL` with the host's colour (kept wherever nothing is displaced): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values), every other pixel as it entered |
 //! | motion (`R16G16_SFLOAT` or `R32G32_SFLOAT` as [`MotionSettings::format`], `STORAGE`; only with [`DisplacementPass::set_motion_output`] on) | host | `GENERAL` with the host's motion of every pixel (source `Surface`; any contents for `Camera`): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_READ \| SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels with a hit written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`, every other pixel as it entered |
 //! | height maps, pyramids, cone maps, DIG corner grids, tile lists | pass | (internal) | (internal; read-only for the host) |
+//! | host height map ([`HostHeightMap`], only for [`DisplacementPass::add_host_material`]) | host | `SHADER_READ_ONLY_OPTIMAL`, every mip level, its writes visible to `COMPUTE_SHADER` `SHADER_SAMPLED_READ` whenever a frame or preparation recorded with a material on it executes (see "Height maps the host owns") | unchanged; read only by `COMPUTE_SHADER` `SHADER_SAMPLED_READ` |
 //! | visibility (`R16_SFLOAT`, one per slot; only with [`DisplacementPass::set_shadows`] on and a [`ShadeTarget`]) | pass | (internal: discarded by the pass) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (shadow), last read by `SHADER_STORAGE_READ` (shade); read-only for the host ([`DisplacementPass::visibility`]) |
 //! | corrected depth (`R32_SFLOAT`, one per slot; only with [`DisplacementPass::set_depth_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (hit_depth); the host may read it (after its own barrier from that state) and leave it in any layout |
 //!
@@ -131,6 +132,59 @@
 //! frames-in-flight loop. Command buffers recorded by `record` are submitted to the
 //! context's queue in the order they were recorded (the pyramid built in one frame is
 //! read by the next), and every recorded command buffer is submitted.
+//!
+//! # Height maps the host owns
+//!
+//! [`DisplacementPass::add_host_material`] (and
+//! [`DisplacementPass::set_material_host_height_map`]) takes a [`HostHeightMap`]: the
+//! host's own sampled image, its mip chain, and which channel holds the heights, in one of
+//! [`HOST_HEIGHT_FORMATS`] (`R8`/`R16` unorm, `R16F`, `R32F`, `BC4` unorm, or a channel of
+//! an `RG8`, `RGBA8`, `BGRA8`, `RGBA16` unorm, `RGBA16F`, `BC3`, `BC5` or `BC7` image, such
+//! as a normal map's alpha). The pass makes two views of it (every level, and level 0
+//! alone) whose component mapping puts the channel in `r` (`g`, `b` 0, `a` 1) and a linear
+//! sampler with the material's addressing; it uploads, hashes and reads back nothing.
+//! Every preparation (the pyramids, the cone maps) and every pass samples those views, so
+//! the methods see the map exactly as the GPU decodes it, and `exact` is exact against
+//! that decoding. Level of detail samples the host's mip chain as it is (one level: level 0
+//! only); every other read is of level 0. Materials on the same image, channel and levels
+//! with the same addressing share one map and its preparations.
+//!
+//! The host's contract for the image:
+//!
+//! * **Creation**: a 2-D image of the context's device with one array layer, `SAMPLED`
+//!   usage, `VK_SHARING_MODE_EXCLUSIVE` (or ownership transferred to the context's queue
+//!   family before a frame uses it), a format the device samples with linear filtering
+//!   (checked: [`Error::Unsupported`]), heights in `[0, 1]` (1 = the macro surface; NaN or
+//!   values outside are the host's error: dispmap never sees them on the CPU).
+//! * **Layout and queue**: every level in `SHADER_READ_ONLY_OPTIMAL` with the host's
+//!   writes visible to `COMPUTE_SHADER` `SHADER_SAMPLED_READ` (its barrier's
+//!   `dstStageMask` / `dstAccessMask`) before any command buffer recorded with a material
+//!   on it executes on the context's queue; the pass never changes its layout and only
+//!   reads it (`COMPUTE_SHADER` sampled reads), so the host's next write needs only an
+//!   execution dependency on `COMPUTE_SHADER`.
+//! * **Lifetime**: alive and unchanged while a frame or preparation recorded with a
+//!   material on it may execute, and until the material is removed or given another map
+//!   and every slot has been recorded again (or the pass destroyed).
+//! * **Changing it**: either a new image through
+//!   [`DisplacementPass::set_material_host_height_map`] (what the old one needed is
+//!   retired as a replaced map's), or the same image rewritten in place once no pending
+//!   command buffer reads it (the host waited for the fences of the frames recorded with
+//!   it), followed by [`DisplacementPass::host_height_map_changed`] before the next
+//!   record: the pass then builds new preparations of it (the old ones are retired), in
+//!   the next record or in a preparation the host records after its write.
+//!
+//! # Preparation the host schedules
+//!
+//! By default the first record after a change builds what it left pending: the `upload`,
+//! `pyramid` and `cone` scopes at the start of the frame (a 4096² map's pyramid takes over
+//! a second on lavapipe). [`DisplacementPass::record_preparation`] records that work into
+//! a command buffer of the host's choosing instead, before the frame that first uses it
+//! (the same command buffer before `record`, or an earlier submission on the context's
+//! queue): `record` then finds it done, and the frame's passes and timings hold none of
+//! it. [`DisplacementPass::preparation_pending`] says whether there is any. What the
+//! preparation reads (staging buffers, replaced textures) and whatever is retired before
+//! the next record stays alive until that frame and every slot after it have been
+//! recorded again: the next frame's fence covers the preparation submitted before it.
 //!
 //! # Self-shadowing
 //!
@@ -194,9 +248,11 @@
 
 mod device;
 mod graph;
+mod host_map;
 mod inputs;
 mod materials;
 mod plan;
+mod prepare;
 mod record;
 
 pub use device::{
@@ -237,6 +293,7 @@ pub use crate::passes::shade::COLOR_FORMAT;
 pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
 pub use crate::passes::trace::HIT_FORMAT;
 pub use crate::timing::{TimestampScope, read_timestamps};
+pub use host_map::{HOST_HEIGHT_FORMATS, HeightChannel, HostHeightMap};
 pub use inputs::{
     FrameInputs, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget, Timestamps,
 };
@@ -289,6 +346,9 @@ pub struct DisplacementPass {
     built_extent: vk::Extent2D,
     query_pool: Option<vk::QueryPool>,
     retired: RetireQueue,
+    /// The retire queue's length when a preparation was recorded since the last frame
+    /// ([`DisplacementPass::record_preparation`]).
+    prepared_mark: Option<usize>,
     /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
     shadows: ShadowSettings,
     destroyed: bool,
@@ -336,6 +396,7 @@ impl DisplacementPass {
             built_extent: vk::Extent2D::default(),
             query_pool: None,
             retired: RetireQueue::new(settings.frames_in_flight),
+            prepared_mark: None,
             shadows: ShadowSettings::default(),
             destroyed: false,
             ctx,

@@ -11,6 +11,7 @@
 //! | `trace` pipeline | method | a live material uses the method |
 //! | pyramid / DIG corner / cone pipelines | (cone kind) | a live material needs them |
 //! | height texture | map content, size, format, addressing | `add_material` / `set_material_height_map` (the upload is staged there); its mip chain follows level of detail |
+//! | host height texture (views of the host's image) | image, channel, levels, size, format, addressing, contents version | `add_host_material` / `set_material_host_height_map` / `host_height_map_changed` (nothing to upload; the mip chain is the host's) |
 //! | pyramid | (map, kind) | a material on the map needs it (its method, hard shadows' cell pyramid, a cone map's input) |
 //! | cone map | (map, kind) | a material on the map uses a cone method |
 //! | DIG corner grids | (material, block, extent) | the material is a DIG method |
@@ -71,11 +72,24 @@ impl Destroy for Fill {
 /// everything derived from it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct MapKey {
-    /// A 64-bit hash of the texels.
-    hash: u64,
+    /// A 64-bit hash of the texels, or the host's image.
+    hash: MapSource,
     size: [u32; 2],
     format: vk::Format,
     pub addressing: Addressing,
+}
+
+/// Where a map's texels are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum MapSource {
+    /// dispmap's upload of texels with this 64-bit hash.
+    Texels(u64),
+    /// A host engine's image as the host describes it, and the version of its contents
+    /// (a new one each time the host says they changed: a new entry, new preparations).
+    Host {
+        map: super::HostHeightMap,
+        version: u64,
+    },
 }
 
 impl MapKey {
@@ -83,11 +97,31 @@ impl MapKey {
         let mut h = std::collections::hash_map::DefaultHasher::new();
         field.bytes().hash(&mut h);
         MapKey {
-            hash: h.finish(),
+            hash: MapSource::Texels(h.finish()),
             size: [field.width(), field.height()],
             format: field.format(),
             addressing,
         }
+    }
+
+    /// The key of a host image's map.
+    pub fn host(
+        source: MapSource,
+        size: [u32; 2],
+        format: vk::Format,
+        addressing: Addressing,
+    ) -> Self {
+        MapKey {
+            hash: source,
+            size,
+            format,
+            addressing,
+        }
+    }
+
+    /// The host image's source, `None` for dispmap's upload.
+    pub fn host_source(&self) -> Option<MapSource> {
+        matches!(self.hash, MapSource::Host { .. }).then_some(self.hash)
     }
 }
 
@@ -128,6 +162,17 @@ impl MapEntry {
             pyramids: Vec::new(),
             cones: Vec::new(),
         })
+    }
+
+    /// A host image's map: its texture (views of the host's image), nothing to fill.
+    pub fn new_host(key: MapKey, texture: HeightTexture) -> Self {
+        MapEntry {
+            key,
+            texture,
+            pending_fill: None,
+            pyramids: Vec::new(),
+            cones: Vec::new(),
+        }
     }
 
     /// The built pyramid of `kind`.
@@ -431,7 +476,7 @@ impl DisplacementPass {
                     .push((i, map.texture.create_like(c, want.chain)?));
             }
             let size = map.texture.size();
-            let format = map.texture.image.format;
+            let format = map.texture.texel_format();
             for &kind in &want.pyramids {
                 if !map.pyramids.iter().any(|p| p.value.kind == kind) {
                     let p = Pyramid::new(c, size, kind, map.key.addressing, format)?;

@@ -114,7 +114,7 @@ impl DisplacementPass {
         // the classification leaves the host's hits as they are (no hit writes); the graph
         // places the barriers between the stages.
         unsafe {
-            self.record_builds(cmd, &mut w, inputs.frame_slot)?;
+            self.record_builds(cmd, &mut w, Some(inputs.frame_slot))?;
             self.record_classify(cmd, &mut w, &mut g, inputs, false, None)?;
         }
         let visibility = match visibility {
@@ -200,7 +200,7 @@ impl DisplacementPass {
         // queries; the builds leave every map sampled-readable, and the graph places the
         // barriers between the stages after them.
         unsafe {
-            self.record_builds(cmd, &mut w, slot)?;
+            self.record_builds(cmd, &mut w, Some(slot))?;
             self.record_classify(cmd, &mut w, &mut g, inputs, true, depth_view)?;
             self.record_corners(cmd, &mut w, &mut g, inputs)?;
             self.record_trace(cmd, &mut w, &mut g, inputs)?;
@@ -280,7 +280,14 @@ impl DisplacementPass {
         // Slot `slot`'s previous frame has completed: nothing retired before now is
         // read by it any more.
         // SAFETY: `record`'s slot contract: the slot's previous frame has completed.
-        unsafe { self.retired.release(&self.ctx, slot) };
+        unsafe {
+            match self.prepared_mark.take() {
+                // A preparation was recorded since the last frame: what was retired since
+                // then waits for this frame too (`record_preparation`).
+                Some(mark) => self.retired.release_holding(&self.ctx, slot, mark),
+                None => self.retired.release(&self.ctx, slot),
+            }
+        };
         let w = ScopeWriter::new(pool, first, MAX_QUERIES);
         // SAFETY: this function's contract (a live pool with the range).
         unsafe { w.reset(&self.ctx, cmd) };
@@ -341,15 +348,17 @@ impl DisplacementPass {
     /// The pending work of earlier changes: the `upload` scope (new height maps, height
     /// textures refilled for level of detail, material maps), the `pyramid` scope (every
     /// unbuilt pyramid) and the `cone` scope (every unbuilt cone map). Each fill leaves its
-    /// image readable by compute shaders.
+    /// image readable by compute shaders. `slot`: the frame's slot, `None` for a
+    /// preparation outside the frames ([`DisplacementPass::record_preparation`]), whose
+    /// staging waits for every slot.
     ///
     /// # Safety
     /// As [`DisplacementPass::record`].
-    unsafe fn record_builds(
+    pub(super) unsafe fn record_builds(
         &mut self,
         cmd: vk::CommandBuffer,
         w: &mut ScopeWriter,
-        slot: u32,
+        slot: Option<u32>,
     ) -> Result<()> {
         let ctx = self.ctx.clone();
         let fills: Vec<(usize, Fill)> = (self.maps.iter_mut().enumerate())
@@ -391,16 +400,21 @@ impl DisplacementPass {
             };
         }
         for (_, fill) in fills {
-            match fill {
+            match (fill, slot) {
                 // Read by this frame's copy only: destroyed when this slot is next recorded.
-                Fill::Upload(staging) => self.retired.retire_for_slot(slot, staging),
+                (Fill::Upload(staging), Some(slot)) => self.retired.retire_for_slot(slot, staging),
+                // Read by a preparation's copy: held past the next frame (`begin`).
+                (Fill::Upload(staging), None) => self.retired.retire(staging),
                 // Read by this frame's copy and by frames in flight in other slots: kept
                 // until every slot has been recorded again.
-                Fill::Copy(source) => self.retired.retire(source),
+                (Fill::Copy(source), _) => self.retired.retire(source),
             }
         }
         for (_, staging) in shading {
-            self.retired.retire_for_slot(slot, staging);
+            match slot {
+                Some(slot) => self.retired.retire_for_slot(slot, staging),
+                None => self.retired.retire(staging),
+            }
         }
 
         if self

@@ -13,6 +13,10 @@
 //!
 //! Two views: [`HeightTexture::descriptor`] binds level 0 alone, what every pass reads
 //! unless level of detail is on, and [`HeightTexture::descriptor_lod`] the whole chain.
+//! A host engine's own image can be a height texture too ([`HeightTexture::from_host`]):
+//! dispmap's views of it put the height channel in `r`, its mip chain is the host's, and
+//! nothing is uploaded or filled (`crate::embed::HostHeightMap`).
+//!
 //! The single-level view is not only tidier: lavapipe compiles its samplers for the
 //! view's level count, and through a view with a mip chain every filtered fetch took the
 //! general path (measured at 640x360: `bump`'s trace 14.4 -> 5.8 ms, its shade 15.6 ->
@@ -22,7 +26,7 @@ use super::commands::{OneShot, record_copy_to_level0};
 use super::sync::{self, Access};
 use super::{Buffer, Image};
 use crate::context::Context;
-use crate::error::Result;
+use crate::error::{Result, VkContext};
 use crate::gpu::owned::Destroy;
 use crate::heightfield::{Addressing, HeightField};
 use ash::vk;
@@ -30,7 +34,8 @@ use ash::vk;
 /// The uploaded height field.
 pub struct HeightTexture {
     /// The image (`R8_UNORM`, `R16_UNORM` or `R32_SFLOAT`), in
-    /// `SHADER_READ_ONLY_OPTIMAL` after upload.
+    /// `SHADER_READ_ONLY_OPTIMAL` after upload; for a host's image
+    /// ([`HeightTexture::from_host`]) the host's, borrowed, with dispmap's swizzled view.
     pub image: Image,
     /// Bilinear sampler with the addressing mode (repeat or clamp to edge).
     pub sampler: vk::Sampler,
@@ -38,6 +43,10 @@ pub struct HeightTexture {
     pub addressing: Addressing,
     /// A view of level 0 alone (`None` when the image has one level: then `image.view`).
     base_view: Option<vk::ImageView>,
+    /// A host engine's image ([`HeightTexture::from_host`]): `image` is borrowed (no
+    /// memory of dispmap's), its views dispmap's; the format whose texels hold the
+    /// sampled channel's values exactly (see [`HeightTexture::texel_format`]).
+    host: Option<vk::Format>,
 }
 
 impl HeightTexture {
@@ -135,6 +144,7 @@ impl HeightTexture {
                 sampler,
                 addressing,
                 base_view,
+                host: None,
             }),
             Err(e) => {
                 if let Some(v) = base_view {
@@ -148,15 +158,113 @@ impl HeightTexture {
         }
     }
 
+    /// A host engine's sampled image as a height texture: views of it made by dispmap
+    /// (every level, and level 0 alone) whose component mapping puts the image's
+    /// `channel` in `r` (`g`, `b` zero, `a` one: what a one-channel map samples as), and a
+    /// linear sampler with `addressing`. `texel_format`: a format whose texels hold every
+    /// value the channel can sample as, exactly (`R8_UNORM` for an 8-bit unorm channel,
+    /// `R16_UNORM` for a 16-bit one), or the image's format where there is none (the
+    /// pyramid then keeps its `R32_SFLOAT` chain). Nothing is recorded: the host's image
+    /// keeps its contents, layout and mip chain. [`Destroy::destroy`] destroys the views
+    /// and the sampler, never the image.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_host(
+        ctx: &Context,
+        name: &str,
+        raw: vk::Image,
+        format: vk::Format,
+        extent: vk::Extent2D,
+        levels: u32,
+        usage: vk::ImageUsageFlags,
+        channel: vk::ComponentSwizzle,
+        texel_format: vk::Format,
+        addressing: Addressing,
+    ) -> Result<Self> {
+        let view = |level_count: u32, label: &str| -> Result<vk::ImageView> {
+            let info = vk::ImageViewCreateInfo::default()
+                .image(raw)
+                .view_type(vk::ImageViewType::TYPE_2D)
+                .format(format)
+                .components(vk::ComponentMapping {
+                    r: channel,
+                    g: vk::ComponentSwizzle::ZERO,
+                    b: vk::ComponentSwizzle::ZERO,
+                    a: vk::ComponentSwizzle::ONE,
+                })
+                .subresource_range(vk::ImageSubresourceRange {
+                    level_count,
+                    ..crate::gpu::image::full_range(format, levels)
+                });
+            // SAFETY: the caller's image (alive, of `format` with `levels` levels and
+            // SAMPLED usage: `from_host`'s callers check the host's description); the
+            // view names levels it has, in its own format.
+            let v =
+                unsafe { ctx.device().create_image_view(&info, None) }.vk("vkCreateImageView")?;
+            ctx.set_name(v, &format!("{name}.{label}"));
+            Ok(v)
+        };
+        let all = view(levels, "view")?;
+        let base_view = if levels > 1 {
+            match view(1, "level0") {
+                Ok(v) => Some(v),
+                Err(e) => {
+                    // SAFETY: created above, never used.
+                    unsafe { ctx.device().destroy_image_view(all, None) };
+                    return Err(e);
+                }
+            }
+        } else {
+            None
+        };
+        let image = Image::borrowed(raw, all, format, extent, levels, usage, name);
+        let mut texture = HeightTexture {
+            image,
+            sampler: vk::Sampler::null(),
+            addressing,
+            base_view,
+            host: Some(texel_format),
+        };
+        match crate::gpu::pipeline::sampler(
+            ctx,
+            "heightfield.sampler",
+            vk::Filter::LINEAR,
+            address_mode(addressing),
+        ) {
+            Ok(sampler) => {
+                texture.sampler = sampler;
+                Ok(texture)
+            }
+            Err(e) => {
+                // SAFETY: the views were created above and never used.
+                unsafe { texture.destroy(ctx) };
+                Err(e)
+            }
+        }
+    }
+
+    /// Whether the image is a host engine's ([`HeightTexture::from_host`]).
+    pub fn is_host(&self) -> bool {
+        self.host.is_some()
+    }
+
+    /// The format whose texels hold the sampled values exactly: the image's own format,
+    /// or for a host image the one [`HeightTexture::from_host`] was given (what decides
+    /// the pyramid's compact copy).
+    pub fn texel_format(&self) -> vk::Format {
+        self.host.unwrap_or(self.image.format)
+    }
+
     /// Whether the texture has the mip chain level of detail reads.
     pub fn has_chain(&self) -> bool {
         self.image.mip_levels > 1
     }
 
     /// Whether a texture for `chain` would differ from this one in its levels (false
-    /// where the format has no linear blits: it keeps one level either way).
+    /// where the format has no linear blits: it keeps one level either way; always false
+    /// for a host image, whose mip chain is the host's).
     pub fn differs_for(&self, ctx: &Context, chain: bool) -> bool {
-        mip_levels(ctx, self.image.format, self.image.extent, chain) != self.image.mip_levels
+        !self.is_host()
+            && mip_levels(ctx, self.image.format, self.image.extent, chain) != self.image.mip_levels
     }
 
     /// An empty texture of the same map (size, format, addressing, name), with a mip chain
@@ -404,7 +512,13 @@ impl Destroy for HeightTexture {
             if let Some(v) = self.base_view.take() {
                 ctx.device().destroy_image_view(v, None);
             }
-            self.image.destroy(ctx);
+            if self.host.is_some() {
+                // The host's image: only the view dispmap made goes.
+                ctx.device().destroy_image_view(self.image.view, None);
+                self.image.view = vk::ImageView::null();
+            } else {
+                self.image.destroy(ctx);
+            }
             ctx.device().destroy_sampler(self.sampler, None);
             self.sampler = vk::Sampler::null();
         }

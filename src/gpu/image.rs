@@ -205,6 +205,31 @@ impl Image {
         })
     }
 
+    /// A host engine's image seen through a view dispmap made, `view` (of every level),
+    /// with no memory of its own: [`Destroy::destroy`] leaves image and view alone (their
+    /// owner, e.g. [`crate::gpu::HeightTexture`], destroys the view it made; the host
+    /// the image).
+    pub(crate) fn borrowed(
+        raw: vk::Image,
+        view: vk::ImageView,
+        format: vk::Format,
+        extent: vk::Extent2D,
+        mip_levels: u32,
+        usage: vk::ImageUsageFlags,
+        name: &str,
+    ) -> Self {
+        Image {
+            raw,
+            view,
+            format,
+            extent,
+            mip_levels,
+            usage,
+            allocation: None,
+            name: name.into(),
+        }
+    }
+
     /// Creates a view of the one mip level `level`, named `name` (the caller destroys it
     /// before the image).
     pub fn level_view(&self, ctx: &Context, level: u32, name: &str) -> Result<vk::ImageView> {

@@ -164,6 +164,29 @@ impl RetireQueue {
         });
     }
 
+    /// The number of waiting resources: a mark for [`RetireQueue::release_holding`].
+    pub fn mark(&self) -> usize {
+        self.waiting.len()
+    }
+
+    /// [`RetireQueue::release`], except that what was retired since `mark` (taken with
+    /// no release in between) is not released: it waits for every slot again. For work
+    /// recorded outside the frame slots (a host's preparation command buffer), which is
+    /// submitted before the frame now recorded in `slot`, so that frame's completion is
+    /// the first that implies the work's: what the work used and was retired after it
+    /// was recorded stays until every slot has been recorded after this frame.
+    ///
+    /// # Safety
+    /// As [`RetireQueue::release`].
+    pub unsafe fn release_holding(&mut self, ctx: &Context, slot: u32, mark: usize) {
+        let held = self.waiting.split_off(mark.min(self.waiting.len()));
+        // SAFETY: this function's contract.
+        unsafe { self.release(ctx, slot) };
+        let all = self.all_slots;
+        self.waiting
+            .extend(held.into_iter().map(|(_, resource)| (all, resource)));
+    }
+
     /// Destroys everything now.
     ///
     /// # Safety

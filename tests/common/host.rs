@@ -43,6 +43,10 @@ pub struct RayHost {
     hits: Vec<Image>,
     /// One colour image per slot (`submit_shaded`).
     colors: Vec<Image>,
+    /// Where the next record writes its timestamps (`Off` but in `submit_shaded_timed`).
+    timestamps: Timestamps,
+    /// What the last record recorded.
+    recorded: Option<dispmap::embed::RecordedFrame>,
 }
 
 /// The G-buffer's texels as uploaded or read back: `ray` (f32 x 4), `depth` (f32),
@@ -119,6 +123,8 @@ impl RayHost {
             slots,
             hits,
             colors,
+            timestamps: Timestamps::Off,
+            recorded: None,
         }
     }
 
@@ -364,6 +370,21 @@ impl RayHost {
         self.record_slot_with(pass, s, shade, None);
     }
 
+    /// [`RayHost::submit_shaded`] with the pass's own timestamps
+    /// ([`dispmap::embed::Timestamps::Owned`]): what the record recorded.
+    pub fn submit_shaded_timed(
+        &mut self,
+        pass: &mut DisplacementPass,
+        s: usize,
+        camera: (glam::Mat4, glam::Vec3),
+        fill: [u8; 4],
+    ) -> dispmap::embed::RecordedFrame {
+        self.timestamps = Timestamps::Owned;
+        self.submit_shaded(pass, s, camera, fill);
+        self.timestamps = Timestamps::Off;
+        self.recorded.take().expect("a frame was recorded")
+    }
+
     /// [`RayHost::record_slot`], with a camera and motion inputs when given.
     fn record_slot_with(
         &mut self,
@@ -394,15 +415,14 @@ impl RayHost {
         // with the host's writes visible (`submit_with_motion`'s contract); the views live
         // until the frame completes; the slot contract holds (`begin` waited) and the
         // buffer is submitted below, in recording order.
+        let timestamps = self.timestamps;
         let recorded = unsafe {
             match motion {
-                Some((camera, _)) => {
-                    pass.record_with_camera(cmd, &inputs, &camera, Timestamps::Off)
-                }
-                None => pass.record(cmd, &inputs, Timestamps::Off),
+                Some((camera, _)) => pass.record_with_camera(cmd, &inputs, &camera, timestamps),
+                None => pass.record(cmd, &inputs, timestamps),
             }
         };
-        recorded.unwrap();
+        self.recorded = Some(recorded.unwrap());
         self.slots.submit(s);
     }
 
