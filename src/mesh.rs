@@ -1,6 +1,7 @@
 //! Macro geometry as triangle meshes: the generated cube, sphere and torus, meshes built
 //! from triangles (the loaders of OBJ and glTF files are in `dispmap-cli`'s `mesh_file`),
-//! and their vertex and index buffers on the GPU.
+//! and their vertex and index buffers on the GPU (`mesh/buffers.rs`); the point queries
+//! of a scene's eye check are in `mesh/queries.rs`.
 //!
 //! (The tiled plane and the quad need no mesh: `glsl/gbuffer.vert` generates them from
 //! `gl_VertexIndex`.)
@@ -45,13 +46,14 @@
 //!   weighted (Lengyel's method), then Gram-Schmidt against the normal; the handedness is
 //!   the sign of `(N x T) . dP/dv`. (The `stretch` always comes from that accumulation.)
 
-use crate::context::Context;
 use crate::error::{Error, Result};
-use crate::gpu::owned::Destroy;
-use crate::gpu::{Buffer, OneShot};
 use ash::vk;
 use glam::Vec3;
-use gpu_allocator::MemoryLocation;
+
+mod buffers;
+mod queries;
+
+pub use buffers::MeshBuffers;
 
 /// The largest surface id a half float holds exactly alongside its neighbours (ids cycle
 /// through `1..=MAX_SURFACE_ID`).
@@ -464,52 +466,6 @@ impl Mesh {
         }
     }
 
-    /// The triangles' corners in f64.
-    fn triangles_f64(&self) -> impl Iterator<Item = [glam::DVec3; 3]> + '_ {
-        self.indices.chunks_exact(3).filter_map(|t| {
-            let p = |i: u32| {
-                self.vertices
-                    .get(i as usize)
-                    .map(|v| Vec3::from(v.position).as_dvec3())
-            };
-            Some([p(t[0])?, p(t[1])?, p(t[2])?])
-        })
-    }
-
-    /// The distance from `point` to the nearest point of the mesh's triangles, in f64
-    /// (infinite for a mesh without triangles).
-    pub fn distance_to(&self, point: glam::DVec3) -> f64 {
-        self.triangles_f64()
-            .map(|[a, b, c]| (closest_on_triangle(point, a, b, c) - point).length())
-            .fold(f64::INFINITY, f64::min)
-    }
-
-    /// Whether `point` is inside the mesh taken as a closed surface (the generated cube,
-    /// sphere and torus are): a ray from it crosses an odd number of its triangles. The
-    /// ray's direction is one no edge or face of the generated meshes lies along.
-    pub fn encloses(&self, point: glam::DVec3) -> bool {
-        let dir = glam::DVec3::new(0.5773, 0.3317, 0.7453).normalize();
-        let crossings = self
-            .triangles_f64()
-            .filter(|&[a, b, c]| {
-                // Moller-Trumbore: the ray point + t dir, t > 0, through the triangle.
-                let (e1, e2) = (b - a, c - a);
-                let p = dir.cross(e2);
-                let det = e1.dot(p);
-                if det.abs() < 1e-300 {
-                    return false;
-                }
-                let s = point - a;
-                let u = s.dot(p) / det;
-                let q = s.cross(e1);
-                let v = dir.dot(q) / det;
-                let t = e2.dot(q) / det;
-                (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && t > 0.0
-            })
-            .count();
-        crossings % 2 == 1
-    }
-
     /// The largest surface id of the mesh (0 for an empty mesh).
     pub fn max_surface_id(&self) -> u32 {
         self.vertices
@@ -528,217 +484,9 @@ impl Mesh {
     }
 }
 
-/// A mesh's vertex and index buffers in device-local memory (filled once through a
-/// staging buffer).
-pub struct MeshBuffers {
-    /// Vertices ([`Vertex`]).
-    pub vertices: Buffer,
-    /// `u32` indices.
-    pub indices: Buffer,
-    /// Number of indices.
-    pub index_count: u32,
-    /// [`Mesh::two_sided`]: drawn with the two-sided G-buffer pipeline.
-    pub two_sided: bool,
-}
-
-impl MeshBuffers {
-    /// Creates the buffers (named after the mesh), copies the mesh into them on `shot`
-    /// and waits; the copy is made visible to vertex input (a barrier from the transfer
-    /// to `VERTEX_ATTRIBUTE_INPUT` / `INDEX_INPUT` reads in the same submission).
-    pub fn upload(ctx: &Context, shot: &OneShot, mesh: &Mesh) -> Result<Self> {
-        let vertex_bytes: &[u8] = bytemuck::cast_slice(&mesh.vertices);
-        let index_bytes: &[u8] = bytemuck::cast_slice(&mesh.indices);
-        let dst = vk::BufferUsageFlags::TRANSFER_DST;
-        let mut vertices = Buffer::new(
-            ctx,
-            &format!("mesh[{}].vertices", mesh.label),
-            vertex_bytes.len() as u64,
-            vk::BufferUsageFlags::VERTEX_BUFFER | dst,
-            MemoryLocation::GpuOnly,
-        )?;
-        let mut indices = match Buffer::new(
-            ctx,
-            &format!("mesh[{}].indices", mesh.label),
-            index_bytes.len() as u64,
-            vk::BufferUsageFlags::INDEX_BUFFER | dst,
-            MemoryLocation::GpuOnly,
-        ) {
-            Ok(b) => b,
-            Err(e) => {
-                // SAFETY: built above and never used by a command.
-                unsafe { vertices.destroy(ctx) };
-                return Err(e);
-            }
-        };
-        let mut staging = match Buffer::new(
-            ctx,
-            &format!("mesh[{}].staging", mesh.label),
-            (vertex_bytes.len() + index_bytes.len()) as u64,
-            vk::BufferUsageFlags::TRANSFER_SRC,
-            MemoryLocation::CpuToGpu,
-        ) {
-            Ok(b) => b,
-            Err(e) => {
-                // SAFETY: built above and never used by a command.
-                unsafe { vertices.destroy(ctx) };
-                // SAFETY: built above and never used by a command.
-                unsafe { indices.destroy(ctx) };
-                return Err(e);
-            }
-        };
-        let copied = (|| {
-            let bytes = staging.mapped_mut().ok_or_else(|| {
-                Error::invalid(mesh.label.clone(), "staging buffer is not mapped")
-            })?;
-            bytes[..vertex_bytes.len()].copy_from_slice(vertex_bytes);
-            bytes[vertex_bytes.len()..].copy_from_slice(index_bytes);
-            let cmd = shot.begin(ctx)?;
-            let barriers = [
-                vk::BufferMemoryBarrier2::default()
-                    .src_stage_mask(vk::PipelineStageFlags2::COPY)
-                    .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-                    .dst_stage_mask(vk::PipelineStageFlags2::VERTEX_ATTRIBUTE_INPUT)
-                    .dst_access_mask(vk::AccessFlags2::VERTEX_ATTRIBUTE_READ)
-                    .buffer(vertices.raw)
-                    .size(vk::WHOLE_SIZE),
-                vk::BufferMemoryBarrier2::default()
-                    .src_stage_mask(vk::PipelineStageFlags2::COPY)
-                    .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-                    .dst_stage_mask(vk::PipelineStageFlags2::INDEX_INPUT)
-                    .dst_access_mask(vk::AccessFlags2::INDEX_READ)
-                    .buffer(indices.raw)
-                    .size(vk::WHOLE_SIZE),
-            ];
-            // SAFETY: `cmd` is recording; the three buffers are alive and large enough
-            // for the regions (sizes computed from the same slices).
-            unsafe {
-                ctx.device().cmd_copy_buffer(
-                    cmd,
-                    staging.raw,
-                    vertices.raw,
-                    &[vk::BufferCopy {
-                        src_offset: 0,
-                        dst_offset: 0,
-                        size: vertex_bytes.len() as u64,
-                    }],
-                );
-                ctx.device().cmd_copy_buffer(
-                    cmd,
-                    staging.raw,
-                    indices.raw,
-                    &[vk::BufferCopy {
-                        src_offset: vertex_bytes.len() as u64,
-                        dst_offset: 0,
-                        size: index_bytes.len() as u64,
-                    }],
-                );
-                ctx.device().cmd_pipeline_barrier2(
-                    cmd,
-                    &vk::DependencyInfo::default().buffer_memory_barriers(&barriers),
-                );
-            }
-            shot.submit_and_wait(ctx)
-        })();
-        // SAFETY: the one-shot submission that used it was waited for (or never made).
-        unsafe { staging.destroy(ctx) };
-        if let Err(e) = copied {
-            // SAFETY: the one-shot submission that used it was waited for (or never made).
-            unsafe { vertices.destroy(ctx) };
-            // SAFETY: the one-shot submission that used it was waited for (or never made).
-            unsafe { indices.destroy(ctx) };
-            return Err(e);
-        }
-        Ok(MeshBuffers {
-            vertices,
-            indices,
-            index_count: mesh.indices.len() as u32,
-            two_sided: mesh.two_sided,
-        })
-    }
-}
-
-impl Destroy for MeshBuffers {
-    /// Destroys the buffers. The GPU must be done with them.
-    unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
-        unsafe {
-            self.vertices.destroy(ctx);
-            self.indices.destroy(ctx);
-        }
-    }
-}
-
-/// The point of triangle `abc` nearest to `p` (Ericson, Real-Time Collision Detection,
-/// 5.1.5), in f64.
-fn closest_on_triangle(
-    p: glam::DVec3,
-    a: glam::DVec3,
-    b: glam::DVec3,
-    c: glam::DVec3,
-) -> glam::DVec3 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = va + vb + vc;
-    if denom.abs() < 1e-300 {
-        // A degenerate triangle: its nearest corner.
-        return [a, b, c]
-            .into_iter()
-            .min_by(|x, y| (*x - p).length().total_cmp(&(*y - p).length()))
-            .unwrap_or(a);
-    }
-    a + ab * (vb / denom) + ac * (vc / denom)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The eye checks of a scene of several objects: inside the closed generated meshes
-    /// by a crossing count, and the distance to the nearest triangle.
-    #[test]
-    fn meshes_enclose_points_inside_and_measure_distances() {
-        use glam::DVec3;
-        let cube = Mesh::cube();
-        assert!(cube.encloses(DVec3::ZERO));
-        assert!(cube.encloses(DVec3::new(0.0, 0.25, 0.433)));
-        assert!(!cube.encloses(DVec3::new(0.0, 3.0, 0.0)));
-        for mesh in [Mesh::sphere(), Mesh::torus()] {
-            assert!(!mesh.encloses(DVec3::new(0.0, 5.0, 0.0)), "{}", mesh.label);
-        }
-        assert!(Mesh::sphere().encloses(DVec3::new(0.1, 0.2, 0.0)));
-        // The torus's hole is outside it.
-        assert!(!Mesh::torus().encloses(DVec3::ZERO));
-        let quad = Mesh::quad();
-        let d = quad.distance_to(DVec3::new(0.5, 0.3, 0.5));
-        assert!((d - 0.3).abs() < 1e-6, "{d}");
-        let d = quad.distance_to(DVec3::new(2.0, 0.0, 0.5));
-        assert!((d - 1.0).abs() < 1e-6, "{d}");
-    }
 
     fn check_frames(mesh: &Mesh) {
         for v in &mesh.vertices {

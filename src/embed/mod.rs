@@ -191,7 +191,7 @@
 //! [`DisplacementPass::set_shadows`] with [`ShadowSettings`] (`off`, `hard`, `soft`;
 //! [`crate::passes::shadow`] documents the light ray and the query each method gets)
 //! makes every record with a [`ShadeTarget`] run `shadow` between `trace` and `shade`,
-//! with the target's `light_dir`, and shade with the visibility (binding 7 of the
+//! with the target's `light_dir`, and shade with the visibility (`u_visibility` of the
 //! shaded `shade` variant): the colour then equals the standalone renderer's with the
 //! same [`ShadowSettings`] bit for bit. Without a `ShadeTarget` nothing is shadowed.
 //!
@@ -503,7 +503,7 @@ impl DisplacementPass {
     /// Switches self-shadowing (see [`crate::passes::shadow`] for the modes) for every
     /// material. On, the pass builds what it lacks: the `shadow` pipeline of each
     /// material's query, one `R16_SFLOAT` visibility image per frame slot, the shaded
-    /// variant of `shade` (binding 7) and, for hard shadows of the methods answered by
+    /// variant of `shade` (`u_visibility`) and, for hard shadows of the methods answered by
     /// the cell pyramid, a cell pyramid of the material's map (built by the next record,
     /// in its `pyramid` scope). Off, all of it is retired and the plain `shade` pipeline
     /// is used again: nothing is built while it is off. The stage follows later changes

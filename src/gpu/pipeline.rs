@@ -29,14 +29,16 @@ impl ComputePipeline {
     /// Builds a pipeline from `shader` whose set 0 is the shader's own bindings as its
     /// SPIR-V declares them ([`Shader::bindings`]: numbers, types, counts) and
     /// `push_constant_size` bytes of push constants. `declared` is what the pass binds,
-    /// `(binding, type)`: it must be exactly the shader's table ([`check_declared`]), so a
-    /// binding renumbered or retyped in the GLSL is an error here, not a validation
-    /// message at the first dispatch.
+    /// `(GLSL name, type)`: it must be exactly the shader's table ([`check_declared`]), so
+    /// a binding added, removed or retyped in the GLSL is an error here, not a validation
+    /// message at the first dispatch. Binding numbers exist only in the GLSL: the pass's
+    /// descriptor writes name their bindings ([`ComputePipeline::image`],
+    /// [`ComputePipeline::buffer`]).
     pub fn new(
         ctx: &Context,
         name: &str,
         shader: &Shader,
-        declared: &[(u32, vk::DescriptorType)],
+        declared: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
         check_declared(shader, declared)?;
@@ -93,6 +95,42 @@ impl ComputePipeline {
             local_size: LOCAL_SIZE,
             bindings: shader.bindings,
         })
+    }
+
+    /// The shader's binding named `name` (its GLSL variable or block instance name).
+    fn named(&self, name: &str) -> Result<&'static ShaderBinding> {
+        self.bindings
+            .iter()
+            .find(|b| b.name == name)
+            .ok_or_else(|| Error::Internal(format!("the shader has no binding named {name}")))
+    }
+
+    /// A descriptor write of the image binding named `name`: its number and type are the
+    /// shader's (reflected).
+    pub fn image<'a>(
+        &self,
+        name: &str,
+        info: &'a [vk::DescriptorImageInfo],
+    ) -> Result<vk::WriteDescriptorSet<'a>> {
+        let b = self.named(name)?;
+        Ok(vk::WriteDescriptorSet::default()
+            .dst_binding(b.binding)
+            .descriptor_type(b.ty)
+            .image_info(info))
+    }
+
+    /// A descriptor write of the buffer binding named `name`: its number and type are
+    /// the shader's (reflected).
+    pub fn buffer<'a>(
+        &self,
+        name: &str,
+        info: &'a [vk::DescriptorBufferInfo],
+    ) -> Result<vk::WriteDescriptorSet<'a>> {
+        let b = self.named(name)?;
+        Ok(vk::WriteDescriptorSet::default()
+            .dst_binding(b.binding)
+            .descriptor_type(b.ty)
+            .buffer_info(info))
     }
 
     /// Binds the pipeline, pushes `writes` as set 0 and `push` as push constants, and
@@ -209,15 +247,16 @@ impl Destroy for ComputePipeline {
     }
 }
 
-/// Checks what a pass binds (`declared`, `(binding, type)` in any order) against the
-/// bindings `shader`'s SPIR-V declares: the same numbers with the same types, every one
-/// in set 0 and a single descriptor (push descriptors of one set); the error names the
-/// shader and the first difference.
-pub fn check_declared(shader: &Shader, declared: &[(u32, vk::DescriptorType)]) -> Result<()> {
-    let mut ours: Vec<(u32, vk::DescriptorType)> = declared.to_vec();
-    ours.sort_by_key(|&(b, _)| b);
-    let theirs: Vec<(u32, vk::DescriptorType)> =
-        shader.bindings.iter().map(|b| (b.binding, b.ty)).collect();
+/// Checks what a pass binds (`declared`, `(GLSL name, type)` in any order) against the
+/// bindings `shader`'s SPIR-V declares: the same names with the same types, every one in
+/// set 0 and a single descriptor (push descriptors of one set); the error names the
+/// shader and the difference. The numbers are the shader's alone.
+pub fn check_declared(shader: &Shader, declared: &[(&str, vk::DescriptorType)]) -> Result<()> {
+    let mut ours: Vec<(&str, vk::DescriptorType)> = declared.to_vec();
+    ours.sort_by_key(|&(n, _)| n);
+    let mut theirs: Vec<(&str, vk::DescriptorType)> =
+        shader.bindings.iter().map(|b| (b.name, b.ty)).collect();
+    theirs.sort_by_key(|&(n, _)| n);
     if let Some(b) = shader.bindings.iter().find(|b| b.set != 0 || b.count != 1) {
         return Err(Error::invalid(
             shader.name,
@@ -235,15 +274,6 @@ pub fn check_declared(shader: &Shader, declared: &[(u32, vk::DescriptorType)]) -
         ));
     }
     Ok(())
-}
-
-/// `(i, types[i])` for every entry: bindings numbered from 0 without gaps.
-pub fn numbered(types: &[vk::DescriptorType]) -> Vec<(u32, vk::DescriptorType)> {
-    types
-        .iter()
-        .enumerate()
-        .map(|(i, &t)| (i as u32, t))
-        .collect()
 }
 
 /// A descriptor write for binding `binding` of an image (sampled or storage).
@@ -272,7 +302,7 @@ impl FetchPipeline {
         ctx: &Context,
         name: &str,
         shader: &Shader,
-        bindings: &[(u32, vk::DescriptorType)],
+        bindings: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
         let mut pipeline = ComputePipeline::new(ctx, name, shader, bindings, push_constant_size)?;

@@ -16,7 +16,8 @@
 //! * a layout change, any write, and a read that the last barrier did not make the last
 //!   write visible to, get a barrier;
 //! * a write right after a barrier whose destination covers it (e.g. the host's entry
-//!   barrier) needs none, nor does a read the last barrier already covers;
+//!   barrier) needs none, nor does a read the last barrier already covers, nor the first
+//!   access of a resource nothing accessed that keeps its layout;
 //! * the barrier waits for the last write and every read since (`src` = their stages,
 //!   the write's accesses), and makes the write visible to the new access (`dst`);
 //! * images with a `vk::Image` get image barriers; buffers and images known only by their
@@ -109,6 +110,10 @@ impl State {
             access: self.write_access & WRITES,
             layout: self.layout,
         };
+        if src.stage.is_empty() && access.layout == self.layout {
+            // Nothing to wait for and no layout to change (a resource nothing accessed).
+            return None;
+        }
         Some((src, access))
     }
 

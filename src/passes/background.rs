@@ -14,7 +14,7 @@ use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::ViewRef;
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::pipeline::{FetchPipeline, storage_view};
 use crate::passes::gbuffer::GBufferViews;
 use crate::shaders;
 use ash::vk;
@@ -35,7 +35,12 @@ impl BackgroundPass {
                 ctx,
                 "background",
                 &shaders::BACKGROUND_COMP,
-                &[(0, SAMPLED), (1, SAMPLED), (2, SAMPLED), (3, STORAGE)],
+                &[
+                    ("u_depth", SAMPLED),
+                    ("u_normal", SAMPLED),
+                    ("u_tangent", SAMPLED),
+                    ("u_color", STORAGE),
+                ],
                 std::mem::size_of::<ShadeParams>() as u32,
             )?,
         })
@@ -58,7 +63,7 @@ impl BackgroundPass {
         gbuffer: GBufferViews,
         color: ViewRef,
         params: &ShadeParams,
-    ) {
+    ) -> Result<()> {
         let fetch = |view| self.pipeline.fetch_view(view);
         let (depth, normal, tangent) = (
             fetch(gbuffer.depth.view),
@@ -66,11 +71,12 @@ impl BackgroundPass {
             fetch(gbuffer.tangent.view),
         );
         let out = storage_view(color.view);
+        let p = &self.pipeline.pipeline;
         let writes = [
-            image_write(0, SAMPLED, &depth),
-            image_write(1, SAMPLED, &normal),
-            image_write(2, SAMPLED, &tangent),
-            image_write(3, STORAGE, &out),
+            p.image("u_depth", &depth)?,
+            p.image("u_normal", &normal)?,
+            p.image("u_tangent", &tangent)?,
+            p.image("u_color", &out)?,
         ];
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match the pipeline's set 0 and name live views in the layouts
@@ -85,6 +91,7 @@ impl BackgroundPass {
                 color.extent.height,
             )
         };
+        Ok(())
     }
 }
 

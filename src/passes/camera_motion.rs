@@ -14,7 +14,7 @@ use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::owned::Destroy;
 use crate::gpu::owned::Guard;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::pipeline::{FetchPipeline, storage_view};
 use crate::gpu::sync::{self, Access};
 use crate::gpu::{Image, ViewRef};
 use crate::passes::motion::{DepthCamera, FrameMotion, MotionSettings};
@@ -40,7 +40,7 @@ impl CameraMotionPass {
                 ctx,
                 "camera_motion",
                 &shaders::CAMERA_MOTION_COMP,
-                &[(0, SAMPLED), (1, STORAGE)],
+                &[("u_depth", SAMPLED), ("u_motion", STORAGE)],
                 std::mem::size_of::<MotionParams>() as u32,
             )?,
         })
@@ -63,13 +63,11 @@ impl CameraMotionPass {
         depth: vk::ImageView,
         motion: ViewRef,
         params: &MotionParams,
-    ) {
+    ) -> Result<()> {
         let depth = self.pipeline.fetch_view(depth);
         let out = storage_view(motion.view);
-        let writes = [
-            image_write(0, SAMPLED, &depth),
-            image_write(1, STORAGE, &out),
-        ];
+        let p = &self.pipeline.pipeline;
+        let writes = [p.image("u_depth", &depth)?, p.image("u_motion", &out)?];
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match the pipeline's set 0 and name live views in the layouts
         // above; the push constants are the `MotionParams` the layout was built with.
@@ -83,6 +81,7 @@ impl CameraMotionPass {
                 motion.extent.height,
             )
         };
+        Ok(())
     }
 }
 
@@ -147,7 +146,7 @@ impl CameraMotion {
         cmd: vk::CommandBuffer,
         depth: vk::ImageView,
         current: DepthCamera,
-    ) -> FrameMotion {
+    ) -> Result<FrameMotion> {
         let previous = self.previous.unwrap_or(current);
         let e = self.image.extent;
         let params = MotionParams::new(
@@ -174,7 +173,7 @@ impl CameraMotion {
                 Access::COMPUTE_STORAGE_WRITE,
             );
             self.pass
-                .record(ctx, cmd, depth, self.image.view_ref(), &params);
+                .record(ctx, cmd, depth, self.image.view_ref(), &params)?;
             sync::transition(
                 ctx,
                 cmd,
@@ -183,10 +182,10 @@ impl CameraMotion {
                 Access::COMPUTE_STORAGE_READ_WRITE,
             );
         }
-        FrameMotion {
+        Ok(FrameMotion {
             image: self.image.host_view(),
             previous,
-        }
+        })
     }
 }
 

@@ -14,14 +14,14 @@
 //!
 //! Bindings (set 0, push descriptors), mirrored by `glsl/classify.comp`:
 //!
-//! | binding | resource | layout on entry |
+//! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | 0 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 1 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | hit buffer (storage, written for pixels without displacement) | `GENERAL` |
-//! | 3 | the tile lists (storage buffer, written) | |
-//! | 4 | the dispatch arguments and counts (storage buffer, read and written) | |
-//! | 5 | corrected depth (`DEPTH` variant; storage, written) | `GENERAL` |
+//! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tangent` | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_hit` | hit buffer (storage, written for pixels without displacement) | `GENERAL` |
+//! | `u_tiles` | the tile lists (storage buffer, written) | |
+//! | `u_args` | the dispatch arguments and counts (storage buffer, read and written) | |
+//! | `u_hit_depth` | corrected depth (`DEPTH` variant; storage, written) | `GENERAL` |
 //!
 //! A per-material pass binds its material's list at binding [`TILES_BINDING`].
 
@@ -29,7 +29,7 @@ use crate::abi::ClassifyParams;
 use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{FetchPipeline, LOCAL_SIZE, buffer_write, image_write, storage_view};
+use crate::gpu::pipeline::{FetchPipeline, LOCAL_SIZE, storage_view};
 use crate::gpu::{Buffer, ViewRef};
 use crate::shaders;
 use ash::vk;
@@ -37,9 +37,9 @@ use gpu_allocator::MemoryLocation;
 
 pub use crate::abi::{MAX_MATERIALS, NOT_DISPLACED_HEIGHT};
 
-/// The binding of a per-material pass's tile list (`TILES_BINDING` in
-/// `glsl/common/tiles.glsl`).
-pub const TILES_BINDING: u32 = 15;
+/// The binding of a per-material pass's tile list (`u_tiles` in
+/// `glsl/common/tiles.glsl`), as the passes declare it.
+pub const TILES: (&str, vk::DescriptorType) = ("u_tiles", vk::DescriptorType::STORAGE_BUFFER);
 
 /// `CLASSIFY_FLAG_WRITE_HITS` in `glsl/classify.comp`.
 const FLAG_WRITE_HITS: u32 = 1;
@@ -174,14 +174,13 @@ pub struct MaterialTiles {
 }
 
 impl MaterialTiles {
-    /// Binds `pipeline` with `writes` plus the list (binding [`TILES_BINDING`]) and
-    /// `push`, and dispatches one workgroup per tile of the list.
+    /// Binds `pipeline` with `writes` plus the list (binding [`TILES`]) and `push`, and
+    /// dispatches one workgroup per tile of the list.
     ///
     /// # Safety
     /// As [`crate::gpu::ComputePipeline::dispatch_indirect`]; the pipeline's set 0
-    /// declares [`TILES_BINDING`] as a storage buffer; the lists were written by a
-    /// `classify` recorded before in the same command buffer (its exit barrier makes them
-    /// visible).
+    /// declares [`TILES`]; the lists were written by a `classify` recorded before in the
+    /// same command buffer and made visible to the dispatch (the caller's barriers).
     pub unsafe fn dispatch(
         &self,
         ctx: &Context,
@@ -189,12 +188,13 @@ impl MaterialTiles {
         pipeline: &crate::gpu::ComputePipeline,
         writes: &[vk::WriteDescriptorSet],
         push: &[u8],
-    ) {
+    ) -> Result<()> {
         let list = [self.list];
         let mut all: Vec<vk::WriteDescriptorSet> = writes.to_vec();
-        all.push(buffer_write(TILES_BINDING, &list));
+        all.push(pipeline.buffer(TILES.0, &list)?);
         // SAFETY: this function's contract.
         unsafe { pipeline.dispatch_indirect(ctx, cmd, &all, push, self.args, self.args_offset) };
+        Ok(())
     }
 }
 
@@ -250,15 +250,15 @@ impl ClassifyPass {
     pub fn new(ctx: &Context) -> Result<Self> {
         let size = std::mem::size_of::<ClassifyParams>() as u32;
         let base = [
-            (0, SAMPLED),
-            (1, SAMPLED),
-            (2, STORAGE),
-            (3, BUFFER),
-            (4, BUFFER),
+            ("u_depth", SAMPLED),
+            ("u_tangent", SAMPLED),
+            ("u_hit", STORAGE),
+            ("u_tiles", BUFFER),
+            ("u_args", BUFFER),
         ];
         let plain = FetchPipeline::new(ctx, "classify", &shaders::CLASSIFY_COMP, &base, size)?;
         let mut with_depth = base.to_vec();
-        with_depth.push((5, STORAGE));
+        with_depth.push(("u_hit_depth", STORAGE));
         match FetchPipeline::new(
             ctx,
             "classify[depth]",
@@ -322,7 +322,12 @@ impl ClassifyPass {
     ///   included) are ordered before and visible to this dispatch's (the caller's
     ///   barriers).
     /// * Everything stays alive until the command buffer has executed.
-    pub unsafe fn record(&self, ctx: &Context, cmd: vk::CommandBuffer, inputs: &ClassifyInputs) {
+    pub unsafe fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: &ClassifyInputs,
+    ) -> Result<()> {
         let lists = inputs.lists;
         let pipeline = if inputs.hit_depth.is_some() {
             &self.depth
@@ -343,15 +348,16 @@ impl ClassifyPass {
             range: vk::WHOLE_SIZE,
         }];
         let hit_depth = inputs.hit_depth.map(storage_view);
+        let p = &pipeline.pipeline;
         let mut writes = vec![
-            image_write(0, SAMPLED, &depth),
-            image_write(1, SAMPLED, &tangent),
-            image_write(2, STORAGE, &hits),
-            buffer_write(3, &tiles),
-            buffer_write(4, &args),
+            p.image("u_depth", &depth)?,
+            p.image("u_tangent", &tangent)?,
+            p.image("u_hit", &hits)?,
+            p.buffer("u_tiles", &tiles)?,
+            p.buffer("u_args", &args)?,
         ];
         if let Some(d) = &hit_depth {
-            writes.push(image_write(5, STORAGE, d));
+            writes.push(p.image("u_hit_depth", d)?);
         }
         let extent = inputs.hit.extent;
         let push = ClassifyParams {
@@ -379,6 +385,7 @@ impl ClassifyPass {
                 extent.height,
             );
         }
+        Ok(())
     }
 }
 

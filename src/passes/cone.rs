@@ -66,7 +66,7 @@ use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::gpu::commands::read_image_level;
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{image_write, storage_view};
+use crate::gpu::pipeline::storage_view;
 use crate::gpu::sync::Access;
 use crate::gpu::track::{Target, Tracker, binding_access};
 use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
@@ -89,22 +89,23 @@ pub const CONE_WINDOW: u32 = 4;
 /// The widest cone ratio stored (`CONE_RATIO_MAX` in `glsl/cone.comp`).
 pub const CONE_RATIO_MAX: f32 = 65536.0;
 
-const BINDINGS: [(u32, vk::DescriptorType); 3] = [
-    (0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    (1, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    (2, vk::DescriptorType::STORAGE_IMAGE),
+/// What the pass binds, by GLSL name (`glsl/cone.comp` numbers them).
+const BINDINGS: [(&str, vk::DescriptorType); 3] = [
+    ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_pyramid", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_cone", vk::DescriptorType::STORAGE_IMAGE),
 ];
 
 /// The relaxed generation's bindings: the above, then the four falls pyramids
 /// ([`PyramidKind::FALLS`] order).
-const RELAXED_BINDINGS: [(u32, vk::DescriptorType); 7] = [
+const RELAXED_BINDINGS: [(&str, vk::DescriptorType); 7] = [
     BINDINGS[0],
     BINDINGS[1],
     BINDINGS[2],
-    (3, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    (4, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    (5, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    (6, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_falls_pp", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_falls_np", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_falls_pn", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_falls_nn", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
 ];
 
 /// The cone map of one height map.
@@ -335,14 +336,15 @@ impl ConePass {
         let out = storage_view(cone.image.view);
         let falls: Vec<[vk::DescriptorImageInfo; 1]> =
             cone.falls.iter().map(|p| [p.descriptor()]).collect();
+        let p = &self.pipeline;
         let mut writes = vec![
-            image_write(BINDINGS[0].0, BINDINGS[0].1, &heights),
-            image_write(BINDINGS[1].0, BINDINGS[1].1, &pyramids),
-            image_write(BINDINGS[2].0, BINDINGS[2].1, &out),
+            p.image("u_height", &heights)?,
+            p.image("u_pyramid", &pyramids)?,
+            p.image("u_cone", &out)?,
         ];
         if self.falls_pass.is_some() {
-            for ((binding, ty), info) in RELAXED_BINDINGS[3..].iter().zip(&falls) {
-                writes.push(image_write(*binding, *ty, info));
+            for ((name, _), info) in RELAXED_BINDINGS[3..].iter().zip(&falls) {
+                writes.push(p.image(name, info)?);
             }
         }
         let push = ConeParams {

@@ -4,14 +4,14 @@
 //!
 //! Bindings (set 0, push descriptors):
 //!
-//! | binding | resource | layout on entry |
+//! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | 0 | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 1 | G-buffer `depth` | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | G-buffer `normal` (`w`: surface id) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 3 | height field | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 4 | corner grid (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
-//! | 5 | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_ray` | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_depth` | G-buffer `depth` | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_normal` | G-buffer `normal` (`w`: surface id) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_height` | height field | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_corners` | corner grid (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
+//! | `u_tangent` | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
 //!
 //! Each DIG material has its own grid; a corner whose pixel is of another material (or
 //! flat) is stored as no surface, so a block that straddles two materials falls back as
@@ -27,7 +27,7 @@ use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::commands::read_image;
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{FetchPipeline, image_write, numbered, storage};
+use crate::gpu::pipeline::{FetchPipeline, storage};
 use crate::gpu::sync::Access;
 use crate::gpu::{HeightTexture, Image, OneShot};
 use crate::passes::gbuffer::GBufferViews;
@@ -38,13 +38,14 @@ use ash::vk;
 /// Format of the corner grid.
 pub const CORNER_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
-const BINDINGS: [vk::DescriptorType; 6] = [
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::STORAGE_IMAGE,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+/// What the pass binds, by GLSL name (`glsl/dig_corners.comp` numbers them).
+const BINDINGS: [(&str, vk::DescriptorType); 6] = [
+    ("u_ray", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_depth", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_normal", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_corners", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_tangent", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
 ];
 
 /// What one corner dispatch marches: the method's steps, for one material's grid.
@@ -150,7 +151,7 @@ impl DigCornerPass {
                 ctx,
                 "dig_corners",
                 &shaders::DIG_CORNERS_COMP,
-                &numbered(&BINDINGS),
+                &BINDINGS,
                 std::mem::size_of::<CornerParams>() as u32,
             )?,
         })
@@ -180,7 +181,7 @@ impl DigCornerPass {
         height: &HeightTexture,
         grid: &CornerGrid,
         run: CornerRun,
-    ) {
+    ) -> Result<()> {
         let CornerRun { steps, material } = run;
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray.view);
@@ -189,13 +190,14 @@ impl DigCornerPass {
         let heights = [height.descriptor()];
         let corners = storage(&grid.image);
         let tangent = fetch(gbuffer.tangent.view);
+        let p = &self.pipeline.pipeline;
         let writes = [
-            image_write(0, BINDINGS[0], &ray),
-            image_write(1, BINDINGS[1], &depth),
-            image_write(2, BINDINGS[2], &normal),
-            image_write(3, BINDINGS[3], &heights),
-            image_write(4, BINDINGS[4], &corners),
-            image_write(5, BINDINGS[5], &tangent),
+            p.image("u_ray", &ray)?,
+            p.image("u_depth", &depth)?,
+            p.image("u_normal", &normal)?,
+            p.image("u_height", &heights)?,
+            p.image("u_corners", &corners)?,
+            p.image("u_tangent", &tangent)?,
         ];
         let frame = gbuffer.extent;
         let size = grid.size();
@@ -222,6 +224,7 @@ impl DigCornerPass {
                 size[1],
             )
         };
+        Ok(())
     }
 }
 

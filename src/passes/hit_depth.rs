@@ -5,7 +5,7 @@
 //! depth at infinity, so geometry behind them shows; [`crate::passes::depth_resolve`]
 //! copies the image into a `D32_SFLOAT` depth attachment.
 //!
-//! Bindings: [`crate::passes::hit_resolve`] (binding 5: the corrected depth,
+//! Bindings: [`crate::passes::hit_resolve`] (`u_hit_depth`: the corrected depth,
 //! `R32_SFLOAT` storage, written).
 //!
 //! One dispatch resolves one material's pixels (a workgroup per tile of its list, the
@@ -81,6 +81,7 @@ impl HitDepthPass {
                 ctx,
                 "hit_depth",
                 &shaders::HIT_DEPTH_COMP,
+                "u_hit_depth",
                 std::mem::size_of::<HitDepthParams>() as u32,
             )?,
         })
@@ -107,7 +108,7 @@ impl HitDepthPass {
         cmd: vk::CommandBuffer,
         inputs: HitDepthInputs,
         params: &HitDepthParams,
-    ) {
+    ) -> Result<()> {
         let HitDepthInputs {
             hit,
             gbuffer,
@@ -133,7 +134,7 @@ impl HitDepthPass {
                 tiles,
                 bytemuck::bytes_of(&push),
             )
-        };
+        }
     }
 }
 

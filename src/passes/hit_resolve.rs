@@ -5,32 +5,33 @@
 //! Bindings (set 0, push descriptors), mirrored by `glsl/hit_depth.comp` and
 //! `glsl/motion.comp`:
 //!
-//! | binding | resource | layout on entry |
+//! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | 0 | hit buffer (storage, read) | `GENERAL` |
-//! | 1 | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 3 | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 4 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 5 | the output (storage; written, or read and written) | `GENERAL` |
-//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
+//! | `u_ray` | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_normal` | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tangent` | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_hit_depth` / `u_motion` | the output (storage; written, or read and written) | `GENERAL` |
+//! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
 
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
-use crate::passes::classify::{MaterialTiles, TILES_BINDING};
+use crate::gpu::pipeline::{FetchPipeline, storage_view};
+use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::gbuffer::GBufferViews;
 use crate::shaders::Shader;
 use ash::vk;
 
-const BINDINGS: [vk::DescriptorType; 6] = [
-    vk::DescriptorType::STORAGE_IMAGE,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::STORAGE_IMAGE,
+/// What both shapes bind besides their output, by GLSL name (the shaders number them).
+const BINDINGS: [(&str, vk::DescriptorType); 6] = [
+    ("u_hit", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_ray", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_depth", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_normal", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_tangent", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    TILES,
 ];
 
 /// The views one dispatch binds (layouts in the module docs).
@@ -40,13 +41,15 @@ pub struct ResolveViews {
     pub hit: vk::ImageView,
     /// The G-buffer (ray, depth, normal and tangent are read).
     pub gbuffer: GBufferViews,
-    /// The output (binding 5).
+    /// The output (the shader's `u_hit_depth` or `u_motion`).
     pub out: vk::ImageView,
 }
 
 /// A compute pipeline of the shared shape (module docs).
 pub struct HitResolvePipeline {
     pipeline: FetchPipeline,
+    /// The GLSL name of the storage image it writes.
+    out: &'static str,
 }
 
 impl HitResolvePipeline {
@@ -55,18 +58,20 @@ impl HitResolvePipeline {
         self.pipeline.pipeline.bindings
     }
 
-    /// Builds the pipeline of `shader` named `name`, with `push_constant_size` bytes of
-    /// push constants.
+    /// Builds the pipeline of `shader` named `name`, writing the storage image named
+    /// `out` in the GLSL, with `push_constant_size` bytes of push constants.
     pub fn new(
         ctx: &Context,
         name: &str,
         shader: &Shader,
+        out: &'static str,
         push_constant_size: u32,
     ) -> Result<Self> {
-        let mut bindings = crate::gpu::pipeline::numbered(&BINDINGS);
-        bindings.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
+        let mut bindings = BINDINGS.to_vec();
+        bindings.push((out, vk::DescriptorType::STORAGE_IMAGE));
         Ok(HitResolvePipeline {
             pipeline: FetchPipeline::new(ctx, name, shader, &bindings, push_constant_size)?,
+            out,
         })
     }
 
@@ -89,7 +94,7 @@ impl HitResolvePipeline {
         views: ResolveViews,
         tiles: MaterialTiles,
         push: &[u8],
-    ) {
+    ) -> Result<()> {
         let ResolveViews { hit, gbuffer, out } = views;
         let hits = storage_view(hit);
         let fetch = |view| self.pipeline.fetch_view(view);
@@ -98,19 +103,20 @@ impl HitResolvePipeline {
         let normal = fetch(gbuffer.normal.view);
         let tangent = fetch(gbuffer.tangent.view);
         let out = storage_view(out);
+        let p = &self.pipeline.pipeline;
         let writes = [
-            image_write(0, BINDINGS[0], &hits),
-            image_write(1, BINDINGS[1], &ray),
-            image_write(2, BINDINGS[2], &depth),
-            image_write(3, BINDINGS[3], &normal),
-            image_write(4, BINDINGS[4], &tangent),
-            image_write(5, BINDINGS[5], &out),
+            p.image("u_hit", &hits)?,
+            p.image("u_ray", &ray)?,
+            p.image("u_depth", &depth)?,
+            p.image("u_normal", &normal)?,
+            p.image("u_tangent", &tangent)?,
+            p.image(self.out, &out)?,
         ];
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the writes match the pipeline's set 0 (bindings 0-5 here, the list added
-        // by `dispatch`) and name live views in the layouts of the module docs; `push` is
-        // the pipeline's push constants; the list is the classification's.
-        unsafe { tiles.dispatch(ctx, cmd, &self.pipeline.pipeline, &writes, push) };
+        // pass; the writes match the pipeline's set 0 (all but the list, which `dispatch`
+        // adds) and name live views in the layouts of the module docs; `push` is the
+        // pipeline's push constants; the list is the classification's.
+        unsafe { tiles.dispatch(ctx, cmd, &self.pipeline.pipeline, &writes, push) }
     }
 }
 

@@ -48,7 +48,7 @@
 //! `p_hit` and `p_entry` come from `glsl/include/dispmap_displace.glsl`, the same code as
 //! the corrected depth's (`hit_depth`).
 //!
-//! Bindings: [`crate::passes::hit_resolve`] (binding 5: the host's motion image, storage,
+//! Bindings: [`crate::passes::hit_resolve`] (`u_motion`: the host's motion image, storage,
 //! read and written).
 
 use crate::abi::MotionParams;
@@ -257,6 +257,7 @@ impl MotionPass {
                 ctx,
                 name,
                 shader,
+                "u_motion",
                 std::mem::size_of::<MotionParams>() as u32,
             )?,
             format,
@@ -284,7 +285,7 @@ impl MotionPass {
         cmd: vk::CommandBuffer,
         inputs: MotionInputs,
         params: &MotionParams,
-    ) {
+    ) -> Result<()> {
         let MotionInputs {
             hit,
             gbuffer,
@@ -310,7 +311,7 @@ impl MotionPass {
                 tiles,
                 bytemuck::bytes_of(&push),
             )
-        };
+        }
     }
 }
 

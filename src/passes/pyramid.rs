@@ -40,10 +40,9 @@
 
 use crate::abi::{ADDRESSING_CLAMP, ADDRESSING_REPEAT, PyramidParams};
 use crate::context::Context;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::commands::read_image_level;
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::image_write;
 use crate::gpu::sync::Access;
 use crate::gpu::track::{Target, Tracker, binding_access};
 use crate::gpu::{ComputePipeline, HeightTexture, Image, OneShot};
@@ -55,12 +54,14 @@ use ash::vk;
 /// Format of the pyramid.
 pub const PYRAMID_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
 
-const BINDINGS: [(u32, vk::DescriptorType); 5] = [
-    (0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    (1, vk::DescriptorType::STORAGE_IMAGE),
-    (2, vk::DescriptorType::STORAGE_IMAGE),
-    (3, vk::DescriptorType::STORAGE_IMAGE),
-    (4, vk::DescriptorType::STORAGE_IMAGE),
+/// What the pass binds, by GLSL name (`glsl/pyramid.comp` numbers them): the height map,
+/// then the storage levels `src` (read), `dst`, `next`, `next2` (written).
+const BINDINGS: [(&str, vk::DescriptorType); 5] = [
+    ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_src", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_dst", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_next", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_next2", vk::DescriptorType::STORAGE_IMAGE),
 ];
 
 /// `PYRAMID_KIND_*` in `glsl/pyramid.comp`.
@@ -367,22 +368,23 @@ impl PyramidPass {
                 if count >= 2 { level + 1 } else { level },
                 if count == 3 { level + 2 } else { level },
             ];
-            // The shader's storage bindings in order: `src` (read), `dst`, `next`,
-            // `next2` (written), as its reflection says.
-            let storage_bindings = self.pipeline.bindings.iter().skip(1);
-            for (b, l) in storage_bindings.zip(bound) {
+            // Each storage binding's level accessed as the shader's reflection says.
+            for ((name, _), l) in BINDINGS[1..].iter().zip(bound) {
+                let b = self.pipeline.bindings.iter().find(|b| b.name == *name);
+                let b = b.ok_or_else(|| Error::Internal(format!("pyramid.comp has no {name}")))?;
                 t.declare(Some(l), binding_access(b))?;
             }
             // SAFETY: this function's # Safety contract (`cmd` recording outside a render
             // pass, the pyramid alive and discarded on entry).
             unsafe { t.flush(ctx, cmd, target)? };
             let [src, dst, next, next2] = bound.map(storage);
+            let p = &self.pipeline;
             let writes = [
-                image_write(BINDINGS[0].0, BINDINGS[0].1, &heights),
-                image_write(BINDINGS[1].0, BINDINGS[1].1, &src),
-                image_write(BINDINGS[2].0, BINDINGS[2].1, &dst),
-                image_write(BINDINGS[3].0, BINDINGS[3].1, &next),
-                image_write(BINDINGS[4].0, BINDINGS[4].1, &next2),
+                p.image("u_height", &heights)?,
+                p.image("u_src", &src)?,
+                p.image("u_dst", &dst)?,
+                p.image("u_next", &next)?,
+                p.image("u_next2", &next2)?,
             ];
             let src_size = if level == 0 {
                 pyramid.size

@@ -2,24 +2,24 @@
 //!
 //! Bindings (set 0, push descriptors), mirrored by `glsl/shade.comp`:
 //!
-//! | binding | resource | layout on entry |
+//! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | 0 | hit buffer (storage, read) | `GENERAL` |
-//! | 1 | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 4 | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
-//! | 5 | albedo map, or the height field when there is none (`crate::material`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 6 | normal map, or the height field when there is none | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 7 | light visibility (`R16_SFLOAT` storage, read; [`ShadePass::shadowed`] only) | `GENERAL` |
-//! | 8 | G-buffer `depth` (sampled: which pixels have geometry) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
+//! | `u_normal` | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tangent` | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_color` | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
+//! | `u_albedo` | albedo map, or the height field when there is none (`crate::material`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_normal_map` | normal map, or the height field when there is none | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_visibility` | light visibility (`R16_SFLOAT` storage, read; [`ShadePass::shadowed`] only) | `GENERAL` |
+//! | `u_depth` | G-buffer `depth` (sampled: which pixels have geometry) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
 //!
 //! One dispatch shades one material (its `ShadeParams::camera_pos.w`): a workgroup per
 //! tile of its list, an invocation per pixel of the material; every other pixel keeps the
 //! colour image's contents (the host's).
 //!
-//! Without self-shadowing the pipeline has no binding 7 (the `shadow` pass and its image
+//! Without self-shadowing the pipeline has no `u_visibility` (the `shadow` pass and its image
 //! are not built); with it ([`ShadePass::shadowed`], the shader's `SHADOWS` variant) the
 //! visibility written by [`crate::passes::shadow`] scales the direct light.
 
@@ -27,9 +27,9 @@ use crate::abi::ShadeParams;
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::pipeline::{FetchPipeline, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
-use crate::passes::classify::{MaterialTiles, TILES_BINDING};
+use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::gbuffer::GBufferViews;
 use crate::shaders;
 use ash::vk;
@@ -37,21 +37,21 @@ use ash::vk;
 /// Format of the colour output.
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 
-const BINDINGS: [vk::DescriptorType; 8] = [
-    vk::DescriptorType::STORAGE_IMAGE,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::STORAGE_IMAGE,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-    vk::DescriptorType::STORAGE_IMAGE,
+/// What both variants bind, by GLSL name (`glsl/shade.comp` numbers them).
+const BINDINGS: [(&str, vk::DescriptorType); 9] = [
+    ("u_hit", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_normal", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_tangent", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_color", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_albedo", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_normal_map", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_depth", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    TILES,
 ];
 
-/// The visibility binding of the shadowed variant.
-const VISIBILITY_BINDING: usize = 7;
-/// The G-buffer depth's binding.
-const DEPTH_BINDING: u32 = 8;
+/// What the shadowed variant binds besides.
+const VISIBILITY: (&str, vk::DescriptorType) = ("u_visibility", vk::DescriptorType::STORAGE_IMAGE);
 
 /// The images the shade pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
@@ -91,28 +91,21 @@ impl ShadePass {
         Self::build(ctx, false)
     }
 
-    /// Builds the pipeline that reads the `shadow` pass's visibility (binding 7).
+    /// Builds the pipeline that reads the `shadow` pass's visibility (`u_visibility`).
     pub fn shadowed(ctx: &Context) -> Result<Self> {
         Self::build(ctx, true)
     }
 
     fn build(ctx: &Context, shadowed: bool) -> Result<Self> {
-        let (name, shader, bindings) = if shadowed {
-            (
-                "shade[shadows]",
-                &shaders::SHADE_COMP_SHADOWS,
-                &BINDINGS[..],
-            )
+        let (name, shader) = if shadowed {
+            ("shade[shadows]", &shaders::SHADE_COMP_SHADOWS)
         } else {
-            (
-                "shade",
-                &shaders::SHADE_COMP,
-                &BINDINGS[..VISIBILITY_BINDING],
-            )
+            ("shade", &shaders::SHADE_COMP)
         };
-        let mut bindings = crate::gpu::pipeline::numbered(bindings);
-        bindings.push((DEPTH_BINDING, vk::DescriptorType::COMBINED_IMAGE_SAMPLER));
-        bindings.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
+        let mut bindings = BINDINGS.to_vec();
+        if shadowed {
+            bindings.push(VISIBILITY);
+        }
         Ok(ShadePass {
             pipeline: FetchPipeline::new(
                 ctx,
@@ -181,29 +174,22 @@ impl ShadePass {
         let heights = [height.descriptor()];
         let colors = storage_view(color.view);
         let [albedo, normal_map] = crate::material::MaterialTextures::descriptors(material, height);
+        let p = &self.pipeline.pipeline;
         let mut writes = vec![
-            image_write(0, BINDINGS[0], &hits),
-            image_write(1, BINDINGS[1], &normal),
-            image_write(2, BINDINGS[2], &tangent),
-            image_write(3, BINDINGS[3], &heights),
-            image_write(4, BINDINGS[4], &colors),
-            image_write(5, BINDINGS[5], &albedo),
-            image_write(6, BINDINGS[6], &normal_map),
-            image_write(
-                DEPTH_BINDING,
-                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-                &depth,
-            ),
+            p.image("u_hit", &hits)?,
+            p.image("u_normal", &normal)?,
+            p.image("u_tangent", &tangent)?,
+            p.image("u_height", &heights)?,
+            p.image("u_color", &colors)?,
+            p.image("u_albedo", &albedo)?,
+            p.image("u_normal_map", &normal_map)?,
+            p.image("u_depth", &depth)?,
         ];
         if let Some(v) = &visibility {
-            writes.push(image_write(
-                VISIBILITY_BINDING as u32,
-                BINDINGS[VISIBILITY_BINDING],
-                v,
-            ));
+            writes.push(p.image(VISIBILITY.0, v)?);
         }
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the writes match the pipeline's set 0 (binding 7 exactly for the shadowed
+        // pass; the writes match the pipeline's set 0 (`u_visibility` exactly for the shadowed
         // variant, checked above) and name live views in the layouts of the module's table;
         // the push constants are the `ShadeParams` the layout was built with (`camera_pos.w`
         // set to the material here); the pipeline lives as long as this pass; the list is
@@ -218,8 +204,7 @@ impl ShadePass {
                 &writes,
                 bytemuck::bytes_of(&params),
             )
-        };
-        Ok(())
+        }
     }
 }
 

@@ -44,16 +44,16 @@
 //! Set 0, push descriptors, mirrored by `glsl/shadow.comp` (push constants:
 //! [`ShadowParams`]):
 //!
-//! | binding | resource | layout on entry |
+//! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | 0 | hit buffer (storage, read) | `GENERAL` |
-//! | 1 | G-buffer `normal` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | G-buffer `tangent` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 3 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 4 | cell-max pyramid (hard shadows of the pyramid methods only) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 5 | visibility (`R16_SFLOAT` storage, written) | `GENERAL` |
-//! | 6 | G-buffer `depth` (sampled: which pixels have geometry) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
+//! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
+//! | `u_normal` | G-buffer `normal` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tangent` | G-buffer `tangent` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_pyramid` | cell-max pyramid (hard shadows of the pyramid methods only) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_visibility` | visibility (`R16_SFLOAT` storage, written) | `GENERAL` |
+//! | `u_depth` | G-buffer `depth` (sampled: which pixels have geometry) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
 //!
 //! One dispatch shadows one material: a workgroup per tile of its list, an invocation per
 //! pixel of the material.
@@ -70,11 +70,11 @@ use crate::abi::{SHADOW_MODE_HARD, SHADOW_MODE_SOFT, ShadeParams, ShadowParams};
 use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::pipeline::{FetchPipeline, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::heightfield::Addressing;
 use crate::method::{Method, PyramidKind};
-use crate::passes::classify::{MaterialTiles, TILES_BINDING};
+use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::pyramid::Pyramid;
 use crate::scene::addressing_code;
@@ -225,9 +225,6 @@ pub struct ShadowInputs<'a> {
 
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
-const PYRAMID_BINDING: u32 = 4;
-const VISIBILITY_BINDING: u32 = 5;
-const DEPTH_BINDING: u32 = 6;
 
 /// The shadow pass of one [`ShadowTrace`].
 pub struct ShadowPass {
@@ -243,17 +240,23 @@ impl ShadowPass {
 
     /// Builds the pipeline of `trace`.
     pub fn new(ctx: &Context, trace: ShadowTrace) -> Result<Self> {
-        let mut bindings = vec![(0, STORAGE), (1, SAMPLED), (2, SAMPLED), (3, SAMPLED)];
+        // What it binds, by GLSL name (`glsl/shadow.comp` numbers them).
+        let mut bindings = vec![
+            ("u_hit", STORAGE),
+            ("u_normal", SAMPLED),
+            ("u_tangent", SAMPLED),
+            ("u_height", SAMPLED),
+            ("u_visibility", STORAGE),
+            ("u_depth", SAMPLED),
+            TILES,
+        ];
         let (name, shader) = match trace {
             ShadowTrace::Pyramid => {
-                bindings.push((PYRAMID_BINDING, SAMPLED));
+                bindings.push(("u_pyramid", SAMPLED));
                 ("shadow[pyramid]", &shaders::SHADOW_COMP_PYRAMID)
             }
             ShadowTrace::Sampled => ("shadow", &shaders::SHADOW_COMP),
         };
-        bindings.push((VISIBILITY_BINDING, STORAGE));
-        bindings.push((DEPTH_BINDING, SAMPLED));
-        bindings.push((TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER));
         let pipeline = FetchPipeline::new(
             ctx,
             name,
@@ -347,17 +350,18 @@ impl ShadowPass {
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let out = storage_view(visibility.view);
         let depth = self.pipeline.fetch_view(gbuffer.depth.view);
+        let pl = &self.pipeline.pipeline;
         let mut writes = vec![
-            image_write(0, STORAGE, &hits),
-            image_write(1, SAMPLED, &normal),
-            image_write(2, SAMPLED, &tangent),
-            image_write(3, SAMPLED, &heights),
+            pl.image("u_hit", &hits)?,
+            pl.image("u_normal", &normal)?,
+            pl.image("u_tangent", &tangent)?,
+            pl.image("u_height", &heights)?,
         ];
         if let Some(p) = &pyramids {
-            writes.push(image_write(PYRAMID_BINDING, SAMPLED, p));
+            writes.push(pl.image("u_pyramid", p)?);
         }
-        writes.push(image_write(VISIBILITY_BINDING, STORAGE, &out));
-        writes.push(image_write(DEPTH_BINDING, SAMPLED, &depth));
+        writes.push(pl.image("u_visibility", &out)?);
+        writes.push(pl.image("u_depth", &depth)?);
         let push = ShadowParams {
             pyramid_levels: pyramid.map_or(0, Pyramid::levels),
             material: tiles.material,
@@ -377,8 +381,7 @@ impl ShadowPass {
                 &writes,
                 bytemuck::bytes_of(&push),
             )
-        };
-        Ok(())
+        }
     }
 }
 

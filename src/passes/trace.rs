@@ -1,22 +1,24 @@
 //! The `trace` pass: runs one method per pixel and writes the hit buffer.
 //!
-//! Bindings (set 0, push descriptors), mirrored by `glsl/common/trace.glsl`:
+//! Bindings (set 0, push descriptors), by their GLSL names; `glsl/common/trace.glsl` (and
+//! the includes of the methods that read more) give their numbers, which Rust takes from
+//! the reflected SPIR-V:
 //!
 //! | binding | resource | layout on entry |
 //! |---|---|---|
-//! | 0 | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 1 | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 2 | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 3 | hit buffer (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
-//! | 4 | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 5 | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 6 | G-buffer `normal` (`w`: surface id; the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 7 | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | 8 | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_ray` | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_hit` | hit buffer (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
+//! | `u_pyramid` | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_corners` | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_normal` | G-buffer `normal` (`w`: surface id; the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tangent` | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_cone` | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
 //!
-//! | 15 | the material's tile list ([`crate::passes::classify`]) | |
-//!
-//! A method's pipeline declares bindings 4, 5 and 8 only when its [`Needs`] name them.
+//! A method's pipeline declares `u_pyramid`, `u_corners` and `u_cone` only when its
+//! [`Needs`] name them.
 //! One dispatch traces one material: a workgroup per tile of its list, an invocation per
 //! pixel of the material (others are left alone).
 //!
@@ -27,10 +29,10 @@ use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{FetchPipeline, image_write, storage_view};
+use crate::gpu::pipeline::{FetchPipeline, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
-use crate::passes::classify::{MaterialTiles, TILES_BINDING};
+use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::cone::ConeMap;
 use crate::passes::dig::CornerGrid;
 use crate::passes::gbuffer::GBufferViews;
@@ -47,31 +49,25 @@ pub const HIT_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
-const PYRAMID_BINDING: u32 = 4;
-const CORNERS_BINDING: u32 = 5;
-const NORMAL_BINDING: u32 = 6;
-const TANGENT_BINDING: u32 = 7;
-const CONE_BINDING: u32 = 8;
-
-/// The bindings of a method with `needs`.
-fn bindings(needs: Needs) -> Vec<(u32, vk::DescriptorType)> {
+/// The bindings of a method with `needs`, by GLSL name.
+fn bindings(needs: Needs) -> Vec<(&'static str, vk::DescriptorType)> {
     let mut b = vec![
-        (0, SAMPLED),
-        (1, SAMPLED),
-        (2, SAMPLED),
-        (3, STORAGE),
-        (NORMAL_BINDING, SAMPLED),
-        (TANGENT_BINDING, SAMPLED),
-        (TILES_BINDING, vk::DescriptorType::STORAGE_BUFFER),
+        ("u_ray", SAMPLED),
+        ("u_depth", SAMPLED),
+        ("u_height", SAMPLED),
+        ("u_hit", STORAGE),
+        ("u_normal", SAMPLED),
+        ("u_tangent", SAMPLED),
+        TILES,
     ];
     if needs.pyramid.is_some() {
-        b.push((PYRAMID_BINDING, SAMPLED));
+        b.push(("u_pyramid", SAMPLED));
     }
     if needs.dig_corners {
-        b.push((CORNERS_BINDING, SAMPLED));
+        b.push(("u_corners", SAMPLED));
     }
     if needs.cone.is_some() {
-        b.push((CONE_BINDING, SAMPLED));
+        b.push(("u_cone", SAMPLED));
     }
     b
 }
@@ -195,23 +191,24 @@ impl TracePass {
         let grid = corners.map(|c| fetch(c.image.view));
         let normal = fetch(gbuffer.normal.view);
         let tangent = fetch(gbuffer.tangent.view);
+        let pl = &self.pipeline.pipeline;
         let mut writes = vec![
-            image_write(0, SAMPLED, &ray),
-            image_write(1, SAMPLED, &depth),
-            image_write(2, SAMPLED, &heights),
-            image_write(3, STORAGE, &hits),
-            image_write(NORMAL_BINDING, SAMPLED, &normal),
-            image_write(TANGENT_BINDING, SAMPLED, &tangent),
+            pl.image("u_ray", &ray)?,
+            pl.image("u_depth", &depth)?,
+            pl.image("u_height", &heights)?,
+            pl.image("u_hit", &hits)?,
+            pl.image("u_normal", &normal)?,
+            pl.image("u_tangent", &tangent)?,
         ];
         if let Some(p) = &pyramids {
-            writes.push(image_write(PYRAMID_BINDING, SAMPLED, p));
+            writes.push(pl.image("u_pyramid", p)?);
         }
         if let Some(g) = &grid {
-            writes.push(image_write(CORNERS_BINDING, SAMPLED, g));
+            writes.push(pl.image("u_corners", g)?);
         }
         let cones = cone.map(|c| [c.descriptor()]);
         if let Some(c) = &cones {
-            writes.push(image_write(CONE_BINDING, SAMPLED, c));
+            writes.push(pl.image("u_cone", c)?);
         }
         let extent = hit.extent;
         let (max_level, mut flags) = match params.max_level {
@@ -253,8 +250,7 @@ impl TracePass {
                 &writes,
                 bytemuck::bytes_of(&push),
             )
-        };
-        Ok(())
+        }
     }
 }
 
@@ -283,20 +279,16 @@ mod tests {
         }
     }
 
-    /// The declared numbers are the GLSL's (`glsl/common/trace.glsl`) by name.
+    /// A binding renamed, added or retyped in the GLSL is refused by name.
     #[test]
-    fn binding_numbers_by_name() {
-        let shader = Method::DigGuarded.shader();
-        for (number, name) in [
-            (PYRAMID_BINDING, "u_pyramid"),
-            (CORNERS_BINDING, "u_corners"),
-            (NORMAL_BINDING, "u_normal"),
-            (TANGENT_BINDING, "u_tangent"),
-            (TILES_BINDING, "u_tiles"),
-        ] {
-            assert_eq!(shader.binding(number).map(|b| b.name), Some(name));
-        }
-        let cone = Method::Cone.shader();
-        assert_eq!(cone.binding(CONE_BINDING).map(|b| b.name), Some("u_cone"));
+    fn a_binding_the_shader_lacks_is_refused() {
+        let shader = Method::Relief.shader();
+        let mut declared = bindings(Method::Relief.needs());
+        assert!(check_declared(&shader, &declared).is_ok());
+        declared.push(("u_cone", SAMPLED));
+        assert!(check_declared(&shader, &declared).is_err());
+        let mut retyped = bindings(Method::Relief.needs());
+        retyped[0].1 = STORAGE;
+        assert!(check_declared(&shader, &retyped).is_err());
     }
 }

@@ -263,7 +263,7 @@ impl Renderer {
         // SAFETY: `cmd` is recording outside a render pass and submitted below; the
         // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
         // (the barriers above).
-        unsafe { self.record_background(cmd, &target) };
+        unsafe { self.record_background(cmd, &target)? };
         let inputs = self.frame_inputs(Some(target));
         // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
         // submitted below; the G-buffer views are in the entry states (the `ray` image

@@ -79,7 +79,7 @@ impl Renderer {
         // SAFETY: `cmd` is recording outside a render pass and submitted below; the
         // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
         // (the barriers above).
-        unsafe { self.record_background(cmd, &target) };
+        unsafe { self.record_background(cmd, &target)? };
         let mut inputs = self.frame_inputs(Some(target));
         let current = DepthCamera {
             view_proj: target.view_proj,
@@ -89,7 +89,7 @@ impl Renderer {
             // SAFETY: `cmd` is recording outside a render pass and submitted (and waited
             // for) below; the G-buffer depth is sampled-readable (the entry barriers); the
             // image's previous frame was waited for.
-            inputs.motion = Some(unsafe { m.record(ctx, cmd, self.gbuffer.depth.view, current) });
+            inputs.motion = Some(unsafe { m.record(ctx, cmd, self.gbuffer.depth.view, current)? });
         }
         // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
         // submitted below; the views are the renderer's, in the entry states; one slot,
@@ -233,7 +233,11 @@ impl Renderer {
     /// (and waited for) while the renderer lives; when it executes, the G-buffer is
     /// sampled-readable by compute and the colour image in `GENERAL`, earlier accesses
     /// ordered before compute-shader storage writes.
-    pub(super) unsafe fn record_background(&self, cmd: vk::CommandBuffer, target: &ShadeTarget) {
+    pub(super) unsafe fn record_background(
+        &self,
+        cmd: vk::CommandBuffer,
+        target: &ShadeTarget,
+    ) -> Result<()> {
         let ctx = &*self.ctx;
         let e = self.settings.extent();
         let params = crate::abi::ShadeParams::new(
@@ -253,7 +257,7 @@ impl Renderer {
                 self.gbuffer.views(),
                 self.color.view_ref(),
                 &params,
-            );
+            )?;
             sync::transition(
                 ctx,
                 cmd,
@@ -262,6 +266,7 @@ impl Renderer {
                 Access::COMPUTE_STORAGE_WRITE,
             );
         }
+        Ok(())
     }
 
     pub(super) fn frame_inputs(&self, shade: Option<ShadeTarget>) -> FrameInputs {

@@ -269,7 +269,7 @@ impl Renderer {
         // discarded; the G-buffer is sampled-readable since the frame that drew it.
         unsafe {
             sync::transition(ctx, cmd, color, DISCARD, Access::COMPUTE_STORAGE_WRITE);
-            self.record_background(cmd, &target);
+            self.record_background(cmd, &target)?;
         }
         // SAFETY: `cmd` is recording and submitted below; the hits (and the given
         // visibility) were uploaded and made visible to storage reads; one slot, whose

@@ -49,8 +49,7 @@ impl DisplacementPass {
                 self.classify.record_reset(ctx, cmd, &classify);
                 g.dispatch(bindings, 0, skip)?;
                 g.flush(ctx, cmd, PassName::Classify)?;
-                self.classify.record(ctx, cmd, &classify);
-                Ok(())
+                self.classify.record(ctx, cmd, &classify)
             })
         }
     }
@@ -105,11 +104,11 @@ impl DisplacementPass {
                             steps: m.settings.params.steps,
                             material: *material,
                         },
-                    );
+                    )?;
                 }
+                Ok(())
             })
-        };
-        Ok(())
+        }
     }
 
     /// Each material's method into the hit buffer over its tiles.
@@ -364,11 +363,11 @@ impl DisplacementPass {
                             tiles: *tiles,
                         },
                         &params,
-                    );
+                    )?;
                 }
+                Ok(())
             })
-        };
-        Ok(())
+        }
     }
 
     /// Records `motion` (with the motion output on): one dispatch per live material,
@@ -428,10 +427,10 @@ impl DisplacementPass {
                             tiles: *tiles,
                         },
                         &params,
-                    );
+                    )?;
                 }
+                Ok(())
             })
-        };
-        Ok(())
+        }
     }
 }
