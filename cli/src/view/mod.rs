@@ -200,6 +200,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         bound: budget::Bound::new(common.max_memory),
         maps: vec![(label, Arc::new(field))],
         map: 0,
+        materials: state::initial_materials(&assets),
         assets,
         settings,
         steps: common.steps,
