@@ -579,7 +579,9 @@ fn side_by_side_on_a_one_pixel_window_is_validation_clean() {
 /// panel: the panel docks in a column at the right edge, so that no panel pixel lies
 /// over side A (its columns, above the band of the side labels, equal `render`'s frame
 /// of the same scene at the width the sides share, bit for bit), and it lists the three
-/// materials with their method, map and depth.
+/// materials with their method, map and depth. Two of them are changed first through
+/// the panel's controls (the cube's method, the sphere's map and depth): the panel lists
+/// the changes and side A is `render`'s frame of the scene file changed the same way.
 #[test]
 fn split_view_panel_hides_no_side_and_lists_every_material() {
     let xvfb = match start_xvfb() {
@@ -600,7 +602,23 @@ fn split_view_panel_hides_no_side_and_lists_every_material() {
         dir.join("view.png"),
         dir.join("render.png"),
     );
-    std::fs::write(&script, "0 split pom\n0 divider 0.5\n").unwrap();
+    std::fs::write(
+        &script,
+        "0 split pom\n0 divider 0.5\n0 object-method 2:relief\n0 object-map 3:rocks\n\
+         0 object-depth 3:0.1\n",
+    )
+    .unwrap();
+    // The same changes in the scene file.
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let edited = text
+        .replace("name = \"exact\"", "name = \"relief\"")
+        .replace(
+            "bundled = \"mountains\"\ndepth_scale = 0.05",
+            "bundled = \"rocks\"\ndepth_scale = 0.1",
+        );
+    assert_ne!(edited, text);
+    let edited_scene = dir.join("edited.toml");
+    std::fs::write(&edited_scene, edited).unwrap();
     let (w, h) = (960u32, 540u32);
     let stderr = view(
         &xvfb,
@@ -619,8 +637,8 @@ fn split_view_panel_hides_no_side_and_lists_every_material() {
     assert_eq!(materials.len(), 3, "the panel listed {listed:?}\n{stderr}");
     for line in [
         "1. quad: relief on rocks_depth.jpg (bundled), depth 0.03",
-        "2. cube: exact on bricks_depth.jpg (bundled), depth 0.08",
-        "3. sphere: secant on mountains_height16.png (bundled), depth 0.05",
+        "2. cube: relief on bricks_depth.jpg (bundled), depth 0.08",
+        "3. sphere: secant on rocks, depth 0.1",
     ] {
         assert!(
             listed.iter().any(|l| l.trim() == line),
@@ -644,7 +662,9 @@ fn split_view_panel_hides_no_side_and_lists_every_material() {
     let divider = (0.5 * sides as f32).round() as u32;
     run_checked(
         dispmap()
-            .args(["render", "--scene", &scene, "--frames", "1", "--size"])
+            .args(["render", "--frames", "1", "--scene"])
+            .arg(&edited_scene)
+            .arg("--size")
             .arg(format!("{sides}x{h}"))
             .arg("--out")
             .arg(&reference),
