@@ -149,13 +149,9 @@ pub mod timing;
 // The versions of the crates in dispmap's API (`HostHandles` takes ash handles and an
 // `Arc<Mutex<gpu_allocator::vulkan::Allocator>>`, `ShadeTarget` a `glam::Mat4`): a host
 // names them through these re-exports to use exactly dispmap's.
-/// README.md's code blocks, compiled by `cargo test --doc` (its Rust block is `no_run`:
-/// it needs a host's device and G-buffer).
-#[cfg(doctest)]
-#[doc = include_str!("../README.md")]
-pub struct ReadmeDoctests;
-
-/// docs/embedding.md's code blocks, compiled by `cargo test --doc` (`no_run`, as README's).
+/// docs/embedding.md's code blocks, compiled by `cargo test --doc` (`no_run`: they need a
+/// host's device and G-buffer). README.md's are compiled by dispmap-wgpu's doctests, whose
+/// dependencies include both crates its blocks use.
 #[cfg(doctest)]
 #[doc = include_str!("../docs/embedding.md")]
 pub struct EmbeddingDoctests;
