@@ -149,6 +149,13 @@ pub mod timing;
 // The versions of the crates in dispmap's API (`HostHandles` takes ash handles and an
 // `Arc<Mutex<gpu_allocator::vulkan::Allocator>>`, `ShadeTarget` a `glam::Mat4`): a host
 // names them through these re-exports to use exactly dispmap's.
+/// docs/embedding.md's code blocks, compiled by `cargo test --doc` (`no_run`: they need a
+/// host's device and G-buffer). README.md's are compiled by dispmap-wgpu's doctests, whose
+/// dependencies include both crates its blocks use.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/embedding.md")]
+pub struct EmbeddingDoctests;
+
 pub use ash;
 pub use glam;
 pub use gpu_allocator;

@@ -254,12 +254,24 @@ fn library_sweep_writes_every_output() {
         bench::plot::PARETO_SIZE
     );
     assert_eq!(png_size(&dir.join("sizes.png")), bench::plot::SIZES_SIZE);
-    for name in [
-        "heatmap_rocks_relief.png",
-        "heatmap_rocks_dig.png",
-        "intervals_rocks.png",
-    ] {
-        assert_eq!(png_size(&dir.join(name)), (96, 54), "{name}");
+    assert_eq!(png_size(&dir.join("intervals_rocks.png")), (96, 54));
+    // The heat maps carry their colour bar under the frame: the ramp from its first
+    // colour at the left to its last at the right.
+    let bar = bench::plot::HEAT_BAR_HEIGHT;
+    for name in ["heatmap_rocks_relief.png", "heatmap_rocks_dig.png"] {
+        assert_eq!(png_size(&dir.join(name)), (96, 54 + bar), "{name}");
+        let img = image::open(dir.join(name)).unwrap().to_rgb8();
+        let row = 54 + 8;
+        assert_eq!(
+            img.get_pixel(4, row).0,
+            dispmap_cli::heatmap::ramp(0.0),
+            "{name}"
+        );
+        assert_eq!(
+            img.get_pixel(91, row).0,
+            dispmap_cli::heatmap::ramp(1.0),
+            "{name}"
+        );
     }
     no_temporary_files(&dir);
 }
@@ -327,7 +339,11 @@ fn cli_bench_writes_every_output() {
     );
     assert_eq!(png_size(&dir.join("sizes.png")), bench::plot::SIZES_SIZE);
     for name in ["heatmap_rocks_bump.png", "heatmap_rocks_pom.png"] {
-        assert_eq!(png_size(&dir.join(name)), (64, 36), "{name}");
+        assert_eq!(
+            png_size(&dir.join(name)),
+            (64, 36 + bench::plot::HEAT_BAR_HEIGHT),
+            "{name}"
+        );
     }
     no_temporary_files(&dir);
 }

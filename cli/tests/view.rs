@@ -269,33 +269,69 @@ fn split_view_with_error_overlay_shows_both_methods_and_the_reference_artifacts(
         );
     }
 
-    // The same run with the panel: it is drawn into the screenshot over the top-left
-    // of the same frame, the side labels at the bottom; the rest is the same frame.
+    // The same run with the panel: in split view it docks in a column at the right
+    // edge (at most 40% of the window), the sides share the columns left of it, and
+    // side A, above the labels' band, is relief's frame at that width (or a mark).
     let stderr = view(&xvfb, &view_args, &script, &panel_shot);
     assert!(stderr.contains("panel: median ms per frame"), "{stderr}");
+    let docked = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("panel: docked at the right edge, "))
+        .unwrap_or_else(|| panic!("the panel did not dock:\n{stderr}"));
+    let px: u32 = docked.split(' ').next().unwrap().parse().unwrap();
+    assert_eq!(px, w * 2 / 5, "{docked}");
+    let sides = w - px;
+    let narrow = dir.join("relief-narrow.png");
+    run_checked(
+        dispmap()
+            .args(["render", "--heightmap"])
+            .arg(rocks())
+            .args([
+                "--convention",
+                "depth",
+                "--method",
+                "relief",
+                "--frames",
+                "1",
+            ])
+            .args(["--steps", "16", "--camera-elevation", "8", "--size"])
+            .arg(format!("{sides}x{h}"))
+            .arg("--out")
+            .arg(&narrow),
+        "dispmap render",
+    );
+    let narrow = image::open(&narrow).unwrap().to_rgba8();
     let panel = image::open(&panel_shot).unwrap().to_rgba8();
     assert_eq!(panel.dimensions(), (w, h));
-    let differ = |x0: u32, y0: u32, x1: u32, y1: u32| {
-        let mut n = 0;
-        for y in y0..y1 {
-            for x in x0..x1 {
-                n += u32::from(panel.get_pixel(x, y) != view_img.get_pixel(x, y));
+    let divider = (0.5 * sides as f32).round() as u32;
+    let mut marked = 0;
+    for y in 0..h - 36 {
+        for x in 0..divider {
+            let p = panel.get_pixel(x, y);
+            if p.0 == [255, 0, 0, 255] || p.0 == [0, 255, 255, 255] {
+                marked += 1;
+            } else {
+                assert_eq!(
+                    p,
+                    narrow.get_pixel(x, y),
+                    "side A under the panel at ({x}, {y})"
+                );
             }
         }
-        (n, (x1 - x0) * (y1 - y0))
-    };
-    // Where the panel opens (8 px from the top-left corner, about 400 px wide): most
-    // pixels differ (text, widgets, its background).
-    let (n, of) = differ(12, 12, 300, 200);
+    }
     assert!(
-        n * 2 > of,
-        "only {n} of {of} pixels differ in the panel's area"
+        marked > 0,
+        "no artifact marked on relief's side with the panel"
     );
-    // Right of the panel and above the labels: the frame alone.
-    let (n, of) = differ(440, 0, w, h - 36);
-    assert_eq!(
-        n, 0,
-        "{n} of {of} pixels outside the panel and labels differ"
+    // The panel's column is drawn (text, widgets, its background).
+    let drawn = (sides..w)
+        .flat_map(|x| (0..h).map(move |y| (x, y)))
+        .filter(|&(x, y)| panel.get_pixel(x, y).0 != [255, 255, 255, 255])
+        .count() as u32;
+    assert!(
+        drawn * 2 > px * h,
+        "only {drawn} of {} panel pixels drawn",
+        px * h
     );
 }
 
@@ -536,5 +572,129 @@ fn side_by_side_on_a_one_pixel_window_is_validation_clean() {
         "view side by side at 1, 2 and 3 pixels wide",
     );
     assert_eq!(image::image_dimensions(&shot).unwrap(), (3, 16));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The split view of a scene of several objects at the documented 960x540 with the
+/// panel: the panel docks in a column at the right edge, so that no panel pixel lies
+/// over side A (its columns, above the band of the side labels, equal `render`'s frame
+/// of the same scene at the width the sides share, bit for bit), and it lists the three
+/// materials with their method, map and depth. Two of them are changed first through
+/// the panel's controls (the cube's method, the sphere's map and depth): the panel lists
+/// the changes and side A is `render`'s frame of the scene file changed the same way.
+#[test]
+fn split_view_panel_hides_no_side_and_lists_every_material() {
+    let xvfb = match start_xvfb() {
+        Ok(x) => x,
+        Err(why) => {
+            skip::skip(
+                "split_view_panel_hides_no_side_and_lists_every_material",
+                &why,
+            );
+            return;
+        }
+    };
+    let dir = scratch("materials-split");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/materials.toml");
+    let scene = scene.to_string_lossy().into_owned();
+    let (script, shot, reference) = (
+        dir.join("script.txt"),
+        dir.join("view.png"),
+        dir.join("render.png"),
+    );
+    std::fs::write(
+        &script,
+        "0 split pom\n0 divider 0.5\n0 object-method 2:relief\n0 object-map 3:rocks\n\
+         0 object-depth 3:0.1\n",
+    )
+    .unwrap();
+    // The same changes in the scene file.
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let edited = text
+        .replace("name = \"exact\"", "name = \"relief\"")
+        .replace(
+            "bundled = \"mountains\"\ndepth_scale = 0.05",
+            "bundled = \"rocks\"\ndepth_scale = 0.1",
+        );
+    assert_ne!(edited, text);
+    let edited_scene = dir.join("edited.toml");
+    std::fs::write(&edited_scene, edited).unwrap();
+    let (w, h) = (960u32, 540u32);
+    let stderr = view(
+        &xvfb,
+        &["--scene", &scene, "--size", "960x540", "--frames", "2"],
+        &script,
+        &shot,
+    );
+    // The panel's own list: every material with its method, map and depth.
+    let listed: Vec<&str> = stderr
+        .lines()
+        .skip_while(|l| !l.starts_with("panel: ") || !l.contains("objects listed"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .collect();
+    let materials: Vec<&&str> = listed.iter().filter(|l| l.contains(" on ")).collect();
+    assert_eq!(materials.len(), 3, "the panel listed {listed:?}\n{stderr}");
+    for line in [
+        "1. quad: relief on rocks_depth.jpg (bundled), depth 0.03",
+        "2. cube: relief on bricks_depth.jpg (bundled), depth 0.08",
+        "3. sphere: secant on rocks, depth 0.1",
+    ] {
+        assert!(
+            listed.iter().any(|l| l.trim() == line),
+            "no '{line}' in {listed:?}"
+        );
+    }
+    // Where the sides end and the docked panel begins.
+    let docked = stderr
+        .lines()
+        .find(|l| l.starts_with("panel: docked at the right edge, "))
+        .unwrap_or_else(|| panic!("the panel did not dock:\n{stderr}"));
+    let px: u32 = docked
+        .trim_start_matches("panel: docked at the right edge, ")
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(px > 0 && px <= w * 2 / 5, "{docked}");
+    let sides = w - px;
+    let divider = (0.5 * sides as f32).round() as u32;
+    run_checked(
+        dispmap()
+            .args(["render", "--frames", "1", "--scene"])
+            .arg(&edited_scene)
+            .arg("--size")
+            .arg(format!("{sides}x{h}"))
+            .arg("--out")
+            .arg(&reference),
+        "dispmap render",
+    );
+    let view_img = image::open(&shot).unwrap().to_rgba8();
+    let render = image::open(&reference).unwrap().to_rgba8();
+    assert_eq!(view_img.dimensions(), (w, h));
+    // Side A (left of the divider), above the labels' band: the frame alone.
+    let mut covered = 0;
+    for y in 0..h - 36 {
+        for x in 0..divider {
+            covered += u32::from(view_img.get_pixel(x, y) != render.get_pixel(x, y));
+        }
+    }
+    assert_eq!(
+        covered,
+        0,
+        "{covered} pixels of side A ({divider}x{}) differ from render's frame",
+        h - 36
+    );
+    // The panel is drawn in its column: most of it is not the frame's background.
+    let drawn = (sides..w)
+        .flat_map(|x| (0..h).map(move |y| (x, y)))
+        .filter(|&(x, y)| view_img.get_pixel(x, y).0 != [255, 255, 255, 255])
+        .count() as u32;
+    assert!(
+        drawn * 2 > px * h,
+        "only {drawn} of {} pixels of the panel's column are drawn",
+        px * h
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

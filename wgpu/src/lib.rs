@@ -34,6 +34,13 @@ pub use images::{WgpuImage, host_view, vk_format, vk_usage};
 pub use record::{DepthMerge, WgpuFrame, WgpuShade, record, wait_for};
 
 pub use dispmap;
+
+/// README.md's code blocks (the core pass in a Vulkan host, and in wgpu), compiled by
+/// `cargo test --doc` here, where both crates they use are dependencies (`no_run`: they
+/// need a host's device and G-buffer).
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct ReadmeDoctests;
 pub use wgpu;
 
 /// The Vulkan API of wgpu-hal.

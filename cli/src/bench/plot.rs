@@ -8,6 +8,7 @@
 //!   markers. Left: artifact fraction; right: mean hit distance. Top: every method, log
 //!   time axis; bottom: the marching methods, linear time axis, every point labelled
 //!   with its `iter`. Errors of 0 are drawn on the axis floor.
+//! * [`with_heat_bar`]: an iteration heat map with its colour bar under it.
 //! * [`sizes`]: the map-size sweep: method time per frame against map size (log), the
 //!   same relative to the smallest map, and the pyramid's one build (log).
 
@@ -17,6 +18,7 @@ use dispmap::error::{Error, Result};
 use dispmap::method::Method;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -63,6 +65,75 @@ pub fn method_color(method: Method) -> RGBColor {
         Method::ConeExact => RGBColor(156, 117, 95),
         Method::RelaxedCone => RGBColor(96, 40, 120),
     }
+}
+
+/// Height in pixels of the colour bar under a benchmark heat map ([`with_heat_bar`]).
+pub const HEAT_BAR_HEIGHT: u32 = 30;
+
+/// `rgba`, an iteration heat map of `width` x `height` (RGBA8, the ramp from 0 to `top`
+/// iterations), with its colour bar under it: the ramp across the width, `0` under its
+/// left end, `top` under its right end and, where there is room, what it counts. RGBA8
+/// of `width` x `height + HEAT_BAR_HEIGHT`.
+pub fn with_heat_bar(rgba: &[u8], width: u32, height: u32, top: f32) -> Result<Vec<u8>> {
+    register_font()?;
+    let (w, h) = (width as usize, height as usize);
+    if rgba.len() != 4 * w * h || w == 0 {
+        return Err(Error::invalid(
+            "heat map",
+            format!("{} bytes are not {width}x{height} RGBA8", rgba.len()),
+        ));
+    }
+    let total = height + HEAT_BAR_HEIGHT;
+    let mut rgb = vec![255u8; w * total as usize * 3];
+    for (dst, src) in rgb.chunks_exact_mut(3).zip(rgba.chunks_exact(4)) {
+        dst.copy_from_slice(&src[..3]);
+    }
+    let drawn = (|| -> std::result::Result<(), String> {
+        let e = |e: &dyn std::fmt::Display| e.to_string();
+        let root = BitMapBackend::with_buffer(&mut rgb, (width, total)).into_drawing_area();
+        let margin = if width >= 24 { 4 } else { 0 };
+        let (x0, x1) = (margin, width as i32 - margin);
+        let (y0, y1) = (height as i32 + 3, height as i32 + 13);
+        for x in x0..x1 {
+            let t = (x - x0) as f32 / (x1 - x0 - 1).max(1) as f32;
+            let [r, g, b] = crate::heatmap::ramp(t);
+            for y in y0..y1 {
+                root.draw_pixel((x, y), &RGBColor(r, g, b))
+                    .map_err(|x| e(&x))?;
+            }
+        }
+        let font = |h: HPos| {
+            (FAMILY, 12)
+                .into_font()
+                .color(&BLACK)
+                .pos(Pos::new(h, VPos::Top))
+        };
+        let label_y = y1 + 2;
+        root.draw(&Text::new("0", (x0, label_y), font(HPos::Left)))
+            .map_err(|x| e(&x))?;
+        root.draw(&Text::new(
+            format!("{top:.0}"),
+            (x1 - 1, label_y),
+            font(HPos::Right),
+        ))
+        .map_err(|x| e(&x))?;
+        if width >= 200 {
+            root.draw(&Text::new(
+                "iterations per pixel",
+                (width as i32 / 2, label_y),
+                font(HPos::Center),
+            ))
+            .map_err(|x| e(&x))?;
+        }
+        root.present().map_err(|x| e(&x))
+    })();
+    drawn.map_err(|message| {
+        Error::invalid("heat map", format!("cannot draw its colour bar: {message}"))
+    })?;
+    Ok(rgb
+        .chunks_exact(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect())
 }
 
 /// Draws into an RGB buffer with `draw` and encodes it as PNG (`path` names it in errors).

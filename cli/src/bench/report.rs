@@ -328,7 +328,7 @@ fn map_section(s: &mut String, results: &BenchResults, name: &str, info: &super:
         let _ = writeln!(
             s,
             "Iteration heat maps of frame 0 (trace pass, viridis from 0 to {} iterations, \
-             saturating; black = no geometry): {}.",
+             saturating, the colour bar under each; black = no geometry): {}.",
             c.heatmap_steps() + super::REFINE_STEPS,
             links.join(", ")
         );

@@ -427,16 +427,18 @@ impl<'a> MapSweep<'a> {
         let stem = file_stem(&self.name);
         let scale = (config.heatmap_steps() + REFINE_STEPS) as f32;
         let covered = heatmap::coverage(hits, Some(rays));
+        let heat = heatmap::iteration_heatmap(hits, &covered, Some(scale))?;
         let mut out = vec![NamedImage {
             file_name: format!("heatmap_{stem}_{}.png", method.name()),
             caption: format!(
-                "{} on {}: trace iterations per pixel, frame 0 (0 to {scale}, saturating)",
+                "{} on {}: trace iterations per pixel, frame 0 (0 to {scale}, saturating; \
+                 the colour bar under it)",
                 method.name(),
                 self.name
             ),
             width: w,
-            height: h,
-            rgba: heatmap::iteration_heatmap(hits, &covered, Some(scale))?,
+            height: h + super::plot::HEAT_BAR_HEIGHT,
+            rgba: super::plot::with_heat_bar(&heat, w, h, scale)?,
         }];
         if method == Method::Dig
             && let Some((grid, corners)) = corners

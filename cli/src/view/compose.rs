@@ -4,7 +4,7 @@
 use super::panel;
 use super::panel::{OverlayState, SideInfo};
 use super::present::{DIVIDER_PX, DIVIDER_RGBA, Layout, Part};
-use super::state::{Compare, ViewState, material_lines};
+use super::state::{Compare, ViewState};
 use super::viewer::Viewer;
 use super::{ARTIFACT_RGBA, LOD_RGBA, MISS_RGBA, NOTICE_TIME};
 use anyhow::Result;
@@ -62,7 +62,10 @@ impl Viewer {
             label_columns,
             maps: state.maps.iter().map(|(n, _)| n.clone()).collect(),
             geometry: s.scene.geometry.name().to_owned(),
-            materials: material_lines(state),
+            docked: (self.dock_px > 0).then(|| {
+                let ppp = self.gui.as_ref().map_or(1.0, |g| g.egui.pixels_per_point());
+                self.dock_px as f32 / ppp
+            }),
             notice: self
                 .notice
                 .as_ref()
@@ -140,13 +143,15 @@ impl Viewer {
 }
 
 /// Each side's frame size and where the sides' columns go in a frame of `frame`
-/// pixels, for the compare mode of `state`.
-pub(super) fn frame_layout(state: &ViewState, frame: [u32; 2]) -> ([u32; 2], Layout) {
-    let [w, h] = frame;
+/// pixels, for the compare mode of `state`; the last `dock` columns are left to the
+/// docked panel (no side is drawn there).
+pub(super) fn frame_layout(state: &ViewState, frame: [u32; 2], dock: u32) -> ([u32; 2], Layout) {
     let extent = vk::Extent2D {
-        width: w,
-        height: h,
+        width: frame[0],
+        height: frame[1],
     };
+    let (w, h) = (frame[0].saturating_sub(dock).max(1).min(frame[0]), frame[1]);
+    let frame = [w, h];
     let part = |side, src_x0, src_x1, dst_x| Part {
         side,
         src_x0,
@@ -208,6 +213,7 @@ mod tests {
             maps: Vec::new(),
             map: 0,
             assets: SceneAssets::default(),
+            materials: Vec::new(),
             settings,
             steps: None,
             right,
@@ -233,23 +239,23 @@ mod tests {
     #[test]
     fn each_compare_mode_lays_out_its_sides() {
         let frame = [100, 40];
-        let (size, l) = frame_layout(&state(None, Compare::Wipe), frame);
+        let (size, l) = frame_layout(&state(None, Compare::Wipe), frame, 0);
         assert!(!l.has_gaps());
         assert_eq!((size, l.parts), (frame, vec![part(0, 0, 100, 0)]));
-        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Wipe), frame);
+        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Wipe), frame, 0);
         assert_eq!(size, frame);
         assert_eq!(l.parts, vec![part(0, 0, 50, 0), part(1, 52, 100, 52)]);
         assert!(l.has_gaps());
         // A/B: the shown side fills the frame, the same pixels as a frame of its own.
-        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Flip), frame);
+        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Flip), frame, 0);
         assert_eq!((size, l.parts), (frame, vec![part(1, 0, 100, 0)]));
         // Side by side: each renderer at half the width less the divider.
-        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), frame);
+        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), frame, 0);
         assert_eq!(size, [49, 40]);
         assert_eq!(l.parts, vec![part(0, 0, 49, 0), part(1, 0, 49, 51)]);
         // Windows too narrow for both halves: no column is written twice.
         for w in 1..8 {
-            let (_, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), [w, 40]);
+            let (_, l) = frame_layout(&state(Some(Method::Pom), Compare::SideBySide), [w, 40], 0);
             let mut columns = vec![0; w as usize];
             for p in &l.parts {
                 for x in p.dst_x..p.dst_x + (p.src_x1 - p.src_x0) {
@@ -258,5 +264,22 @@ mod tests {
             }
             assert!(columns.iter().all(|&c| c <= 1), "{w}: {:?}", l.parts);
         }
+    }
+
+    #[test]
+    fn a_docked_panel_takes_columns_from_every_mode() {
+        let frame = [100, 40];
+        for compare in [Compare::Wipe, Compare::Flip, Compare::SideBySide] {
+            let (size, l) = frame_layout(&state(Some(Method::Pom), compare), frame, 30);
+            assert_eq!(l.frame.width, 100, "{compare:?}");
+            assert!(size[0] <= 70, "{compare:?}: {size:?}");
+            for p in &l.parts {
+                assert!(p.dst_x + (p.src_x1 - p.src_x0) <= 70, "{compare:?}: {p:?}");
+            }
+            assert!(l.has_gaps(), "{compare:?}");
+        }
+        let (size, l) = frame_layout(&state(Some(Method::Pom), Compare::Wipe), frame, 30);
+        assert_eq!(size, [70, 40]);
+        assert_eq!(l.parts, vec![part(0, 0, 35, 0), part(1, 37, 70, 37)]);
     }
 }

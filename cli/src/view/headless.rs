@@ -1,7 +1,7 @@
 //! The scripted (headless) run: its state and how one script action changes the view.
 
-use super::input::{switch_map, zoom};
-use super::script::{Action, CameraPath, Script};
+use super::input::{set_object_map, switch_map, zoom};
+use super::script::{Action, CameraPath, ObjectChange, Script};
 use super::state::{Compare, ViewState};
 use super::viewer::Viewer;
 use anyhow::Result;
@@ -59,6 +59,29 @@ impl Viewer {
                 self.error_requested = true;
             }
             Action::Screenshot(path) => self.screenshot_next = Some(path),
+            // The panel's controls of the object's row (the first displaced object's
+            // method and depth are the left side's).
+            Action::Object(i, change) => {
+                let primary = state.primary() == Some(i);
+                match change {
+                    ObjectChange::Method(m) if primary => state.settings.method = m,
+                    ObjectChange::Depth(d) if primary => state.settings.scene.depth_scale = d,
+                    ObjectChange::Map(Some(name)) => set_object_map(state, i, &name)?,
+                    change => {
+                        if let Some(Some(edit)) = state.materials.get_mut(i) {
+                            match change {
+                                ObjectChange::Method(m) => {
+                                    edit.settings.method = m;
+                                    edit.settings.params.steps =
+                                        state.steps.unwrap_or(m.default_steps());
+                                }
+                                ObjectChange::Depth(d) => edit.settings.depth_scale = d,
+                                ObjectChange::Map(_) => edit.map = None,
+                            }
+                        }
+                    }
+                }
+            }
         }
         state.settings.params.steps = state.steps.unwrap_or(state.settings.method.default_steps());
         Ok(())

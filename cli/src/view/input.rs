@@ -182,7 +182,13 @@ impl Viewer {
             }
         }
         if self.dragging_divider {
-            let w = self.window.inner_size().width.max(1) as f32;
+            // The sides share the columns left of the docked panel.
+            let w = self
+                .window
+                .inner_size()
+                .width
+                .saturating_sub(self.dock_px)
+                .max(1) as f32;
             state.divider = (at[0] / w).clamp(0.0, 1.0);
         }
         self.cursor = Some(at);
@@ -281,6 +287,23 @@ pub(super) fn switch_map(state: &mut ViewState, name: Option<&str>) -> Result<()
     let field = bundled::by_name(&target, "map")?;
     state.maps.push((target, Arc::new(field)));
     state.map = state.maps.len() - 1;
+    Ok(())
+}
+
+/// Object `object`'s material switched to the map `name` (a map already loaded, or a
+/// bundled one, loaded here).
+pub(super) fn set_object_map(state: &mut ViewState, object: usize, name: &str) -> Result<()> {
+    let index = match state.maps.iter().position(|(n, _)| n == name) {
+        Some(i) => i,
+        None => {
+            let field = bundled::by_name(name, "map")?;
+            state.maps.push((name.to_owned(), Arc::new(field)));
+            state.maps.len() - 1
+        }
+    };
+    if let Some(Some(edit)) = state.materials.get_mut(object) {
+        edit.map = Some(index);
+    }
     Ok(())
 }
 

@@ -172,6 +172,11 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
     let run = script::Run {
         frames: common.frames,
         objects: !assets.objects.is_empty(),
+        displaced: assets
+            .objects
+            .iter()
+            .map(|o| o.material.is_some())
+            .collect(),
     };
     let script_name = script
         .as_deref()
@@ -200,6 +205,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         bound: budget::Bound::new(common.max_memory),
         maps: vec![(label, Arc::new(field))],
         map: 0,
+        materials: state::initial_materials(&assets),
         assets,
         settings,
         steps: common.steps,

@@ -115,8 +115,9 @@ pub struct Info {
     pub maps: Vec<String>,
     /// The geometry's name.
     pub geometry: String,
-    /// A scene of several objects: one line per object (method, map, depth, or flat).
-    pub materials: Vec<String>,
+    /// In split view: the width in points of the column at the right edge the panel
+    /// takes (the sides share the rest); `None`: it floats over the frame.
+    pub docked: Option<f32>,
     /// A recent message (the last screenshot's file).
     pub notice: Option<String>,
 }
@@ -130,6 +131,10 @@ pub struct Requests {
     pub screenshot: bool,
     /// Switch to this map.
     pub map: Option<String>,
+    /// Switch this object's material to this map.
+    pub object_map: Option<(usize, String)>,
+    /// The objects' lines as the panel listed them (a scene of several objects).
+    pub listed: Vec<String>,
 }
 
 fn rgb(c: [u8; 4]) -> Color32 {
@@ -165,35 +170,63 @@ pub fn draw(ctx: &egui::Context, state: &mut ViewState, info: &Info) -> Requests
     if !state.panel {
         return req;
     }
-    // The panel leaves the bottom band to the side labels.
-    let max_height = ctx.content_rect().height() - 16.0 - LABEL_BAND;
-    egui::Window::new("dispmap view")
-        .default_pos([8.0, 8.0])
-        .default_width(300.0)
-        .default_height(max_height.max(60.0))
-        .resizable(false)
-        .collapsible(true)
-        .vscroll(true)
-        .max_height(max_height.max(60.0))
-        .show(ctx, |ui| {
-            ui.weak("Tab hides this panel, F1 lists the keys");
-            methods(ui, state);
-            overlay(ui, state, info, &mut req);
-            if state.heatmap {
-                heat_bar(ui, info);
+    let mut contents = |ui: &mut egui::Ui, req: &mut Requests| {
+        ui.weak("Tab hides this panel, F1 lists the keys");
+        methods(ui, state);
+        overlay(ui, state, info, req);
+        if state.heatmap {
+            heat_bar(ui, info);
+        }
+        timings(ui, info);
+        objects(ui, state, req);
+        scene(ui, state, info, req);
+        camera(ui, state);
+        ui.horizontal(|ui| {
+            if ui.button("Screenshot (P)").clicked() {
+                req.screenshot = true;
             }
-            timings(ui, info);
-            scene(ui, state, info, &mut req);
-            camera(ui, state);
-            ui.horizontal(|ui| {
-                if ui.button("Screenshot (P)").clicked() {
-                    req.screenshot = true;
-                }
-                if let Some(n) = &info.notice {
-                    ui.label(n);
-                }
-            });
+            if let Some(n) = &info.notice {
+                ui.label(n);
+            }
         });
+    };
+    match info.docked {
+        // Split view: a column of its own at the right edge, so that it hides neither
+        // side (the sides share the columns left of it).
+        Some(width) => {
+            let screen = ctx.content_rect();
+            egui::Area::new(egui::Id::new("dispmap-view-docked"))
+                .fixed_pos(Pos2::new(screen.right() - width, screen.top()))
+                // Never pushed left over the sides: what is wider than the column is
+                // cut at the window's edge.
+                .constrain(false)
+                .show(ctx, |ui| {
+                    egui::Frame::new()
+                        .fill(ui.style().visuals.panel_fill)
+                        .inner_margin(egui::Margin::same(6))
+                        .show(ui, |ui| {
+                            ui.set_width(width - 12.0);
+                            ui.set_height(screen.height() - 12.0);
+                            egui::ScrollArea::vertical()
+                                .max_height(screen.height() - 12.0)
+                                .show(ui, |ui| contents(ui, &mut req));
+                        });
+                });
+        }
+        None => {
+            // The panel leaves the bottom band to the side labels.
+            let max_height = ctx.content_rect().height() - 16.0 - LABEL_BAND;
+            egui::Window::new("dispmap view")
+                .default_pos([8.0, 8.0])
+                .default_width(300.0)
+                .default_height(max_height.max(60.0))
+                .resizable(false)
+                .collapsible(true)
+                .vscroll(true)
+                .max_height(max_height.max(60.0))
+                .show(ctx, |ui| contents(ui, &mut req));
+        }
+    }
     req
 }
 
@@ -210,7 +243,13 @@ fn labels(ctx: &egui::Context, info: &Info) {
             (_, 0) => "A: ",
             _ => "B: ",
         };
-        let mut text = format!("{which}{}  {:.2} ms", s.method.name(), s.gpu_ms());
+        // No time until the first measurement (not a zero).
+        let ms = if s.passes.is_empty() {
+            "measuring".to_owned()
+        } else {
+            format!("{:.2} ms", s.gpu_ms())
+        };
+        let mut text = format!("{which}{}  {ms}", s.method.name());
         if let Some(it) = s.iterations {
             text.push_str(&format!("  {it:.1} it/px"));
         }
@@ -376,16 +415,93 @@ fn methods(ui: &mut egui::Ui, state: &mut ViewState) {
         });
 }
 
-fn scene(ui: &mut egui::Ui, state: &mut ViewState, info: &Info, req: &mut Requests) {
-    if !info.materials.is_empty() {
-        egui::CollapsingHeader::new(format!("Objects ({})", info.materials.len()))
-            .default_open(true)
-            .show(ui, |ui| {
-                for line in &info.materials {
-                    ui.label(line);
-                }
-            });
+/// A scene of several objects: each object's material (method, map, depth scale), each
+/// one editable; the first displaced object's method and depth are side A's.
+fn objects(ui: &mut egui::Ui, state: &mut ViewState, req: &mut Requests) {
+    let n = state.assets.objects.len();
+    if n == 0 {
+        return;
     }
+    egui::CollapsingHeader::new(format!("Objects ({n})"))
+        .default_open(true)
+        .show(ui, |ui| {
+            let primary = state.primary();
+            for i in 0..n {
+                let geometry = state.assets.objects[i].geometry.name();
+                let Some((map, current)) = state.material(i) else {
+                    ui.label(format!("{}. {geometry}: flat", i + 1));
+                    continue;
+                };
+                ui.horizontal(|ui| {
+                    ui.strong(format!("{}. {geometry}", i + 1));
+                    if primary == Some(i) {
+                        ui.weak("(side A's method and depth)");
+                    }
+                });
+                let mut method = current.method;
+                let mut depth = current.depth_scale;
+                ui.horizontal(|ui| {
+                    egui::ComboBox::from_id_salt(("object-method", i))
+                        .width(80.0)
+                        .selected_text(method.name())
+                        .show_ui(ui, |ui| {
+                            for m in Method::ALL {
+                                ui.selectable_value(&mut method, *m, m.name());
+                            }
+                        });
+                    ui.add(
+                        egui::DragValue::new(&mut depth)
+                            .speed(0.002)
+                            .range(0.001..=1.0)
+                            .prefix("depth "),
+                    );
+                });
+                ui.horizontal(|ui| {
+                    let own = state.assets.objects[i]
+                        .material
+                        .as_ref()
+                        .map_or_else(String::new, |(f, _, _)| f.label().to_owned());
+                    egui::ComboBox::from_id_salt(("object-map", i))
+                        .width(200.0)
+                        .selected_text(&map)
+                        .show_ui(ui, |ui| {
+                            let mut names = vec![own.clone()];
+                            names.extend(
+                                dispmap_cli::bundled::NAMES.iter().map(|n| (*n).to_owned()),
+                            );
+                            for name in names {
+                                if ui.selectable_label(name == map, &name).clicked() && name != map
+                                {
+                                    if name == own {
+                                        if let Some(Some(edit)) = state.materials.get_mut(i) {
+                                            edit.map = None;
+                                        }
+                                    } else {
+                                        req.object_map = Some((i, name));
+                                    }
+                                }
+                            }
+                        });
+                });
+                if primary == Some(i) {
+                    if method != current.method {
+                        state.settings.method = method;
+                        state.settings.params.steps = state.steps.unwrap_or(method.default_steps());
+                    }
+                    state.settings.scene.depth_scale = depth;
+                } else if let Some(Some(edit)) = state.materials.get_mut(i) {
+                    if method != edit.settings.method {
+                        edit.settings.method = method;
+                        edit.settings.params.steps = state.steps.unwrap_or(method.default_steps());
+                    }
+                    edit.settings.depth_scale = depth;
+                }
+            }
+        });
+    req.listed = super::state::material_lines(state);
+}
+
+fn scene(ui: &mut egui::Ui, state: &mut ViewState, info: &Info, req: &mut Requests) {
     egui::CollapsingHeader::new("Scene")
         .default_open(true)
         .show(ui, |ui| {
@@ -427,21 +543,24 @@ fn scene(ui: &mut egui::Ui, state: &mut ViewState, info: &Info, req: &mut Reques
                 }
             });
             let current = info.maps.get(state.map).cloned().unwrap_or_default();
-            egui::ComboBox::from_label("map")
-                .selected_text(&current)
-                .show_ui(ui, |ui| {
-                    let mut names: Vec<String> = info.maps.clone();
-                    for n in dispmap_cli::bundled::NAMES {
-                        if !names.iter().any(|x| x == n) {
-                            names.push((*n).to_owned());
+            // A scene of several objects: each material has its own map (Objects).
+            if state.assets.objects.is_empty() {
+                egui::ComboBox::from_label("map")
+                    .selected_text(&current)
+                    .show_ui(ui, |ui| {
+                        let mut names: Vec<String> = info.maps.clone();
+                        for n in dispmap_cli::bundled::NAMES {
+                            if !names.iter().any(|x| x == n) {
+                                names.push((*n).to_owned());
+                            }
                         }
-                    }
-                    for n in names {
-                        if ui.selectable_label(n == current, &n).clicked() && n != current {
-                            req.map = Some(n);
+                        for n in names {
+                            if ui.selectable_label(n == current, &n).clicked() && n != current {
+                                req.map = Some(n);
+                            }
                         }
-                    }
-                });
+                    });
+            }
             ui.label(format!(
                 "{}, {}x{}",
                 info.geometry, info.frame[0], info.frame[1]

@@ -27,6 +27,9 @@
 //! | `heatmap` | `on`, `off` | the iteration heat map view |
 //! | `error` | | computes the error overlay; later frames wait until it is shown |
 //! | `screenshot` | a PNG path | writes that frame as presented |
+//! | `object-method` | `N:METHOD` | a scene of several objects: object `N`'s (1-based) method |
+//! | `object-depth` | `N:DEPTH` | object `N`'s depth scale |
+//! | `object-map` | `N:MAP` | object `N`'s height map: a bundled map, or `own` for its file |
 
 use super::Compare;
 use anyhow::{Context as _, Result, bail};
@@ -175,16 +178,32 @@ pub enum Action {
     Error,
     /// A screenshot of the frame.
     Screenshot(PathBuf),
+    /// Object `.0`'s (0-based) material: a change of its method, depth or map.
+    Object(usize, ObjectChange),
+}
+
+/// A change of one object's material (a scene of several objects).
+#[derive(Clone, Debug, PartialEq)]
+pub enum ObjectChange {
+    /// Its method.
+    Method(Method),
+    /// Its depth scale.
+    Depth(f32),
+    /// Its height map: a bundled map by name, or `None` for its own file.
+    Map(Option<String>),
 }
 
 /// What a script is checked against when it is read ([`Script::read`]).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Run {
     /// `--frames`: the frames 0 to `frames - 1` run; an action at a later frame would
     /// never run.
     pub frames: u32,
     /// The scene lists objects: the error overlay is not available.
     pub objects: bool,
+    /// Per object of a scene of several objects, whether it has a height map (a
+    /// material the `object-*` actions change).
+    pub displaced: Vec<bool>,
 }
 
 /// A script: actions by frame, in file order.
@@ -351,6 +370,44 @@ impl Script {
                         .map_err(|e| bad(e.to_string()))?;
                     Action::Screenshot(path)
                 }
+                "object-method" | "object-depth" | "object-map" => {
+                    let v = need("OBJECT:VALUE")?;
+                    let (n, value) = v
+                        .split_once(':')
+                        .ok_or_else(|| bad(format!("'{v}' is not OBJECT:VALUE")))?;
+                    let n: usize =
+                        n.parse().ok().filter(|n| *n > 0).ok_or_else(|| {
+                            bad(format!("'{n}' is not an object number (1, 2, ...)"))
+                        })?;
+                    let change = match action {
+                        "object-method" => ObjectChange::Method(method(value)?),
+                        "object-depth" => {
+                            let d = value
+                                .parse::<f32>()
+                                .ok()
+                                .filter(|x| x.is_finite())
+                                .ok_or_else(|| bad(format!("'{value}' is not a finite number")))?;
+                            Scene {
+                                depth_scale: d,
+                                ..Scene::default()
+                            }
+                            .validate()
+                            .map_err(|e| bad(e.to_string()))?;
+                            ObjectChange::Depth(d)
+                        }
+                        _ if value == "own" => ObjectChange::Map(None),
+                        _ => {
+                            if !crate::bundled::NAMES.contains(&value) {
+                                return Err(bad(format!(
+                                    "unknown bundled map '{value}' (known: {}, or own)",
+                                    crate::bundled::NAMES.join(", ")
+                                )));
+                            }
+                            ObjectChange::Map(Some(value.to_owned()))
+                        }
+                    };
+                    Action::Object(n - 1, change)
+                }
                 other => return Err(bad(format!("unknown action '{other}'"))),
             };
             match (&action, arg) {
@@ -367,6 +424,24 @@ impl Script {
                         run.frames.saturating_sub(1),
                         line.split_whitespace().nth(1).unwrap_or("")
                     )));
+                }
+                if let Action::Object(i, _) = &action {
+                    match run.displaced.get(*i) {
+                        Some(true) => {}
+                        Some(false) => {
+                            return Err(bad(format!(
+                                "object {} has no height map: it has no material to change",
+                                i + 1
+                            )));
+                        }
+                        None => {
+                            return Err(bad(format!(
+                                "object {}: the scene has {} objects",
+                                i + 1,
+                                run.displaced.len()
+                            )));
+                        }
+                    }
                 }
                 if action == Action::Error && run.objects {
                     return Err(bad(
@@ -406,7 +481,9 @@ mod tests {
     fn a_script_parses_and_bad_lines_name_their_line() {
         let s = Script::parse(
             "# comment\n0 method pom\n2 resize 96x64 # smaller\n3 split dig\n4 error\n\
-             5 compare side-by-side\n5 flip\n6 zoom -2.5\n6 panel off\n",
+             5 compare side-by-side\n5 flip\n6 zoom -2.5\n6 panel off\n\
+             7 object-method 2:exact\n7 object-depth 1:0.25\n7 object-map 3:own\n\
+             7 object-map 3:bricks\n",
             "t",
         )
         .unwrap();
@@ -421,6 +498,13 @@ mod tests {
                 (5, Action::Flip),
                 (6, Action::Zoom(-2.5)),
                 (6, Action::Panel(false)),
+                (7, Action::Object(1, ObjectChange::Method(Method::Exact))),
+                (7, Action::Object(0, ObjectChange::Depth(0.25))),
+                (7, Action::Object(2, ObjectChange::Map(None))),
+                (
+                    7,
+                    Action::Object(2, ObjectChange::Map(Some("bricks".into())))
+                ),
             ]
         );
         for (text, want) in [
@@ -429,6 +513,10 @@ mod tests {
             ("1 resize 0x4", "t:1"),
             ("1 divider 2", "t:1"),
             ("1 fly", "unknown action"),
+            ("1 object-method 2", "OBJECT:VALUE"),
+            ("1 object-method 0:pom", "object number"),
+            ("1 object-depth 1:-1", "t:1"),
+            ("1 object-map 1:nope", "unknown bundled map"),
             ("1 steps", "needs"),
             ("1 error now", "no argument"),
             ("1 compare swipe", "t:1"),
@@ -437,6 +525,26 @@ mod tests {
         ] {
             let e = Script::parse(text, "t").unwrap_err().to_string();
             assert!(e.contains(want), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn object_changes_are_checked_against_the_scenes_objects() {
+        let run = Run {
+            frames: 2,
+            objects: true,
+            displaced: vec![true, false],
+        };
+        let ok = Script::parse_for("1 object-method 1:pom\n", "t", Some(&run)).unwrap();
+        assert_eq!(ok.events.len(), 1);
+        for (text, want) in [
+            ("0 object-depth 2:0.1", "object 2 has no height map"),
+            ("0 object-map 3:rocks", "the scene has 2 objects"),
+        ] {
+            let e = Script::parse_for(text, "t", Some(&run))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want) && e.contains("t:1"), "{text}: {e}");
         }
     }
 }

@@ -2,9 +2,12 @@
 //! renderers accepted (the undo [`Snapshot`]), and the window title and side settings
 //! derived from it.
 
+use anyhow::Result;
+use dispmap::context::Context;
+use dispmap::embed::MaterialSettings;
 use dispmap::heightfield::HeightField;
 use dispmap::method::Method;
-use dispmap::renderer::{RenderSettings, SceneAssets};
+use dispmap::renderer::{RenderSettings, Renderer, SceneAssets};
 use dispmap::scene::Camera;
 use std::sync::Arc;
 
@@ -18,6 +21,9 @@ pub(super) struct ViewState {
     pub(super) maps: Vec<(String, Arc<HeightField>)>,
     pub(super) map: usize,
     pub(super) assets: SceneAssets,
+    /// A scene of several objects: each object's material as the panel left it (`None`:
+    /// flat), in the objects' order; empty for one geometry.
+    pub(super) materials: Vec<Option<MaterialEdit>>,
     /// The left (or only) side's settings; the frame size follows the window.
     pub(super) settings: RenderSettings,
     /// Steps chosen (`None`: each method's default).
@@ -37,6 +43,31 @@ pub(super) struct ViewState {
     pub(super) panel: bool,
     /// The help overlay is shown.
     pub(super) help: bool,
+}
+
+/// One displaced object's material as edited in the panel. The first displaced object's
+/// material is the renderer's primary one: its method, parameters and depth scale are
+/// [`ViewState::settings`]' (the side's), and only its `map` is read from here.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct MaterialEdit {
+    /// The height map: an index into [`ViewState::maps`], or `None` for the object's own.
+    pub(super) map: Option<usize>,
+    /// Method, parameters, depth scale and addressing.
+    pub(super) settings: MaterialSettings,
+}
+
+/// The materials of `assets`' objects as loaded (nothing edited yet).
+pub(super) fn initial_materials(assets: &SceneAssets) -> Vec<Option<MaterialEdit>> {
+    assets
+        .objects
+        .iter()
+        .map(|o| {
+            o.material.as_ref().map(|(_, settings, _)| MaterialEdit {
+                map: None,
+                settings: *settings,
+            })
+        })
+        .collect()
 }
 
 /// How the split view puts the two methods on screen.
@@ -62,6 +93,35 @@ impl Compare {
 }
 
 impl ViewState {
+    /// The index of the first displaced object (the primary material), if any.
+    pub(super) fn primary(&self) -> Option<usize> {
+        self.materials.iter().position(Option::is_some)
+    }
+
+    /// Object `i`'s material as shown and rendered on the left side: the name of its map
+    /// and its settings (the primary's method, parameters and depth scale are the
+    /// side's). `None` for a flat object.
+    pub(super) fn material(&self, i: usize) -> Option<(String, MaterialSettings)> {
+        let edit = self.materials.get(i).copied().flatten()?;
+        let map = match edit.map {
+            Some(m) => self
+                .maps
+                .get(m)
+                .map_or_else(String::new, |(n, _)| n.clone()),
+            None => self.assets.objects[i]
+                .material
+                .as_ref()
+                .map_or_else(String::new, |(field, _, _)| field.label().to_owned()),
+        };
+        let mut settings = edit.settings;
+        if self.primary() == Some(i) {
+            settings.method = self.settings.method;
+            settings.params = self.settings.params;
+            settings.depth_scale = self.settings.scene.depth_scale;
+        }
+        Some((map, settings))
+    }
+
     pub(super) fn side(&self, method: Method) -> RenderSettings {
         let mut s = self.settings;
         s.method = method;
@@ -77,6 +137,7 @@ pub(super) struct Snapshot {
     pub(super) steps: Option<u32>,
     pub(super) right: Option<Method>,
     pub(super) map: usize,
+    pub(super) materials: Vec<Option<MaterialEdit>>,
 }
 
 impl Snapshot {
@@ -86,6 +147,7 @@ impl Snapshot {
             steps: state.steps,
             right: state.right,
             map: state.map,
+            materials: state.materials.clone(),
         }
     }
 
@@ -94,6 +156,7 @@ impl Snapshot {
         state.steps = self.steps;
         state.right = self.right;
         state.map = self.map;
+        state.materials = self.materials.clone();
     }
 }
 
@@ -124,16 +187,58 @@ pub(super) fn material_lines(state: &ViewState) -> Vec<String> {
         .objects
         .iter()
         .enumerate()
-        .map(|(i, o)| match &o.material {
-            Some((field, m, _)) => format!(
+        .map(|(i, o)| match state.material(i) {
+            Some((map, m)) => format!(
                 "{}. {}: {} on {}, depth {}",
                 i + 1,
                 o.geometry.name(),
                 m.method.name(),
-                field.label(),
+                map,
                 m.depth_scale
             ),
             None => format!("{}. {}: flat", i + 1, o.geometry.name()),
         })
         .collect()
+}
+
+/// A renderer of the current map with `settings`; for a scene of several objects, of
+/// its objects with their materials as edited (the primary one with `settings`' method,
+/// parameters and depth scale).
+pub(super) fn build_renderer(
+    ctx: &Arc<Context>,
+    state: &ViewState,
+    settings: RenderSettings,
+) -> Result<Renderer> {
+    let field = &state.maps[state.map].1;
+    if state.assets.objects.is_empty() {
+        return Ok(Renderer::with_assets(ctx, field, settings, &state.assets)?);
+    }
+    let primary = state.primary();
+    let objects: Vec<_> = state
+        .assets
+        .objects
+        .iter()
+        .zip(&state.materials)
+        .enumerate()
+        .map(|(i, (o, edit))| {
+            let mut object = o.as_object();
+            if let (Some(material), Some(edit)) = (object.material.as_mut(), edit) {
+                if let Some((_, f)) = edit.map.and_then(|m| state.maps.get(m)) {
+                    material.field = f.as_ref();
+                }
+                material.settings = if primary == Some(i) {
+                    MaterialSettings {
+                        method: settings.method,
+                        params: settings.params,
+                        depth_scale: settings.scene.depth_scale,
+                        addressing: material.settings.addressing,
+                    }
+                } else {
+                    edit.settings
+                };
+            }
+            object
+        })
+        .collect();
+    Ok(Renderer::with_objects(ctx, settings, &objects)?)
 }

@@ -184,6 +184,20 @@ impl Viewer {
                 dispmap::timing::median(&self.stats.all_ui_cpu[cpu_skip..]),
                 dispmap::timing::median(&self.stats.all_ui_gpu[gpu_skip..]),
             );
+            if self.dock_px > 0 {
+                eprintln!(
+                    "panel: docked at the right edge, {} px wide (the sides share the {} \
+                     columns left of it)",
+                    self.dock_px,
+                    self.presenter.extent().width.saturating_sub(self.dock_px)
+                );
+            }
+            if !self.panel_listed.is_empty() {
+                eprintln!("panel: {} objects listed:", self.panel_listed.len());
+                for line in &self.panel_listed {
+                    eprintln!("  {line}");
+                }
+            }
         }
     }
 }

@@ -4,11 +4,13 @@
 use super::app::Flow;
 use super::compose::frame_layout;
 use super::headless::Headless;
-use super::input::{next_screenshot_path, switch_map};
+use super::input::{next_screenshot_path, set_object_map, switch_map};
 use super::overlay::{ErrorJob, Overlay};
 use super::present::{Presenter, Source};
 use super::script::{Action, CameraPath};
-use super::state::{Snapshot, ViewState, material_lines, side_of, title};
+use super::state::{
+    MaterialEdit, Snapshot, ViewState, build_renderer, material_lines, side_of, title,
+};
 use super::stats::{Stats, push_history};
 use super::{RESIZE_TIMEOUT, STATS_PERIOD};
 use super::{budget, panel, present, ui};
@@ -55,6 +57,13 @@ pub(super) struct Viewer {
     pub(super) job: Option<ErrorJob>,
     /// The map index the renderers were built for.
     pub(super) built_map: usize,
+    /// The objects' materials the renderers were built with (a scene of several objects).
+    pub(super) built_materials: Vec<Option<MaterialEdit>>,
+    /// Columns at the right of the window the panel takes in split view (0: it floats
+    /// over the frame, or is hidden).
+    pub(super) dock_px: u32,
+    /// The material lines the panel showed last (for the headless summary).
+    pub(super) panel_listed: Vec<String>,
     /// The window size the swapchain was last made for.
     pub(super) window_size: [u32; 2],
     /// A window above the memory bound and the smaller frame rendered for it
@@ -106,14 +115,13 @@ impl Viewer {
             let window = [extent.width, extent.height];
             [settings.width, settings.height] = state.bound.fit(&budget::Sizing::of(state), window);
         }
-        let field = &state.maps[state.map].1;
-        let build = |s: RenderSettings| Renderer::with_assets(&ctx, field, s, &state.assets);
+        let build = |s: RenderSettings| build_renderer(&ctx, state, s);
         let left = match build(settings) {
             Ok(r) => r,
             Err(e) => {
                 let mut presenter = presenter;
                 presenter.destroy(&ctx);
-                return Err(e.into());
+                return Err(e);
             }
         };
         let right = match state.right.map(|m| build(side_of(&settings, state, m))) {
@@ -121,7 +129,7 @@ impl Viewer {
                 let mut presenter = presenter;
                 presenter.destroy(&ctx);
                 drop(left);
-                return Err(e.into());
+                return Err(e);
             }
             Some(Ok(r)) => Some(r),
             None => None,
@@ -177,6 +185,9 @@ impl Viewer {
             overlay: None,
             job: None,
             built_map: state.map,
+            built_materials: state.materials.clone(),
+            dock_px: 0,
+            panel_listed: Vec::new(),
             window_size: [size.width, size.height],
             fitted: None,
             error_requested: false,
@@ -218,37 +229,26 @@ impl Viewer {
     pub(super) fn sync(&mut self, state: &mut ViewState, size: [u32; 2]) -> Result<()> {
         let mut want = state.settings;
         (want.width, want.height) = (size[0], size[1]);
-        if self.built_map != state.map {
-            // A new map: new renderers (the pass keeps its map for its lifetime here).
-            let field = state.maps[state.map].1.clone();
-            let left = Renderer::with_assets(&self.ctx, &field, want, &state.assets)?;
+        if self.built_map != state.map || self.built_materials != state.materials {
+            // A new map, or an object's material edited: new renderers (the pass keeps
+            // its maps for its lifetime here, and each object's depth scale is the
+            // G-buffer's).
+            let left = build_renderer(&self.ctx, state, want)?;
             let right = state
                 .right
-                .map(|m| {
-                    Renderer::with_assets(
-                        &self.ctx,
-                        &field,
-                        side_of(&want, state, m),
-                        &state.assets,
-                    )
-                })
+                .map(|m| build_renderer(&self.ctx, state, side_of(&want, state, m)))
                 .transpose()?;
             self.left = left;
             self.right = right;
             self.built_map = state.map;
+            self.built_materials = state.materials.clone();
         }
         apply(&mut self.left, &want)?;
         match (state.right, self.right.as_mut()) {
             (None, _) => self.right = None,
             (Some(m), Some(r)) => apply(r, &side_of(&want, state, m))?,
             (Some(m), None) => {
-                let field = state.maps[state.map].1.clone();
-                self.right = Some(Renderer::with_assets(
-                    &self.ctx,
-                    &field,
-                    side_of(&want, state, m),
-                    &state.assets,
-                )?);
+                self.right = Some(build_renderer(&self.ctx, state, side_of(&want, state, m))?);
             }
         }
         Ok(())
@@ -358,8 +358,20 @@ impl Viewer {
             }
         }
         let e = self.presenter.extent();
-        let frame = self.fit(state, [e.width, e.height]);
-        if let Err(err) = self.sync(state, frame_layout(state, frame).0) {
+        let window = [e.width, e.height];
+        let frame = self.fit(state, window);
+        // In split view the panel takes a column at the right instead of covering a side:
+        // its width in the window's pixels, and the same columns of the frame (which the
+        // memory bound may render smaller, scaled to the window).
+        self.dock_px = match &self.gui {
+            Some(gui) if state.panel && state.right.is_some() => {
+                dock_width(window[0], gui.egui.pixels_per_point())
+            }
+            _ => 0,
+        };
+        let dock = (u64::from(self.dock_px) * u64::from(frame[0]))
+            .div_ceil(u64::from(window[0].max(1))) as u32;
+        if let Err(err) = self.sync(state, frame_layout(state, frame, dock).0) {
             if headless.is_some() {
                 return Err(err);
             }
@@ -371,10 +383,10 @@ impl Viewer {
                 .clone()
                 .context("no earlier state to go back to")?;
             good.restore(state);
-            self.sync(state, frame_layout(state, frame).0)?;
+            self.sync(state, frame_layout(state, frame, dock).0)?;
         }
         self.good = Some(Snapshot::of(state));
-        let layout = frame_layout(state, frame).1;
+        let layout = frame_layout(state, frame, dock).1;
 
         let render_start = Instant::now();
         let times = self.left.render()?;
@@ -453,6 +465,10 @@ impl Viewer {
                     if r.map.is_some() {
                         requests.map = r.map;
                     }
+                    if r.object_map.is_some() {
+                        requests.object_map = r.object_map;
+                    }
+                    requests.listed = r.listed;
                 })?;
             }
             if requests.error {
@@ -465,6 +481,10 @@ impl Viewer {
             if let Some(name) = requests.map {
                 switch_map(state, Some(&name))?;
             }
+            if let Some((object, name)) = requests.object_map {
+                set_object_map(state, object, &name)?;
+            }
+            self.panel_listed = requests.listed;
         }
         let final_shot = if last {
             headless.as_deref().and_then(|h| h.screenshot.clone())
@@ -524,6 +544,16 @@ impl Viewer {
         }
         Ok(Flow::Continue)
     }
+}
+
+/// Widest the docked panel gets, in points.
+const DOCK_POINTS: f32 = 300.0;
+
+/// Columns the docked panel takes on a window `width` pixels wide: [`DOCK_POINTS`], but
+/// at most 40% of the window (the panel narrows on a narrow window).
+pub(super) fn dock_width(width: u32, pixels_per_point: f32) -> u32 {
+    let want = (DOCK_POINTS * pixels_per_point).ceil() as u32;
+    want.min(width * 2 / 5)
 }
 
 /// Brings one renderer to `want` with the cheapest calls (size, method, shadows, scene).
