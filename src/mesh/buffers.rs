@@ -36,7 +36,7 @@ const INDEX_READ: Access = Access {
 /// A mesh's vertex and index buffers in device-local memory (filled once through a
 /// staging buffer).
 pub struct MeshBuffers {
-    /// Vertices ([`Vertex`]).
+    /// Vertices ([`Vertex`](super::Vertex)).
     pub vertices: Buffer,
     /// `u32` indices.
     pub indices: Buffer,

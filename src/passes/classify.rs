@@ -23,7 +23,7 @@
 //! | `u_args` | the dispatch arguments and counts (storage buffer, read and written) | |
 //! | `u_hit_depth` | corrected depth (`DEPTH` variant; storage, written) | `GENERAL` |
 //!
-//! A per-material pass binds its material's list at binding [`TILES_BINDING`].
+//! A per-material pass binds its material's list at binding [`TILES`] (`u_tiles`).
 
 use crate::abi::ClassifyParams;
 use crate::context::Context;
@@ -123,7 +123,7 @@ impl TileLists {
         self.extent
     }
 
-    /// Material `m`'s list, for binding [`TILES_BINDING`].
+    /// Material `m`'s list, for the binding [`TILES`].
     pub fn list(&self, m: u32) -> [vk::DescriptorBufferInfo; 1] {
         let bytes = u64::from(self.capacity) * 4;
         [vk::DescriptorBufferInfo {
@@ -165,7 +165,7 @@ impl Destroy for TileLists {
 pub struct MaterialTiles {
     /// The material (its index in the pass's table).
     pub material: u32,
-    /// Its list, bound at [`TILES_BINDING`].
+    /// Its list, bound at [`TILES`].
     pub list: vk::DescriptorBufferInfo,
     /// The buffer holding its `VkDispatchIndirectCommand`.
     pub args: vk::Buffer,
