@@ -422,7 +422,7 @@ fn silhouette_agreement(
     let (w, h) = (settings.width, settings.height);
     let rays: Vec<_> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| Some((camera.rays.eye, camera.rays.direction(x, y))))
+        .map(|(x, y)| (camera.rays.eye, camera.rays.direction(x, y)))
         .collect();
     let reference: Vec<bool> = surface
         .first_hits(&rays)

@@ -349,9 +349,9 @@ impl<'a> DisplacedMesh<'a> {
     }
 
     /// [`DisplacedMesh::first_hit`] of many rays in parallel.
-    pub fn first_hits(&self, rays: &[Option<(DVec3, DVec3)>]) -> Vec<Option<f64>> {
+    pub fn first_hits(&self, rays: &[(DVec3, DVec3)]) -> Vec<Option<f64>> {
         rays.par_iter()
-            .map(|r| r.and_then(|(o, d)| self.first_hit(o, d)))
+            .map(|&(o, d)| self.first_hit(o, d))
             .collect()
     }
 }
