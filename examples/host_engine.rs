@@ -122,7 +122,7 @@ pub struct Output {
     pub device: String,
     /// The last frame's hit buffer.
     pub hits: Vec<[f32; 4]>,
-    /// The last frame's surface ids (G-buffer `normal.w`; 0: nothing drawn).
+    /// The last frame's surface ids (the G-buffer frame's; 0: nothing drawn).
     pub surface_ids: Vec<f32>,
     /// The last frame's colour (RGBA8).
     pub color: Vec<u8>,
@@ -264,13 +264,12 @@ struct EngineBuffer {
 /// The per-slot resources.
 struct Slot {
     ray: EngineImage,
-    normal: EngineImage,
-    tangent: EngineImage,
+    frame: EngineImage,
     depth: EngineImage,
     hit: EngineImage,
     color: EngineImage,
     hit_readback: EngineBuffer,
-    normal_readback: EngineBuffer,
+    frame_readback: EngineBuffer,
     color_readback: EngineBuffer,
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
@@ -738,13 +737,13 @@ impl Engine {
                 .depth_compare_op(vk::CompareOp::GREATER);
             let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
                 .color_write_mask(vk::ColorComponentFlags::RGBA);
-                3];
+                2];
             let blend =
                 vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
             let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
             let dynamic =
                 vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-            let color_formats = [embed::RAY_FORMAT, embed::FRAME_FORMAT, embed::FRAME_FORMAT];
+            let color_formats = [embed::RAY_FORMAT, embed::FRAME_FORMAT];
             let mut floor_rendering = vk::PipelineRenderingCreateInfo::default()
                 .color_attachment_formats(&color_formats)
                 .depth_attachment_format(embed::DEPTH_FORMAT);
@@ -830,14 +829,8 @@ impl Engine {
                 };
                 let slot = Slot {
                     ray: self.image(&n("gbuffer.ray"), embed::RAY_FORMAT, extent, attachment)?,
-                    normal: self.image(
-                        &n("gbuffer.normal"),
-                        embed::FRAME_FORMAT,
-                        extent,
-                        attachment,
-                    )?,
-                    tangent: self.image(
-                        &n("gbuffer.tangent"),
+                    frame: self.image(
+                        &n("gbuffer.frame"),
                         embed::FRAME_FORMAT,
                         extent,
                         attachment,
@@ -857,7 +850,7 @@ impl Engine {
                         storage | vk::ImageUsageFlags::TRANSFER_DST,
                     )?,
                     hit_readback: readback("hits.readback", pixels * 16)?,
-                    normal_readback: readback("normal.readback", pixels * 8)?,
+                    frame_readback: readback("frame.readback", pixels * 8)?,
                     color_readback: readback("color.readback", pixels * 4)?,
                     cmd,
                     fence,
@@ -1078,7 +1071,7 @@ impl Engine {
                 vk::AccessFlags2::SHADER_STORAGE_WRITE,
                 vk::ImageLayout::GENERAL,
             );
-            let colors = [&slot.ray, &slot.normal, &slot.tangent];
+            let colors = [&slot.ray, &slot.frame];
             let mut before: Vec<_> = colors
                 .iter()
                 .map(|i| discard_to(i, color_write.0, color_write.1, color_write.2))
@@ -1232,8 +1225,7 @@ impl Engine {
                 frame_slot: s as u32,
                 gbuffer: GBufferViews {
                     ray: slot.ray.host,
-                    normal: slot.normal.host,
-                    tangent: slot.tangent.host,
+                    frame: slot.frame.host,
                     depth: slot.depth.host,
                     extent,
                 },
@@ -1269,7 +1261,7 @@ impl Engine {
                     copy_src,
                 ),
                 barrier(&slot.color, storage_write, copy_src),
-                barrier(&slot.normal, sampled, copy_src),
+                barrier(&slot.frame, sampled, copy_src),
             ];
             // SAFETY: `cmd` is recording; images and buffers are the slot's.
             unsafe {
@@ -1277,7 +1269,7 @@ impl Engine {
                 for (img, buf) in [
                     (&slot.hit, &slot.hit_readback),
                     (&slot.color, &slot.color_readback),
-                    (&slot.normal, &slot.normal_readback),
+                    (&slot.frame, &slot.frame_readback),
                 ] {
                     let region = vk::BufferImageCopy::default()
                         .image_subresource(vk::ImageSubresourceLayers {
@@ -1350,10 +1342,16 @@ impl Engine {
         let pixels = (o.width * o.height) as usize;
         let hits: Vec<[f32; 4]> =
             bytemuck::cast_slice(&read(&slot.hit_readback)?[..pixels * 16]).to_vec();
-        let normal = read(&slot.normal_readback)?;
-        let surface_ids = normal[..pixels * 8]
+        let frames = read(&slot.frame_readback)?;
+        let surface_ids = frames[..pixels * 8]
             .chunks_exact(8)
-            .map(|t| f16_to_f32(u16::from_le_bytes([t[6], t[7]])))
+            .map(|t| {
+                let word = |i: usize| u32::from_le_bytes([t[i], t[i + 1], t[i + 2], t[i + 3]]);
+                match [word(0), word(4)] {
+                    [0, 0] => 0.0,
+                    bits => dispmap::passes::gbuffer::frame::unpack(bits).surface_id as f32,
+                }
+            })
             .collect();
         let color = read(&slot.color_readback)?[..pixels * 4].to_vec();
         if let Some(path) = &o.out {
@@ -1394,17 +1392,10 @@ impl Engine {
             };
             for slot in std::mem::take(&mut self.slots) {
                 dev.destroy_fence(slot.fence, None);
-                for img in [
-                    slot.ray,
-                    slot.normal,
-                    slot.tangent,
-                    slot.depth,
-                    slot.hit,
-                    slot.color,
-                ] {
+                for img in [slot.ray, slot.frame, slot.depth, slot.hit, slot.color] {
                     free_image(self, img);
                 }
-                for buf in [slot.hit_readback, slot.normal_readback, slot.color_readback] {
+                for buf in [slot.hit_readback, slot.frame_readback, slot.color_readback] {
                     free_buffer(self, buf);
                 }
             }
@@ -1491,17 +1482,6 @@ unsafe fn pipeline_barrier(
     unsafe {
         dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().image_memory_barriers(b))
     };
-}
-
-fn f16_to_f32(h: u16) -> f32 {
-    let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
-    let exp = ((h >> 10) & 0x1f) as i32;
-    let frac = (h & 0x3ff) as f32;
-    sign * match exp {
-        0 => frac * 2f32.powi(-24),
-        31 => f32::INFINITY,
-        e => (1.0 + frac / 1024.0) * 2f32.powi(e - 15),
-    }
 }
 
 /// The cube standing on the floor (the floor is drawn from `gl_VertexIndex`).

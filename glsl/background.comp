@@ -1,18 +1,17 @@
 #version 460
 // background: the standalone renderer's own shading of what the displacement pass leaves
 // alone (src/passes/background.rs), recorded before the pass: pixels without geometry get
-// the sky (glsl/common/sky.glsl), pixels of flat geometry (G-buffer tangent.w = 0: not
+// the sky (glsl/common/sky.glsl), pixels of flat geometry (G-buffer frame's material 0: not
 // displaced) the Lambert and Blinn-Phong light of shade.comp on their G-buffer normal with
 // a grey albedo. Displaced pixels are not written (the pass's `shade` writes them).
 #include "frame.glsl"
-#include "tiles.glsl"
 #include "sky.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
 layout(set = 0, binding = 0) uniform sampler2D u_depth;
-layout(set = 0, binding = 1) uniform sampler2D u_normal;
-layout(set = 0, binding = 2) uniform sampler2D u_tangent;
+layout(set = 0, binding = 1) uniform usampler2D u_frame;
+#include "tiles.glsl"
 layout(set = 0, binding = 3, rgba8) uniform writeonly image2D u_color;
 
 layout(push_constant) uniform ShadeParams {
@@ -39,10 +38,10 @@ void main() {
         imageStore(u_color, pixel, vec4(sky_color(V), 1.0));
         return;
     }
-    if (decode_material(texelFetch(u_tangent, pixel, 0).w) != NOT_DISPLACED) {
+    if (gbuffer_material(pixel) != NOT_DISPLACED) {
         return;
     }
-    vec3 n = normalize(texelFetch(u_normal, pixel, 0).xyz);
+    vec3 n = gbuffer_normal(pixel);
     vec3 L = pc.light_dir.xyz;
     vec3 H = normalize(L - V);
     float diffuse = max(dot(n, L), 0.0);

@@ -1,7 +1,7 @@
 #version 460
 // classify: sorts the frame's 8x8 tiles by material (src/passes/classify.rs). One
 // workgroup per tile: each invocation reads its pixel's material (G-buffer depth and
-// tangent.w, glsl/common/tiles.glsl), the workgroup ORs them into a mask, and for every
+// frame, glsl/common/tiles.glsl), the workgroup ORs them into a mask, and for every
 // material present the tile is appended to that material's list, whose count is the
 // workgroup count of the material's VkDispatchIndirectCommand (x = min(n, MAX_TILE_ROW),
 // y = rows): every later per-material pass is one indirect dispatch over its list. Pixels of no live material (no geometry, flat
@@ -12,12 +12,12 @@
 // geometry), the depth of a surface that is not displaced.
 // dispmap-variant: DEPTH
 #include "frame.glsl"
-#include "tiles.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
 layout(set = 0, binding = 0) uniform sampler2D u_depth;
-layout(set = 0, binding = 1) uniform sampler2D u_tangent;
+layout(set = 0, binding = 1) uniform usampler2D u_frame;
+#include "tiles.glsl"
 layout(set = 0, binding = 2, rgba32f) uniform writeonly image2D u_hit;
 // Every material's list, `tile_capacity` entries each (material m at m * tile_capacity).
 layout(set = 0, binding = 3, std430) writeonly buffer Tiles {
@@ -59,7 +59,7 @@ void main() {
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
     if (all(lessThan(uvec2(pixel), pc.frame_size))) {
         float depth = texelFetch(u_depth, pixel, 0).r;
-        uint m = depth > 0.0 ? decode_material(texelFetch(u_tangent, pixel, 0).w) : NOT_DISPLACED;
+        uint m = depth > 0.0 ? gbuffer_material(pixel) : NOT_DISPLACED;
         if (m < pc.material_count && u_args.args[4u * m + 3u] != 0u) {
             atomicOr(s_mask[m >> 5], 1u << (m & 31u));
         } else {

@@ -8,7 +8,7 @@
 //
 // Output (rgba32f per corner):
 //   x: that ray height (1 when the entry point is already on the surface);
-//   y: the surface id of the corner pixel (G-buffer normal.w; 0 = no geometry, a pixel of
+//   y: the surface id of the corner pixel (the G-buffer frame's; 0 = no geometry, a pixel of
 //      another material, or a clamp-addressed ray that leaves the decal: a silhouette,
 //      not a surface point);
 //   z: the height fetches spent (the corner pass's share of the iteration count);
@@ -21,11 +21,9 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
 layout(set = 0, binding = 0) uniform sampler2D u_ray;
 layout(set = 0, binding = 1) uniform sampler2D u_depth;
-layout(set = 0, binding = 2) uniform sampler2D u_normal;
+layout(set = 0, binding = 2) uniform usampler2D u_frame;
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 layout(set = 0, binding = 4, rgba32f) uniform writeonly image2D u_corners;
-// G-buffer tangent; w = the material (glsl/common/tiles.glsl).
-layout(set = 0, binding = 5) uniform sampler2D u_tangent;
 
 layout(push_constant) uniform CornerParams {
     uvec2 frame_size;
@@ -51,12 +49,12 @@ void main() {
     ivec2 pixel = min(corner * ivec2(pc.block), ivec2(pc.frame_size) - 1);
     // No geometry or another material: not a point of this material's surface (a block
     // with such a corner falls back, as at a surface boundary).
-    if (texelFetch(u_depth, pixel, 0).r <= 0.0 || decode_material(texelFetch(u_tangent, pixel, 0).w) != pc.material) {
+    if (texelFetch(u_depth, pixel, 0).r <= 0.0 || gbuffer_material(pixel) != pc.material) {
         imageStore(u_corners, corner, vec4(1.0, 0.0, 0.0, 0.0));
         return;
     }
     vec4 g = texelFetch(u_ray, pixel, 0);
-    float surface = texelFetch(u_normal, pixel, 0).w;
+    float surface = gbuffer_surface(pixel);
     uint steps = max(pc.steps, 1u);
     uint iterations = 0u;
     uint below;

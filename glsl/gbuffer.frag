@@ -5,7 +5,7 @@
 // (dispmap_plane_pixel_ray, glsl/include/dispmap_plane.glsl), not the rasteriser's
 // interpolation: fragments whose centre ray misses the plane or the quad are discarded,
 // as are back faces (viewer below the surface: nothing to displace).
-#include "gbuffer.glsl"
+#include "gbuffer_params.glsl"
 #include "include/dispmap_plane.glsl"
 #include "include/dispmap_gbuffer.glsl"
 
@@ -16,8 +16,7 @@ layout(set = 0, binding = 0, std140) uniform PixelRayBlock {
 };
 
 layout(location = 0) out vec4 out_ray;
-layout(location = 1) out vec4 out_normal;
-layout(location = 2) out vec4 out_tangent;
+layout(location = 1) out uvec2 out_frame;
 
 // The id of the one surface this pass draws (DIG's same-surface test).
 const float SURFACE_ID = 1.0;
@@ -39,11 +38,10 @@ void main() {
     // camera_pos.w: the drawn object's material index + 1, or 0 for an object that is
     // not displaced (src/abi.rs GBufferParams; 1 = material 0 for a single object).
     uint material_plus_one = uint(pc.camera_pos.w);
-    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, out_ray, out_normal,
-                                         out_tangent)) {
+    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, out_ray, out_frame)) {
         discard;
     }
     if (material_plus_one == 0u) {
-        dispmap_gbuffer_encode_flat(s.normal, s.tangent, SURFACE_ID, out_ray, out_normal, out_tangent);
+        dispmap_gbuffer_encode_flat(s.normal, s.tangent, SURFACE_ID, out_ray, out_frame);
     }
 }

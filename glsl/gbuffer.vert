@@ -3,7 +3,7 @@
 // vertex buffer) by dispmap_plane_vertex, the function a host engine uses to draw the
 // same plane (glsl/include/dispmap_plane.glsl documents the quad, plane_cells = 0, and the
 // grid of 2n x 2n cells about the eye, plane_cells = n > 0).
-#include "gbuffer.glsl"
+#include "gbuffer_params.glsl"
 #include "include/dispmap_plane.glsl"
 
 // The vertices only decide which pixels the plane covers: the fragment stage computes

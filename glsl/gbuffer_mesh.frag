@@ -3,7 +3,7 @@
 // frame (Gram-Schmidt), encodes the ray with the shared include, then corrects P for the
 // uv stretch so depth_scale is in units of the local uv scale sqrt(s_u s_v) (src/mesh.rs
 // documents the choice): P.x *= sqrt(s_v / s_u), P.y *= sqrt(s_u / s_v).
-#include "gbuffer.glsl"
+#include "gbuffer_params.glsl"
 #include "include/dispmap_gbuffer.glsl"
 
 layout(location = 0) in vec3 v_eye_rel;
@@ -21,8 +21,7 @@ layout(location = 5) flat in float v_surface;
 layout(constant_id = 0) const bool TWO_SIDED = false;
 
 layout(location = 0) out vec4 out_ray;
-layout(location = 1) out vec4 out_normal;
-layout(location = 2) out vec4 out_tangent;
+layout(location = 1) out uvec2 out_frame;
 
 void main() {
     vec3 N = normalize(v_normal);
@@ -44,12 +43,11 @@ void main() {
     // camera_pos.w: the drawn object's material index + 1, or 0 for an object that is
     // not displaced (src/abi.rs GBufferParams; 1 = material 0 for a single object).
     uint material_plus_one = uint(pc.camera_pos.w);
-    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, out_ray, out_normal,
-                                         out_tangent)) {
+    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, out_ray, out_frame)) {
         discard;
     }
     if (material_plus_one == 0u) {
-        dispmap_gbuffer_encode_flat(s.normal, s.tangent, v_surface, out_ray, out_normal, out_tangent);
+        dispmap_gbuffer_encode_flat(s.normal, s.tangent, v_surface, out_ray, out_frame);
     }
     float stretch = clamp(v_stretch, 1.0 / 64.0, 64.0);
     out_ray.zw *= vec2(inversesqrt(stretch), sqrt(stretch));

@@ -1,7 +1,7 @@
 #version 460
 // G-buffer pass for meshes (cube, sphere, torus, loaded meshes), vertex stage: reads the
 // vertex buffer (src/mesh.rs Vertex), positions already in world space.
-#include "gbuffer.glsl"
+#include "gbuffer_params.glsl"
 
 layout(location = 0) in vec3 a_position;
 layout(location = 1) in vec3 a_normal;

@@ -20,8 +20,7 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
 layout(set = 0, binding = 1) uniform sampler2D u_ray;
 layout(set = 0, binding = 2) uniform sampler2D u_depth;
-layout(set = 0, binding = 3) uniform sampler2D u_normal;
-layout(set = 0, binding = 4) uniform sampler2D u_tangent;
+layout(set = 0, binding = 3) uniform usampler2D u_frame;
 layout(set = 0, binding = 5, r32f) uniform writeonly image2D u_hit_depth;
 
 layout(push_constant) uniform HitDepthParams {
@@ -52,9 +51,8 @@ void main() {
     vec3 entry = dispmap_entry_eye_rel(pc.inv_eye_clip, vec2(pixel) + 0.5, vec2(pc.frame_size),
                                        depth);
     vec2 uv0 = texelFetch(u_ray, pixel, 0).xy;
-    vec3 N = texelFetch(u_normal, pixel, 0).xyz;
-    vec4 t4 = texelFetch(u_tangent, pixel, 0);
-    vec3 p = dispmap_displaced_eye_rel(entry, hit, uv0, N, t4.xyz, t4.w, pc.depth_scale);
+    DispmapFrame f = gbuffer_frame(pixel);
+    vec3 p = dispmap_displaced_eye_rel(entry, hit, uv0, f.normal, f.tangent, f.handedness, pc.depth_scale);
     float z = dot(pc.clip_z_row, vec4(p, 1.0));
     float w = dot(pc.clip_w_row, vec4(p, 1.0));
     // w > 0 for every point beyond the entry along the view ray; keep the macro depth

@@ -26,8 +26,7 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
 layout(set = 0, binding = 1) uniform sampler2D u_ray;
 layout(set = 0, binding = 2) uniform sampler2D u_depth;
-layout(set = 0, binding = 3) uniform sampler2D u_normal;
-layout(set = 0, binding = 4) uniform sampler2D u_tangent;
+layout(set = 0, binding = 3) uniform usampler2D u_frame;
 #ifdef WIDE
 layout(set = 0, binding = 5, rg32f) uniform image2D u_motion;
 #else
@@ -76,9 +75,8 @@ void main() {
     vec2 centre = vec2(pixel) + 0.5;
     vec3 entry = dispmap_entry_eye_rel(pc.inv_eye_clip, centre, vec2(pc.frame_size), depth);
     vec2 uv0 = texelFetch(u_ray, pixel, 0).xy;
-    vec3 N = texelFetch(u_normal, pixel, 0).xyz;
-    vec4 t4 = texelFetch(u_tangent, pixel, 0);
-    vec3 p = dispmap_displaced_eye_rel(entry, hit, uv0, N, t4.xyz, t4.w, pc.depth_scale);
+    DispmapFrame f = gbuffer_frame(pixel);
+    vec3 p = dispmap_displaced_eye_rel(entry, hit, uv0, f.normal, f.tangent, f.handedness, pc.depth_scale);
 
     // Pixels -> the host's units and direction, and back.
     vec2 to_units = (pc.material & MOTION_UV) != 0u    ? 1.0 / vec2(pc.frame_size)

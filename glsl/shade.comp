@@ -11,8 +11,7 @@
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
-layout(set = 0, binding = 1) uniform sampler2D u_normal;
-layout(set = 0, binding = 2) uniform sampler2D u_tangent;
+layout(set = 0, binding = 1) uniform usampler2D u_frame;
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 layout(set = 0, binding = 4, rgba8) uniform writeonly image2D u_color;
 // Optional maps (src/material.rs): alpha 0 = the map is present; without one the height
@@ -60,10 +59,10 @@ void main() {
         imageStore(u_color, pixel, vec4(sky_color(V), 1.0));
         return;
     }
-    vec3 N = texelFetch(u_normal, pixel, 0).xyz;
-    vec4 t4 = texelFetch(u_tangent, pixel, 0);
-    vec3 T = t4.xyz;
-    vec3 B = handedness(t4.w) * cross(N, T);
+    DispmapFrame f = gbuffer_frame(pixel);
+    vec3 N = f.normal;
+    vec3 T = f.tangent;
+    vec3 B = gbuffer_bitangent(f);
     vec3 n_ts = height_normal(hit.xy, vec2(pc.map_size), pc.depth_scale);
     vec4 normal_map = textureLod(u_normal_map, hit.xy, 0.0);
     if (normal_map.a < 0.5) {

@@ -64,8 +64,7 @@
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
 layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
-layout(set = 0, binding = 1) uniform sampler2D u_normal;
-layout(set = 0, binding = 2) uniform sampler2D u_tangent;
+layout(set = 0, binding = 1) uniform usampler2D u_frame;
 // The height field (linear filtering, the map's addressing).
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 // binding 4: the cell-max pyramid, PYRAMID variant only (declared by pyramid.glsl).
@@ -167,10 +166,10 @@ void main() {
     vec4 hit = imageLoad(u_hit, pixel);
     float visibility = 1.0; // no hit: nothing to shadow
     if (hit.z >= 0.0) {
-        vec3 N = normalize(texelFetch(u_normal, pixel, 0).xyz);
-        vec4 t4 = texelFetch(u_tangent, pixel, 0);
-        vec3 T = normalize(t4.xyz);
-        vec3 B = handedness(t4.w) * cross(N, T);
+        DispmapFrame f = gbuffer_frame(pixel);
+        vec3 N = f.normal;
+        vec3 T = f.tangent;
+        vec3 B = gbuffer_bitangent(f);
         vec3 L = pc.light_dir.xyz;
         vec3 l_ts = vec3(dot(L, T), dot(L, B), dot(L, N));
         if (!(l_ts.z > 0.0)) {

@@ -14,10 +14,10 @@ pub const ADDRESSING_CLAMP: u32 = 1;
 /// `NO_HIT_HEIGHT` in `glsl/common/frame.glsl`: the hit height of a miss.
 pub const NO_HIT_HEIGHT: f32 = -1.0;
 /// `NOT_DISPLACED_HEIGHT` in `glsl/common/frame.glsl`: the hit height of a pixel of flat
-/// geometry (G-buffer `tangent.w` = 0), written by the classification pass.
+/// geometry (G-buffer frame's material 0), written by the classification pass.
 pub const NOT_DISPLACED_HEIGHT: f32 = -2.0;
 /// `MAX_MATERIALS` in `glsl/common/tiles.glsl`: the materials a pass may hold (the
-/// G-buffer's `tangent.w` holds `index + 1` exactly in f16).
+/// G-buffer frame's 11-bit material field holds `index + 1`).
 pub const MAX_MATERIALS: u32 = 1024;
 
 /// `TraceParams` in `glsl/common/trace.glsl`.

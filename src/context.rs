@@ -56,7 +56,7 @@ pub mod requirements {
             ),
         ),
         (
-            vk::Format::R16G16B16A16_SFLOAT,
+            vk::Format::R32G32_UINT,
             vk::FormatFeatureFlags::from_raw(
                 vk::FormatFeatureFlags::COLOR_ATTACHMENT.as_raw()
                     | vk::FormatFeatureFlags::SAMPLED_IMAGE.as_raw(),

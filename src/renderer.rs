@@ -134,7 +134,7 @@ const DISCARD: Access = Access {
     layout: vk::ImageLayout::UNDEFINED,
 };
 
-/// The G-buffer's `normal` and `tangent` texels of a frame ([`Renderer::read_frames`]).
+/// The G-buffer's frame decoded into `normal` and `tangent` texels ([`Renderer::read_frames`]).
 pub type TangentFrames = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
 /// Timestamp queries of the renderer's own scope (the G-buffer), before the pass's.
@@ -269,10 +269,10 @@ impl Renderer {
     }
 
     /// A renderer of several objects in one G-buffer: each object drawn with its own
-    /// placement and, when it has a material, that material's index in `tangent.w`, depth
+    /// placement and, when it has a material, that material's index + 1 in the frame, depth
     /// scale and addressing (the per-draw push constants: `camera_pos.w` carries the
     /// material, see [`crate::abi::GBufferParams`]); objects without one are drawn flat
-    /// (`tangent.w = 0`) and shaded by the background pass. Mesh vertices are placed on
+    /// (material 0 in the frame) and shaded by the background pass. Mesh vertices are placed on
     /// the CPU once here (positions transformed, frames rotated, surface ids shifted so
     /// that no two objects share one). Each displaced object is one material of the pass
     /// (maps with equal content and addressing are shared by the pass), except that

@@ -254,11 +254,11 @@ impl Host {
                             DISCARD,
                             Access::TRANSFER_WRITE,
                         ),
-                        // The resolve reads the G-buffer's tangent (which pixels are
+                        // The resolve reads the G-buffer's frame (which pixels are
                         // displaced) in the fragment stage.
                         sync::image_barrier(
-                            slot.gbuffer.tangent.raw,
-                            slot.gbuffer.tangent.range(),
+                            slot.gbuffer.frame.raw,
+                            slot.gbuffer.frame.range(),
                             Access::COMPUTE_SAMPLED,
                             FRAGMENT_SAMPLED,
                         ),
@@ -292,7 +292,7 @@ impl Host {
                     &ctx,
                     cmd,
                     source.view,
-                    slot.gbuffer.tangent.view,
+                    slot.gbuffer.frame.view,
                     slot.resolved.view,
                     extent,
                 )

@@ -32,6 +32,7 @@ use dispmap::gpu::sync::{self, Access};
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::{Addressing, HeightField, Texels};
 use dispmap::method::{Method, MethodParams};
+use dispmap::passes::gbuffer::frame;
 use dispmap::passes::pyramid::{PyramidKind, cpu_build};
 use dispmap::scene::{Camera, Scene};
 use dispmap_cli::metrics::{self, MapGeometry};
@@ -386,25 +387,14 @@ fn band(x: u32) -> usize {
     (x * 3 / EXTENT.width) as usize
 }
 
-/// The f16 bits of `±(index + 1)` (the G-buffer's material encoding; exact for small
-/// integers).
-fn material_bits(index: u32, negative: bool) -> u16 {
-    let v = (index + 1) as f32;
-    let e = v.log2().floor() as i32;
-    let m = v / 2f32.powi(e) - 1.0;
-    let sign = if negative { 0x8000 } else { 0 };
-    sign | (((e + 15) as u16) << 10) | ((m * 1024.0).round() as u16)
-}
-
 /// The G-buffer with band `b`'s pixels given material `ids[b]`.
 fn assign(base: &GBufferTexels, ids: [u32; 3]) -> GBufferTexels {
     let mut g = base.clone();
     for y in 0..EXTENT.height {
         for x in 0..EXTENT.width {
             let i = (y * EXTENT.width + x) as usize;
-            let negative = g.tangent[i][3] & 0x8000 != 0;
-            if g.tangent[i][3] != 0 {
-                g.tangent[i][3] = material_bits(ids[band(x)], negative);
+            if frame::material_plus_one(g.frame[i]) != 0 {
+                g.frame[i] = frame::with_material(g.frame[i], ids[band(x)] + 1);
             }
         }
     }

@@ -22,6 +22,7 @@ use dispmap::gpu::commands::read_image;
 use dispmap::gpu::sync::Access;
 use dispmap::heightfield::{Addressing, Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
+use dispmap::passes::gbuffer::frame;
 use dispmap::scene::{Camera, Scene};
 use std::sync::Arc;
 
@@ -34,23 +35,6 @@ const SLOTS: usize = 2;
 const HOST_COLOR: [u8; 4] = [11, 22, 33, 255];
 /// The depth scale the plane is rasterised with (each region's P is rescaled).
 const RASTER_DEPTH: f32 = 0.1;
-
-/// The f16 bits of a small integer (0..=2048) or its negative: the material encoding.
-fn f16_bits(v: f32) -> u16 {
-    half_bits(v)
-}
-
-fn half_bits(v: f32) -> u16 {
-    // Exact for the integers used here (|v| <= 2048).
-    let sign = if v < 0.0 { 0x8000u16 } else { 0 };
-    let a = v.abs();
-    if a == 0.0 {
-        return sign;
-    }
-    let e = a.log2().floor() as i32;
-    let m = a / 2f32.powi(e) - 1.0;
-    sign | (((e + 15) as u16) << 10) | ((m * 1024.0).round() as u16)
-}
 
 /// One displaced material of the test frame.
 struct Mat {
@@ -126,15 +110,8 @@ fn gbuffer(
                 g.ray[i][2] *= k;
                 g.ray[i][3] *= k;
             }
-            let handed = if g.tangent[i][3] & 0x8000 != 0 {
-                -1.0
-            } else {
-                1.0
-            };
-            g.tangent[i][3] = match assign(x, y) {
-                Some(m) => f16_bits(handed * (m as f32 + 1.0)),
-                None => 0,
-            };
+            // The frame's material field (the handedness and the rest kept).
+            g.frame[i] = frame::with_material(g.frame[i], assign(x, y).map_or(0, |m| m + 1));
         }
     }
     g

@@ -356,14 +356,13 @@ fn object_gbuffer(
     let mut g = common::host::GBufferTexels {
         ray: vec![[0.0; 4]; n],
         depth: vec![0.0; n],
-        normal: vec![[0; 4]; n],
-        tangent: vec![[0; 4]; n],
+        frame: vec![[0; 2]; n],
     };
     let mut entries = vec![None; n];
     let normal = place.rotation * DVec3::Y;
     let tangent = place.rotation * DVec3::X;
     let bitangent = place.rotation * DVec3::Z;
-    // tangent.w = handedness * (material 0 + 1), B = handedness * cross(N, T).
+    // The frame: material 0, B = handedness * cross(N, T).
     let handedness = normal.cross(tangent).dot(bitangent).signum();
     for (i, entry) in entries.iter_mut().enumerate() {
         let px = camera.centre(i);
@@ -391,13 +390,13 @@ fn object_gbuffer(
             parallax.y as f32,
         ];
         g.depth[i] = camera.depth(p) as f32;
-        g.normal[i] = [half(normal.x), half(normal.y), half(normal.z), half(1.0)];
-        g.tangent[i] = [
-            half(tangent.x),
-            half(tangent.y),
-            half(tangent.z),
-            half(handedness),
-        ];
+        g.frame[i] = dispmap::passes::gbuffer::frame::pack(
+            normal.as_vec3(),
+            tangent.as_vec3(),
+            handedness as f32,
+            1,
+            1,
+        );
         *entry = Some(p);
     }
     (g, entries)

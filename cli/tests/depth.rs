@@ -413,7 +413,7 @@ fn a_box_clips_at_the_displaced_height() {
     let mut resolve = DepthResolvePass::new(&ctx).unwrap();
     let mut boxes = BoxPipeline::new(&ctx);
     let source = renderer.hit_depth().expect("depth output is on");
-    let tangent = &renderer.gbuffer().tangent;
+    let frame = &renderer.gbuffer().frame;
     let cmd = shot.begin(&ctx).unwrap();
     // SAFETY: `cmd` was just begun by `shot.begin` (outside a render pass, on the context's
     // queue family) and is submitted and waited for below, while every image lives;
@@ -437,10 +437,10 @@ fn a_box_clips_at_the_displaced_height() {
                     Access::UNDEFINED,
                     Access::TRANSFER_WRITE,
                 ),
-                // The resolve reads which pixels are displaced from the G-buffer tangent.
+                // The resolve reads which pixels are displaced from the G-buffer frame.
                 sync::image_barrier(
-                    tangent.raw,
-                    tangent.range(),
+                    frame.raw,
+                    frame.range(),
                     Access::COMPUTE_SAMPLED,
                     FRAGMENT_SAMPLED,
                 ),
@@ -472,9 +472,9 @@ fn a_box_clips_at_the_displaced_height() {
             Access::DEPTH_ATTACHMENT_WRITE,
         );
     }
-    // SAFETY: as above; `source` and the tangent are sampled-readable by fragment shaders
+    // SAFETY: as above; `source` and the frame are sampled-readable by fragment shaders
     // and `depth` in `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), all of `extent`.
-    unsafe { resolve.record(&ctx, cmd, source.view, tangent.view, depth.view, extent) };
+    unsafe { resolve.record(&ctx, cmd, source.view, frame.view, depth.view, extent) };
     // SAFETY: as above; `depth` was written in `DEPTH_ATTACHMENT_OPTIMAL` by the resolve.
     unsafe {
         sync::transition(
@@ -489,7 +489,7 @@ fn a_box_clips_at_the_displaced_height() {
     // `depth` holds the resolved depth in `DEPTH_ATTACHMENT_OPTIMAL` (the barrier above).
     unsafe { boxes.record(&ctx, cmd, &color, &depth, &params) };
     // Back to the state the renderer documents for its corrected depth.
-    // SAFETY: as above; `source` and the tangent are in `SHADER_READ_ONLY_OPTIMAL` (the
+    // SAFETY: as above; `source` and the frame are in `SHADER_READ_ONLY_OPTIMAL` (the
     // first barriers).
     unsafe {
         sync::transition(
@@ -499,13 +499,7 @@ fn a_box_clips_at_the_displaced_height() {
             FRAGMENT_SAMPLED,
             Access::COMPUTE_STORAGE_WRITE,
         );
-        sync::transition(
-            &ctx,
-            cmd,
-            tangent,
-            FRAGMENT_SAMPLED,
-            Access::COMPUTE_SAMPLED,
-        );
+        sync::transition(&ctx, cmd, frame, FRAGMENT_SAMPLED, Access::COMPUTE_SAMPLED);
     }
     shot.submit_and_wait(&ctx).unwrap();
     let rgba = read_image(&ctx, &shot, &color, Access::COLOR_ATTACHMENT_WRITE).unwrap();

@@ -17,7 +17,7 @@ layout(set = 0, binding = 5) uniform sampler2D u_corners;
 // gathers, one per channel, instead of 4 fetches: a per-pixel cost that lavapipe pays
 // one lane at a time for `/` and per fetch for texelFetch.
 bool dig_interval(ivec2 pixel, out float h_bottom, out float h_top) {
-    float surface = texelFetch(u_normal, pixel, 0).w;
+    float surface = gbuffer_surface(pixel);
     vec2 b = floor((vec2(pixel) + 0.5) / vec2(pc.block));
     vec2 at = (b + 1.0) / vec2(pc.corner_size);
     vec4 heights = textureGather(u_corners, at, 0);

@@ -22,7 +22,7 @@
 // Hit uv is in the frame of the G-buffer's uv0 (tile-local for repeat addressing).
 // Height < 0 means no hit: no geometry, or a clamp-addressed ray that left [0,1]^2.
 #define NO_HIT_HEIGHT (-1.0)
-// The hit height of a pixel of flat geometry (G-buffer tangent.w = 0: not displaced), set
+// The hit height of a pixel of flat geometry (G-buffer frame's material 0: not displaced), set
 // by the classification pass (glsl/classify.comp); never traced or shaded.
 #define NOT_DISPLACED_HEIGHT (-2.0)
 

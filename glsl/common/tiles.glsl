@@ -1,33 +1,15 @@
 // Material classification (src/passes/classify.rs, glsl/classify.comp): which pixels a
-// material's passes run on. The G-buffer's tangent.w carries the material
-// (glsl/include/dispmap_gbuffer.glsl): |w| = material index + 1, the sign is the
-// handedness, 0 = not displaced. `classify` sorts the frame's 8x8 tiles into one list per
+// material's passes run on. The G-buffer's frame carries the material
+// (glsl/include/dispmap_gbuffer.glsl, read through glsl/common/gbuffer.glsl): material
+// index + 1, 0 = not displaced. The including shader declares u_frame (and, for a tile
+// pass, u_depth) before including this file. `classify` sorts the frame's 8x8 tiles into one list per
 // material; each per-material pass is an indirect dispatch of one workgroup per listed
 // tile, and an invocation works only on its pixel if the pixel is of the pass's material.
 #ifndef DISPMAP_TILES_GLSL
 #define DISPMAP_TILES_GLSL
 
 #include "frame.glsl"
-
-// The material index of a pixel without displacement (src/abi.rs: NOT_DISPLACED).
-#define NOT_DISPLACED 0xFFFFFFFFu
-// Materials a pass may hold (src/abi.rs: MAX_MATERIALS; f16 holds |w| = index + 1 exactly).
-#define MAX_MATERIALS 1024u
-
-// The material of a G-buffer tangent.w (NOT_DISPLACED for 0 and for indices past the
-// table).
-uint decode_material(float tangent_w) {
-    float a = abs(tangent_w);
-    if (!(a >= 0.5) || a > float(MAX_MATERIALS) + 0.5) {
-        return NOT_DISPLACED;
-    }
-    return uint(a + 0.5) - 1u;
-}
-
-// The handedness of a G-buffer tangent.w: B = handedness * cross(N, T).
-float handedness(float tangent_w) {
-    return tangent_w < 0.0 ? -1.0 : 1.0;
-}
+#include "gbuffer.glsl"
 
 // Workgroups per row of an indirect dispatch (maxComputeWorkGroupCount[0] >= 65535): a list
 // longer than this is dispatched as rows of MAX_TILE_ROW workgroups (glsl/classify.comp).
@@ -57,13 +39,12 @@ bool tile_pixel(out ivec2 pixel) {
     return true;
 }
 
-// The pixel's material: geometry (depth > 0) whose tangent.w names one. The including
-// shader declares u_depth and u_tangent.
+// The pixel's material: geometry (depth > 0) whose frame names one.
 uint pixel_material(ivec2 pixel) {
     if (texelFetch(u_depth, pixel, 0).r <= 0.0) {
         return NOT_DISPLACED;
     }
-    return decode_material(texelFetch(u_tangent, pixel, 0).w);
+    return gbuffer_material(pixel);
 }
 
 // The pixel of this invocation when it is inside the frame and of `material`; false

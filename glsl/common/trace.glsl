@@ -18,10 +18,9 @@ layout(set = 0, binding = 1) uniform sampler2D u_depth;
 layout(set = 0, binding = 2) uniform sampler2D u_height;
 // The hit buffer.
 layout(set = 0, binding = 3, rgba32f) uniform writeonly image2D u_hit;
-// G-buffer normal; w = surface id (DIG's corner test, the footprint's neighbours).
-layout(set = 0, binding = 6) uniform sampler2D u_normal;
-// G-buffer tangent; w = the material (glsl/common/tiles.glsl).
-layout(set = 0, binding = 7) uniform sampler2D u_tangent;
+// G-buffer frame: the material (glsl/common/tiles.glsl) and the surface id (DIG's corner
+// test, the footprint's neighbours), read through glsl/common/gbuffer.glsl.
+layout(set = 0, binding = 6) uniform usampler2D u_frame;
 
 layout(push_constant) uniform TraceParams {
     uvec2 frame_size;   // pixels
@@ -74,11 +73,11 @@ Hit hit_at_t(Ray ray, float t, uint iterations) {
 // derivatives, so this is the finite-difference |d uv / d pixel| the hardware would use.
 float footprint_texels(ivec2 pixel, vec2 uv0) {
     float texels = 0.0;
-    float surface = texelFetch(u_normal, pixel, 0).w;
+    float surface = gbuffer_surface(pixel);
     for (int a = 0; a < 2; ++a) {
         ivec2 q = pixel;
         q[a] += q[a] + 1 < int(pc.frame_size[a]) ? 1 : -1;
-        if (q[a] < 0 || pixel_material(q) != pc.material || texelFetch(u_normal, q, 0).w != surface) {
+        if (q[a] < 0 || pixel_material(q) != pc.material || gbuffer_surface(q) != surface) {
             continue;
         }
         vec2 d = texelFetch(u_ray, q, 0).xy - uv0;

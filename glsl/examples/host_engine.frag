@@ -20,8 +20,7 @@ layout(location = 3) flat in vec3 v_tangent;
 layout(location = 4) flat in vec3 v_bitangent;
 
 layout(location = 0) out vec4 out_ray;
-layout(location = 1) out vec4 out_normal;
-layout(location = 2) out vec4 out_tangent;
+layout(location = 1) out uvec2 out_frame;
 
 // The floor's surface id (host_engine_floor.vert).
 const float FLOOR_ID = 1.0;
@@ -31,7 +30,7 @@ void main() {
     gl_FragDepth = gl_FragCoord.z;
     uint material = uint(pc.camera_pos.w);
     if (material != 0u && v_normal.y > 0.5) {
-        dispmap_gbuffer_encode_flat(v_normal.xyz, v_tangent, v_normal.w, out_ray, out_normal, out_tangent);
+        dispmap_gbuffer_encode_flat(v_normal.xyz, v_tangent, v_normal.w, out_ray, out_frame);
         return;
     }
     vec3 eye_rel = v_eye_rel;
@@ -46,7 +45,7 @@ void main() {
     }
     DispmapSurface s = DispmapSurface(eye_rel, vec3(0.0), uv, v_normal.xyz,
         v_tangent, v_bitangent, v_normal.w, pc.depth_scale, pc.min_cos, pc.addressing);
-    if (!dispmap_gbuffer_encode_material(s, material, out_ray, out_normal, out_tangent)) {
+    if (!dispmap_gbuffer_encode_material(s, material, out_ray, out_frame)) {
         discard;
     }
 }

@@ -3,7 +3,7 @@
 // that writes their G-buffer). One invocation encodes the fragment exactly as
 // glsl/gbuffer.frag does (the same include) and marches its ray at once: it writes the hit
 // (the hit buffer's channels: hit u, hit v, hit height, iterations) where the deferred
-// G-buffer writes the ray, and the normal and tangent the shading reads. A method file
+// G-buffer writes the ray, and the frame the shading reads. A method file
 // defines
 //     Hit trace_ray(Ray ray);
 // after including this file (glsl/forward/relief.frag, glsl/forward/pom.frag). Bindings
@@ -16,7 +16,7 @@
 #ifndef DISPMAP_FORWARD_GLSL
 #define DISPMAP_FORWARD_GLSL
 
-#include "gbuffer.glsl"
+#include "gbuffer_params.glsl"
 #include "../include/dispmap_plane.glsl"
 #include "../include/dispmap_gbuffer.glsl"
 
@@ -40,8 +40,7 @@ layout(set = 0, binding = 2, std140) uniform PixelRayBlock {
 #include "march.glsl"
 
 layout(location = 0) out vec4 out_hit;
-layout(location = 1) out vec4 out_normal;
-layout(location = 2) out vec4 out_tangent;
+layout(location = 1) out uvec2 out_frame;
 
 // The id of the one surface this pass draws (glsl/gbuffer.frag's).
 const float SURFACE_ID = 1.0;
@@ -66,13 +65,12 @@ void main() {
         pc.addressing);
     uint material_plus_one = uint(pc.camera_pos.w);
     vec4 ray;
-    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, ray, out_normal,
-                                         out_tangent)) {
+    if (!dispmap_gbuffer_encode_material(s, max(material_plus_one, 1u) - 1u, ray, out_frame)) {
         discard;
     }
     if (material_plus_one == 0u) {
         // Not displaced: what the classification pass writes for such a pixel.
-        dispmap_gbuffer_encode_flat(s.normal, s.tangent, SURFACE_ID, ray, out_normal, out_tangent);
+        dispmap_gbuffer_encode_flat(s.normal, s.tangent, SURFACE_ID, ray, out_frame);
         out_hit = vec4(0.0, 0.0, NOT_DISPLACED_HEIGHT, 0.0);
         return;
     }

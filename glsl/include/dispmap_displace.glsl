@@ -5,8 +5,8 @@
 //
 // Inputs are what the pass and the G-buffer hold for a pixel (glsl/include/dispmap_gbuffer.glsl
 // documents the G-buffer): the hit (hit buffer texel: uv.x, uv.y, height in [0, 1],
-// height < 0 for no hit), the G-buffer's uv0 (ray.xy), N (normal.xyz), T and tangent.w
-// (tangent), the material's depth scale (tile units), and the entry point: the macro
+// height < 0 for no hit), the G-buffer's uv0 (ray.xy), N, T and the handedness of its
+// frame (dispmap_frame_unpack in dispmap_gbuffer.glsl), the material's depth scale (tile units), and the entry point: the macro
 // surface point under the pixel centre, which dispmap_entry_eye_rel unprojects from the
 // G-buffer depth.
 //
@@ -17,7 +17,7 @@
 //
 //     p_hit = p_entry + T du + B dv - N (1 - h) depth_scale,   (du, dv) = hit.uv - uv0,
 //
-// with B = sign(tangent.w) * cross(N, T): uv and depth_scale are both in tile units and T,
+// with B = sign(handedness) * cross(N, T): uv and depth_scale are both in tile units and T,
 // B are unit vectors, so one tile is one world unit along them. For a traced hit p_hit
 // lies on the pixel's view ray (the G-buffer's tangent-space ray is the view ray).
 #ifndef DISPMAP_INCLUDE_DISPLACE_GLSL
@@ -35,8 +35,8 @@ vec3 dispmap_entry_eye_rel(mat4 inv_eye_clip, vec2 pixel_centre, vec2 frame_size
 // The displaced point (offset from the eye) of `hit` seen through a pixel whose entry
 // point is `entry_eye_rel` (see the top of this file for the formula and the inputs).
 vec3 dispmap_displaced_eye_rel(vec3 entry_eye_rel, vec4 hit, vec2 uv0, vec3 N, vec3 T,
-                               float tangent_w, float depth_scale) {
-    vec3 B = (tangent_w < 0.0 ? -1.0 : 1.0) * cross(N, T);
+                               float handedness, float depth_scale) {
+    vec3 B = (handedness < 0.0 ? -1.0 : 1.0) * cross(N, T);
     vec2 duv = hit.xy - uv0;
     return entry_eye_rel + T * duv.x + B * duv.y - N * ((1.0 - hit.z) * depth_scale);
 }

@@ -1,26 +1,31 @@
 // dispmap's G-buffer contract for a host engine's fragment shader (and dispmap's own
 // glsl/gbuffer.frag, so there is one source of truth). Include it, fill a
-// DispmapSurface per fragment and write the three colour outputs it returns; the depth
+// DispmapSurface per fragment and write the two colour outputs it returns; the depth
 // attachment is the host's own reverse-Z depth. Formats and channels (src/embed/mod.rs,
-// src/passes/gbuffer.rs):
+// src/passes/gbuffer.rs), 28 bytes a pixel:
 //
 //   ray     R32G32B32A32_SFLOAT  (uv0.x, uv0.y, P.x, P.y): the entry uv (reduced to [0, 1)
 //           for repeat addressing, so rays keep full precision far from the origin) and the
 //           parallax vector P = depth_scale * V_ts.xy / max(-V_ts.z, min_cos), in uv units
 //           (the uv offset after descending the full displacement depth).
-//   normal  R16G16B16A16_SFLOAT  world-space unit normal N (xyz); w = surface id > 0 (a chart
-//           with continuous uvs; 0 = cleared, no geometry). DIG trusts a block only when its
-//           corners share the id.
-//   tangent R16G16B16A16_SFLOAT  world-space unit tangent T along +u (xyz); w = the material
-//           and the handedness: w = handedness * (material + 1), where material is the
-//           index of a material in the pass's table (DisplacementPass::add_material,
-//           MaterialId::index, 0..1023; f16 holds these integers exactly) and
-//           B = sign(w) * cross(N, T) is the unit bitangent along +v. w = 0 means *not
-//           displaced*: the pass neither traces nor shades the pixel nor writes its
-//           corrected depth, and the depth resolve keeps the host's depth there (clear the
-//           attachment to 0 so that pixels without geometry read as not displaced too).
-//           A G-buffer of one material writes +-1 (material 0), as dispmap_gbuffer_encode
-//           does.
+//   frame   R32G32_UINT          the shading frame, the material and the surface id in 64
+//           bits (dispmap_frame_pack below; read them back with dispmap_frame_unpack):
+//           * N, the world-space unit normal, octahedral (Meyer et al. 2010), 14 bits a
+//             coordinate;
+//           * T, the world-space unit tangent along +u, as its angle (13 bits) in the
+//             plane of N from the basis dispmap_frame_basis builds from the decoded N;
+//           * the handedness (1 bit): B = handedness * cross(N, T) is the unit bitangent
+//             along +v;
+//           * material + 1 (11 bits), the material's index in the pass's table
+//             (DisplacementPass::add_material, MaterialId::index, 0..1023); 0 means *not
+//             displaced*: the pass neither traces nor shades the pixel nor writes its
+//             corrected depth, and the depth resolve keeps the host's depth there (clear
+//             the attachment to 0 so that pixels without geometry read as not displaced
+//             too);
+//           * the surface id (11 bits, ids 1..2048 kept modulo 2048): one id per chart of
+//             continuous uvs. DIG trusts a block only when its corners share the id.
+//           Axis-aligned frames (a plane, a box) decode exactly; any other N or T within
+//           about 1.3e-4 (N) and 3.8e-4 (T) radians.
 //   depth   D32_SFLOAT           reverse-Z, cleared to 0: 0 means no geometry.
 //
 // depth_scale is the displacement depth in uv (tile) units: with T and B of unit length a
@@ -57,8 +62,112 @@ struct DispmapSurface {
     uint addressing;    // DISPMAP_ADDRESSING_REPEAT or DISPMAP_ADDRESSING_CLAMP
 };
 
-// The pass's value for a pixel without displacement (tangent.w).
-#define DISPMAP_NOT_DISPLACED 0.0
+// The material field of a pixel without displacement (dispmap_frame_pack's
+// material_plus_one).
+#define DISPMAP_NOT_DISPLACED 0u
+
+// Octahedral coordinates in [-1, 1]^2 of a unit vector (exact for the axes).
+vec2 dispmap_oct_encode(vec3 n) {
+    n /= abs(n.x) + abs(n.y) + abs(n.z);
+    vec2 p = n.xy;
+    if (n.z < 0.0) {
+        p = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);
+    }
+    return p;
+}
+
+// The unit vector of octahedral coordinates p.
+vec3 dispmap_oct_decode(vec2 p) {
+    vec3 n = vec3(p, 1.0 - abs(p.x) - abs(p.y));
+    if (n.z < 0.0) {
+        n.xy = (1.0 - abs(n.yx)) * vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
+    }
+    return normalize(n);
+}
+
+// Quantisation of an octahedral coordinate to 14 bits and back (snorm: -1, 0 and 1 exact).
+uint dispmap_snorm14(float x) {
+    return uint(int(round(clamp(x, -1.0, 1.0) * 8191.0)) + 8191);
+}
+float dispmap_unsnorm14(uint q) {
+    return float(int(q & 0x3FFFu) - 8191) / 8191.0;
+}
+
+// An orthonormal basis (b1, b2) of the plane of the unit vector n (Duff et al. 2017,
+// "Building an Orthonormal Basis, Revisited"): the reference of the tangent's angle.
+void dispmap_frame_basis(vec3 n, out vec3 b1, out vec3 b2) {
+    float sgn = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (sgn + n.z);
+    float b = n.x * n.y * a;
+    b1 = vec3(1.0 + sgn * n.x * n.x * a, sgn * b, -sgn * n.x);
+    b2 = vec3(b, sgn + n.y * n.y * a, -n.y);
+}
+
+// The angles of the tangent: 8192 steps a turn.
+#define DISPMAP_TANGENT_STEPS 8192.0
+
+// A frame of the G-buffer, decoded.
+struct DispmapFrame {
+    vec3 normal;             // unit N
+    vec3 tangent;            // unit T, orthogonal to N
+    float handedness;        // +1 or -1: B = handedness * cross(N, T)
+    uint material_plus_one;  // 0: not displaced
+    uint surface_id;         // 1..2048
+};
+
+// Packs a fragment's frame (unit N, unit T, the sign of handedness, material + 1 in
+// 0..1024, surface id >= 1) into the frame target's two words.
+uvec2 dispmap_frame_pack(vec3 normal, vec3 tangent, float handedness, uint material_plus_one,
+                         float surface_id) {
+    vec2 p = dispmap_oct_encode(normal);
+    uint ou = dispmap_snorm14(p.x);
+    uint ov = dispmap_snorm14(p.y);
+    // The tangent's angle from the basis the decoder builds from the quantised normal.
+    vec3 n = dispmap_oct_decode(vec2(dispmap_unsnorm14(ou), dispmap_unsnorm14(ov)));
+    vec3 b1, b2;
+    dispmap_frame_basis(n, b1, b2);
+    float angle = atan(dot(tangent, b2), dot(tangent, b1));
+    uint k = uint(int(round(angle * (DISPMAP_TANGENT_STEPS / 6.283185307179586)))) & 0x1FFFu;
+    uint id = (uint(max(surface_id, 0.0) + 0.5) - 1u) & 0x7FFu;
+    uint x = ou | (ov << 14) | ((id & 0xFu) << 28);
+    uint y = k | (handedness < 0.0 ? 1u << 13 : 0u) | (min(material_plus_one, 0x7FFu) << 14)
+        | ((id >> 4) << 25);
+    return uvec2(x, y);
+}
+
+// The material + 1 of a frame (0: not displaced), without decoding the rest.
+uint dispmap_frame_material_plus_one(uvec2 bits) {
+    return (bits.y >> 14) & 0x7FFu;
+}
+
+// The surface id of a frame (1..2048), without decoding the rest.
+uint dispmap_frame_surface_id(uvec2 bits) {
+    return ((bits.x >> 28) | ((bits.y >> 25) << 4)) + 1u;
+}
+
+// The unit normal of a frame, without decoding the rest.
+vec3 dispmap_frame_normal(uvec2 bits) {
+    return dispmap_oct_decode(vec2(dispmap_unsnorm14(bits.x), dispmap_unsnorm14(bits.x >> 14)));
+}
+
+// Unpacks a frame (the inverse of dispmap_frame_pack, within its quantisation).
+DispmapFrame dispmap_frame_unpack(uvec2 bits) {
+    DispmapFrame f;
+    f.normal = dispmap_frame_normal(bits);
+    vec3 b1, b2;
+    dispmap_frame_basis(f.normal, b1, b2);
+    uint k = bits.y & 0x1FFFu;
+    // A quarter turn at a time (exact), the rest by cos and sin of an angle < pi / 2.
+    float a = float(k & 0x7FFu) * (6.283185307179586 / DISPMAP_TANGENT_STEPS);
+    vec2 cs = vec2(cos(a), sin(a));
+    uint quarter = k >> 11;
+    cs = quarter == 0u ? cs : quarter == 1u ? vec2(-cs.y, cs.x) : quarter == 2u ? -cs : vec2(cs.y, -cs.x);
+    f.tangent = cs.x * b1 + cs.y * b2;
+    f.handedness = (bits.y & (1u << 13)) != 0u ? -1.0 : 1.0;
+    f.material_plus_one = dispmap_frame_material_plus_one(bits);
+    f.surface_id = dispmap_frame_surface_id(bits);
+    return f;
+}
 
 // The same fragment seen from the other side of the surface (a two-sided open mesh, such
 // as the inside of a vase): the normal reversed, T and B kept, so the map keeps its uv
@@ -70,41 +179,37 @@ DispmapSurface dispmap_surface_back_side(DispmapSurface s) {
     return s;
 }
 
-// Encodes one fragment of material `material` (its index in the pass's table). Returns
-// false for a back face (discard it).
-bool dispmap_gbuffer_encode_material(DispmapSurface s, uint material, out vec4 ray, out vec4 normal,
-                                     out vec4 tangent) {
+// Encodes one fragment of material `material` (its index in the pass's table) into the
+// ray and frame targets. Returns false for a back face (discard it).
+bool dispmap_gbuffer_encode_material(DispmapSurface s, uint material, out vec4 ray, out uvec2 frame) {
     vec3 V = normalize(s.world_pos - s.camera_pos);
     vec3 v_ts = vec3(dot(V, s.tangent), dot(V, s.bitangent), dot(V, s.normal));
     ray = vec4(0.0);
-    normal = vec4(0.0);
-    tangent = vec4(0.0);
+    frame = uvec2(0u);
     if (v_ts.z >= 0.0) {
         return false;
     }
     vec2 P = s.depth_scale * v_ts.xy / max(-v_ts.z, s.min_cos);
     vec2 uv0 = s.addressing == DISPMAP_ADDRESSING_REPEAT ? s.uv - floor(s.uv) : s.uv;
     ray = vec4(uv0, P);
-    normal = vec4(s.normal, s.surface_id);
     float handedness = dot(cross(s.normal, s.tangent), s.bitangent) < 0.0 ? -1.0 : 1.0;
-    tangent = vec4(s.tangent, handedness * (float(material) + 1.0));
+    frame = dispmap_frame_pack(s.normal, s.tangent, handedness, material + 1u, s.surface_id);
     return true;
 }
 
 // Encodes one fragment of material 0 (a pass with one material). Returns false for a back
 // face (discard it).
-bool dispmap_gbuffer_encode(DispmapSurface s, out vec4 ray, out vec4 normal, out vec4 tangent) {
-    return dispmap_gbuffer_encode_material(s, 0u, ray, normal, tangent);
+bool dispmap_gbuffer_encode(DispmapSurface s, out vec4 ray, out uvec2 frame) {
+    return dispmap_gbuffer_encode_material(s, 0u, ray, frame);
 }
 
 // Encodes one fragment of geometry that is not displaced (a character, a pipe): its
-// normal and tangent for the host's own shading, tangent.w = DISPMAP_NOT_DISPLACED, no
-// ray. The pass leaves such pixels as the host drew them.
+// normal and tangent for the host's own shading (handedness +1), material
+// DISPMAP_NOT_DISPLACED, no ray. The pass leaves such pixels as the host drew them.
 void dispmap_gbuffer_encode_flat(vec3 normal_ws, vec3 tangent_ws, float surface_id, out vec4 ray,
-                                 out vec4 normal, out vec4 tangent) {
+                                 out uvec2 frame) {
     ray = vec4(0.0);
-    normal = vec4(normal_ws, surface_id);
-    tangent = vec4(tangent_ws, DISPMAP_NOT_DISPLACED);
+    frame = dispmap_frame_pack(normal_ws, tangent_ws, 1.0, DISPMAP_NOT_DISPLACED, surface_id);
 }
 
 #endif

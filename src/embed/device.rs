@@ -243,12 +243,12 @@ mod tests {
                 .iter()
                 .any(|(f, _)| *f == crate::passes::trace::HIT_FORMAT)
         );
-        // The self-shadowed shade variant pushes the most descriptors (10, reflected).
+        // The self-shadowed shade variant pushes the most descriptors (9, reflected).
         assert_eq!(
             r.max_push_descriptors,
             crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
         );
-        assert_eq!(r.max_push_descriptors, 10);
+        assert_eq!(r.max_push_descriptors, 9);
         let largest = [
             std::mem::size_of::<crate::abi::ShadowParams>(),
             std::mem::size_of::<crate::abi::HitDepthParams>(),

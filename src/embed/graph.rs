@@ -18,8 +18,8 @@ use ash::vk;
 pub(super) enum Res {
     /// The host's G-buffer images.
     Ray,
-    Normal,
-    Tangent,
+    /// The G-buffer's frame (normal, tangent, material, surface id).
+    GFrame,
     Depth,
     /// The host's hit buffer.
     Hit,
@@ -46,8 +46,7 @@ pub(super) enum Res {
 fn resource(name: &str, material: u32) -> Option<Res> {
     Some(match name {
         "u_ray" => Res::Ray,
-        "u_normal" => Res::Normal,
-        "u_tangent" => Res::Tangent,
+        "u_frame" => Res::GFrame,
         "u_depth" => Res::Depth,
         "u_hit" => Res::Hit,
         "u_color" => Res::Color,
@@ -84,11 +83,10 @@ pub(super) enum Entry {
 
 /// The host's images and the state each enters in (the module docs' entry column): what
 /// the host's barrier made the image's earlier writes visible to, and its layout.
-pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 7] {
+pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 6] {
     [
         (Res::Ray, Access::COMPUTE_SAMPLED),
-        (Res::Normal, Access::COMPUTE_SAMPLED),
-        (Res::Tangent, Access::COMPUTE_SAMPLED),
+        (Res::GFrame, Access::COMPUTE_SAMPLED),
         (Res::Depth, Access::COMPUTE_SAMPLED),
         match entry {
             // Discarded by the host's barrier (UNDEFINED -> GENERAL) and ordered before
@@ -308,14 +306,9 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
             g.exit(Res::Ray),
         ),
         (
-            "gbuffer.normal",
-            entry(Entry::Frame, Res::Normal),
-            g.exit(Res::Normal),
-        ),
-        (
-            "gbuffer.tangent",
-            entry(Entry::Frame, Res::Tangent),
-            g.exit(Res::Tangent),
+            "gbuffer.frame",
+            entry(Entry::Frame, Res::GFrame),
+            g.exit(Res::GFrame),
         ),
         (
             "gbuffer.depth",

@@ -114,7 +114,7 @@ impl PassSettings {
 
 /// A handle to one material of a [`DisplacementPass`]'s table. Its
 /// [`MaterialId::index`] is the value the host's G-buffer writes for the material's
-/// pixels (`glsl/include/dispmap_gbuffer.glsl`: `tangent.w = ±(index + 1)`). A removed
+/// pixels (`glsl/include/dispmap_gbuffer.glsl`: the frame's material `index + 1`). A removed
 /// material's handle is refused by every call, also after its index is reused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MaterialId {

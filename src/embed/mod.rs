@@ -91,14 +91,13 @@
 //!
 //! # Materials and the G-buffer
 //!
-//! The G-buffer's `tangent.w` says which material a pixel is: `±(index + 1)` (the sign
-//! is the handedness), 0 = not displaced (`glsl/include/dispmap_gbuffer.glsl`:
+//! The G-buffer's frame says which material a pixel is: `index + 1`, 0 = not displaced (`glsl/include/dispmap_gbuffer.glsl`:
 //! `dispmap_gbuffer_encode_material`, `dispmap_gbuffer_encode_flat`). Each frame,
 //! `classify` ([`crate::passes::classify`]) sorts the frame's 8x8 tiles into one list per
 //! material, and every per-material pass (`trace`, `shadow`, `shade`, `hit_depth`) is
 //! one indirect dispatch over its material's tiles with that material's map, method and
 //! depth scale: a frame costs what its displaced pixels cost, not its size times its
-//! materials. Pixels that are not displaced (no geometry, `tangent.w` = 0, an index with
+//! materials. Pixels that are not displaced (no geometry, material 0 in the frame, an index with
 //! no material in the table) are never traced or shaded. One dispatch per material with
 //! push descriptors, rather than one for all through descriptor indexing: the methods are
 //! different pipelines anyway, push descriptors need no descriptor pools or update-after-

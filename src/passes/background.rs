@@ -1,11 +1,11 @@
 //! The `background` pass of the standalone renderer (a host's own shading, not part of
 //! the displacement pass): before [`crate::embed::DisplacementPass::record`], it writes
 //! the sky into pixels without geometry and lights pixels of flat geometry (G-buffer
-//! `tangent.w` = 0) with their G-buffer normal (`glsl/background.comp`); the pass's
+//! frame's material 0) with their G-buffer normal (`glsl/background.comp`); the pass's
 //! `shade` then writes the displaced pixels. An engine draws its own sky and flat
 //! geometry instead.
 //!
-//! Bindings: 0 G-buffer `depth`, 1 `normal`, 2 `tangent` (sampled,
+//! Bindings: 0 G-buffer `depth`, 1 `frame` (sampled,
 //! `SHADER_READ_ONLY_OPTIMAL`), 3 colour (`R8G8B8A8_UNORM` storage, written, `GENERAL`);
 //! push constants: [`ShadeParams`] (the frame's camera and light).
 
@@ -37,8 +37,7 @@ impl BackgroundPass {
                 &shaders::BACKGROUND_COMP,
                 &[
                     ("u_depth", SAMPLED),
-                    ("u_normal", SAMPLED),
-                    ("u_tangent", SAMPLED),
+                    ("u_frame", SAMPLED),
                     ("u_color", STORAGE),
                 ],
                 std::mem::size_of::<ShadeParams>() as u32,
@@ -65,17 +64,12 @@ impl BackgroundPass {
         params: &ShadeParams,
     ) -> Result<()> {
         let fetch = |view| self.pipeline.fetch_view(view);
-        let (depth, normal, tangent) = (
-            fetch(gbuffer.depth.view),
-            fetch(gbuffer.normal.view),
-            fetch(gbuffer.tangent.view),
-        );
+        let (depth, frame) = (fetch(gbuffer.depth.view), fetch(gbuffer.frame.view));
         let out = storage_view(color.view);
         let p = &self.pipeline.pipeline;
         let writes = [
             p.image("u_depth", &depth)?,
-            p.image("u_normal", &normal)?,
-            p.image("u_tangent", &tangent)?,
+            p.image("u_frame", &frame)?,
             p.image("u_color", &out)?,
         ];
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render

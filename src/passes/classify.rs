@@ -5,8 +5,8 @@
 //! displaced pixels, not its size times its materials: this is the tile classification
 //! of deferred engines' material and lighting passes.
 //!
-//! A pixel's material is its G-buffer `tangent.w` (`|w|` = index + 1, the sign the
-//! handedness, 0 = not displaced; `glsl/include/dispmap_gbuffer.glsl`). Pixels of no
+//! A pixel's material is its G-buffer frame's material field (index + 1, 0 = not
+//! displaced; read through `glsl/common/gbuffer.glsl`, packed by `glsl/include/dispmap_gbuffer.glsl`). Pixels of no
 //! live material (no geometry, flat geometry, an index past the table or of a removed
 //! material) are not traced: `classify` writes their hit texel (`NO_HIT_HEIGHT` without
 //! geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry) and, with the corrected depth
@@ -17,7 +17,7 @@
 //! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
 //! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_tangent` | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_frame` | G-buffer `frame` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_hit` | hit buffer (storage, written for pixels without displacement) | `GENERAL` |
 //! | `u_tiles` | the tile lists (storage buffer, written) | |
 //! | `u_args` | the dispatch arguments and counts (storage buffer, read and written) | |
@@ -214,8 +214,8 @@ fn args_bytes(materials: u32) -> u64 {
 pub struct ClassifyInputs<'a> {
     /// The host's G-buffer depth.
     pub depth: vk::ImageView,
-    /// The host's G-buffer tangent (`w`: the material).
-    pub tangent: vk::ImageView,
+    /// The host's G-buffer frame (its material field).
+    pub frame: vk::ImageView,
     /// The hit buffer.
     pub hit: ViewRef,
     /// Whether the hit texels of pixels without displacement are written (not when the
@@ -251,7 +251,7 @@ impl ClassifyPass {
         let size = std::mem::size_of::<ClassifyParams>() as u32;
         let base = [
             ("u_depth", SAMPLED),
-            ("u_tangent", SAMPLED),
+            ("u_frame", SAMPLED),
             ("u_hit", STORAGE),
             ("u_tiles", BUFFER),
             ("u_args", BUFFER),
@@ -335,7 +335,7 @@ impl ClassifyPass {
             &self.plain
         };
         let fetch = |view| pipeline.fetch_view(view);
-        let (depth, tangent) = (fetch(inputs.depth), fetch(inputs.tangent));
+        let (depth, frame) = (fetch(inputs.depth), fetch(inputs.frame));
         let hits = storage_view(inputs.hit.view);
         let tiles = [vk::DescriptorBufferInfo {
             buffer: lists.tiles.raw,
@@ -351,7 +351,7 @@ impl ClassifyPass {
         let p = &pipeline.pipeline;
         let mut writes = vec![
             p.image("u_depth", &depth)?,
-            p.image("u_tangent", &tangent)?,
+            p.image("u_frame", &frame)?,
             p.image("u_hit", &hits)?,
             p.buffer("u_tiles", &tiles)?,
             p.buffer("u_args", &args)?,

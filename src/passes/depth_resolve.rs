@@ -4,11 +4,11 @@
 //! (`glsl/depth_resolve.vert` / `.frag`), so that geometry drawn afterwards, fog or SSAO
 //! meet the displaced surface instead of the macro polygon. Depth test `ALWAYS`, depth
 //! writes on, no colour attachment. The depth is *merged*: only pixels whose G-buffer
-//! `tangent.w` names a material (displaced pixels; `glsl/include/dispmap_gbuffer.glsl`)
+//! frame names a material (displaced pixels; `glsl/include/dispmap_gbuffer.glsl`)
 //! get the source's value (0, the reverse-Z clear value, where a displaced ray found no
 //! surface); every other pixel (flat geometry, no geometry) keeps the target's depth.
 //!
-//! `record` expects the source and the G-buffer tangent in `SHADER_READ_ONLY_OPTIMAL`,
+//! `record` expects the source and the G-buffer frame in `SHADER_READ_ONLY_OPTIMAL`,
 //! visible to fragment-shader sampled reads, and the target in
 //! `DEPTH_ATTACHMENT_OPTIMAL` with its contents (the attachment is loaded), earlier
 //! accesses ordered before the depth reads and writes of the fragment tests; it leaves
@@ -100,7 +100,7 @@ impl DepthResolvePass {
     }
 
     /// Records the pass: every displaced pixel of `target` (a `D32_SFLOAT` view of
-    /// `extent`; displaced: `tangent.w` of the host's G-buffer names a material) gets the
+    /// `extent`; displaced: the host's G-buffer frame names a material) gets the
     /// value of `source` (an `R32_SFLOAT` view of the same size); the others keep their
     /// depth. Layouts: module docs.
     ///
@@ -108,10 +108,10 @@ impl DepthResolvePass {
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance (the pass begins and ends its own dynamic rendering), for a
     ///   queue of the context's queue family.
-    /// * `source` and `tangent` (sampled usage) and `target` (`DEPTH_STENCIL_ATTACHMENT`
+    /// * `source` and `frame` (sampled usage) and `target` (`DEPTH_STENCIL_ATTACHMENT`
     ///   usage, a `D32_SFLOAT` view) belong to that device and are views of images of
-    ///   `extent`; `target` is not a view of `source`'s or `tangent`'s image.
-    /// * When the command buffer executes, `source` and `tangent` are in
+    ///   `extent`; `target` is not a view of `source`'s or `frame`'s image.
+    /// * When the command buffer executes, `source` and `frame` are in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to fragment-shader sampled
     ///   reads, and `target` in `DEPTH_ATTACHMENT_OPTIMAL`, its writes visible to and
     ///   earlier accesses ordered before the fragment tests' depth reads and writes (the
@@ -122,7 +122,7 @@ impl DepthResolvePass {
         ctx: &Context,
         cmd: vk::CommandBuffer,
         source: vk::ImageView,
-        tangent: vk::ImageView,
+        frame: vk::ImageView,
         target: vk::ImageView,
         extent: vk::Extent2D,
     ) {
@@ -143,7 +143,7 @@ impl DepthResolvePass {
                 image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
             }]
         };
-        let (source_info, tangent_info) = (info(source), info(tangent));
+        let (source_info, frame_info) = (info(source), info(frame));
         let writes = [
             crate::gpu::pipeline::image_write(
                 0,
@@ -153,7 +153,7 @@ impl DepthResolvePass {
             crate::gpu::pipeline::image_write(
                 1,
                 vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-                &tangent_info,
+                &frame_info,
             ),
         ];
         let dev = ctx.device();

@@ -8,10 +8,9 @@
 //! |---|---|---|
 //! | `u_ray` | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_depth` | G-buffer `depth` | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_normal` | G-buffer `normal` (`w`: surface id) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_frame` | G-buffer `frame` (the surface id and the material) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_height` | height field | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_corners` | corner grid (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
-//! | `u_tangent` | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
 //!
 //! Each DIG material has its own grid; a corner whose pixel is of another material (or
 //! flat) is stored as no surface, so a block that straddles two materials falls back as
@@ -39,13 +38,12 @@ use ash::vk;
 pub const CORNER_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
 /// What the pass binds, by GLSL name (`glsl/dig_corners.comp` numbers them).
-const BINDINGS: [(&str, vk::DescriptorType); 6] = [
+const BINDINGS: [(&str, vk::DescriptorType); 5] = [
     ("u_ray", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_depth", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    ("u_normal", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_frame", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_corners", vk::DescriptorType::STORAGE_IMAGE),
-    ("u_tangent", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
 ];
 
 /// What one corner dispatch marches: the method's steps, for one material's grid.
@@ -186,18 +184,16 @@ impl DigCornerPass {
         let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray.view);
         let depth = fetch(gbuffer.depth.view);
-        let normal = fetch(gbuffer.normal.view);
+        let frame = fetch(gbuffer.frame.view);
         let heights = [height.descriptor()];
         let corners = storage(&grid.image);
-        let tangent = fetch(gbuffer.tangent.view);
         let p = &self.pipeline.pipeline;
         let writes = [
             p.image("u_ray", &ray)?,
             p.image("u_depth", &depth)?,
-            p.image("u_normal", &normal)?,
+            p.image("u_frame", &frame)?,
             p.image("u_height", &heights)?,
             p.image("u_corners", &corners)?,
-            p.image("u_tangent", &tangent)?,
         ];
         let frame = gbuffer.extent;
         let size = grid.size();

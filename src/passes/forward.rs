@@ -9,7 +9,7 @@
 //! | attachment | format | contents |
 //! |---|---|---|
 //! | hit | `R32G32B32A32_SFLOAT` ([`crate::passes::trace::HIT_FORMAT`]) | the hit buffer's texel: hit `u`, `v`, height, iterations (cleared to a miss, `NO_HIT_HEIGHT`) |
-//! | normal, tangent | `R16G16B16A16_SFLOAT` | the G-buffer's (see [`crate::passes::gbuffer`]) |
+//! | frame | `R32G32_UINT` | the G-buffer's (see [`crate::passes::gbuffer`]) |
 //! | depth | `D32_SFLOAT` | the G-buffer's reverse-Z depth |
 //!
 //! The hit attachment is the hit buffer itself, in `GENERAL` (a colour attachment may be
@@ -163,7 +163,7 @@ impl ForwardPass {
                 vertex_bindings: &[],
                 vertex_attributes: &[],
                 depth_compare: vk::CompareOp::GREATER,
-                color_formats: &[HIT_FORMAT, FRAME_FORMAT, FRAME_FORMAT],
+                color_formats: &[HIT_FORMAT, FRAME_FORMAT],
                 depth_format: DEPTH_FORMAT,
                 name: &format!("{name}.pipeline"),
             },
@@ -240,12 +240,7 @@ impl ForwardPass {
                 [0.0, 0.0, NO_HIT_HEIGHT, 0.0],
             ),
             attachment(
-                target.normal.view,
-                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                [0.0; 4],
-            ),
-            attachment(
-                target.tangent.view,
+                target.frame.view,
                 vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
                 [0.0; 4],
             ),

@@ -4,8 +4,7 @@
 //! | attachment | format | contents |
 //! |---|---|---|
 //! | `ray` | `R32G32B32A32_SFLOAT` | entry `uv0` (tile-local for repeat addressing) and parallax vector `P` |
-//! | `normal` | `R16G16B16A16_SFLOAT` | world normal `N`; `w` = surface id (> 0; 0 where nothing was drawn) |
-//! | `tangent` | `R16G16B16A16_SFLOAT` | world tangent `T = dP/du`, `w` = handedness × (material + 1) (`B = sign(w) N x T`; 0: not displaced) |
+//! | `frame` | `R32G32_UINT` | world normal `N` (octahedral, 2 x 14 bits), world tangent `T = dP/du` (its angle about `N`, 13 bits), handedness (`B = ±N x T`), material + 1 (11 bits; 0: not displaced), surface id (11 bits): [`frame`] packs and unpacks it, as `glsl/include/dispmap_gbuffer.glsl` does |
 //! | `depth` | `D32_SFLOAT` | reverse-Z depth, cleared to 0: 0 means no geometry |
 //!
 //! The surface id names a piece of geometry whose UVs are continuous (a chart). DIG
@@ -25,6 +24,8 @@
 //! `record` expects every attachment in `COLOR_ATTACHMENT_OPTIMAL` /
 //! `DEPTH_ATTACHMENT_OPTIMAL` (contents may be discarded: it clears them) and leaves them
 //! there, written.
+
+pub mod frame;
 
 use crate::abi::{GBufferParams, PixelRayParams};
 use crate::context::Context;
@@ -48,8 +49,8 @@ pub struct Ray {
 
 /// Format of the `ray` attachment.
 pub const RAY_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
-/// Format of the `normal` and `tangent` attachments.
-pub const FRAME_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+/// Format of the `frame` attachment (normal, tangent, handedness, material, surface id).
+pub const FRAME_FORMAT: vk::Format = vk::Format::R32G32_UINT;
 /// Format of the depth attachment.
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 
@@ -60,10 +61,8 @@ pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 pub struct GBufferViews {
     /// `uv0.xy, P.xy` ([`RAY_FORMAT`]).
     pub ray: HostView,
-    /// World normal, `w` = surface id ([`FRAME_FORMAT`]).
-    pub normal: HostView,
-    /// World tangent, `w` = handedness and material ([`FRAME_FORMAT`]).
-    pub tangent: HostView,
+    /// Normal, tangent, handedness, material and surface id ([`FRAME_FORMAT`]).
+    pub frame: HostView,
     /// Reverse-Z depth, 0 = no geometry ([`DEPTH_FORMAT`], a depth-aspect view).
     pub depth: HostView,
     /// Frame size in pixels (every image's size).
@@ -77,10 +76,8 @@ impl GBufferViews {
         let sampled = vk::ImageUsageFlags::SAMPLED;
         self.ray
             .check("gbuffer.ray", &[RAY_FORMAT], sampled, extent)?;
-        self.normal
-            .check("gbuffer.normal", &[FRAME_FORMAT], sampled, extent)?;
-        self.tangent
-            .check("gbuffer.tangent", &[FRAME_FORMAT], sampled, extent)?;
+        self.frame
+            .check("gbuffer.frame", &[FRAME_FORMAT], sampled, extent)?;
         self.depth
             .check("gbuffer.depth", &[DEPTH_FORMAT], sampled, extent)
     }
@@ -90,24 +87,21 @@ impl GBufferViews {
 pub struct GBuffer {
     /// `uv0.xy, P.xy`.
     pub ray: Image,
-    /// World normal.
-    pub normal: Image,
-    /// World tangent and handedness.
-    pub tangent: Image,
+    /// Normal, tangent, handedness, material and surface id ([`frame`]).
+    pub frame: Image,
     /// Reverse-Z depth.
     pub depth: Image,
 }
 
 impl GBuffer {
-    /// Creates the four images for a `extent` frame.
+    /// Creates the three images for a `extent` frame.
     pub fn new(ctx: &Context, extent: vk::Extent2D) -> Result<Self> {
         let color = vk::ImageUsageFlags::COLOR_ATTACHMENT
             | vk::ImageUsageFlags::SAMPLED
             | vk::ImageUsageFlags::TRANSFER_SRC;
         Ok(GBuffer {
             ray: Image::new(ctx, "gbuffer.ray", RAY_FORMAT, extent, 1, color)?,
-            normal: Image::new(ctx, "gbuffer.normal", FRAME_FORMAT, extent, 1, color)?,
-            tangent: Image::new(ctx, "gbuffer.tangent", FRAME_FORMAT, extent, 1, color)?,
+            frame: Image::new(ctx, "gbuffer.frame", FRAME_FORMAT, extent, 1, color)?,
             depth: Image::new(
                 ctx,
                 "gbuffer.depth",
@@ -125,16 +119,15 @@ impl GBuffer {
     pub fn views(&self) -> GBufferViews {
         GBufferViews {
             ray: self.ray.host_view(),
-            normal: self.normal.host_view(),
-            tangent: self.tangent.host_view(),
+            frame: self.frame.host_view(),
             depth: self.depth.host_view(),
             extent: self.ray.extent,
         }
     }
 
     /// The colour attachments in binding order.
-    pub fn colors(&self) -> [&Image; 3] {
-        [&self.ray, &self.normal, &self.tangent]
+    pub fn colors(&self) -> [&Image; 2] {
+        [&self.ray, &self.frame]
     }
 
     /// One barrier per image: the colour attachments from `color.0` to `color.1`, the
@@ -166,8 +159,7 @@ impl Destroy for GBuffer {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             self.ray.destroy(ctx);
-            self.normal.destroy(ctx);
-            self.tangent.destroy(ctx);
+            self.frame.destroy(ctx);
             self.depth.destroy(ctx);
         }
     }
@@ -311,7 +303,7 @@ impl GBufferPass {
                 vertex_bindings,
                 vertex_attributes,
                 depth_compare: vk::CompareOp::GREATER,
-                color_formats: &[RAY_FORMAT, FRAME_FORMAT, FRAME_FORMAT],
+                color_formats: &[RAY_FORMAT, FRAME_FORMAT],
                 depth_format: DEPTH_FORMAT,
                 name: &format!("{name}.pipeline"),
             },

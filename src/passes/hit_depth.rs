@@ -32,7 +32,7 @@ pub const HIT_DEPTH_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
 pub struct HitDepthInputs {
     /// The hit buffer (read).
     pub hit: vk::ImageView,
-    /// The G-buffer (ray, depth, normal and tangent are read).
+    /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The corrected depth (written; the frame's size).
     pub hit_depth: ViewRef,

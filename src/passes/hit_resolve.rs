@@ -10,8 +10,7 @@
 //! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
 //! | `u_ray` | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_normal` | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_tangent` | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_frame` | G-buffer `frame` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_hit_depth` / `u_motion` | the output (storage; written, or read and written) | `GENERAL` |
 //! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
 
@@ -25,12 +24,11 @@ use crate::shaders::Shader;
 use ash::vk;
 
 /// What both shapes bind besides their output, by GLSL name (the shaders number them).
-const BINDINGS: [(&str, vk::DescriptorType); 6] = [
+const BINDINGS: [(&str, vk::DescriptorType); 5] = [
     ("u_hit", vk::DescriptorType::STORAGE_IMAGE),
     ("u_ray", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_depth", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    ("u_normal", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    ("u_tangent", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_frame", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     TILES,
 ];
 
@@ -39,7 +37,7 @@ const BINDINGS: [(&str, vk::DescriptorType); 6] = [
 pub struct ResolveViews {
     /// The hit buffer (read).
     pub hit: vk::ImageView,
-    /// The G-buffer (ray, depth, normal and tangent are read).
+    /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The output (the shader's `u_hit_depth` or `u_motion`).
     pub out: vk::ImageView,
@@ -100,16 +98,14 @@ impl HitResolvePipeline {
         let fetch = |view| self.pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray.view);
         let depth = fetch(gbuffer.depth.view);
-        let normal = fetch(gbuffer.normal.view);
-        let tangent = fetch(gbuffer.tangent.view);
+        let frame = fetch(gbuffer.frame.view);
         let out = storage_view(out);
         let p = &self.pipeline.pipeline;
         let writes = [
             p.image("u_hit", &hits)?,
             p.image("u_ray", &ray)?,
             p.image("u_depth", &depth)?,
-            p.image("u_normal", &normal)?,
-            p.image("u_tangent", &tangent)?,
+            p.image("u_frame", &frame)?,
             p.image(self.out, &out)?,
         ];
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render

@@ -193,7 +193,7 @@ impl MotionSettings {
 pub struct MotionInputs {
     /// The hit buffer (read).
     pub hit: vk::ImageView,
-    /// The G-buffer (ray, depth, normal and tangent are read).
+    /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The host's motion image (read and written in place).
     pub motion: vk::ImageView,

@@ -5,8 +5,7 @@
 //! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
 //! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
-//! | `u_normal` | G-buffer `normal` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_tangent` | G-buffer `tangent` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_frame` | G-buffer `frame` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_color` | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
 //! | `u_albedo` | albedo map, or the height field when there is none (`crate::material`) | `SHADER_READ_ONLY_OPTIMAL` |
@@ -38,10 +37,9 @@ use ash::vk;
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 
 /// What both variants bind, by GLSL name (`glsl/shade.comp` numbers them).
-const BINDINGS: [(&str, vk::DescriptorType); 9] = [
+const BINDINGS: [(&str, vk::DescriptorType); 8] = [
     ("u_hit", vk::DescriptorType::STORAGE_IMAGE),
-    ("u_normal", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
-    ("u_tangent", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    ("u_frame", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_color", vk::DescriptorType::STORAGE_IMAGE),
     ("u_albedo", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
@@ -58,7 +56,7 @@ const VISIBILITY: (&str, vk::DescriptorType) = ("u_visibility", vk::DescriptorTy
 pub struct ShadeInputs<'a> {
     /// The hit buffer (read).
     pub hit: vk::ImageView,
-    /// The G-buffer (normal and tangent are read).
+    /// The G-buffer (its frame is read).
     pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
@@ -168,8 +166,7 @@ impl ShadePass {
             (false, _) => None,
         };
         let hits = storage_view(hit);
-        let normal = self.pipeline.fetch_view(gbuffer.normal.view);
-        let tangent = self.pipeline.fetch_view(gbuffer.tangent.view);
+        let frame = self.pipeline.fetch_view(gbuffer.frame.view);
         let depth = self.pipeline.fetch_view(gbuffer.depth.view);
         let heights = [height.descriptor()];
         let colors = storage_view(color.view);
@@ -177,8 +174,7 @@ impl ShadePass {
         let p = &self.pipeline.pipeline;
         let mut writes = vec![
             p.image("u_hit", &hits)?,
-            p.image("u_normal", &normal)?,
-            p.image("u_tangent", &tangent)?,
+            p.image("u_frame", &frame)?,
             p.image("u_height", &heights)?,
             p.image("u_color", &colors)?,
             p.image("u_albedo", &albedo)?,

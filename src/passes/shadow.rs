@@ -8,7 +8,7 @@
 //! `(uv, h)` it is `uv(h') = uv + (h' - h) C` for `h'` in `[h, 1]`, with the climb
 //! `C = depth_scale * L_ts.xy / max(L_ts.z, min_cos)` (uv per unit height; one uv unit is
 //! one tile, the depth of height `h` is `(1 - h) depth_scale` tiles) and
-//! `L_ts = (L.T, L.B, L.N)` from the G-buffer's normal and tangent. Where the macro
+//! `L_ts = (L.T, L.B, L.N)` from the G-buffer frame's normal and tangent. Where the macro
 //! surface faces away from the light (`L_ts.z <= 0`) the pixel is in shadow (0).
 //!
 //! # Modes ([`ShadowMode`])
@@ -47,8 +47,7 @@
 //! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
 //! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
-//! | `u_normal` | G-buffer `normal` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_tangent` | G-buffer `tangent` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_frame` | G-buffer `frame` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_pyramid` | cell-max pyramid (hard shadows of the pyramid methods only) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_visibility` | visibility (`R16_SFLOAT` storage, written) | `GENERAL` |
@@ -211,7 +210,7 @@ impl ShadowTrace {
 pub struct ShadowInputs<'a> {
     /// The hit buffer (read).
     pub hit: vk::ImageView,
-    /// The G-buffer (normal and tangent are read).
+    /// The G-buffer (its frame is read).
     pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
@@ -243,8 +242,7 @@ impl ShadowPass {
         // What it binds, by GLSL name (`glsl/shadow.comp` numbers them).
         let mut bindings = vec![
             ("u_hit", STORAGE),
-            ("u_normal", SAMPLED),
-            ("u_tangent", SAMPLED),
+            ("u_frame", SAMPLED),
             ("u_height", SAMPLED),
             ("u_visibility", STORAGE),
             ("u_depth", SAMPLED),
@@ -344,8 +342,7 @@ impl ShadowPass {
             (ShadowTrace::Sampled, _) => None,
         };
         let hits = storage_view(hit);
-        let normal = self.pipeline.fetch_view(gbuffer.normal.view);
-        let tangent = self.pipeline.fetch_view(gbuffer.tangent.view);
+        let frame = self.pipeline.fetch_view(gbuffer.frame.view);
         let heights = [height.descriptor()];
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let out = storage_view(visibility.view);
@@ -353,8 +350,7 @@ impl ShadowPass {
         let pl = &self.pipeline.pipeline;
         let mut writes = vec![
             pl.image("u_hit", &hits)?,
-            pl.image("u_normal", &normal)?,
-            pl.image("u_tangent", &tangent)?,
+            pl.image("u_frame", &frame)?,
             pl.image("u_height", &heights)?,
         ];
         if let Some(p) = &pyramids {
@@ -393,18 +389,6 @@ impl Destroy for ShadowPass {
             self.pipeline.destroy(ctx);
         }
     }
-}
-
-/// RGBA texels of an `R16G16B16A16_SFLOAT` image's bytes (the G-buffer's normal and
-/// tangent).
-pub fn decode_rgba16f(bytes: &[u8]) -> Vec<[f32; 4]> {
-    bytes
-        .chunks_exact(8)
-        .map(|c| {
-            let h = |i: usize| f16_to_f32(u16::from_le_bytes([c[2 * i], c[2 * i + 1]]));
-            [h(0), h(1), h(2), h(3)]
-        })
-        .collect()
 }
 
 /// The visibility image's bytes of `values` (IEEE halves, rounded to nearest even).
@@ -461,10 +445,8 @@ mod tests {
     }
 
     #[test]
-    fn visibility_and_frames_as_halves() {
+    fn visibility_as_halves() {
         assert_eq!(encode_visibility(&[1.0, 0.0]), vec![0x00, 0x3c, 0, 0]);
-        let rgba = decode_rgba16f(&[0x00, 0x3c, 0x00, 0xc0, 0, 0, 0x00, 0x38]);
-        assert_eq!(rgba, vec![[1.0, -2.0, 0.0, 0.5]]);
     }
 
     #[test]

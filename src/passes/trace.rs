@@ -12,8 +12,7 @@
 //! | `u_hit` | hit buffer (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
 //! | `u_pyramid` | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_corners` | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_normal` | G-buffer `normal` (`w`: surface id; the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_tangent` | G-buffer `tangent` (`w`: the material) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_frame` | G-buffer `frame` (the material; the surface id for the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_cone` | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
 //!
@@ -56,8 +55,7 @@ fn bindings(needs: Needs) -> Vec<(&'static str, vk::DescriptorType)> {
         ("u_depth", SAMPLED),
         ("u_height", SAMPLED),
         ("u_hit", STORAGE),
-        ("u_normal", SAMPLED),
-        ("u_tangent", SAMPLED),
+        ("u_frame", SAMPLED),
         TILES,
     ];
     if needs.pyramid.is_some() {
@@ -75,7 +73,7 @@ fn bindings(needs: Needs) -> Vec<(&'static str, vk::DescriptorType)> {
 /// The images the trace pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct TraceInputs<'a> {
-    /// The G-buffer (ray, depth and normal are read).
+    /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
@@ -189,16 +187,14 @@ impl TracePass {
         let hits = storage_view(hit.view);
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
-        let normal = fetch(gbuffer.normal.view);
-        let tangent = fetch(gbuffer.tangent.view);
+        let frame = fetch(gbuffer.frame.view);
         let pl = &self.pipeline.pipeline;
         let mut writes = vec![
             pl.image("u_ray", &ray)?,
             pl.image("u_depth", &depth)?,
             pl.image("u_height", &heights)?,
             pl.image("u_hit", &hits)?,
-            pl.image("u_normal", &normal)?,
-            pl.image("u_tangent", &tangent)?,
+            pl.image("u_frame", &frame)?,
         ];
         if let Some(p) = &pyramids {
             writes.push(pl.image("u_pyramid", p)?);

@@ -167,10 +167,12 @@ impl Renderer {
         // SAFETY: `cmd` was just begun; the pool is alive with the range.
         unsafe { w.reset(ctx, cmd) };
         let g = &self.gbuffer;
-        let mut to_attachments: Vec<_> = [&g.normal, &g.tangent]
-            .iter()
-            .map(|i| sync::image_barrier(i.raw, i.range(), DISCARD, Access::COLOR_ATTACHMENT_WRITE))
-            .collect();
+        let mut to_attachments = vec![sync::image_barrier(
+            g.frame.raw,
+            g.frame.range(),
+            DISCARD,
+            Access::COLOR_ATTACHMENT_WRITE,
+        )];
         to_attachments.extend([
             sync::image_barrier(
                 g.depth.raw,
@@ -207,7 +209,7 @@ impl Renderer {
         let (hit, height) = (&self.hit, &forward.height);
         // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
         // above (the scope's contract). In the body: the hit buffer is in `GENERAL`, the
-        // normal and tangent in `COLOR_ATTACHMENT_OPTIMAL`, the depth in
+        // frame in `COLOR_ATTACHMENT_OPTIMAL`, the depth in
         // `DEPTH_ATTACHMENT_OPTIMAL` and the height texture visible to fragment-shader
         // reads (the barriers above, or the first forward frame's); the parameter buffer
         // was written after every earlier frame completed; everything lives until the
@@ -226,14 +228,8 @@ impl Renderer {
         };
         let mut entry = vec![
             sync::image_barrier(
-                g.normal.raw,
-                g.normal.range(),
-                Access::COLOR_ATTACHMENT_WRITE,
-                Access::COMPUTE_SAMPLED,
-            ),
-            sync::image_barrier(
-                g.tangent.raw,
-                g.tangent.range(),
+                g.frame.raw,
+                g.frame.range(),
                 Access::COLOR_ATTACHMENT_WRITE,
                 Access::COMPUTE_SAMPLED,
             ),

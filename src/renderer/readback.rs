@@ -155,8 +155,9 @@ impl Renderer {
         Ok(bytemuck::cast_slice::<u8, f32>(&depth).to_vec())
     }
 
-    /// Each pixel's material index from the last frame's G-buffer (`tangent.w` =
-    /// handedness * (index + 1)): `None` where there is no geometry or the geometry is
+    /// Each pixel's material index from the last frame's G-buffer (its frame's material
+    /// field, which [`Renderer::read_frames`] decodes into `tangent.w`, the handedness
+    /// times the index plus one): `None` where there is no geometry or the geometry is
     /// flat (not displaced).
     pub fn read_materials(&self) -> Result<Vec<Option<u32>>> {
         let (_, tangent) = self.read_frames()?;
@@ -171,14 +172,33 @@ impl Renderer {
             .collect())
     }
 
-    /// The last frame's G-buffer `normal` and `tangent` texels (RGBA16F decoded), row by
-    /// row.
+    /// The last frame's G-buffer frame texels decoded ([`crate::passes::gbuffer::frame`])
+    /// into `normal` (`N`, surface id) and `tangent` (`T`, handedness * (material + 1); 0
+    /// for flat geometry) texels, row by row; zeros where nothing was drawn.
     pub fn read_frames(&self) -> Result<TangentFrames> {
-        let read = |image: &Image| -> Result<Vec<[f32; 4]>> {
-            let bytes = read_image(&self.ctx, &self.shot, image, Access::COMPUTE_SAMPLED)?;
-            Ok(crate::passes::shadow::decode_rgba16f(&bytes))
-        };
-        Ok((read(&self.gbuffer.normal)?, read(&self.gbuffer.tangent)?))
+        let bytes = read_image(
+            &self.ctx,
+            &self.shot,
+            &self.gbuffer.frame,
+            Access::COMPUTE_SAMPLED,
+        )?;
+        Ok(bytes
+            .chunks_exact(8)
+            .map(|c| {
+                let word = |i: usize| u32::from_le_bytes([c[i], c[i + 1], c[i + 2], c[i + 3]]);
+                let bits = [word(0), word(4)];
+                if bits == [0, 0] {
+                    return ([0.0; 4], [0.0; 4]);
+                }
+                let f = crate::passes::gbuffer::frame::unpack(bits);
+                (
+                    f.normal.extend(f.surface_id as f32).to_array(),
+                    f.tangent
+                        .extend(f.handedness * f.material_plus_one as f32)
+                        .to_array(),
+                )
+            })
+            .unzip())
     }
 
     /// The last frame's hit buffer.

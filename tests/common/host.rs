@@ -23,9 +23,6 @@ use std::sync::Arc;
 
 use super::frames::{DISCARD, FrameSlots, record_gbuffer};
 
-/// `1.0` as an IEEE half float (the normal and tangent images are `R16G16B16A16_SFLOAT`).
-const HALF_ONE: u16 = 0x3C00;
-
 /// The surface id the uploaded G-buffer gives every covered pixel (DIG's same-surface test).
 pub const SURFACE_ID: f32 = 1.0;
 
@@ -50,13 +47,12 @@ pub struct RayHost {
 }
 
 /// The G-buffer's texels as uploaded or read back: `ray` (f32 x 4), `depth` (f32),
-/// `normal` and `tangent` (f16 x 4 bits).
+/// `frame` (`R32G32_UINT`, `dispmap::passes::gbuffer::frame`).
 #[derive(Clone)]
 pub struct GBufferTexels {
     pub ray: Vec<[f32; 4]>,
     pub depth: Vec<f32>,
-    pub normal: Vec<[u16; 4]>,
-    pub tangent: Vec<[u16; 4]>,
+    pub frame: Vec<[u32; 2]>,
 }
 
 impl RayHost {
@@ -69,8 +65,7 @@ impl RayHost {
             | vk::ImageUsageFlags::TRANSFER_DST;
         let gbuffer = GBuffer {
             ray: Image::new(c, "host.ray", RAY_FORMAT, extent, 1, color).unwrap(),
-            normal: Image::new(c, "host.normal", FRAME_FORMAT, extent, 1, color).unwrap(),
-            tangent: Image::new(c, "host.tangent", FRAME_FORMAT, extent, 1, color).unwrap(),
+            frame: Image::new(c, "host.frame", FRAME_FORMAT, extent, 1, color).unwrap(),
             depth: Image::new(
                 c,
                 "host.depth",
@@ -147,47 +142,23 @@ impl RayHost {
             .iter()
             .map(|r| if r.is_some() { 0.5 } else { 0.0 })
             .collect();
-        let normal: Vec<[u16; 4]> = rays
+        let covered = dispmap::passes::gbuffer::frame::pack(
+            glam::Vec3::Y,
+            glam::Vec3::X,
+            1.0,
+            1,
+            SURFACE_ID as u32,
+        );
+        let frame: Vec<[u32; 2]> = rays
             .iter()
-            .map(|r| {
-                if r.is_some() {
-                    [0, HALF_ONE, 0, HALF_ONE]
-                } else {
-                    [0; 4]
-                }
-            })
-            .collect();
-        let tangent: Vec<[u16; 4]> = rays
-            .iter()
-            .map(|r| {
-                if r.is_some() {
-                    [HALF_ONE, 0, 0, HALF_ONE]
-                } else {
-                    [0; 4]
-                }
-            })
+            .map(|r| if r.is_some() { covered } else { [0; 2] })
             .collect();
         let c = &*self.ctx;
         let g = &self.gbuffer;
         let after = Access::COMPUTE_SAMPLED;
         upload_image(c, &self.shot, &g.ray, bytemuck::cast_slice(&ray), after).unwrap();
         upload_image(c, &self.shot, &g.depth, bytemuck::cast_slice(&depth), after).unwrap();
-        upload_image(
-            c,
-            &self.shot,
-            &g.normal,
-            bytemuck::cast_slice(&normal),
-            after,
-        )
-        .unwrap();
-        upload_image(
-            c,
-            &self.shot,
-            &g.tangent,
-            bytemuck::cast_slice(&tangent),
-            after,
-        )
-        .unwrap();
+        upload_image(c, &self.shot, &g.frame, bytemuck::cast_slice(&frame), after).unwrap();
     }
 
     /// Rasterises the G-buffer with dispmap's `GBufferPass` and `params`. Needs no frame
@@ -236,8 +207,7 @@ impl RayHost {
         GBufferTexels {
             ray: bytemuck::cast_slice(&read(&g.ray)).to_vec(),
             depth: bytemuck::cast_slice(&read(&g.depth)).to_vec(),
-            normal: bytemuck::cast_slice(&read(&g.normal)).to_vec(),
-            tangent: bytemuck::cast_slice(&read(&g.tangent)).to_vec(),
+            frame: bytemuck::cast_slice(&read(&g.frame)).to_vec(),
         }
     }
 
@@ -266,16 +236,8 @@ impl RayHost {
         upload_image(
             c,
             &self.shot,
-            &g.normal,
-            bytemuck::cast_slice(&texels.normal),
-            after,
-        )
-        .unwrap();
-        upload_image(
-            c,
-            &self.shot,
-            &g.tangent,
-            bytemuck::cast_slice(&texels.tangent),
+            &g.frame,
+            bytemuck::cast_slice(&texels.frame),
             after,
         )
         .unwrap();

@@ -178,8 +178,7 @@ fn main() -> Result<()> {
 /// One slot's textures and read-back buffers.
 struct Slot {
     ray: Target,
-    normal: Target,
-    tangent: Target,
+    frame: Target,
     depth: Target,
     hit: Target,
     color: Target,
@@ -354,11 +353,7 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
             {
                 let mut rp = draw.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("gbuffer"),
-                    color_attachments: &[
-                        slot.ray.cleared(),
-                        slot.normal.cleared(),
-                        slot.tangent.cleared(),
-                    ],
+                    color_attachments: &[slot.ray.cleared(), slot.frame.cleared()],
                     depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                         view: &slot.depth.view,
                         depth_ops: Some(wgpu::Operations {
@@ -385,8 +380,8 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
                     rp.draw(0..g.vertex_count(), 0..1);
                 }
             }
-            let resource = [&slot.ray, &slot.normal, &slot.tangent, &slot.depth]
-                .map(|t| (t, wgpu::TextureUses::RESOURCE));
+            let resource =
+                [&slot.ray, &slot.frame, &slot.depth].map(|t| (t, wgpu::TextureUses::RESOURCE));
             let storage =
                 [&slot.hit, &slot.color].map(|t| (t, wgpu::TextureUses::STORAGE_READ_WRITE));
             draw.transition_resources(
@@ -407,8 +402,7 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
             let wframe = WgpuFrame {
                 frame_slot: s as u32,
                 ray: slot.ray.image(),
-                normal: slot.normal.image(),
-                tangent: slot.tangent.image(),
+                frame: slot.frame.image(),
                 depth: slot.depth.image(),
                 hit: slot.hit.image(),
                 shade: Some(WgpuShade {
@@ -559,8 +553,7 @@ fn slot(device: &wgpu::Device, o: &Options, s: usize) -> Slot {
     };
     Slot {
         ray: target("ray", F::Rgba32Float, attachment),
-        normal: target("normal", F::Rgba16Float, attachment),
-        tangent: target("tangent", F::Rgba16Float, attachment),
+        frame: target("frame", F::Rg32Uint, attachment),
         depth: target("depth", F::Depth32Float, attachment | U::COPY_SRC),
         hit: target("hit", F::Rgba32Float, U::STORAGE_BINDING | U::COPY_SRC),
         color: target(
@@ -650,8 +643,7 @@ fn gbuffer_pipeline(device: &wgpu::Device) -> Result<wgpu::RenderPipeline> {
                 compilation_options: Default::default(),
                 targets: &[
                     target(wgpu::TextureFormat::Rgba32Float),
-                    target(wgpu::TextureFormat::Rgba16Float),
-                    target(wgpu::TextureFormat::Rgba16Float),
+                    target(wgpu::TextureFormat::Rg32Uint),
                 ],
             }),
             multiview_mask: None,

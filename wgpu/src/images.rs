@@ -22,7 +22,7 @@ pub fn vk_format(format: wgpu::TextureFormat) -> Option<vk::Format> {
     use wgpu::TextureFormat as F;
     Some(match format {
         F::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
-        F::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
+        F::Rg32Uint => vk::Format::R32G32_UINT,
         F::Rg32Float => vk::Format::R32G32_SFLOAT,
         F::Rg16Float => vk::Format::R16G16_SFLOAT,
         F::R32Float => vk::Format::R32_SFLOAT,
@@ -89,7 +89,7 @@ pub fn host_view(image: WgpuImage<'_>, role: &str) -> Result<HostView> {
     }
     let format = vk_format(t.format()).ok_or_else(|| {
         refuse(format!(
-            "format {:?} is none of the pass's (Rgba32Float, Rgba16Float, Rg32Float, \
+            "format {:?} is none of the pass's (Rgba32Float, Rg32Uint, Rg32Float, \
              Rg16Float, R32Float, R16Float, Rgba8Unorm, Depth32Float)",
             t.format()
         ))
@@ -136,7 +136,7 @@ mod tests {
             Some(dispmap::passes::gbuffer::RAY_FORMAT)
         );
         assert_eq!(
-            vk_format(wgpu::TextureFormat::Rgba16Float),
+            vk_format(wgpu::TextureFormat::Rg32Uint),
             Some(dispmap::passes::gbuffer::FRAME_FORMAT)
         );
         assert_eq!(

@@ -31,7 +31,7 @@ pub struct WgpuShade<'a> {
 }
 
 /// One frame's wgpu textures (the G-buffer contract of `dispmap::embed`, as wgpu
-/// formats: `ray` `Rgba32Float`, `normal` and `tangent` `Rgba16Float`, `depth`
+/// formats: `ray` `Rgba32Float`, `frame` `Rg32Uint`, `depth`
 /// `Depth32Float`, each with `TEXTURE_BINDING`; `hit` `Rgba32Float` with
 /// `STORAGE_BINDING`).
 #[derive(Clone, Copy, Debug)]
@@ -41,10 +41,8 @@ pub struct WgpuFrame<'a> {
     pub frame_slot: u32,
     /// `uv0, P`.
     pub ray: WgpuImage<'a>,
-    /// World normal, `w` = surface id.
-    pub normal: WgpuImage<'a>,
-    /// World tangent, `w` = handedness and material.
-    pub tangent: WgpuImage<'a>,
+    /// Normal, tangent, handedness, material and surface id (`dispmap_frame_pack`).
+    pub frame: WgpuImage<'a>,
     /// Reverse-Z depth (0 = no geometry); with [`DepthMerge`] also `RENDER_ATTACHMENT`,
     /// and it receives the corrected depth of the displaced pixels.
     pub depth: WgpuImage<'a>,
@@ -95,7 +93,7 @@ impl DepthMerge {
 ///
 /// | texture | wgpu state before and after | Vulkan layout (wgpu-hal) |
 /// |---|---|---|
-/// | `ray`, `normal`, `tangent` | `TextureUses::RESOURCE` | `SHADER_READ_ONLY_OPTIMAL` |
+/// | `ray`, `frame` | `TextureUses::RESOURCE` | `SHADER_READ_ONLY_OPTIMAL` |
 /// | `depth` | `TextureUses::RESOURCE` | `DEPTH_STENCIL_READ_ONLY_OPTIMAL` |
 /// | `hit`, `shade.color` | `TextureUses::STORAGE_READ_WRITE` | `GENERAL` |
 ///
@@ -138,8 +136,7 @@ pub unsafe fn record(
     let ray = host_view(frame.ray, "gbuffer.ray")?;
     let gbuffer = GBufferViews {
         ray,
-        normal: host_view(frame.normal, "gbuffer.normal")?,
-        tangent: host_view(frame.tangent, "gbuffer.tangent")?,
+        frame: host_view(frame.frame, "gbuffer.frame")?,
         depth: host_view(frame.depth, "gbuffer.depth")?,
         extent: ray.extent,
     };
@@ -275,7 +272,7 @@ pub unsafe fn record(
                         &ctx,
                         cmd,
                         source_view,
-                        inputs.gbuffer.tangent.view,
+                        inputs.gbuffer.frame.view,
                         inputs.gbuffer.depth.view,
                         inputs.gbuffer.extent,
                     );

@@ -12,8 +12,7 @@ layout(set = 0, binding = 0, std140) uniform PixelRayBlock {
 };
 
 layout(location = 0) out vec4 out_ray;
-layout(location = 1) out vec4 out_normal;
-layout(location = 2) out vec4 out_tangent;
+layout(location = 1) out uvec2 out_frame;
 
 void main() {
     vec3 eye_rel;
@@ -27,8 +26,7 @@ void main() {
     DispmapSurface s = DispmapSurface(eye_rel, vec3(0.0), uv, vec3(0.0, 1.0, 0.0),
         vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), 1.0, pc.depth_scale, pc.min_cos,
         pc.addressing);
-    if (!dispmap_gbuffer_encode_material(s, uint(pc.eye.w) - 1u, out_ray, out_normal,
-                                         out_tangent)) {
+    if (!dispmap_gbuffer_encode_material(s, uint(pc.eye.w) - 1u, out_ray, out_frame)) {
         discard;
     }
 }

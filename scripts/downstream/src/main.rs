@@ -143,7 +143,7 @@ impl Host {
                 vertex_bindings: &[],
                 vertex_attributes: &[],
                 depth_compare: vk::CompareOp::GREATER,
-                color_formats: &[RAY_FORMAT, FRAME_FORMAT, FRAME_FORMAT],
+                color_formats: &[RAY_FORMAT, FRAME_FORMAT],
                 depth_format: DEPTH_FORMAT,
                 name: "downstream.gbuffer",
             },
@@ -353,7 +353,7 @@ impl Host {
                 .record_with_camera(cmd, &inputs, &camera, Timestamps::Off)
         }?;
         // The corrected depth into the host's depth attachment (dispmap::embed's
-        // "Corrected depth"): the pass's image and the tangent read by the resolve's
+        // "Corrected depth"): the pass's image and the frame read by the resolve's
         // fragment shader, the G-buffer depth (read by the pass) as its attachment.
         let depth = self.pass.hit_depth(0).ok_or("the corrected depth is on")?;
         let fragment_sampled = Access {
@@ -368,8 +368,8 @@ impl Host {
                 fragment_sampled,
             ),
             sync::image_barrier(
-                g.tangent.raw,
-                g.tangent.range(),
+                g.frame.raw,
+                g.frame.range(),
                 Access::COMPUTE_SAMPLED,
                 fragment_sampled,
             ),
@@ -389,7 +389,7 @@ impl Host {
                 ctx,
                 cmd,
                 depth.view,
-                g.tangent.view,
+                g.frame.view,
                 g.depth.view,
                 self.extent,
             );

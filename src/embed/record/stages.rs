@@ -26,7 +26,7 @@ impl DisplacementPass {
         live.resize(lists.materials() as usize, false);
         let classify = ClassifyInputs {
             depth: inputs.gbuffer.depth.view,
-            tangent: inputs.gbuffer.tangent.view,
+            frame: inputs.gbuffer.frame.view,
             hit: ViewRef {
                 view: inputs.hit.view,
                 extent: self.frame.extent,
