@@ -2,7 +2,9 @@
 // cone: the conservative cone map of the bilinear surface, one invocation per cell (see
 // src/passes/cone.rs for the definition and the proof sketch; docs/cones.md for the
 // choices). Texel space as in glsl/common/pyramid.glsl: cell (i, j) = [i, i + 1] x
-// [j, j + 1] between texel centres, its maximum M = the cell pyramid's level 0.
+// [j, j + 1] between texel centres, its maximum M = the cell pyramid's level 0 (the
+// maximum of its 4 corner texels; the pyramid's image stores levels 1 and up, mip L - 1
+// holding level L: pyramid_at).
 //
 // Output (rg32f): (M, w). w is the cone ratio (texels of horizontal distance per unit of
 // height): every point q of the surface satisfies H(q) <= M + dist(q, C) / w, dist the
@@ -59,6 +61,11 @@ layout(push_constant) uniform ConeParams {
     uint levels;     // levels of the cell pyramid
     uint addressing; // ADDRESSING_*
 } pc;
+
+// The cell pyramid's level-`level` node (level >= 1: the image's mip level - 1).
+float pyramid_at(ivec2 node, int level) {
+    return texelFetch(u_pyramid, node, level - 1).r;
+}
 
 #include "texels.glsl"
 
@@ -179,7 +186,7 @@ void main() {
                 ivec2 kk, lo, hi;
                 if (node_cells(a.x + off.x, n.x, nl.x, level, kk.x, lo.x, hi.x)
                     && node_cells(a.y + off.y, n.y, nl.y, level, kk.y, lo.y, hi.y)) {
-                    node_max = texelFetch(u_pyramid, kk, level).r;
+                    node_max = pyramid_at(kk, level);
 #ifdef RELAXED
                     falls = node_falls(kk, level, off);
 #endif
@@ -197,7 +204,8 @@ void main() {
     if (any(greaterThanEqual(c, n))) {
         return;
     }
-    float m = texelFetch(u_pyramid, c, 0).r;
+    vec4 g = cell_texels(c);
+    float m = max(max(g.w, g.z), max(g.x, g.y));
     float w = CONE_RATIO_MAX;
 #ifdef RELAXED
     float w_relaxed = CONE_RATIO_MAX;
@@ -264,7 +272,7 @@ void main() {
                     continue;
                 }
                 // A node's falls never exceed its maximum: nothing to bound either way.
-                float rise = texelFetch(u_pyramid, kk, level).r - m;
+                float rise = pyramid_at(kk, level) - m;
                 if (rise <= 0.0) {
                     continue;
                 }
@@ -293,7 +301,8 @@ void main() {
 #endif
     }
     if (pc.addressing == ADDRESSING_REPEAT) {
-        float rise = texelFetch(u_pyramid, ivec2(0), top_level).r - m;
+        // The global maximum (level 0 on a 1 x 1 map: its one cell, whose maximum is m).
+        float rise = (top_level > 0 ? pyramid_at(ivec2(0), top_level) : m) - m;
         float dist = max(float(min(n.x, n.y)), float(WINDOW));
         w = min(w, ratio(dist, rise));
 #ifdef RELAXED

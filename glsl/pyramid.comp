@@ -30,15 +30,39 @@
 // values (no unrolled 8x8 blocks for the compiler).
 // `precise` keeps the means in the exact operation order the CPU build uses
 // (src/passes/pyramid.rs: cpu_build), so the two agree bit for bit.
+//
+// The cell pyramid does not store level 0 (pc.store_dst = 0 on the dispatch that starts
+// there): the traversals bound a cell by its 4 corner texels, read from the map itself
+// (glsl/common/pyramid.glsl: pyramid_node_max), the values this dispatch reduces.
+//
+// UNORM (the cell pyramid of a map whose texels are 8- or 16-bit unorm, in R8_UNORM or
+// R16_UNORM; the default variant writes R32_SFLOAT chains): the maxima are texels as the
+// shaders sample them, each the decoding of a code c of that format, and the node stores
+// that code (nearest_code recovers it: the decoding is within an ulp of c / code_max),
+// so the pyramid samples as the map's texels do, bit for bit. Levels above the first
+// dispatch read the level below through a sampler (u_src; the height map on the level-0
+// dispatch, which does not read it). The storage images have no format qualifier
+// (written as the view's format: Vulkan 1.3's STORAGE_WRITE_WITHOUT_FORMAT format
+// feature, checked by the pass).
+// dispmap-variant: UNORM
 #include "frame.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
 layout(set = 0, binding = 0) uniform sampler2D u_height;
+#ifdef UNORM
+layout(set = 0, binding = 1) uniform sampler2D u_src;
+#define SRC_LOAD(p) texelFetch(u_src, p, 0).r
+layout(set = 0, binding = 2) uniform writeonly image2D u_dst;
+layout(set = 0, binding = 3) uniform writeonly image2D u_next;
+layout(set = 0, binding = 4) uniform writeonly image2D u_next2;
+#else
 layout(set = 0, binding = 1, r32f) uniform readonly image2D u_src;
 layout(set = 0, binding = 2, r32f) uniform writeonly image2D u_dst;
 layout(set = 0, binding = 3, r32f) uniform writeonly image2D u_next;
 layout(set = 0, binding = 4, r32f) uniform writeonly image2D u_next2;
+#define SRC_LOAD(p) imageLoad(u_src, p).r
+#endif
 
 layout(push_constant) uniform PyramidParams {
     uvec2 src_size;   // logical size of the level below `level` (level 0: the map)
@@ -47,8 +71,10 @@ layout(push_constant) uniform PyramidParams {
     uint level;       // the (first) level written
     uint kind;        // PYRAMID_KIND_*
     uint addressing;  // ADDRESSING_*
-    uint pad;
+    uint code_max;    // UNORM: 255 or 65535 (the storage format's largest code); 0 otherwise
     uvec2 next2_size; // logical size of `level + 2`, written too; (0, 0): not this dispatch
+    uint store_dst;   // 0: `level` is not stored (the cell pyramid's level 0), only those above
+    uint pad[3];
 } pc;
 
 #include "texels.glsl"
@@ -73,6 +99,24 @@ float footprint_max(float t[9]) {
     m = max(m, max(max(el, er), max(eb, ea)));
     m = max(m, max(max(c00, c10), max(c01, c11)));
     return m;
+}
+
+// The code whose decoding f is (f within an ulp of c / s).
+uint nearest_code(float f, float s) {
+    return uint(clamp(round(f * s), 0.0, s));
+}
+
+// What imageStore writes for the bound m: m itself (R32_SFLOAT), or its code (UNORM) as
+// (c + 1/4) / s, which a float -> unorm conversion (Vulkan: one of the two integers
+// nearest to the value times s, i.e. c or c + 1; round to nearest, which every device
+// does, gives c) stores as c.
+vec4 encoded(float m) {
+#ifdef UNORM
+    float s = float(pc.code_max);
+    return vec4((float(nearest_code(m, s)) + 0.25) / s);
+#else
+    return vec4(m);
+#endif
 }
 
 void main() {
@@ -115,7 +159,7 @@ void main() {
         ivec2 src_last = ivec2(pc.src_size) - 1;
         for (int j = 0; j < 2 * span; ++j) {
             for (int i = 0; i < 2 * span; ++i) {
-                r[j * 8 + i] = imageLoad(u_src, min(2 * c0 + ivec2(i, j), src_last)).r;
+                r[j * 8 + i] = SRC_LOAD(min(2 * c0 + ivec2(i, j), src_last));
             }
         }
     }
@@ -150,7 +194,9 @@ void main() {
                     int k = 2 * dy * 8 + 2 * dx;
                     m = max(max(r[k], r[k + 1]), max(r[k + 8], r[k + 9]));
                 }
-                imageStore(u_dst, c, vec4(m));
+                if (pc.store_dst != 0u) {
+                    imageStore(u_dst, c, encoded(m));
+                }
             }
             nodes[dy * 4 + dx] = m;
         }
@@ -168,7 +214,7 @@ void main() {
             float m = max(max(nodes[k], nodes[k + 1]), max(nodes[k + 4], nodes[k + 5]));
             ivec2 c = q * half_span + ivec2(ex, ey);
             if (all(lessThanEqual(c, next_last))) {
-                imageStore(u_next, c, vec4(m));
+                imageStore(u_next, c, encoded(m));
             } else {
                 m = -1.0;
             }
@@ -176,6 +222,6 @@ void main() {
         }
     }
     if (count == 3) {
-        imageStore(u_next2, q, vec4(max(max(above[0], above[1]), max(above[2], above[3]))));
+        imageStore(u_next2, q, encoded(max(max(above[0], above[1]), max(above[2], above[3]))));
     }
 }

@@ -99,11 +99,17 @@ pub struct PyramidParams {
     pub kind: u32,
     /// `ADDRESSING_*`.
     pub addressing: u32,
-    /// Padding (`next2_size`'s 8-byte alignment).
-    pub pad: u32,
+    /// The `UNORM` variant's largest code (255 or 65535: `R8_UNORM` or `R16_UNORM`
+    /// storage, codes of the map's own texels); 0 for the `R32_SFLOAT` chains.
+    pub code_max: u32,
     /// Logical size of level `level + 2`, written by the same dispatch; `[0, 0]` when
     /// the dispatch writes fewer levels.
     pub next2_size: [u32; 2],
+    /// 0 when level `level` is computed but not stored (the cell pyramid's level 0: the
+    /// traversals read a cell's texels instead); 1 otherwise.
+    pub store_dst: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 /// `ConeParams` in `glsl/cone.comp`.
@@ -508,21 +514,25 @@ mod tests {
 
     #[test]
     fn pyramid_params_layout() {
-        check(
-            &shaders::PYRAMID_COMP,
-            "PyramidParams",
-            &[
-                ("src_size", offset_of!(PyramidParams, src_size)),
-                ("dst_size", offset_of!(PyramidParams, dst_size)),
-                ("next_size", offset_of!(PyramidParams, next_size)),
-                ("level", offset_of!(PyramidParams, level)),
-                ("kind", offset_of!(PyramidParams, kind)),
-                ("addressing", offset_of!(PyramidParams, addressing)),
-                ("pad", offset_of!(PyramidParams, pad)),
-                ("next2_size", offset_of!(PyramidParams, next2_size)),
-            ],
-            size_of::<PyramidParams>(),
-        );
+        for shader in [&shaders::PYRAMID_COMP, &shaders::PYRAMID_COMP_UNORM] {
+            check(
+                shader,
+                "PyramidParams",
+                &[
+                    ("src_size", offset_of!(PyramidParams, src_size)),
+                    ("dst_size", offset_of!(PyramidParams, dst_size)),
+                    ("next_size", offset_of!(PyramidParams, next_size)),
+                    ("level", offset_of!(PyramidParams, level)),
+                    ("kind", offset_of!(PyramidParams, kind)),
+                    ("addressing", offset_of!(PyramidParams, addressing)),
+                    ("code_max", offset_of!(PyramidParams, code_max)),
+                    ("next2_size", offset_of!(PyramidParams, next2_size)),
+                    ("store_dst", offset_of!(PyramidParams, store_dst)),
+                    ("pad", offset_of!(PyramidParams, pad)),
+                ],
+                size_of::<PyramidParams>(),
+            );
+        }
     }
 
     #[test]

@@ -16,6 +16,7 @@ use crate::reference::Reference;
 use dispmap::error::{Error, Result};
 use dispmap::heightfield::ImageHeader;
 use dispmap::method::{ConeKind, Method, PyramidKind};
+use dispmap::passes::pyramid::stored_texels;
 
 /// Bytes of the process before any map or frame (Vulkan instance and device, lavapipe,
 /// the binary): measured 90-100 MiB with a 2048x2048 map and a 64x64 frame, rounded up.
@@ -181,18 +182,22 @@ impl MeshSize {
     }
 }
 
-/// The one-off per-map images of the methods of a run alive at once: max pyramids
-/// (`R32_SFLOAT`, each level padded to a power of two, and the traversal's compact copy
-/// of an 8- or 16-bit map's, counted at 2 bytes per node), cone maps (`R32G32_SFLOAT`) and
-/// a relaxed cone map's build scratch (four more pyramids). Measured on an 8-bit 2048²
-/// map, 64x64 frame (peak resident memory over `relief`'s): `exact` +36.8 MB (its
-/// pyramid and copy: 28.0 MB computed), `cone` +87.9 MB (61.5 MB computed),
-/// `relaxed-cone` +170.1 MB (151.1 MB computed); the rest is pipeline compiles and the
-/// blit's, within the process allowance (`BASE_BYTES`).
+/// The one-off per-map images of the methods of a run alive at once: cell pyramids
+/// (levels 1 and up, each padded to a power of two: in the map's own format for 8- and
+/// 16-bit maps, `R32_SFLOAT` for float ones; counted at 4 bytes per node), footprint
+/// pyramids (`pyramid`'s, every level in `R32_SFLOAT`), cone maps (`R32G32_SFLOAT`) and a
+/// relaxed cone map's build scratch (four more full `R32_SFLOAT` pyramids). Measured on
+/// an 8-bit 2048² map, 64x64 frame (peak resident memory over `relief`'s), when the cell
+/// pyramid was a full `R32_SFLOAT` chain and its 8-bit copy: `exact` +36.8 MB (its pyramid
+/// and copy: 28.0 MB computed), `cone` +87.9 MB (61.5 MB computed), `relaxed-cone`
+/// +170.1 MB (151.1 MB computed); the rest is pipeline compiles and the blit's, within
+/// the process allowance (`BASE_BYTES`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MethodMaps {
-    /// Max pyramids.
+    /// Cell pyramids.
     pub pyramids: u32,
+    /// Footprint pyramids.
+    pub footprint_pyramids: u32,
     /// Cone maps.
     pub cone_maps: u32,
     /// Relaxed cone maps being built (their scratch).
@@ -204,9 +209,10 @@ impl MethodMaps {
     /// of its own when the method has none.
     pub fn of(method: Method, shadows: bool) -> Self {
         let needs = method.needs();
-        let own_shadow_pyramid = shadows && needs.pyramid != Some(PyramidKind::Cell);
+        let cell = needs.pyramid == Some(PyramidKind::Cell);
         MethodMaps {
-            pyramids: u32::from(needs.pyramid.is_some()) + u32::from(own_shadow_pyramid),
+            pyramids: u32::from(cell || shadows),
+            footprint_pyramids: u32::from(needs.pyramid == Some(PyramidKind::Footprint)),
             cone_maps: u32::from(needs.cone.is_some()),
             relaxed_builds: u32::from(needs.cone == Some(ConeKind::Relaxed)),
         }
@@ -218,6 +224,7 @@ impl MethodMaps {
             let one = MethodMaps::of(m, false);
             MethodMaps {
                 pyramids: sum.pyramids + one.pyramids,
+                footprint_pyramids: sum.footprint_pyramids + one.footprint_pyramids,
                 cone_maps: sum.cone_maps + one.cone_maps,
                 relaxed_builds: sum.relaxed_builds + one.relaxed_builds,
             }
@@ -227,17 +234,12 @@ impl MethodMaps {
     /// Their bytes on a `size` map.
     pub fn bytes(&self, size: [u32; 2]) -> u64 {
         let (w, h) = (size[0].max(1), size[1].max(1));
-        let (pw, ph) = (w.next_power_of_two(), h.next_power_of_two());
-        let levels = 32 - pw.max(ph).leading_zeros();
-        let nodes: u64 = (0..levels)
-            .map(|l| u64::from((pw >> l).max(1)) * u64::from((ph >> l).max(1)))
-            .sum();
-        // The R32 chain and, for 8- and 16-bit maps, its compact copy (at most 2 bytes);
-        // the relaxed build's falls pyramids are chains only.
-        let (pyramid, chain) = (nodes * (4 + 2), nodes * 4);
+        let cell = 4 * stored_texels(PyramidKind::Cell, [w, h]);
+        let full = 4 * stored_texels(PyramidKind::Footprint, [w, h]);
         let cone = u64::from(w) * u64::from(h) * 8;
-        u64::from(self.pyramids) * pyramid
-            + u64::from(4 * self.relaxed_builds) * chain
+        u64::from(self.pyramids) * cell
+            + u64::from(self.footprint_pyramids) * full
+            + u64::from(4 * self.relaxed_builds) * full
             + u64::from(self.cone_maps) * cone
     }
 }
@@ -657,21 +659,32 @@ mod tests {
     fn method_maps_follow_what_the_method_builds() {
         let size = [2048, 2048];
         let pyramid = MethodMaps::of(Method::Exact, false).bytes(size);
-        // 4 + 2 bytes per node over the padded chain: 6 (4^12 - 1) / 3 for 2048².
-        assert_eq!(pyramid, 6 * ((1u64 << 24) - 1) / 3);
+        // 4 bytes per node of levels 1 and up of the padded chain: 4 (4^11 - 1) / 3.
+        assert_eq!(pyramid, 4 * ((1u64 << 22) - 1) / 3);
         assert_eq!(MethodMaps::of(Method::Relief, false).bytes(size), 0);
         assert_eq!(MethodMaps::of(Method::Relief, true).bytes(size), pyramid);
         assert_eq!(MethodMaps::of(Method::Exact, true).bytes(size), pyramid);
+        let full = 4 * ((1u64 << 24) - 1) / 3;
+        assert_eq!(MethodMaps::of(Method::Pyramid, false).bytes(size), full);
+        assert_eq!(
+            MethodMaps::of(Method::Pyramid, true).bytes(size),
+            full + pyramid
+        );
         let cone = MethodMaps::of(Method::Cone, false).bytes(size);
         assert_eq!(cone, pyramid + 8 * 2048 * 2048);
         let relaxed = MethodMaps::of(Method::RelaxedCone, false).bytes(size);
-        assert_eq!(relaxed, cone + 4 * (pyramid / 6 * 4));
+        assert_eq!(relaxed, cone + 4 * full);
         // A 1025-wide map pads its pyramid to 2048.
-        assert!(MethodMaps::of(Method::Exact, false).bytes([1025, 1]) > 4 * 2048);
+        // Levels 1 to 11 of the padded chain: 1024 + 512 + .. + 1 nodes.
+        assert_eq!(
+            MethodMaps::of(Method::Exact, false).bytes([1025, 1]),
+            4 * 2047
+        );
         assert_eq!(
             MethodMaps::together(&[Method::Exact, Method::ConeExact, Method::Pom]),
             MethodMaps {
                 pyramids: 2,
+                footprint_pyramids: 0,
                 cone_maps: 1,
                 relaxed_builds: 0
             }

@@ -11,10 +11,24 @@
 // for repeat addressing; for clamp addressing the decal covers cells -1 ..= W - 1 and the
 // half cell -1, whose corners are column/row 0's texels, is bounded by cell 0's value).
 // Level L node n covers the cells [n 2^L, min((n + 1) 2^L, W)) of each tile.
+// Level 0 is not stored (src/passes/pyramid.rs): a cell's bound is the maximum of its 4
+// corner texels, read from the map (pyramid_node_max), and the image's mip L - 1 holds
+// level L.
 #ifndef DISPMAP_PYRAMID_GLSL
 #define DISPMAP_PYRAMID_GLSL
 
 layout(set = 0, binding = 4) uniform sampler2D u_pyramid;
+
+// The maximum of a cell's 4 corner texels (cell_texels): level 0 of the pyramid.
+float cell_max(vec4 g) {
+    return max(max(g.w, g.z), max(g.x, g.y));
+}
+
+// The bound of level-`level` node `node` (its index within the level, as node_range
+// gives it): level 0 from the map's texels, the others from the pyramid's image.
+float pyramid_node_max(ivec2 node, int level) {
+    return level == 0 ? cell_max(cell_texels(node)) : texelFetch(u_pyramid, node, level - 1).r;
+}
 
 // A skip needs the ray to clear the node's bound by this much: f32 rounding of the exit
 // height must never skip a node the ray touches.
@@ -274,15 +288,14 @@ int cell_at_precise(vec2 origin, vec2 dir, int a, float t, float t_lo) {
 }
 
 // The first t from t_in on (up to t_end) where the ray meets the bilinear patch of
-// `cell`, or -1; t_in + t_in_lo is the exact entry time (t_in_lo: the exit_residual of
+// `cell` (its corner texels `g`: cell_texels), or -1; t_in + t_in_lo is the exact entry time (t_in_lo: the exit_residual of
 // the face crossed). The solve runs in the cell's own coordinates: the local entry point
 // (local_at) and the length of the ray's part in the cell from it. Along a long ray one
 // ulp of t spans a sizeable part of a cell (0.017 texels at t = 1e-3 and |P| = 1.4e5
 // tiles of a 1024 map), so the length as a difference of the f32 entry and exit times
 // would be off by percents, and the quadratic at the cell's exit by the surface's rise
 // over that part (8e-4 of the depth on rocks): a hit in open air.
-float cell_hit(ivec2 cell, vec2 origin, vec2 dir, float t_in, float t_in_lo, float t_end, bool long_ray) {
-    vec4 g = cell_texels(cell);
+float cell_hit(ivec2 cell, vec4 g, vec2 origin, vec2 dir, float t_in, float t_in_lo, float t_end, bool long_ray) {
     float h00 = g.w;
     float h10 = g.z;
     float h01 = g.x;
@@ -460,7 +473,7 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
         t_end = max(t_end, 0.0);
     }
     int top = int(pc.pyramid_levels) - 1;
-    float global_max = texelFetch(u_pyramid, ivec2(0), top).r;
+    float global_max = pyramid_node_max(ivec2(0), top);
     float t = max(t_begin, 1.0 - global_max);
     if (t > t_end) {
         return -1.0;
@@ -489,7 +502,11 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
     // CPU driver (lavapipe runs 8 pixels in lockstep with masks) pays for a branch that
     // any lane takes on every iteration: inside the loop the cell test (4 fetches and a
     // quadratic) was paid whenever any pixel of the group was at a leaf.
+    // A level-0 step reads the cell's texels (its bound, pyramid_node_max); the leaf test
+    // that may follow reads the same ones (`corners`), but for clamp addressing's half
+    // cell -1, bounded by cell 0.
     float step = 0.0;
+    vec4 corners = vec4(0.0);
     while (step < cap) {
         bool at_leaf = false;
         ivec2 lo, hi;
@@ -500,7 +517,13 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
             node_range(cell.x, n_cells.x, level, lo.x, hi.x, node.x);
             node_range(cell.y, n_cells.y, level, lo.y, hi.y, node.y);
             iterations += 1u;
-            float node_max = texelFetch(u_pyramid, node, level).r;
+            float node_max;
+            if (level == 0) {
+                corners = cell_texels(node);
+                node_max = cell_max(corners);
+            } else {
+                node_max = texelFetch(u_pyramid, node, level - 1).r;
+            }
             exit = vec2(1e30);
             for (int a = 0; a < 2; ++a) {
                 if (dir[a] > 0.0) {
@@ -529,7 +552,10 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
         if (!at_leaf) {
             break;
         }
-        float th = cell_hit(cell, origin, dir, t, t_lo, t_end, long_ray);
+        if (pc.addressing == ADDRESSING_CLAMP && any(lessThan(cell, ivec2(0)))) {
+            corners = cell_texels(cell);
+        }
+        float th = cell_hit(cell, corners, origin, dir, t, t_lo, t_end, long_ray);
         if (th >= 0.0) {
             return th;
         }

@@ -26,7 +26,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         if (!cone_advance(r, t, t_exit, exit, t_above, step, cap, iterations)) {
             break;
         }
-        float th = cell_hit(r.cell, r.origin, r.dir, t, r.t_lo, r.t_end, g_long_ray);
+        float th = cell_hit(r.cell, cell_texels(r.cell), r.origin, r.dir, t, r.t_lo, r.t_end, g_long_ray);
         if (th >= 0.0) {
             return hit_at_t(ray, th, iterations);
         }

@@ -249,7 +249,7 @@ impl HeightTexture {
 
     /// The format whose texels hold the sampled values exactly: the image's own format,
     /// or for a host image the one [`HeightTexture::from_host`] was given (what decides
-    /// the pyramid's compact copy).
+    /// the cell pyramid's storage format, `storage_format` in `passes::pyramid`).
     pub fn texel_format(&self) -> vk::Format {
         self.host.unwrap_or(self.image.format)
     }

@@ -11,24 +11,35 @@
 //! its axis, so odd and non-square sizes stay conservative (the last node of a row
 //! covers the one child that exists). These *logical* sizes are what the shaders use.
 //!
-//! Storage: one `R32_SFLOAT` image with a Vulkan mip chain whose level 0 is padded to
-//! the next power of two per axis, so that each mip level (`max(1, W0 >> L)`) holds at
-//! least the logical `ceil(W / 2^L)` nodes; padding texels are never read. A 1025-wide
-//! map thus costs a 2048-wide level 0; the simplicity of `texelFetch(pyramid, node,
-//! level)` is worth it.
+//! Storage: one image with a Vulkan mip chain whose level 0 is padded to the next power
+//! of two per axis, so that each mip level (`max(1, W0 >> L)`) holds at least the
+//! logical `ceil(W / 2^L)` nodes; padding texels are never read. A 1025-wide map thus
+//! costs a 2048-wide level 0; the simplicity of `texelFetch(pyramid, node, level)` is
+//! worth it.
 //!
-//! # The traversal's copy
+//! # What is kept
 //!
-//! The chain is built in `R32_SFLOAT` (storage writes). A cell pyramid of an 8- or
-//! 16-bit map is then blitted, level by level, into a copy in the map's own format
-//! (`R8_UNORM` / `R16_UNORM`): its values are maxima of texels, so the copy holds
-//! them exactly, and sampling it converts them exactly as sampling the height texture
-//! converts the texels (the traversal compares the two). The traversals read the copy: a
-//! quarter (or half) of the bytes, which is what a large map's traversal pays for (on
-//! lavapipe `exact` on a 2048² map 1.18-1.25x faster, on 1024² 1.09-1.25x, the same hits;
-//! the blit adds about 20 ms to a 2048² build). Without blit and sampling support for
-//! that format, for footprint pyramids (means, not texels) and for the relaxed cone
-//! build's falls pyramids (scratch, read once), the chain itself is read.
+//! A cell pyramid (the one the traversals read, kept as long as its map) stores levels
+//! 1 and up only: a traversal at level 0 bounds the cell by the maximum of its 4 corner
+//! texels, read from the map itself (the values the build reduces, as the shaders sample
+//! them; `pyramid_node_max` in `glsl/common/pyramid.glsl`), which is also what its exact
+//! leaf test reads. Its image's mip `m` holds level `m + 1`; [`Pyramid::levels`] counts
+//! level 0 all the same. Level 0 was three quarters of the nodes.
+//!
+//! The levels are built directly in the map's own format where its texels are 8- or
+//! 16-bit unorm ([`storage_format`]: `R8_UNORM` / `R16_UNORM`; a host map's channel of
+//! such a format too): every node is a maximum of texels, and the shader stores that
+//! texel's code, so the pyramid samples exactly as the height texture samples the
+//! texels (bit for bit the maxima an `f32` chain would hold). Other maps (`f32` texels, a
+//! host's BC4 or float image, whose sampled values are not codes of a narrower format)
+//! get an `R32_SFLOAT` chain of the exact maxima. A 4096² map's cell pyramid is thus
+//! 10.7 MiB (`R16_UNORM`), 5.3 MiB (`R8_UNORM`) or 21.3 MiB (`R32_SFLOAT`).
+//!
+//! The footprint pyramid (means of texels, `pyramid`'s bounds) and the relaxed cone
+//! build's falls pyramids (scratch, read once) are full `R32_SFLOAT` chains, level 0
+//! included. A device without storage writes of the unorm format without a format
+//! qualifier (Vulkan 1.3's `STORAGE_WRITE_WITHOUT_FORMAT` format feature; the level below
+//! is read through a sampler) gets `R32_SFLOAT` cell pyramids.
 //!
 //! # Contract (engine embedding)
 //!
@@ -51,7 +62,8 @@ pub use crate::method::PyramidKind;
 use crate::shaders;
 use ash::vk;
 
-/// Format of the pyramid.
+/// Format of the `R32_SFLOAT` chains (footprint and falls pyramids, and a cell pyramid
+/// where the device cannot store a unorm one: [`storage_format`]).
 pub const PYRAMID_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
 
 /// What the pass binds, by GLSL name (`glsl/pyramid.comp` numbers them): the height map,
@@ -62,6 +74,16 @@ const BINDINGS: [(&str, vk::DescriptorType); 5] = [
     ("u_dst", vk::DescriptorType::STORAGE_IMAGE),
     ("u_next", vk::DescriptorType::STORAGE_IMAGE),
     ("u_next2", vk::DescriptorType::STORAGE_IMAGE),
+];
+
+/// The `UNORM` variant's bindings: `src` is sampled (a device need not read a unorm
+/// storage image without a format qualifier; lavapipe does not).
+const UNORM_BINDINGS: [(&str, vk::DescriptorType); 5] = [
+    BINDINGS[0],
+    ("u_src", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    BINDINGS[2],
+    BINDINGS[3],
+    BINDINGS[4],
 ];
 
 /// `PYRAMID_KIND_*` in `glsl/pyramid.comp`.
@@ -91,14 +113,38 @@ pub fn level_size(size: [u32; 2], level: u32) -> [u32; 2] {
     [shrink(size[0]), shrink(size[1])]
 }
 
+/// The first level a `kind` pyramid stores: 1 for the cell pyramid (module docs), 0 for
+/// the others.
+pub fn first_stored_level(kind: PyramidKind) -> u32 {
+    u32::from(kind == PyramidKind::Cell)
+}
+
+/// Texels of the image of a `kind` pyramid over `size` (its stored levels, padded; module
+/// docs): times the format's bytes, what it holds.
+pub fn stored_texels(kind: PyramidKind, size: [u32; 2]) -> u64 {
+    let (pw, ph) = (
+        size[0].max(1).next_power_of_two(),
+        size[1].max(1).next_power_of_two(),
+    );
+    let first = first_stored_level(kind);
+    let mips = level_count(size).saturating_sub(first).max(1);
+    (first..first + mips)
+        .map(|l| u64::from((pw >> l).max(1)) * u64::from((ph >> l).max(1)))
+        .sum()
+}
+
 /// The pyramid of one height map.
 pub struct Pyramid {
-    /// The mip-chained image the build writes (see the module docs for its padded sizes).
+    /// The mip-chained image (see the module docs for its format, its padded sizes and
+    /// the levels it stores: mip `m` holds level `m + first_stored_level(kind)`).
     pub image: Image,
-    /// The traversal's copy in the map's format (see the module docs), when there is one.
-    compact: Option<Image>,
+    /// A view of each mip.
     level_views: Vec<vk::ImageView>,
     sampler: vk::Sampler,
+    /// Levels, level 0 to the root, stored or not.
+    levels: u32,
+    /// The first level stored (mip 0).
+    first: u32,
     /// What level 0 bounds.
     pub kind: PyramidKind,
     /// The map's size in texels (the logical size of level 0).
@@ -108,8 +154,8 @@ pub struct Pyramid {
 }
 
 impl Pyramid {
-    /// Allocates the pyramid of a `size` map whose height texture has `height_format`
-    /// (contents undefined until built).
+    /// Allocates the pyramid of a `size` map whose texels are of `height_format` (a
+    /// [`HeightTexture::texel_format`]; contents undefined until built).
     pub fn new(
         ctx: &Context,
         size: [u32; 2],
@@ -118,9 +164,13 @@ impl Pyramid {
         height_format: vk::Format,
     ) -> Result<Self> {
         let levels = level_count(size);
+        let first = first_stored_level(kind);
+        // A 1 x 1 map's cell pyramid has no stored level; its image (one texel, never
+        // written or read) keeps the descriptors valid.
+        let mips = levels.saturating_sub(first).max(1);
         let extent = vk::Extent2D {
-            width: size[0].max(1).next_power_of_two(),
-            height: size[1].max(1).next_power_of_two(),
+            width: (size[0].max(1).next_power_of_two() >> first).max(1),
+            height: (size[1].max(1).next_power_of_two() >> first).max(1),
         };
         let name = match kind {
             PyramidKind::Footprint => "pyramid[footprint]",
@@ -132,20 +182,22 @@ impl Pyramid {
                 (true, true) => "pyramid[falls-x-y]",
             },
         };
+        let format = storage_format(ctx, kind, height_format);
         let image = Image::new(
             ctx,
             name,
-            PYRAMID_FORMAT,
+            format,
             extent,
-            levels,
+            mips,
             vk::ImageUsageFlags::STORAGE
                 | vk::ImageUsageFlags::SAMPLED
                 | vk::ImageUsageFlags::TRANSFER_SRC,
         )?;
         let mut pyramid = Pyramid {
-            compact: None,
             level_views: Vec::new(),
             sampler: vk::Sampler::null(),
+            levels,
+            first,
             kind,
             size,
             addressing,
@@ -156,31 +208,7 @@ impl Pyramid {
             unsafe { pyramid.destroy(ctx) };
             return Err(e);
         }
-        if let Some(format) = compact_format(ctx, kind, height_format) {
-            match Image::new(
-                ctx,
-                &format!("{name}.compact"),
-                format,
-                extent,
-                levels,
-                vk::ImageUsageFlags::SAMPLED
-                    | vk::ImageUsageFlags::TRANSFER_DST
-                    | vk::ImageUsageFlags::TRANSFER_SRC,
-            ) {
-                Ok(image) => pyramid.compact = Some(image),
-                Err(e) => {
-                    // SAFETY: built above and never used by a command.
-                    unsafe { pyramid.destroy(ctx) };
-                    return Err(e);
-                }
-            }
-        }
         Ok(pyramid)
-    }
-
-    /// The image the traversals read: the compact copy, or the chain.
-    fn read_image(&self) -> &Image {
-        self.compact.as_ref().unwrap_or(&self.image)
     }
 
     fn create_views(&mut self, ctx: &Context, name: &str) -> Result<()> {
@@ -199,14 +227,20 @@ impl Pyramid {
         Ok(())
     }
 
-    /// Number of levels.
+    /// Number of levels, level 0 to the root (what the shaders' `pyramid_levels` say),
+    /// whether stored or not.
     pub fn levels(&self) -> u32 {
-        self.image.mip_levels
+        self.levels
     }
 
-    fn level_range(&self, level: u32) -> vk::ImageSubresourceRange {
+    /// The first level its image stores (mip 0): 1 for a cell pyramid, 0 otherwise.
+    pub fn first_stored_level(&self) -> u32 {
+        self.first
+    }
+
+    fn mip_range(&self, mip: u32) -> vk::ImageSubresourceRange {
         vk::ImageSubresourceRange {
-            base_mip_level: level,
+            base_mip_level: mip,
             level_count: 1,
             ..self.image.range()
         }
@@ -216,19 +250,20 @@ impl Pyramid {
     pub fn descriptor(&self) -> vk::DescriptorImageInfo {
         vk::DescriptorImageInfo {
             sampler: self.sampler,
-            image_view: self.read_image().view,
+            image_view: self.image.view,
             image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         }
     }
 
-    /// Reads every level back (logical sizes, row by row). The pyramid must be built
-    /// and idle in `SHADER_READ_ONLY_OPTIMAL`.
+    /// Reads every stored level back (levels [`Pyramid::first_stored_level`] to the root,
+    /// logical sizes, row by row), unorm codes `c` as `c / (2^bits - 1)` in `f32`. The
+    /// pyramid must be built and idle in `SHADER_READ_ONLY_OPTIMAL`.
     pub fn read_levels(&self, ctx: &Context, shot: &OneShot) -> Result<Vec<Vec<f32>>> {
-        let image = self.read_image();
-        (0..self.levels())
+        let image = &self.image;
+        (self.first..self.levels)
             .map(|level| {
-                let bytes = read_image_level(ctx, shot, image, level, Access::COMPUTE_SAMPLED)?;
-                // The compact formats as the shaders see them (`c / (2^bits - 1)`).
+                let mip = level - self.first;
+                let bytes = read_image_level(ctx, shot, image, mip, Access::COMPUTE_SAMPLED)?;
                 let stored: Vec<f32> = match image.format {
                     vk::Format::R8_UNORM => bytes.iter().map(|&c| f32::from(c) / 255.0).collect(),
                     vk::Format::R16_UNORM => bytemuck::cast_slice::<u8, u16>(&bytes)
@@ -237,7 +272,7 @@ impl Pyramid {
                         .collect(),
                     _ => bytemuck::cast_slice::<u8, f32>(&bytes).to_vec(),
                 };
-                let stride = (self.image.extent.width >> level).max(1) as usize;
+                let stride = (self.image.extent.width >> mip).max(1) as usize;
                 let [w, h] = level_size(self.size, level);
                 Ok((0..h as usize)
                     .flat_map(|j| stored[j * stride..j * stride + w as usize].iter().copied())
@@ -259,55 +294,71 @@ impl Destroy for Pyramid {
                 ctx.device().destroy_sampler(self.sampler, None);
                 self.sampler = vk::Sampler::null();
             }
-            if let Some(mut compact) = self.compact.take() {
-                compact.destroy(ctx);
-            }
             self.image.destroy(ctx);
         }
     }
 }
 
-/// The compact format of a `kind` pyramid of a `height_format` map (module docs), if
-/// the device can blit `R32_SFLOAT` into it and sample it.
-fn compact_format(
-    ctx: &Context,
-    kind: PyramidKind,
-    height_format: vk::Format,
-) -> Option<vk::Format> {
-    // Footprint bounds are means, not texels; falls pyramids are the relaxed cone
-    // build's scratch, read once.
-    if kind != PyramidKind::Cell {
-        return None;
-    }
-    let format = match height_format {
-        vk::Format::R8_UNORM | vk::Format::R16_UNORM => height_format,
-        _ => return None,
+/// The format a `kind` pyramid of a map whose texels are of `height_format` (a
+/// [`HeightTexture::texel_format`]) is stored in (module docs): for a cell pyramid of
+/// 8- or 16-bit unorm texels their own format, where the device samples it and writes it
+/// through formatless storage images; `R32_SFLOAT` otherwise.
+pub fn storage_format(ctx: &Context, kind: PyramidKind, height_format: vk::Format) -> vk::Format {
+    let format = match (kind, height_format) {
+        (PyramidKind::Cell, vk::Format::R8_UNORM | vk::Format::R16_UNORM) => height_format,
+        _ => return PYRAMID_FORMAT,
     };
-    let dst = vk::FormatFeatureFlags::BLIT_DST | vk::FormatFeatureFlags::SAMPLED_IMAGE;
-    (ctx.format_features(format).contains(dst)
-        && ctx
-            .format_features(PYRAMID_FORMAT)
-            .contains(vk::FormatFeatureFlags::BLIT_SRC))
-    .then_some(format)
+    let mut three = vk::FormatProperties3::default();
+    let mut two = vk::FormatProperties2::default().push_next(&mut three);
+    // SAFETY: the physical device belongs to the context's instance (Vulkan 1.3, which
+    // has vkGetPhysicalDeviceFormatProperties2 and VkFormatProperties3), alive as long as
+    // the context; the chain outlives the call.
+    unsafe {
+        ctx.instance().get_physical_device_format_properties2(
+            ctx.physical_device(),
+            format,
+            &mut two,
+        )
+    };
+    let needed = vk::FormatFeatureFlags2::STORAGE_IMAGE
+        | vk::FormatFeatureFlags2::SAMPLED_IMAGE
+        | vk::FormatFeatureFlags2::STORAGE_WRITE_WITHOUT_FORMAT
+        | vk::FormatFeatureFlags2::TRANSFER_SRC;
+    if three.optimal_tiling_features.contains(needed) {
+        format
+    } else {
+        PYRAMID_FORMAT
+    }
 }
 
-/// The reduction pipeline.
+/// The reduction pipelines: `R32_SFLOAT` chains and unorm ones (`glsl/pyramid.comp`'s
+/// `UNORM` variant).
 pub struct PyramidPass {
-    pipeline: ComputePipeline,
+    float: ComputePipeline,
+    unorm: ComputePipeline,
 }
 
 impl PyramidPass {
-    /// Builds the pipeline.
+    /// Builds the pipelines.
     pub fn new(ctx: &Context) -> Result<Self> {
-        Ok(PyramidPass {
-            pipeline: ComputePipeline::new(
-                ctx,
-                "pyramid",
-                &shaders::PYRAMID_COMP,
-                &BINDINGS,
-                std::mem::size_of::<PyramidParams>() as u32,
-            )?,
-        })
+        let push = std::mem::size_of::<PyramidParams>() as u32;
+        let mut float =
+            ComputePipeline::new(ctx, "pyramid", &shaders::PYRAMID_COMP, &BINDINGS, push)?;
+        let unorm = match ComputePipeline::new(
+            ctx,
+            "pyramid[unorm]",
+            &shaders::PYRAMID_COMP_UNORM,
+            &UNORM_BINDINGS,
+            push,
+        ) {
+            Ok(p) => p,
+            Err(e) => {
+                // SAFETY: built above and never used by a command.
+                unsafe { float.destroy(ctx) };
+                return Err(e);
+            }
+        };
+        Ok(PyramidPass { float, unorm })
     }
 
     /// Records the whole chain (see the module docs for the layouts on entry and exit).
@@ -317,7 +368,7 @@ impl PyramidPass {
     ///   render pass instance, for a queue of the context's queue family.
     /// * When the command buffer executes, `height` is in `SHADER_READ_ONLY_OPTIMAL`, its
     ///   writes visible to compute-shader sampled reads (as its fills leave it), and
-    ///   no access of `pyramid`'s images (the chain and its compact copy) is pending (its contents are discarded: frames
+    ///   no access of `pyramid`'s image is pending (its contents are discarded: frames
     ///   that read an earlier build have completed).
     /// * `height`, `pyramid` and this pass stay alive until the command buffer has
     ///   executed.
@@ -328,25 +379,36 @@ impl PyramidPass {
         height: &HeightTexture,
         pyramid: &Pyramid,
     ) -> Result<()> {
-        // Each level (and the compact copy) is a resource of the build's tracker, which
-        // places every barrier from the dispatches' declared accesses; all enter
-        // discarded (no access pending: this function's contract).
+        // Each stored level (by mip) is a resource of the build's tracker, which places
+        // every barrier from the dispatches' declared accesses; all enter discarded (no
+        // access pending: this function's contract).
         let mut t = Tracker::new();
         let levels = pyramid.levels();
-        for level in 0..levels {
-            t.enter(Some(level), Access::UNDEFINED);
+        let first = pyramid.first;
+        let mips = pyramid.image.mip_levels;
+        for mip in 0..mips {
+            t.enter(mip, Access::UNDEFINED);
         }
-        t.enter(None, Access::UNDEFINED);
-        let target = |key: Option<u32>| match (key, &pyramid.compact) {
-            (Some(level), _) => Target::Image(pyramid.image.raw, pyramid.level_range(level)),
-            (None, Some(compact)) => Target::Image(compact.raw, compact.range()),
-            (None, None) => Target::Memory,
+        let target = |mip: u32| Target::Image(pyramid.image.raw, pyramid.mip_range(mip));
+        // The mip a level's binding names: a level that is not stored (the cell
+        // pyramid's level 0, bound where the shader does not read or write it) names
+        // mip 0.
+        let mip_of = |level: u32| level.saturating_sub(first).min(mips - 1);
+        let code_max = match pyramid.image.format {
+            vk::Format::R8_UNORM => 255,
+            vk::Format::R16_UNORM => 65535,
+            _ => 0,
+        };
+        let (pipeline, bindings) = if code_max == 0 {
+            (&self.float, &BINDINGS)
+        } else {
+            (&self.unorm, &UNORM_BINDINGS)
         };
         let heights = [height.descriptor()];
-        let storage = |level: u32| {
+        let storage = |mip: u32| {
             [vk::DescriptorImageInfo {
                 sampler: vk::Sampler::null(),
-                image_view: pyramid.level_views[level as usize],
+                image_view: pyramid.level_views[mip as usize],
                 image_layout: vk::ImageLayout::GENERAL,
             }]
         };
@@ -359,26 +421,43 @@ impl PyramidPass {
             // Up to three levels per dispatch, as many as there are from this one.
             let count = (levels - level).min(3);
             // Level 0 reads the height map only; its `src` binding (statically used by
-            // the shader, not read on that path) names level 0 itself, so no later
-            // dispatch's write follows an unsynchronised read. A dispatch of fewer
-            // levels binds its own level as `next` / `next2` (not written on that path).
+            // the shader, not read on that path) names level 0 itself (the float chain:
+            // so no later dispatch's write follows an unsynchronised read) or the height
+            // map (the unorm variant's sampled `src`). A dispatch of fewer levels binds
+            // its own level as `next` / `next2` (not written on that path).
             let bound = [
                 level.saturating_sub(1),
                 level,
                 if count >= 2 { level + 1 } else { level },
                 if count == 3 { level + 2 } else { level },
-            ];
+            ]
+            .map(mip_of);
             // Each storage binding's level accessed as the shader's reflection says.
-            for ((name, _), l) in BINDINGS[1..].iter().zip(bound) {
-                let b = self.pipeline.bindings.iter().find(|b| b.name == *name);
+            for (i, ((name, _), l)) in bindings[1..].iter().zip(bound).enumerate() {
+                if i == 0 && level == 0 && code_max != 0 {
+                    // The height map: sampled-readable on entry (this function's contract).
+                    continue;
+                }
+                let b = pipeline.bindings.iter().find(|b| b.name == *name);
                 let b = b.ok_or_else(|| Error::Internal(format!("pyramid.comp has no {name}")))?;
-                t.declare(Some(l), binding_access(b))?;
+                t.declare(l, binding_access(b))?;
             }
             // SAFETY: this function's # Safety contract (`cmd` recording outside a render
             // pass, the pyramid alive and discarded on entry).
             unsafe { t.flush(ctx, cmd, target)? };
-            let [src, dst, next, next2] = bound.map(storage);
-            let p = &self.pipeline;
+            let [mut src, dst, next, next2] = bound.map(storage);
+            if code_max != 0 {
+                src = if level == 0 {
+                    heights
+                } else {
+                    [vk::DescriptorImageInfo {
+                        sampler: pyramid.sampler,
+                        image_view: pyramid.level_views[bound[0] as usize],
+                        image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+                    }]
+                };
+            }
+            let p = pipeline;
             let writes = [
                 p.image("u_height", &heights)?,
                 p.image("u_src", &src)?,
@@ -408,17 +487,22 @@ impl PyramidPass {
                 level,
                 kind: kind_code(pyramid.kind),
                 addressing,
-                pad: 0,
+                code_max,
                 next2_size,
+                store_dst: u32::from(level >= first),
+                pad: [0; 3],
             };
             let grid = [next2_size, next_size, dst_size][3 - count as usize];
             // SAFETY: this function's # Safety contract: `cmd` is recording outside a
-            // render pass; the writes match `BINDINGS` (the pipeline's set 0) and name
+            // render pass; the writes match `bindings` (the pipeline's set 0) and name
             // the live height texture (sampled-readable) and pyramid levels in `GENERAL`
-            // (the barriers above); the push constants are the `PyramidParams` the
-            // layout was built with; the pipeline lives as long as this pass.
+            // (written) or `SHADER_READ_ONLY_OPTIMAL` (the unorm variant's `src`: the
+            // barriers above), of the format the pipeline stores (R32_SFLOAT for
+            // `float`, a unorm format with the formatless storage features for `unorm`:
+            // `storage_format`); the push constants are the `PyramidParams` the layout
+            // was built with; the pipeline lives as long as this pass.
             unsafe {
-                self.pipeline.dispatch(
+                pipeline.dispatch(
                     ctx,
                     cmd,
                     &writes,
@@ -429,60 +513,10 @@ impl PyramidPass {
             };
             level += count;
         }
-        let Some(compact) = &pyramid.compact else {
-            // Left for the frames' sampled reads, as every build leaves its maps.
-            for level in 0..levels {
-                t.declare(Some(level), Access::COMPUTE_SAMPLED)?;
-            }
-            // SAFETY: as above.
-            return unsafe { t.flush(ctx, cmd, target) };
-        };
-        // The traversal's copy: every level blitted (nearest, same size: the exact
-        // float -> unorm conversion of values that are texels), padding included.
-        for level in 0..levels {
-            t.declare(Some(level), Access::TRANSFER_READ)?;
+        // Left for the frames' sampled reads, as every build leaves its maps.
+        for mip in 0..mips {
+            t.declare(mip, Access::COMPUTE_SAMPLED)?;
         }
-        t.declare(None, Access::TRANSFER_WRITE)?;
-        // SAFETY: as above; the copy is alive with no access pending.
-        unsafe { t.flush(ctx, cmd, target)? };
-        let layers = |level: u32| vk::ImageSubresourceLayers {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
-            mip_level: level,
-            base_array_layer: 0,
-            layer_count: 1,
-        };
-        let regions: Vec<vk::ImageBlit> = (0..levels)
-            .map(|level| {
-                let corner = vk::Offset3D {
-                    x: (pyramid.image.extent.width >> level).max(1) as i32,
-                    y: (pyramid.image.extent.height >> level).max(1) as i32,
-                    z: 1,
-                };
-                vk::ImageBlit {
-                    src_subresource: layers(level),
-                    src_offsets: [vk::Offset3D::default(), corner],
-                    dst_subresource: layers(level),
-                    dst_offsets: [vk::Offset3D::default(), corner],
-                }
-            })
-            .collect();
-        // SAFETY: as above; the chain is in `TRANSFER_SRC_OPTIMAL` and the copy in
-        // `TRANSFER_DST_OPTIMAL` (the transitions above), the regions within both images'
-        // levels (the same extents), and the device blits `R32_SFLOAT` into the copy's
-        // format (`compact_format`).
-        unsafe {
-            ctx.device().cmd_blit_image(
-                cmd,
-                pyramid.image.raw,
-                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                compact.raw,
-                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                &regions,
-                vk::Filter::NEAREST,
-            );
-        }
-        // Left for the frames' sampled reads.
-        t.declare(None, Access::COMPUTE_SAMPLED)?;
         // SAFETY: as above.
         unsafe { t.flush(ctx, cmd, target) }
     }
@@ -493,7 +527,8 @@ impl Destroy for PyramidPass {
     unsafe fn destroy(&mut self, ctx: &Context) {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
-            self.pipeline.destroy(ctx);
+            self.float.destroy(ctx);
+            self.unorm.destroy(ctx);
         }
     }
 }
@@ -599,6 +634,26 @@ mod tests {
         assert_eq!(level_size([1025, 3], 11), [1, 1]);
         assert_eq!(level_size([348, 1000], 9), [1, 2]);
         assert_eq!(level_size([348, 1000], 10), [1, 1]);
+    }
+
+    #[test]
+    fn the_cell_pyramid_stores_levels_1_and_up() {
+        assert_eq!(first_stored_level(PyramidKind::Cell), 1);
+        assert_eq!(first_stored_level(PyramidKind::Footprint), 0);
+        // 4096²: levels 1 to 12 (4^12 - 1) / 3 nodes, a third of the full chain's level 0.
+        let cell = stored_texels(PyramidKind::Cell, [4096, 4096]);
+        assert_eq!(cell, ((1u64 << 24) - 1) / 3);
+        assert_eq!(
+            stored_texels(PyramidKind::Footprint, [4096, 4096]),
+            (1 << 24) + cell
+        );
+        // Padded: a 1025 x 3 map's level 1 is stored 1024 x 2 wide.
+        assert_eq!(
+            stored_texels(PyramidKind::Cell, [1025, 3]),
+            2048 + 512 + 256 + 255
+        );
+        // A 1 x 1 map stores no level but keeps one texel.
+        assert_eq!(stored_texels(PyramidKind::Cell, [1, 1]), 1);
     }
 
     #[test]
