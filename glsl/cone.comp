@@ -3,8 +3,8 @@
 // src/passes/cone.rs for the definition and the proof sketch; docs/cones.md for the
 // choices). Texel space as in glsl/common/pyramid.glsl: cell (i, j) = [i, i + 1] x
 // [j, j + 1] between texel centres, its maximum M = the cell pyramid's level 0 (the
-// maximum of its 4 corner texels; the pyramid's image stores levels 1 and up, mip L - 1
-// holding level L: pyramid_at).
+// maximum of its 4 corner texels; where the pyramid's image stores levels 1 and up only,
+// mip L - 1 holds level L: pyramid_at, and M is read from the texels).
 //
 // Output (rg32f): (M, w). w is the cone ratio (texels of horizontal distance per unit of
 // height): every point q of the surface satisfies H(q) <= M + dist(q, C) / w, dist the
@@ -62,9 +62,15 @@ layout(push_constant) uniform ConeParams {
     uint addressing; // ADDRESSING_*
 } pc;
 
-// The cell pyramid's level-`level` node (level >= 1: the image's mip level - 1).
+// pc.levels: bits 0-15 the cell pyramid's levels, bit 16 set where its image does not
+// store level 0 (mip L - 1 holds level L).
+bool level0_stored() {
+    return (pc.levels & 0x10000u) == 0u;
+}
+
+// The cell pyramid's level-`level` node (level >= 1, or level 0 where it is stored).
 float pyramid_at(ivec2 node, int level) {
-    return texelFetch(u_pyramid, node, level - 1).r;
+    return texelFetch(u_pyramid, node, level0_stored() ? level : level - 1).r;
 }
 
 #include "texels.glsl"
@@ -171,7 +177,7 @@ shared float s_ring_falls[RING_SLOTS]; // node_falls; -1 where no node exists
 void main() {
     ivec2 c = ivec2(gl_GlobalInvocationID.xy);
     ivec2 n = ivec2(pc.map_size);
-    int top_level = int(pc.levels) - 1;
+    int top_level = int(pc.levels & 0xffffu) - 1;
     {
         ivec2 group = ivec2(gl_WorkGroupID.xy) * LOCAL_SIZE;
         for (int slot = int(gl_LocalInvocationIndex); slot < RING_SLOTS; slot += LOCAL_SIZE * LOCAL_SIZE) {
@@ -205,7 +211,7 @@ void main() {
         return;
     }
     vec4 g = cell_texels(c);
-    float m = max(max(g.w, g.z), max(g.x, g.y));
+    float m = level0_stored() ? pyramid_at(c, 0) : max(max(g.w, g.z), max(g.x, g.y));
     float w = CONE_RATIO_MAX;
 #ifdef RELAXED
     float w_relaxed = CONE_RATIO_MAX;
@@ -302,7 +308,7 @@ void main() {
     }
     if (pc.addressing == ADDRESSING_REPEAT) {
         // The global maximum (level 0 on a 1 x 1 map: its one cell, whose maximum is m).
-        float rise = (top_level > 0 ? pyramid_at(ivec2(0), top_level) : m) - m;
+        float rise = (top_level > 0 || level0_stored() ? pyramid_at(ivec2(0), top_level) : m) - m;
         float dist = max(float(min(n.x, n.y)), float(WINDOW));
         w = min(w, ratio(dist, rise));
 #ifdef RELAXED

@@ -83,7 +83,7 @@ layout(push_constant) uniform ShadowParams {
     uint mode;           // SHADOW_MODE_*
     uint steps;          // hard, marching: steps over the full depth (the method's)
     uint samples;        // soft: light samples
-    uint pyramid_levels; // levels of the bound pyramid (PYRAMID variant)
+    uint pyramid_levels; // levels of the bound pyramid (PYRAMID variant); bit 16: level 0 not stored
     uint material;       // the material this dispatch shadows (its tiles: binding 15)
     uint pad0;
     uint pad1;
@@ -117,7 +117,7 @@ bool hard_occluded(vec2 uv, vec2 climb) {
         start -= floor(start);
     }
     Ray light = Ray(start, -climb);
-    return pyramid_segment_hit(light, 0.0, t_stop, int(pc.pyramid_levels) - 1, iterations) >= 0.0;
+    return pyramid_segment_hit(light, 0.0, t_stop, pyramid_levels() - 1, iterations) >= 0.0;
 }
 #else
 bool hard_occluded(vec2 uv, vec2 climb) {

@@ -48,7 +48,8 @@ pub struct TraceParams {
     pub eps: f32,
     /// `pyramid`: the coarsest traversal level (with `TRACE_FLAG_AUTO_LEVEL`: a bias).
     pub max_level: u32,
-    /// Levels of the bound pyramid (0 without one).
+    /// Levels of the bound pyramid (0 without one; `Pyramid::shader_levels`: bit 16 set
+    /// where level 0 is not stored).
     pub pyramid_levels: u32,
     /// Displacement depth in tile units (`pom`: `N . V` from the parallax vector).
     pub depth_scale: f32,
@@ -118,7 +119,8 @@ pub struct PyramidParams {
 pub struct ConeParams {
     /// The map's size in texels (= cells).
     pub map_size: [u32; 2],
-    /// Levels of the cell pyramid.
+    /// Levels of the cell pyramid (`Pyramid::shader_levels`: bit 16 set where level 0 is
+    /// not stored).
     pub levels: u32,
     /// `ADDRESSING_*`.
     pub addressing: u32,
@@ -345,7 +347,8 @@ pub struct ShadowParams {
     pub steps: u32,
     /// Soft shadows: light samples.
     pub samples: u32,
-    /// Levels of the bound pyramid (0 without one).
+    /// Levels of the bound pyramid (0 without one; `Pyramid::shader_levels`: bit 16 set
+    /// where level 0 is not stored).
     pub pyramid_levels: u32,
     /// The material this dispatch shadows.
     pub material: u32,

@@ -183,8 +183,8 @@ impl MeshSize {
 }
 
 /// The one-off per-map images of the methods of a run alive at once: cell pyramids
-/// (levels 1 and up, each padded to a power of two: in the map's own format for 8- and
-/// 16-bit maps, `R32_SFLOAT` for float ones; counted at 4 bytes per node), footprint
+/// (padded to powers of two: every level in the map's own format for 8- and 16-bit maps,
+/// levels 1 and up in `R32_SFLOAT` for float ones; counted at 2 bytes per node), footprint
 /// pyramids (`pyramid`'s, every level in `R32_SFLOAT`), cone maps (`R32G32_SFLOAT`) and a
 /// relaxed cone map's build scratch (four more full `R32_SFLOAT` pyramids). Measured on
 /// an 8-bit 2048² map, 64x64 frame (peak resident memory over `relief`'s), when the cell
@@ -234,8 +234,10 @@ impl MethodMaps {
     /// Their bytes on a `size` map.
     pub fn bytes(&self, size: [u32; 2]) -> u64 {
         let (w, h) = (size[0].max(1), size[1].max(1));
-        let cell = 4 * stored_texels(PyramidKind::Cell, [w, h]);
-        let full = 4 * stored_texels(PyramidKind::Footprint, [w, h]);
+        // A cell pyramid: every level at 1 or 2 bytes (8- and 16-bit maps) or levels 1 and
+        // up at 4 (float maps, a third of the nodes): at most 2 bytes per node.
+        let cell = 2 * stored_texels(0, [w, h]);
+        let full = 4 * stored_texels(0, [w, h]);
         let cone = u64::from(w) * u64::from(h) * 8;
         u64::from(self.pyramids) * cell
             + u64::from(self.footprint_pyramids) * full
@@ -659,8 +661,8 @@ mod tests {
     fn method_maps_follow_what_the_method_builds() {
         let size = [2048, 2048];
         let pyramid = MethodMaps::of(Method::Exact, false).bytes(size);
-        // 4 bytes per node of levels 1 and up of the padded chain: 4 (4^11 - 1) / 3.
-        assert_eq!(pyramid, 4 * ((1u64 << 22) - 1) / 3);
+        // 2 bytes per node of the padded chain: 2 (4^12 - 1) / 3.
+        assert_eq!(pyramid, 2 * ((1u64 << 24) - 1) / 3);
         assert_eq!(MethodMaps::of(Method::Relief, false).bytes(size), 0);
         assert_eq!(MethodMaps::of(Method::Relief, true).bytes(size), pyramid);
         assert_eq!(MethodMaps::of(Method::Exact, true).bytes(size), pyramid);
@@ -675,10 +677,10 @@ mod tests {
         let relaxed = MethodMaps::of(Method::RelaxedCone, false).bytes(size);
         assert_eq!(relaxed, cone + 4 * full);
         // A 1025-wide map pads its pyramid to 2048.
-        // Levels 1 to 11 of the padded chain: 1024 + 512 + .. + 1 nodes.
+        // The padded chain: 2048 + 1024 + .. + 1 nodes.
         assert_eq!(
             MethodMaps::of(Method::Exact, false).bytes([1025, 1]),
-            4 * 2047
+            2 * 4095
         );
         assert_eq!(
             MethodMaps::together(&[Method::Exact, Method::ConeExact, Method::Pom]),

@@ -68,7 +68,7 @@ bool cone_start(Ray ray, out ConeRay r) {
         }
         r.t_end = max(r.t_end, 0.0);
     }
-    float global_max = pyramid_node_max(ivec2(0), int(pc.pyramid_levels) - 1);
+    float global_max = pyramid_node_max(ivec2(0), pyramid_levels() - 1);
     r.t_start = min(max(1.0 - global_max, 0.0), r.t_end);
     for (int a = 0; a < 2; ++a) {
 #ifdef CONE_PRECISE

@@ -11,9 +11,11 @@
 // for repeat addressing; for clamp addressing the decal covers cells -1 ..= W - 1 and the
 // half cell -1, whose corners are column/row 0's texels, is bounded by cell 0's value).
 // Level L node n covers the cells [n 2^L, min((n + 1) 2^L, W)) of each tile.
-// Level 0 is not stored (src/passes/pyramid.rs): a cell's bound is the maximum of its 4
-// corner texels, read from the map (pyramid_node_max), and the image's mip L - 1 holds
-// level L.
+// The bound pyramid stores every level in the map's own format for 8- and 16-bit maps;
+// for other maps (R32_SFLOAT) levels 1 and up only (src/passes/pyramid.rs): there a
+// cell's bound is the maximum of its 4 corner texels, read from the map
+// (pyramid_node_max), and the image's mip L - 1 holds level L. pc.pyramid_levels: bits
+// 0-15 the levels (level 0 to the root), bit 16 set where level 0 is not stored.
 #ifndef DISPMAP_PYRAMID_GLSL
 #define DISPMAP_PYRAMID_GLSL
 
@@ -24,9 +26,23 @@ float cell_max(vec4 g) {
     return max(max(g.w, g.z), max(g.x, g.y));
 }
 
+// Levels of the bound pyramid, level 0 to the root.
+int pyramid_levels() {
+    return int(pc.pyramid_levels & 0xffffu);
+}
+
+// Whether the pyramid's image stores level 0 (mip L holds level L); else mip L - 1 does.
+bool pyramid_level0_stored() {
+    return (pc.pyramid_levels & 0x10000u) == 0u;
+}
+
 // The bound of level-`level` node `node` (its index within the level, as node_range
-// gives it): level 0 from the map's texels, the others from the pyramid's image.
+// gives it): from the pyramid's image, or level 0 from the map's texels where the image
+// does not store it.
 float pyramid_node_max(ivec2 node, int level) {
+    if (pyramid_level0_stored()) {
+        return texelFetch(u_pyramid, node, level).r;
+    }
     return level == 0 ? cell_max(cell_texels(node)) : texelFetch(u_pyramid, node, level - 1).r;
 }
 
@@ -443,7 +459,7 @@ const int START_LEVEL_CAP = 5;
 
 // The finest level whose nodes are at least `cells` cells wide (a restart level).
 int level_for_span(float cells) {
-    int top = int(pc.pyramid_levels) - 1;
+    int top = pyramid_levels() - 1;
     return clamp(int(ceil(log2(max(cells, 1.0)))), 0, top);
 }
 
@@ -472,7 +488,7 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
         }
         t_end = max(t_end, 0.0);
     }
-    int top = int(pc.pyramid_levels) - 1;
+    int top = pyramid_levels() - 1;
     float global_max = pyramid_node_max(ivec2(0), top);
     float t = max(t_begin, 1.0 - global_max);
     if (t > t_end) {
@@ -502,9 +518,12 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
     // CPU driver (lavapipe runs 8 pixels in lockstep with masks) pays for a branch that
     // any lane takes on every iteration: inside the loop the cell test (4 fetches and a
     // quadratic) was paid whenever any pixel of the group was at a leaf.
-    // A level-0 step reads the cell's texels (its bound, pyramid_node_max); the leaf test
-    // that may follow reads the same ones (`corners`), but for clamp addressing's half
-    // cell -1, bounded by cell 0.
+    // Where the pyramid does not store level 0, a level-0 step reads the cell's texels
+    // (its bound, pyramid_node_max); the leaf test that may follow reads the same ones
+    // (`corners`), but for clamp addressing's half cell -1, bounded by cell 0. The
+    // choice is the same for every pixel of a dispatch (one pyramid).
+    bool stored0 = pyramid_level0_stored();
+    int mip_shift = stored0 ? 0 : 1;
     float step = 0.0;
     vec4 corners = vec4(0.0);
     while (step < cap) {
@@ -518,11 +537,11 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
             node_range(cell.y, n_cells.y, level, lo.y, hi.y, node.y);
             iterations += 1u;
             float node_max;
-            if (level == 0) {
+            if (level == 0 && !stored0) {
                 corners = cell_texels(node);
                 node_max = cell_max(corners);
             } else {
-                node_max = texelFetch(u_pyramid, node, level - 1).r;
+                node_max = texelFetch(u_pyramid, node, level - mip_shift).r;
             }
             exit = vec2(1e30);
             for (int a = 0; a < 2; ++a) {
@@ -552,7 +571,7 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
         if (!at_leaf) {
             break;
         }
-        if (pc.addressing == ADDRESSING_CLAMP && any(lessThan(cell, ivec2(0)))) {
+        if (stored0 || (pc.addressing == ADDRESSING_CLAMP && any(lessThan(cell, ivec2(0))))) {
             corners = cell_texels(cell);
         }
         float th = cell_hit(cell, corners, origin, dir, t, t_lo, t_end, long_ray);
@@ -599,7 +618,7 @@ float pyramid_first_hit_from(Ray ray, float t_start, float t_stop, int start_lev
 
 // pyramid_first_hit_from starting at the root.
 float pyramid_first_hit(Ray ray, float t_start, float t_stop, inout uint iterations) {
-    return pyramid_first_hit_from(ray, t_start, t_stop, int(pc.pyramid_levels) - 1, iterations);
+    return pyramid_first_hit_from(ray, t_start, t_stop, pyramid_levels() - 1, iterations);
 }
 
 #endif

@@ -35,7 +35,7 @@ layout(push_constant) uniform TraceParams {
     uvec2 corner_size;  // dig: corner-grid size
     float eps;          // dig: eps1 = eps2
     uint max_level;     // pyramid: coarsest traversal level
-    uint pyramid_levels;// levels of the bound pyramid (0: none)
+    uint pyramid_levels;// levels of the bound pyramid (0: none); bit 16: level 0 not stored
     float depth_scale;  // displacement depth in tile units
     float lod_threshold;// TRACE_FLAG_LOD: the mip level from which pixels take bump mapping
     uint material;      // the material this dispatch traces (its tiles: binding 15)

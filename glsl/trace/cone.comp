@@ -60,7 +60,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
         // Out of cone steps before the ray's end: the exact pyramid traversal from the
         // point reached (above the surface), as cone-exact does.
         if (step >= cap && t < r.t_end) {
-            float th = pyramid_first_hit_from(ray, t, 1.0, int(pc.pyramid_levels) - 1, iterations);
+            float th = pyramid_first_hit_from(ray, t, 1.0, pyramid_levels() - 1, iterations);
             return th < 0.0 ? miss(ray, iterations) : hit_at(ray, 1.0 - th, iterations);
         }
         if (t >= 1.0) {

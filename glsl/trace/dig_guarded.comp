@@ -44,7 +44,7 @@ Hit trace_ray(Ray ray, ivec2 pixel) {
             return hit_at_t(ray, t, iterations);
         }
     }
-    int level = int(pc.pyramid_levels) - 1;
+    int level = pyramid_levels() - 1;
     if (constrained) {
         vec2 origin, dir;
         texel_ray(ray, origin, dir);

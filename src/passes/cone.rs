@@ -349,7 +349,7 @@ impl ConePass {
         }
         let push = ConeParams {
             map_size: cone.size,
-            levels: pyramid.levels(),
+            levels: pyramid.shader_levels(),
             addressing: match cone.addressing {
                 Addressing::Repeat => ADDRESSING_REPEAT,
                 Addressing::Clamp => ADDRESSING_CLAMP,

@@ -19,27 +19,30 @@
 //!
 //! # What is kept
 //!
-//! A cell pyramid (the one the traversals read, kept as long as its map) stores levels
-//! 1 and up only: a traversal at level 0 bounds the cell by the maximum of its 4 corner
-//! texels, read from the map itself (the values the build reduces, as the shaders sample
-//! them; `pyramid_node_max` in `glsl/common/pyramid.glsl`), which is also what its exact
-//! leaf test reads. Its image's mip `m` holds level `m + 1`; [`Pyramid::levels`] counts
-//! level 0 all the same. Level 0 was three quarters of the nodes.
-//!
-//! The levels are built directly in the map's own format where its texels are 8- or
-//! 16-bit unorm ([`storage_format`]: `R8_UNORM` / `R16_UNORM`; a host map's channel of
-//! such a format too): every node is a maximum of texels, and the shader stores that
-//! texel's code, so the pyramid samples exactly as the height texture samples the
-//! texels (bit for bit the maxima an `f32` chain would hold). Other maps (`f32` texels, a
+//! A cell pyramid (the one the traversals read, kept as long as its map) is built
+//! directly in the map's own format where its texels are 8- or 16-bit unorm
+//! ([`storage_format`]: `R8_UNORM` / `R16_UNORM`; a host map's channel of such a format
+//! too): every node is a maximum of texels, and the shader stores that texel's code, so
+//! the pyramid samples exactly as the height texture samples the texels (bit for bit the
+//! maxima an `f32` chain would hold), every level included. Other maps (`f32` texels, a
 //! host's BC4 or float image, whose sampled values are not codes of a narrower format)
-//! get an `R32_SFLOAT` chain of the exact maxima. A 4096² map's cell pyramid is thus
-//! 10.7 MiB (`R16_UNORM`), 5.3 MiB (`R8_UNORM`) or 21.3 MiB (`R32_SFLOAT`).
+//! get an `R32_SFLOAT` chain of the exact maxima that stores levels 1 and up only: a
+//! traversal at level 0 bounds the cell by the maximum of its 4 corner texels, read from
+//! the map itself (the values the build reduces, as the shaders sample them;
+//! `pyramid_node_max` in `glsl/common/pyramid.glsl`), which is also what its exact leaf
+//! test reads; its image's mip `m` holds level `m + 1` ([`Pyramid::first_stored_level`],
+//! told to the shaders by [`Pyramid::shader_levels`]); [`Pyramid::levels`] counts level
+//! 0 all the same. Level 0 is three quarters of the nodes. A 4096² map's cell pyramid is
+//! thus 42.7 MiB (`R16_UNORM`), 21.3 MiB (`R8_UNORM`) or 21.3 MiB (`R32_SFLOAT`, levels
+//! 1 and up). (Reading level 0 from the map for the 8- and 16-bit maps too would save
+//! three quarters of theirs, but on lavapipe it made `exact` 1.5-2x slower: a level-0
+//! step's gather and its wrapping arithmetic against one fetch.)
 //!
 //! The footprint pyramid (means of texels, `pyramid`'s bounds) and the relaxed cone
-//! build's falls pyramids (scratch, read once) are full `R32_SFLOAT` chains, level 0
-//! included. A device without storage writes of the unorm format without a format
-//! qualifier (Vulkan 1.3's `STORAGE_WRITE_WITHOUT_FORMAT` format feature; the level below
-//! is read through a sampler) gets `R32_SFLOAT` cell pyramids.
+//! build's falls pyramids (scratch, read once) are full `R32_SFLOAT` chains. A device
+//! without storage writes of the unorm format without a format qualifier (Vulkan 1.3's
+//! `STORAGE_WRITE_WITHOUT_FORMAT` format feature; the level below is read through a
+//! sampler) gets `R32_SFLOAT` cell pyramids.
 //!
 //! # Contract (engine embedding)
 //!
@@ -113,20 +116,20 @@ pub fn level_size(size: [u32; 2], level: u32) -> [u32; 2] {
     [shrink(size[0]), shrink(size[1])]
 }
 
-/// The first level a `kind` pyramid stores: 1 for the cell pyramid (module docs), 0 for
-/// the others.
-pub fn first_stored_level(kind: PyramidKind) -> u32 {
-    u32::from(kind == PyramidKind::Cell)
+/// The first level a `kind` pyramid stored in `format` ([`storage_format`]) keeps: 1 for
+/// an `R32_SFLOAT` cell pyramid (module docs), 0 for the others.
+pub fn first_stored_level(kind: PyramidKind, format: vk::Format) -> u32 {
+    u32::from(kind == PyramidKind::Cell && format == PYRAMID_FORMAT)
 }
 
-/// Texels of the image of a `kind` pyramid over `size` (its stored levels, padded; module
-/// docs): times the format's bytes, what it holds.
-pub fn stored_texels(kind: PyramidKind, size: [u32; 2]) -> u64 {
+/// Texels of the image of a pyramid over `size` whose first stored level is `first`
+/// ([`first_stored_level`]: its stored levels, padded; module docs): times the format's
+/// bytes, what it holds.
+pub fn stored_texels(first: u32, size: [u32; 2]) -> u64 {
     let (pw, ph) = (
         size[0].max(1).next_power_of_two(),
         size[1].max(1).next_power_of_two(),
     );
-    let first = first_stored_level(kind);
     let mips = level_count(size).saturating_sub(first).max(1);
     (first..first + mips)
         .map(|l| u64::from((pw >> l).max(1)) * u64::from((ph >> l).max(1)))
@@ -164,9 +167,10 @@ impl Pyramid {
         height_format: vk::Format,
     ) -> Result<Self> {
         let levels = level_count(size);
-        let first = first_stored_level(kind);
-        // A 1 x 1 map's cell pyramid has no stored level; its image (one texel, never
-        // written or read) keeps the descriptors valid.
+        let format = storage_format(ctx, kind, height_format);
+        let first = first_stored_level(kind, format);
+        // A 1 x 1 map's `R32_SFLOAT` cell pyramid has no stored level; its image (one
+        // texel, never written or read) keeps the descriptors valid.
         let mips = levels.saturating_sub(first).max(1);
         let extent = vk::Extent2D {
             width: (size[0].max(1).next_power_of_two() >> first).max(1),
@@ -182,7 +186,6 @@ impl Pyramid {
                 (true, true) => "pyramid[falls-x-y]",
             },
         };
-        let format = storage_format(ctx, kind, height_format);
         let image = Image::new(
             ctx,
             name,
@@ -233,9 +236,16 @@ impl Pyramid {
         self.levels
     }
 
-    /// The first level its image stores (mip 0): 1 for a cell pyramid, 0 otherwise.
+    /// The first level its image stores (mip 0): 1 for an `R32_SFLOAT` cell pyramid, 0
+    /// otherwise.
     pub fn first_stored_level(&self) -> u32 {
         self.first
+    }
+
+    /// What the shaders' `pyramid_levels` (the cone build's `levels`) say: bits 0-15 the
+    /// levels, bit 16 set where level 0 is not stored (`glsl/common/pyramid.glsl`).
+    pub fn shader_levels(&self) -> u32 {
+        self.levels | (self.first << 16)
     }
 
     fn mip_range(&self, mip: u32) -> vk::ImageSubresourceRange {
@@ -637,23 +647,25 @@ mod tests {
     }
 
     #[test]
-    fn the_cell_pyramid_stores_levels_1_and_up() {
-        assert_eq!(first_stored_level(PyramidKind::Cell), 1);
-        assert_eq!(first_stored_level(PyramidKind::Footprint), 0);
+    fn only_the_f32_cell_pyramid_leaves_level_0_to_the_map() {
+        let f32_cell = first_stored_level(PyramidKind::Cell, PYRAMID_FORMAT);
+        assert_eq!(f32_cell, 1);
+        assert_eq!(
+            first_stored_level(PyramidKind::Cell, vk::Format::R16_UNORM),
+            0
+        );
+        assert_eq!(
+            first_stored_level(PyramidKind::Footprint, PYRAMID_FORMAT),
+            0
+        );
         // 4096²: levels 1 to 12 (4^12 - 1) / 3 nodes, a third of the full chain's level 0.
-        let cell = stored_texels(PyramidKind::Cell, [4096, 4096]);
+        let cell = stored_texels(1, [4096, 4096]);
         assert_eq!(cell, ((1u64 << 24) - 1) / 3);
-        assert_eq!(
-            stored_texels(PyramidKind::Footprint, [4096, 4096]),
-            (1 << 24) + cell
-        );
+        assert_eq!(stored_texels(0, [4096, 4096]), (1 << 24) + cell);
         // Padded: a 1025 x 3 map's level 1 is stored 1024 x 2 wide.
-        assert_eq!(
-            stored_texels(PyramidKind::Cell, [1025, 3]),
-            2048 + 512 + 256 + 255
-        );
-        // A 1 x 1 map stores no level but keeps one texel.
-        assert_eq!(stored_texels(PyramidKind::Cell, [1, 1]), 1);
+        assert_eq!(stored_texels(1, [1025, 3]), 2048 + 512 + 256 + 255);
+        // A 1 x 1 map stores no level from 1 on but keeps one texel.
+        assert_eq!(stored_texels(1, [1, 1]), 1);
     }
 
     #[test]

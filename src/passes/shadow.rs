@@ -359,7 +359,7 @@ impl ShadowPass {
         writes.push(pl.image("u_visibility", &out)?);
         writes.push(pl.image("u_depth", &depth)?);
         let push = ShadowParams {
-            pyramid_levels: pyramid.map_or(0, Pyramid::levels),
+            pyramid_levels: pyramid.map_or(0, Pyramid::shader_levels),
             material: tiles.material,
             ..*params
         };

@@ -227,7 +227,7 @@ impl TracePass {
             corner_size: corners.map_or([0, 0], CornerGrid::size),
             eps: params.dig_eps(),
             max_level,
-            pyramid_levels: pyramid.map_or(0, Pyramid::levels),
+            pyramid_levels: pyramid.map_or(0, Pyramid::shader_levels),
             depth_scale,
             lod_threshold: params.lod_threshold.unwrap_or(0.0),
             material: tiles.material,
