@@ -32,9 +32,8 @@
 // (src/passes/pyramid.rs: cpu_build), so the two agree bit for bit.
 //
 // An R32_SFLOAT cell pyramid does not store level 0 (pc.store_dst = 0 on the dispatch
-// that starts there): the traversals bound a cell by its 4 corner texels, read from the
-// map itself (glsl/common/pyramid.glsl: pyramid_node_max), the values this dispatch
-// reduces.
+// that starts there): the traversals test a level-0 cell's texels, read from the map
+// itself, exactly (glsl/common/pyramid.glsl), the cone build takes its maximum from them.
 //
 // UNORM (the cell pyramid of a map whose texels are 8- or 16-bit unorm, in R8_UNORM or
 // R16_UNORM; the default variant writes R32_SFLOAT chains): the maxima are texels as the

@@ -14,7 +14,8 @@
 // The bound pyramid stores every level in the map's own format for 8- and 16-bit maps;
 // for other maps (R32_SFLOAT) levels 1 and up only (src/passes/pyramid.rs): there a
 // cell's bound is the maximum of its 4 corner texels, read from the map
-// (pyramid_node_max), and the image's mip L - 1 holds level L. pc.pyramid_levels: bits
+// (pyramid_node_max; the traversal's loop tests such a cell instead, segment_hit), and
+// the image's mip L - 1 holds level L. pc.pyramid_levels: bits
 // 0-15 the levels (level 0 to the root), bit 16 set where level 0 is not stored.
 #ifndef DISPMAP_PYRAMID_GLSL
 #define DISPMAP_PYRAMID_GLSL
@@ -518,14 +519,15 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
     // CPU driver (lavapipe runs 8 pixels in lockstep with masks) pays for a branch that
     // any lane takes on every iteration: inside the loop the cell test (4 fetches and a
     // quadratic) was paid whenever any pixel of the group was at a leaf.
-    // Where the pyramid does not store level 0, a level-0 step reads the cell's texels
-    // (its bound, pyramid_node_max); the leaf test that may follow reads the same ones
-    // (`corners`), but for clamp addressing's half cell -1, bounded by cell 0. The
-    // choice is the same for every pixel of a dispatch (one pyramid).
+    // Where the pyramid does not store level 0, a level-0 node is never skipped: the
+    // leaf test runs on it (the exact test of the cell's texels, which finds no root
+    // where the ray clears them) and a miss leaves the cell exactly as a skip would
+    // (the same leave_node), so the hits and the step counts are those of a traversal
+    // with level 0 stored. No texel read in this loop: on lavapipe a gather there (even
+    // one never taken) made every traversal 1.4x slower.
     bool stored0 = pyramid_level0_stored();
     int mip_shift = stored0 ? 0 : 1;
     float step = 0.0;
-    vec4 corners = vec4(0.0);
     while (step < cap) {
         bool at_leaf = false;
         ivec2 lo, hi;
@@ -536,12 +538,9 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
             node_range(cell.x, n_cells.x, level, lo.x, hi.x, node.x);
             node_range(cell.y, n_cells.y, level, lo.y, hi.y, node.y);
             iterations += 1u;
-            float node_max;
-            if (level == 0 && !stored0) {
-                corners = cell_texels(node);
-                node_max = cell_max(corners);
-            } else {
-                node_max = texelFetch(u_pyramid, node, level - mip_shift).r;
+            float node_max = texelFetch(u_pyramid, node, max(level - mip_shift, 0)).r;
+            if (level < mip_shift) {
+                node_max = 2.0;
             }
             exit = vec2(1e30);
             for (int a = 0; a < 2; ++a) {
@@ -571,10 +570,7 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
         if (!at_leaf) {
             break;
         }
-        if (stored0 || (pc.addressing == ADDRESSING_CLAMP && any(lessThan(cell, ivec2(0))))) {
-            corners = cell_texels(cell);
-        }
-        float th = cell_hit(cell, corners, origin, dir, t, t_lo, t_end, long_ray);
+        float th = cell_hit(cell, cell_texels(cell), origin, dir, t, t_lo, t_end, long_ray);
         if (th >= 0.0) {
             return th;
         }

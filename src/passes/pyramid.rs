@@ -27,16 +27,18 @@
 //! maxima an `f32` chain would hold), every level included. Other maps (`f32` texels, a
 //! host's BC4 or float image, whose sampled values are not codes of a narrower format)
 //! get an `R32_SFLOAT` chain of the exact maxima that stores levels 1 and up only: a
-//! traversal at level 0 bounds the cell by the maximum of its 4 corner texels, read from
-//! the map itself (the values the build reduces, as the shaders sample them;
-//! `pyramid_node_max` in `glsl/common/pyramid.glsl`), which is also what its exact leaf
-//! test reads; its image's mip `m` holds level `m + 1` ([`Pyramid::first_stored_level`],
+//! traversal that reaches a level-0 cell runs the exact leaf test on its texels, read
+//! from the map itself, where a bound would have let it skip the cell (a miss leaves the
+//! cell as the skip does: the same hits and step counts; the cone build reads a cell's
+//! maximum from its 4 texels, `pyramid_node_max` in `glsl/common/pyramid.glsl` too);
+//! its image's mip `m` holds level `m + 1` ([`Pyramid::first_stored_level`],
 //! told to the shaders by [`Pyramid::shader_levels`]); [`Pyramid::levels`] counts level
 //! 0 all the same. Level 0 is three quarters of the nodes. A 4096² map's cell pyramid is
 //! thus 42.7 MiB (`R16_UNORM`), 21.3 MiB (`R8_UNORM`) or 21.3 MiB (`R32_SFLOAT`, levels
 //! 1 and up). (Reading level 0 from the map for the 8- and 16-bit maps too would save
-//! three quarters of theirs, but on lavapipe it made `exact` 1.5-2x slower: a level-0
-//! step's gather and its wrapping arithmetic against one fetch.)
+//! three quarters of theirs, but on lavapipe it made `exact` 1.4-2x slower: a level-0
+//! step's gather and its wrapping arithmetic against one fetch, and a texel read in the
+//! traversal's loop costs even where it is not taken.)
 //!
 //! The footprint pyramid (means of texels, `pyramid`'s bounds) and the relaxed cone
 //! build's falls pyramids (scratch, read once) are full `R32_SFLOAT` chains. A device
