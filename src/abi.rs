@@ -737,7 +737,7 @@ mod tests {
         for s in shaders::ALL.iter().filter(|s| s.name.starts_with("trace/")) {
             let words = s.words().unwrap();
             let offs = block_offsets(&words, "TraceParams");
-            assert_eq!(offs.len(), 16, "{}", s.name);
+            assert_eq!(offs.len(), 19, "{}", s.name);
         }
     }
 }
