@@ -58,6 +58,13 @@ pub struct TraceParams {
     pub lod_threshold: f32,
     /// The material this dispatch traces (the index in the pass's table).
     pub material: u32,
+    /// With `TRACE_FLAG_CURVED`: the pixel rays ([`crate::passes::trace::TraceView`]):
+    /// the near-plane point at the frame's centre, eye-relative (w: 0).
+    pub view_origin: [f32; 4],
+    /// Its step per NDC unit along x (w: 0).
+    pub view_dx: [f32; 4],
+    /// Its step per NDC unit along y (w: 0).
+    pub view_dy: [f32; 4],
 }
 
 /// `TRACE_FLAG_AUTO_LEVEL` in `glsl/common/trace.glsl`: the pyramid method derives its
@@ -67,6 +74,11 @@ pub const TRACE_FLAG_AUTO_LEVEL: u32 = 1;
 /// `TRACE_FLAG_LOD` in `glsl/common/trace.glsl`: the level-of-detail blend to bump
 /// mapping at `TraceParams::lod_threshold` (Tatarchuk 2006), for every method.
 pub const TRACE_FLAG_LOD: u32 = 2;
+
+/// `TRACE_FLAG_CURVED` in `glsl/common/trace.glsl`: curved macro geometry
+/// (`glsl/common/curved.glsl`), for the methods that honour it
+/// ([`crate::method::Method::traces_curved`]).
+pub const TRACE_FLAG_CURVED: u32 = 4;
 
 /// `ForwardParams` in `glsl/forward/forward.glsl`: the forward pass's step counts (a
 /// uniform buffer, [`crate::passes::forward`]).
@@ -484,10 +496,13 @@ mod tests {
                 ("depth_scale", offset_of!(TraceParams, depth_scale)),
                 ("lod_threshold", offset_of!(TraceParams, lod_threshold)),
                 ("material", offset_of!(TraceParams, material)),
+                ("view_origin", offset_of!(TraceParams, view_origin)),
+                ("view_dx", offset_of!(TraceParams, view_dx)),
+                ("view_dy", offset_of!(TraceParams, view_dy)),
             ],
             size_of::<TraceParams>(),
         );
-        assert_eq!(size_of::<TraceParams>(), 80);
+        assert_eq!(size_of::<TraceParams>(), 128);
     }
 
     #[test]
@@ -735,7 +750,7 @@ mod tests {
         for s in shaders::ALL.iter().filter(|s| s.name.starts_with("trace/")) {
             let words = s.words().unwrap();
             let offs = block_offsets(&words, "TraceParams");
-            assert_eq!(offs.len(), 16, "{}", s.name);
+            assert_eq!(offs.len(), 19, "{}", s.name);
         }
     }
 }

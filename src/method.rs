@@ -225,6 +225,14 @@ impl Method {
         matches!(self, Method::Exact | Method::DigGuarded | Method::ConeExact)
     }
 
+    /// Whether the method traces curved macro geometry when the pass is asked to
+    /// (`glsl/common/curved.glsl`: each pixel's ray follows the curvature of its base
+    /// surface and misses when it leaves the shell): `exact`, `relief` and `pom`. The
+    /// others trace every pixel's tangent plane.
+    pub fn traces_curved(self) -> bool {
+        matches!(self, Method::Exact | Method::Relief | Method::Pom)
+    }
+
     /// Whether the method is in the default method lists: `dispmap bench`'s default
     /// `--methods` and map-size sweep, and the `demo`'s table. Every method stays
     /// available by name. `cone-exact` is out: it has `exact`'s accuracy at 1.2x to 3.7x

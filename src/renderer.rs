@@ -581,6 +581,33 @@ impl Renderer {
         result
     }
 
+    /// Traces the displaced meshes as curved geometry (`on`) or as their tangent planes
+    /// (the default): [`DisplacementPass::set_material_curved`] on the material of every
+    /// displaced mesh object (a single-geometry scene's when it is a mesh). The tiled
+    /// plane and the quad are never curved.
+    pub fn set_curved(&mut self, on: bool) -> Result<()> {
+        let materials: Vec<MaterialId> = match &self.objects {
+            Some(o) => o
+                .meshes
+                .iter()
+                .zip(&o.materials)
+                .filter_map(|(mesh, m)| mesh.as_ref().and(*m))
+                .collect(),
+            None if matches!(
+                self.settings.scene.geometry,
+                Geometry::TiledPlane | Geometry::Quad
+            ) =>
+            {
+                Vec::new()
+            }
+            None => vec![self.pass.primary()],
+        };
+        for m in materials {
+            self.pass.set_material_curved(m, on)?;
+        }
+        Ok(())
+    }
+
     /// Switches self-shadowing (builds or drops the `shadow` pass and its image).
     pub fn set_shadows(&mut self, shadows: ShadowSettings) -> Result<()> {
         self.pass.set_shadows(shadows)?;

@@ -151,6 +151,11 @@ pub(crate) struct RenderArgs {
     /// Also compute the exact reference and write the metrics JSON here.
     #[arg(long)]
     pub(crate) metrics: Option<PathBuf>,
+    /// Trace displaced meshes as curved geometry: each pixel's ray follows the curvature of
+    /// the mesh under it and misses when it leaves the relief's shell, so carved outlines
+    /// show (methods exact, relief and pom; the others and the plane trace tangent planes).
+    #[arg(long)]
+    pub(crate) curved: bool,
     /// Also write the per-pixel iteration count of the trace pass as a colour-mapped PNG
     /// (viridis-like: dark purple = few, yellow = many; black = no geometry; white = a
     /// non-finite count). Scaled to the frame's largest count unless --heatmap-max.

@@ -257,6 +257,7 @@ pub(crate) fn render(
         dispmap_cli::frame_limit::check(&ctx, settings.width, settings.height, "--size")?;
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
+        renderer.set_curved(args.curved)?;
         let mut coverage = None;
         let (timings, color, error, hits, rays) = if args.metrics.is_some() {
             let reference = Reference::new(&field, settings.scene.addressing());

@@ -256,6 +256,7 @@ pub fn render(
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)
             .map_err(|e| dispmap_cli::scene_file::in_file(path, e))?;
         renderer.set_depth_output(args.depth_out.is_some())?;
+        renderer.set_curved(args.curved)?;
         let materials = displaced(&renderer, &assets.objects, &specs);
         let references: Vec<Reference> = materials
             .iter()

@@ -1057,8 +1057,8 @@ fn the_open_vase_shows_its_inner_wall_displaced() {
 /// agree with the raster's to within the facets (the bound 99.5%); with the map at the
 /// bottom the displaced sphere lies a depth inside the base mesh and the tangent-plane
 /// tracing, which always hits where the base mesh is drawn, keeps the base outline:
-/// measured 50.7% at 320x180 (the limitation docs/guarantees.md names; this assertion
-/// flips when meshes are traced as curved).
+/// measured 50.7% at 320x180 (the limitation docs/guarantees.md names). `--curved` traces
+/// the meshes as curved and carves the outline (bounds below, with the measured values).
 #[test]
 fn outlines_are_measured_against_the_tessellated_mesh() {
     let dir = scratch("silhouette");
@@ -1070,7 +1070,7 @@ fn outlines_are_measured_against_the_tessellated_mesh() {
         path
     };
     let (top, bottom) = (write_flat("top.png", 255), write_flat("bottom.png", 0));
-    let agreement = |geometry: &str, map: &Path| -> f64 {
+    let agreement = |geometry: &str, map: &Path, curved: bool| -> f64 {
         let json = dir.join(format!("{geometry}.json"));
         let out = Command::new(env!("CARGO_BIN_EXE_dispmap"))
             .env("DISPMAP_VALIDATION", "1")
@@ -1094,6 +1094,7 @@ fn outlines_are_measured_against_the_tessellated_mesh() {
             ])
             .arg("--metrics")
             .arg(&json)
+            .args(curved.then_some("--curved"))
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -1109,9 +1110,37 @@ fn outlines_are_measured_against_the_tessellated_mesh() {
         s["agreement"].as_f64().unwrap()
     };
     for geometry in ["sphere", "torus"] {
-        let a = agreement(geometry, &top);
-        assert!(a >= 0.995, "{geometry}, map at the top: {a}");
+        for curved in [false, true] {
+            let a = agreement(geometry, &top, curved);
+            assert!(
+                a >= 0.995,
+                "{geometry}, map at the top, curved {curved}: {a}"
+            );
+        }
     }
-    let carved = agreement("sphere", &bottom);
-    assert!(carved < 0.9, "sphere, map at the bottom: {carved}");
+    // The map at the bottom: the displaced surface is the inward offset. Tangent-plane
+    // tracing keeps the base mesh's outline (measured: sphere 59.6%, torus 69.5%); curved
+    // tracing (`--curved`) carves it. The bound (99.5%) is not met yet: measured
+    // sphere 95.3%, torus 84.6% (its far side shows behind the near tube's carved top,
+    // which a one-layer G-buffer does not hold), cube 99.82% (flat faces: curved and
+    // tangent-plane tracing agree; the misses are the rays crossing a face's edge, which
+    // the reference sees hit the next face). These bounds hold the measured improvement.
+    let flat_sphere = agreement("sphere", &bottom, false);
+    assert!(
+        flat_sphere < 0.9,
+        "sphere, map at the bottom: {flat_sphere}"
+    );
+    let curved_sphere = agreement("sphere", &bottom, true);
+    assert!(
+        curved_sphere >= 0.93 && curved_sphere > flat_sphere + 0.3,
+        "sphere, map at the bottom, curved: {curved_sphere} (tangent plane {flat_sphere})"
+    );
+    let flat_torus = agreement("torus", &bottom, false);
+    let curved_torus = agreement("torus", &bottom, true);
+    assert!(
+        curved_torus >= 0.82 && curved_torus > flat_torus + 0.1,
+        "torus, map at the bottom, curved: {curved_torus} (tangent plane {flat_torus})"
+    );
+    let cube = agreement("cube", &bottom, true);
+    assert!(cube >= 0.995, "cube, map at the bottom, curved: {cube}");
 }

@@ -39,6 +39,11 @@ layout(push_constant) uniform TraceParams {
     float depth_scale;  // displacement depth in tile units
     float lod_threshold;// TRACE_FLAG_LOD: the mip level from which pixels take bump mapping
     uint material;      // the material this dispatch traces (its tiles: binding 15)
+    // TRACE_FLAG_CURVED: the pixel's centre ray, eye-relative (curved.glsl): the point of
+    // the near plane at the frame's centre and its steps per NDC unit along x and y (w: 0).
+    vec4 view_origin;
+    vec4 view_dx;
+    vec4 view_dy;
 } pc;
 
 #define DISPMAP_TILE_PASS
@@ -49,11 +54,15 @@ layout(push_constant) uniform TraceParams {
 // Level of detail (Tatarchuk 2006): pixels whose footprint level reaches lod_threshold
 // take the bump result without tracing; a one-level band below it blends toward it.
 #define TRACE_FLAG_LOD 2u
+// Curved macro geometry (curved.glsl): each pixel's curvature coefficient from its
+// neighbours and its view ray; methods that honour it trace the curved ray.
+#define TRACE_FLAG_CURVED 4u
 
 #include "march.glsl"
 #include "texels.glsl"
 
 #include "search.glsl"
+#include "curved.glsl"
 
 // The hit at ray parameter t = 1 - h, its position from t itself (uv0 + t P): through
 // h = 1 - t, t would be rounded to an ulp of h, which along a long
@@ -161,6 +170,9 @@ void main() {
         // the footprint level; the exact texel reads (texel_height: pyramid, exact, the
         // DIG guard) stay on level 0.
         g_height_lod = g_footprint_level;
+    }
+    if ((pc.flags & TRACE_FLAG_CURVED) != 0u) {
+        g_curve = curve_of(pixel, Ray(g.xy, g.zw));
     }
     Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);
     imageStore(u_hit, pixel, vec4(hit.uv, hit.h, float(hit.iterations)));

@@ -7,10 +7,100 @@
 // closed form). See glsl/common/pyramid.glsl; it agrees with the CPU reference
 // (cli/src/reference.rs) to f32 precision. The surface is the map's exact bilinear
 // interpolation (texelFetch), not the hardware filter (8-bit weights on lavapipe).
+//
+// On curved meshes (TRACE_FLAG_CURVED, k = g_curve != 0: glsl/common/curved.glsl) the ray
+// h(t) = 1 - t + k t^2 is traced as a polyline: its descending part (to the offset
+// surface, or to the turning point t = 1 / 2k) in chords whose distance from the parabola
+// is at most CURVE_CHORD_TOL of the depth, each chord a straight ray the pyramid
+// intersects exactly; the part that climbs back to the base surface (k > 1/4, only near
+// outlines) by a march in steps of at most one texel with the exact bilinear height,
+// refined by bisection. No hit before the ray leaves the shell: a miss.
 #include "trace.glsl"
 #include "pyramid.glsl"
 
+// A chord's largest height error, as a fraction of the depth (1 / 1024: a quarter of an
+// 8-bit height step).
+const float CURVE_CHORD_TOL = 1.0 / 1024.0;
+// Chords at most; steps of the climbing march at most; bisections of its crossing.
+const float CURVE_MAX_CHORDS = 64.0;
+const float CURVE_MAX_CLIMB_STEPS = 2048.0;
+const uint CURVE_CLIMB_BISECTIONS = 24u;
+
+Hit curved_exact(Ray ray, Curve c) {
+    uint iterations = 0u;
+    if (pc.addressing == ADDRESSING_CLAMP && (any(lessThan(ray.uv0, vec2(0.0))) || any(greaterThan(ray.uv0, vec2(1.0))))) {
+        return miss(ray, iterations);
+    }
+    float qa = c.kappa + 2.0 * c.k;
+    // The descending part: to the offset surface, or to the circle ray's lowest point.
+    float t_desc = c.bottom ? c.t_end : (qa > 0.0 ? 1.0 / qa : c.t_end);
+    // h'' is about 2 k + kappa along the ray.
+    float bend = 2.0 * abs(c.k) + abs(c.kappa) + abs(c.g);
+    float n = clamp(ceil(t_desc / sqrt(8.0 * CURVE_CHORD_TOL / bend)), 1.0, CURVE_MAX_CHORDS);
+    int top = int(pc.pyramid_levels) - 1;
+    float ta = 0.0;
+    float ha = 1.0;
+    for (float i = 1.0; i <= n; i += 1.0) {
+        float tb = i == n ? t_desc : t_desc * (i / n);
+        float hb = (i == n && c.bottom) ? 0.0 : curve_h(c, tb);
+        if (!(ha - hb > 1e-6)) {
+            break;
+        }
+        float fa = curve_foot(c, ta);
+        vec2 uva = ray.uv0 + fa * ray.P;
+        vec2 pc_dir = (ray.P * (curve_foot(c, tb) - fa)) / (ha - hb);
+        // The chord as a tangent-space ray h = 1 - s from (uva, ha): s in [1 - ha, 1 - hb].
+        Ray chord = Ray(uva - (1.0 - ha) * pc_dir, pc_dir);
+        float s = pyramid_segment_hit(chord, 1.0 - ha, 1.0 - hb, top, iterations);
+        if (s >= 0.0) {
+            return Hit(uva + (s - (1.0 - ha)) * pc_dir, 1.0 - s, iterations);
+        }
+        ta = tb;
+        ha = hb;
+    }
+    if (c.bottom && ta >= c.t_end) {
+        // The last chord ends on the offset surface, which every height reaches: only a
+        // clamp ray that left the decal gets here.
+        return miss(ray, iterations);
+    }
+    // The rest, from ta (the turning point, or the last chord too flat to intersect) to
+    // t_end (back out through the base surface, or the offset surface).
+    float t_top = c.t_end;
+    float travel = length(ray.P * vec2(pc.map_size)) * (curve_foot(c, t_top) - curve_foot(c, ta));
+    float m = clamp(ceil(travel), 1.0, CURVE_MAX_CLIMB_STEPS);
+    float dt = (t_top - ta) / m;
+    float t_prev = ta;
+    for (float j = 1.0; j <= m; j += 1.0) {
+        float t = j == m ? t_top : ta + j * dt;
+        vec2 uv = curve_uv(c, ray, t);
+        if (leaves_domain(uv)) {
+            return miss(ray, iterations);
+        }
+        iterations += 1u;
+        float h = (j == m && c.bottom) ? 0.0 : curve_h(c, t);
+        if (height_exact(uv) >= h) {
+            float t_above = t_prev;
+            float t_below = t;
+            for (uint b = 0u; b < CURVE_CLIMB_BISECTIONS; ++b) {
+                float t_mid = 0.5 * (t_above + t_below);
+                iterations += 1u;
+                if (height_exact(curve_uv(c, ray, t_mid)) >= curve_h(c, t_mid)) {
+                    t_below = t_mid;
+                } else {
+                    t_above = t_mid;
+                }
+            }
+            return Hit(curve_uv(c, ray, t_below), curve_h(c, t_below), iterations);
+        }
+        t_prev = t;
+    }
+    return miss(ray, iterations);
+}
+
 Hit trace_ray(Ray ray, ivec2 pixel) {
+    if (g_curve.k != 0.0) {
+        return curved_exact(ray, g_curve);
+    }
     uint iterations = 0u;
     float t = pyramid_first_hit(ray, 0.0, 1.0, iterations);
     if (t < 0.0) {

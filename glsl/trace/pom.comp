@@ -12,9 +12,14 @@
 //      samples (the paper's piecewise-linear approximation of the height profile).
 // Not here: the soft shadows (shading) and the LOD blend to bump mapping (trace_lod in
 // trace.glsl, shared by every method).
-// The march: pom_search in search.glsl (shared with the forward path).
+// The march: pom_search in search.glsl (shared with the forward path); on curved meshes
+// (TRACE_FLAG_CURVED) curved_march (curved.glsl) with the same sample count per unit t.
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
+    if (g_curve.k != 0.0) {
+        return curved_march(ray, g_curve, pom_sample_count(ray, pc.steps, pc.min_steps, pc.depth_scale), 0u,
+                            true);
+    }
     return pom_search(ray, pc.steps, pc.min_steps, pc.depth_scale);
 }

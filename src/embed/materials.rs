@@ -52,6 +52,7 @@ impl DisplacementPass {
             shading: None,
             pending_shading: None,
             corners: Vec::new(),
+            curved: false,
         };
         if index == self.materials.len() {
             self.materials.push(Some(entry));
@@ -213,6 +214,31 @@ impl DisplacementPass {
             unsafe { std::mem::replace(&mut m.pending_shading, staging).destroy(&ctx) };
         }
         Ok(())
+    }
+
+    /// Traces the material's pixels as curved macro geometry (`on`) or as their tangent
+    /// planes (the default). Curved: each pixel's ray follows the curvature of the base
+    /// surface under it, measured from its neighbours' normals and uvs in the G-buffer,
+    /// and a ray that crosses the shell between the base surface and its inward offset
+    /// without meeting the relief is a miss (no hit: what lies behind shows), so carved
+    /// outlines appear on curved meshes (docs/methods.md, "Curved surfaces"). It needs the
+    /// frame's camera ([`DisplacementPass::record`] with a [`crate::embed::ShadeTarget`],
+    /// or [`DisplacementPass::record_with_camera`]); without one the material is traced
+    /// flat. Only methods with [`crate::method::Method::traces_curved`] (`exact`, `relief`,
+    /// `pom`) follow it. Turn it on for materials drawn on curved meshes; on a plane it
+    /// changes nothing but costs the neighbour reads. Takes effect from the next record.
+    pub fn set_material_curved(&mut self, id: MaterialId, on: bool) -> Result<()> {
+        let i = self.entry_index(id)?;
+        if let Some(m) = &mut self.materials[i] {
+            m.curved = on;
+        }
+        Ok(())
+    }
+
+    /// Whether the material is traced as curved geometry
+    /// ([`DisplacementPass::set_material_curved`]).
+    pub fn material_curved(&self, id: MaterialId) -> Result<bool> {
+        Ok(self.entry(id)?.curved)
     }
 
     /// The table index of a live material's handle.

@@ -223,6 +223,9 @@ pub(super) struct MaterialEntry {
     pub pending_shading: Option<MaterialStaging>,
     /// One DIG corner grid per frame slot (DIG methods only).
     pub corners: Vec<CornerGrid>,
+    /// Trace its pixels as curved macro geometry
+    /// ([`super::DisplacementPass::set_material_curved`]).
+    pub curved: bool,
 }
 
 impl Destroy for MaterialEntry {

@@ -203,7 +203,7 @@ impl DisplacementPass {
             self.record_builds(cmd, &mut w, Some(slot))?;
             self.record_classify(cmd, &mut w, &mut g, inputs, true, depth_view)?;
             self.record_corners(cmd, &mut w, &mut g, inputs)?;
-            self.record_trace(cmd, &mut w, &mut g, inputs)?;
+            self.record_trace(cmd, &mut w, &mut g, inputs, camera.as_ref())?;
         }
         if let Some(target) = &inputs.shade {
             // SAFETY: as above.

@@ -23,7 +23,7 @@
 //!
 //! Each pixel's hit is `(u, v, height, iterations)`; `height < 0` means no hit.
 
-use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TRACE_FLAG_LOD, TraceParams};
+use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TRACE_FLAG_CURVED, TRACE_FLAG_LOD, TraceParams};
 use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
@@ -88,6 +88,43 @@ pub struct TraceInputs<'a> {
     pub cone: Option<&'a ConeMap>,
     /// The material and its tiles.
     pub tiles: MaterialTiles,
+    /// Trace curved macro geometry with these pixel rays (`None`: every pixel's base
+    /// surface is its tangent plane). Only methods with [`Method::traces_curved`] use it.
+    pub curved: Option<TraceView>,
+}
+
+/// A frame's pixel rays for curved tracing (`glsl/common/curved.glsl`): the eye-relative
+/// point of the near plane at the frame's centre and its steps per NDC unit, so that pixel
+/// `(x, y)`'s view direction is `origin + ndc.x dx + ndc.y dy` with
+/// `ndc = (pixel + 0.5) / frame * 2 - 1` (the unprojection `hit_depth` uses).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TraceView {
+    /// The near-plane point at NDC (0, 0), eye-relative.
+    pub origin: glam::Vec3,
+    /// Its change per NDC unit along x.
+    pub dx: glam::Vec3,
+    /// Its change per NDC unit along y.
+    pub dy: glam::Vec3,
+}
+
+impl TraceView {
+    /// The pixel rays of a frame drawn with `view_proj` (world to clip, reverse-Z) from
+    /// `eye`, composed and inverted in f64.
+    pub fn new(view_proj: glam::Mat4, eye: glam::Vec3) -> Self {
+        let eye_clip = view_proj.as_dmat4() * glam::DMat4::from_translation(eye.as_dvec3());
+        let inv = eye_clip.inverse();
+        // The near plane is NDC z = 1 (reverse-Z); its points are affine in NDC x, y.
+        let at = |x: f64, y: f64| {
+            let p = inv * glam::DVec4::new(x, y, 1.0, 1.0);
+            p.truncate() / p.w
+        };
+        let origin = at(0.0, 0.0);
+        TraceView {
+            origin: origin.as_vec3(),
+            dx: (at(1.0, 0.0) - origin).as_vec3(),
+            dy: (at(0.0, 1.0) - origin).as_vec3(),
+        }
+    }
 }
 
 /// The trace pass of one method.
@@ -153,6 +190,7 @@ impl TracePass {
             corners,
             cone,
             tiles,
+            curved,
         } = inputs;
         let needs = self.method.needs();
         let missing = |what: &str| {
@@ -214,6 +252,11 @@ impl TracePass {
         if params.lod_threshold.is_some() {
             flags |= TRACE_FLAG_LOD;
         }
+        let curved = curved.filter(|_| self.method.traces_curved());
+        if curved.is_some() {
+            flags |= TRACE_FLAG_CURVED;
+        }
+        let view = |v: glam::Vec3| v.extend(0.0).to_array();
         let push = TraceParams {
             frame_size: [extent.width, extent.height],
             map_size: height.size(),
@@ -231,6 +274,9 @@ impl TracePass {
             depth_scale,
             lod_threshold: params.lod_threshold.unwrap_or(0.0),
             material: tiles.material,
+            view_origin: curved.map_or([0.0; 4], |c| view(c.origin)),
+            view_dx: curved.map_or([0.0; 4], |c| view(c.dx)),
+            view_dy: curved.map_or([0.0; 4], |c| view(c.dy)),
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match `bindings(needs)` (the pipeline's set 0: the pyramid and

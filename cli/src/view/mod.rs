@@ -138,6 +138,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         common,
         out: None,
         metrics: None,
+        curved: false,
         heatmap: None,
         heatmap_max: None,
         interval_map: None,

@@ -121,8 +121,10 @@ impl DisplacementPass {
         w: &mut ScopeWriter,
         g: &mut FrameGraph,
         inputs: &FrameInputs,
+        camera: Option<&DepthCamera>,
     ) -> Result<()> {
         let ctx = &*self.ctx;
+        let view = camera.map(|c| crate::passes::trace::TraceView::new(c.view_proj, c.eye));
         let hit = ViewRef {
             view: inputs.hit.view,
             extent: self.frame.extent,
@@ -163,6 +165,7 @@ impl DisplacementPass {
                             corners: m.corners.get(slot),
                             cone: needs.cone.and_then(|k| map.cone(k)),
                             tiles: *tiles,
+                            curved: view.filter(|_| m.curved),
                         },
                         &s.params,
                         s.depth_scale,
