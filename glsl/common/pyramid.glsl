@@ -138,28 +138,7 @@ vec2 split_f32(float x) {
     return dispmap_split_f32(x);
 }
 
-// Whether this device's fma rounds once. Then fma(a, b, -a b) is the product's exact
-// error in one instruction, bit for bit the error Dekker's product computes in ten (both
-// are exact), so the fast path changes no result. Vulkan lets a driver implement fma as
-// a multiply and an add (lavapipe does: the error term would be 0 there), so it is decided
-// at run time, in the shader that uses it, from a product whose rounding error only a
-// fused fma sees: (1 + 2^-12)^2 = 1 + 2^-11 + 2^-24, rounded to 1 + 2^-11. The `1` comes
-// from gl_NumWorkGroups (at least one workgroup in any dispatch), which the compiler
-// cannot fold, so the probe runs the device's own fma. The branch is uniform.
-bool fma_is_fused() {
-    precise float a = 1.0 + exp2(-12.0) * float(gl_NumWorkGroups.x != 0u);
-    precise float p = a * a;
-    precise float e = fma(a, a, -p);
-    return e == exp2(-24.0);
-}
-
 float two_product(float a, float b, vec2 bs, out float e) {
-    if (fma_is_fused()) {
-        precise float p = a * b;
-        precise float err = fma(a, b, -p);
-        e = err;
-        return p;
-    }
     return dispmap_two_product(a, b, bs, e);
 }
 
