@@ -401,6 +401,42 @@ fn assign(base: &GBufferTexels, ids: [u32; 3]) -> GBufferTexels {
     g
 }
 
+/// A host and an `exact` pass whose only material is a small flat map, after the first
+/// frame that built that map's preparation (the baseline of the memory measurements).
+fn small_pass_after_one_frame(
+    ctx: &std::sync::Arc<dispmap::Context>,
+) -> (
+    RayHost,
+    DisplacementPass,
+    GBufferTexels,
+    (glam::Mat4, glam::Vec3),
+) {
+    let (scene, cam) = camera();
+    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
+    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
+    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
+    let base = host.read_gbuffer();
+    let small = HeightField::from_texels(4, 4, Texels::R8(vec![128; 16]), "small").unwrap();
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &small,
+        PassSettings {
+            method: Method::Exact,
+            params: MethodParams::for_method(Method::Exact),
+            depth_scale: DEPTH_SCALE,
+            addressing: Addressing::Repeat,
+            extent: EXTENT,
+            frames_in_flight: SLOTS as u32,
+        },
+    )
+    .unwrap();
+    // A first frame builds the small map's preparation.
+    host.upload_gbuffer(&assign(&base, [0, 0, 0]));
+    host.submit_shaded(&mut pass, 0, cam, HOST_COLOR);
+    host.wait_all();
+    (host, pass, base, cam)
+}
+
 fn camera() -> (Scene, (glam::Mat4, glam::Vec3)) {
     let scene = Scene {
         depth_scale: DEPTH_SCALE,
@@ -695,29 +731,7 @@ fn a_4096_bc4_map_prepared_by_the_host_before_its_first_frame() {
         levels.iter().map(Vec::len).sum::<usize>() as f64 / 1048576.0,
         started.elapsed().as_secs_f64()
     );
-    let (scene, cam) = camera();
-    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
-    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
-    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
-    let base = host.read_gbuffer();
-    let small = HeightField::from_texels(4, 4, Texels::R8(vec![128; 16]), "small").unwrap();
-    let mut pass = DisplacementPass::new(
-        ctx.clone(),
-        &small,
-        PassSettings {
-            method: Method::Exact,
-            params: MethodParams::for_method(Method::Exact),
-            depth_scale: DEPTH_SCALE,
-            addressing: Addressing::Repeat,
-            extent: EXTENT,
-            frames_in_flight: SLOTS as u32,
-        },
-    )
-    .unwrap();
-    // A first frame builds the small map's preparation.
-    host.upload_gbuffer(&assign(&base, [0, 0, 0]));
-    host.submit_shaded(&mut pass, 0, cam, HOST_COLOR);
-    host.wait_all();
+    let (mut host, mut pass, base, cam) = small_pass_after_one_frame(&ctx);
     let before = allocations(&ctx);
     let id = pass
         .add_host_material(&describe(&image, HeightChannel::R), settings(Method::Exact))
@@ -811,28 +825,7 @@ fn a_4096_r16_map_the_pass_owns_holds_at_most_80_mib() {
         })
         .collect();
     let field = HeightField::from_texels(side, side, Texels::R16(texels), "r16 4096").unwrap();
-    let (scene, cam) = camera();
-    let mut host = RayHost::new(ctx.clone(), EXTENT, SLOTS);
-    let camera = scene.frame_camera(EXTENT.width, EXTENT.height);
-    host.rasterise(&scene.gbuffer_params(&camera), &camera.pixel_ray_params());
-    let base = host.read_gbuffer();
-    let small = HeightField::from_texels(4, 4, Texels::R8(vec![128; 16]), "small").unwrap();
-    let mut pass = DisplacementPass::new(
-        ctx.clone(),
-        &small,
-        PassSettings {
-            method: Method::Exact,
-            params: MethodParams::for_method(Method::Exact),
-            depth_scale: DEPTH_SCALE,
-            addressing: Addressing::Repeat,
-            extent: EXTENT,
-            frames_in_flight: SLOTS as u32,
-        },
-    )
-    .unwrap();
-    host.upload_gbuffer(&assign(&base, [0, 0, 0]));
-    host.submit_shaded(&mut pass, 0, cam, HOST_COLOR);
-    host.wait_all();
+    let (mut host, mut pass, base, cam) = small_pass_after_one_frame(&ctx);
     let before = allocations(&ctx);
     let id = pass.add_material(&field, settings(Method::Exact)).unwrap();
     // Its first frame uploads and builds; the next ones (every slot) find it resident.
