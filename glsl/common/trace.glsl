@@ -57,6 +57,11 @@ layout(push_constant) uniform TraceParams {
 // Curved macro geometry (curved.glsl): each pixel's curvature coefficient from its
 // neighbours and its view ray; methods that honour it trace the curved ray.
 #define TRACE_FLAG_CURVED 4u
+// Whether this pipeline holds the curved path at all (a specialization constant: the
+// flat variant, every material not traced as curved, is compiled without it, so its
+// registers and code size are the flat trace's). TRACE_FLAG_CURVED selects it per
+// dispatch within the curved variant (off: no camera this frame).
+layout(constant_id = 0) const bool CURVED_VARIANT = false;
 
 #include "march.glsl"
 #include "texels.glsl"
@@ -171,7 +176,7 @@ void main() {
         // DIG guard) stay on level 0.
         g_height_lod = g_footprint_level;
     }
-    if ((pc.flags & TRACE_FLAG_CURVED) != 0u) {
+    if (CURVED_VARIANT && (pc.flags & TRACE_FLAG_CURVED) != 0u) {
         g_curve = curve_of(pixel, Ray(g.xy, g.zw));
     }
     Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);

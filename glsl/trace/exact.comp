@@ -98,7 +98,7 @@ Hit curved_exact(Ray ray, Curve c) {
 }
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
-    if (g_curve.k != 0.0) {
+    if (CURVED_VARIANT && g_curve.k != 0.0) {
         return curved_exact(ray, g_curve);
     }
     uint iterations = 0u;

@@ -17,7 +17,7 @@
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
-    if (g_curve.k != 0.0) {
+    if (CURVED_VARIANT && g_curve.k != 0.0) {
         return curved_march(ray, g_curve, pom_sample_count(ray, pc.steps, pc.min_steps, pc.depth_scale), 0u,
                             true);
     }

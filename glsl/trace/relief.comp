@@ -8,7 +8,7 @@
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
-    if (g_curve.k != 0.0) {
+    if (CURVED_VARIANT && g_curve.k != 0.0) {
         return curved_march(ray, g_curve, pc.steps, pc.refine_steps, false);
     }
     uint iterations = 0u;

@@ -226,11 +226,23 @@ impl DisplacementPass {
     /// or [`DisplacementPass::record_with_camera`]); without one the material is traced
     /// flat. Only methods with [`crate::method::Method::traces_curved`] (`exact`, `relief`,
     /// `pom`) follow it. Turn it on for materials drawn on curved meshes; on a plane it
-    /// changes nothing but costs the neighbour reads. Takes effect from the next record.
+    /// changes nothing but costs the neighbour reads. Takes effect from the next record;
+    /// builds the method's curved pipeline variant (the flat one is compiled without the
+    /// curved path) and retires the flat one if no material uses it. On error the pass is
+    /// unchanged.
     pub fn set_material_curved(&mut self, id: MaterialId, on: bool) -> Result<()> {
         let i = self.entry_index(id)?;
-        if let Some(m) = &mut self.materials[i] {
-            m.curved = on;
+        let set = |pass: &mut Self, on| {
+            if let Some(m) = &mut pass.materials[i] {
+                std::mem::replace(&mut m.curved, on)
+            } else {
+                on
+            }
+        };
+        let old = set(self, on);
+        if let Err(e) = self.sync() {
+            set(self, old);
+            return Err(e);
         }
         Ok(())
     }

@@ -304,7 +304,7 @@ struct MapPlan {
 /// What the settings need: a key per resource (module docs).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(super) struct Plan {
-    methods: Vec<Method>,
+    methods: Vec<(Method, bool)>,
     pyramid_pass: bool,
     corner_pass: bool,
     cone_kinds: Vec<ConeKind>,
@@ -405,7 +405,10 @@ impl DisplacementPass {
             let Some(m) = m else { continue };
             let s = &m.settings;
             let needs = s.method.needs();
-            push_unique(&mut plan.methods, s.method);
+            push_unique(
+                &mut plan.methods,
+                (s.method, m.curved && s.method.traces_curved()),
+            );
             let map = plan.maps[m.map].get_or_insert_with(MapPlan::default);
             map.chain |= s.params.lod_threshold.is_some();
             if let Some(kind) = needs.pyramid {
@@ -442,9 +445,9 @@ impl DisplacementPass {
         let resized = self.built_extent != extent;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let mut add = unsafe { Guard::new(c, Additions::default()) };
-        for &m in &plan.methods {
-            if !self.traces.iter().any(|t| t.method() == m) {
-                add.traces.push(TracePass::new(c, m)?);
+        for &(m, curved) in &plan.methods {
+            if !self.traces.iter().any(|t| t.key() == (m, curved)) {
+                add.traces.push(TracePass::new(c, m, curved)?);
             }
         }
         if plan.pyramid_pass && self.pyramid_pass.is_none() {
@@ -562,7 +565,7 @@ impl DisplacementPass {
         self.traces.extend(add.traces);
         let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.traces)
             .into_iter()
-            .partition(|t| plan.methods.contains(&t.method()));
+            .partition(|t| plan.methods.contains(&t.key()));
         self.traces = keep;
         retired.retire(drop);
         if let Some(p) = add.pyramid_pass {

@@ -41,6 +41,20 @@ impl ComputePipeline {
         declared: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
+        Self::specialized(ctx, name, shader, declared, push_constant_size, None)
+    }
+
+    /// As [`ComputePipeline::new`], with the shader's specialization constants set by
+    /// `specialization` (a variant compiled with a feature on or off, its dead branches
+    /// removed by the driver).
+    pub fn specialized(
+        ctx: &Context,
+        name: &str,
+        shader: &Shader,
+        declared: &[(&str, vk::DescriptorType)],
+        push_constant_size: u32,
+        specialization: Option<&vk::SpecializationInfo>,
+    ) -> Result<Self> {
         check_declared(shader, declared)?;
         let dev = ctx.device();
         let binding_info: Vec<_> = shader
@@ -72,10 +86,13 @@ impl ComputePipeline {
         let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
             .vk("vkCreatePipelineLayout")?;
         let module = shader.module(ctx)?;
-        let stage = vk::PipelineShaderStageCreateInfo::default()
+        let mut stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main");
+        if let Some(spec) = specialization {
+            stage = stage.specialization_info(spec);
+        }
         let info = [vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout)];
@@ -305,7 +322,27 @@ impl FetchPipeline {
         bindings: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
-        let mut pipeline = ComputePipeline::new(ctx, name, shader, bindings, push_constant_size)?;
+        Self::specialized(ctx, name, shader, bindings, push_constant_size, None)
+    }
+
+    /// As [`FetchPipeline::new`], with specialization constants
+    /// ([`ComputePipeline::specialized`]).
+    pub fn specialized(
+        ctx: &Context,
+        name: &str,
+        shader: &Shader,
+        bindings: &[(&str, vk::DescriptorType)],
+        push_constant_size: u32,
+        specialization: Option<&vk::SpecializationInfo>,
+    ) -> Result<Self> {
+        let mut pipeline = ComputePipeline::specialized(
+            ctx,
+            name,
+            shader,
+            bindings,
+            push_constant_size,
+            specialization,
+        )?;
         match sampler(
             ctx,
             &format!("{name}.fetch_sampler"),

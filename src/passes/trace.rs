@@ -130,6 +130,7 @@ impl TraceView {
 /// The trace pass of one method.
 pub struct TracePass {
     method: Method,
+    curved: bool,
     pipeline: FetchPipeline,
 }
 
@@ -139,22 +140,55 @@ impl TracePass {
         self.pipeline.pipeline.bindings
     }
 
-    /// Builds the pipeline of `method`.
-    pub fn new(ctx: &Context, method: Method) -> Result<Self> {
-        let name = format!("trace[{}]", method.name());
-        let pipeline = FetchPipeline::new(
+    /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`])
+    /// when `curved` is set and the method traces curved geometry
+    /// ([`Method::traces_curved`]), else the flat variant, compiled without it (the
+    /// shader's `CURVED_VARIANT` specialization constant).
+    pub fn new(ctx: &Context, method: Method, curved: bool) -> Result<Self> {
+        let curved = curved && method.traces_curved();
+        let name = format!(
+            "trace[{}{}]",
+            method.name(),
+            if curved { ",curved" } else { "" }
+        );
+        let on = vk::Bool32::from(curved);
+        let entries = [vk::SpecializationMapEntry {
+            constant_id: 0,
+            offset: 0,
+            size: std::mem::size_of::<vk::Bool32>(),
+        }];
+        let spec = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(bytemuck::bytes_of(&on));
+        let pipeline = FetchPipeline::specialized(
             ctx,
             &name,
             &method.shader(),
             &bindings(method.needs()),
             std::mem::size_of::<TraceParams>() as u32,
+            Some(&spec),
         )?;
-        Ok(TracePass { method, pipeline })
+        Ok(TracePass {
+            method,
+            curved,
+            pipeline,
+        })
     }
 
     /// The method this pass runs.
     pub fn method(&self) -> Method {
         self.method
+    }
+
+    /// The method and variant: what a plan keys this pass by.
+    pub fn key(&self) -> (Method, bool) {
+        (self.method, self.curved)
+    }
+
+    /// Whether this is the curved variant (it follows [`TraceInputs::curved`]; the flat
+    /// one traces every pixel's tangent plane).
+    pub fn curved(&self) -> bool {
+        self.curved
     }
 
     /// Records the dispatch over the material's tiles. Fails (recording nothing) when a
@@ -252,7 +286,7 @@ impl TracePass {
         if params.lod_threshold.is_some() {
             flags |= TRACE_FLAG_LOD;
         }
-        let curved = curved.filter(|_| self.method.traces_curved());
+        let curved = curved.filter(|_| self.curved);
         if curved.is_some() {
             flags |= TRACE_FLAG_CURVED;
         }

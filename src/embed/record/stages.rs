@@ -133,7 +133,8 @@ impl DisplacementPass {
         let mut live = Vec::new();
         for (tiles, m, map) in self.live(inputs.frame_slot) {
             let method = m.settings.method;
-            let Some(trace) = self.traces.iter().find(|t| t.method() == method) else {
+            let key = (method, m.curved && method.traces_curved());
+            let Some(trace) = self.traces.iter().find(|t| t.key() == key) else {
                 return Err(Error::Internal(format!(
                     "no trace pipeline for {}",
                     method.name()
