@@ -189,6 +189,8 @@ pub struct Context {
     pipeline_cache: vk::PipelineCache,
     /// Whether this context enabled the Khronos validation layer on its instance.
     validation: bool,
+    /// [`Context::traversal_rules`].
+    traversal_rules: bool,
 }
 
 impl Context {
@@ -388,10 +390,11 @@ impl Context {
             debug_utils,
             messenger,
             messages,
-            info,
             owns_handles: false,
             pipeline_cache: vk::PipelineCache::null(),
             validation: false,
+            traversal_rules: info.device_type == format!("{:?}", vk::PhysicalDeviceType::CPU),
+            info,
         })
     }
 
@@ -413,6 +416,27 @@ impl Context {
     /// The pipeline cache pipelines are created with (null: none).
     pub fn pipeline_cache(&self) -> vk::PipelineCache {
         self.pipeline_cache
+    }
+
+    /// Builds every later pipeline of this context with the exact traversals' two step
+    /// rules on or off ([`Context::traversal_rules`]): the same hits either way, only the
+    /// step counts and the time change. For measuring and testing the other device
+    /// kind's choice.
+    pub fn with_traversal_rules(mut self, on: bool) -> Self {
+        self.traversal_rules = on;
+        self
+    }
+
+    /// Whether the cell-pyramid traversals (`exact`, `dig-guarded`, the cone methods'
+    /// builds, hard shadows) cap their start level and climb only from the first child
+    /// of a parent (`glsl/common/pyramid.glsl`, the `TRAVERSAL_RULES` specialization
+    /// constant). They save steps, which pays on a CPU driver running 8 invocations in
+    /// lockstep (lavapipe: 8-14% of `exact`'s time) and costs on a GPU's 32-wide
+    /// warps (measured on an NVIDIA H200: `exact` 0.87-0.95x of its time without them);
+    /// so they are on for `CPU` devices and off for the others (BENCHMARKS.md). The hits
+    /// are the same either way.
+    pub fn traversal_rules(&self) -> bool {
+        self.traversal_rules
     }
 
     /// Checks a physical device against the [`requirements`]; the error lists what is missing.

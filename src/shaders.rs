@@ -49,6 +49,43 @@ impl Shader {
             .map_err(|e| Error::invalid(self.name, format!("bad SPIR-V: {e}")))
     }
 
+    /// The `constant_id` of the specialization constant the GLSL names `name`
+    /// (`layout(constant_id = N) const ... name`), read from the SPIR-V's `OpName` and
+    /// `SpecId` decoration: specialization ids, like binding numbers, exist only in the
+    /// GLSL. `None` when the shader declares no such constant.
+    pub fn spec_constant_id(&self, name: &str) -> Result<Option<u32>> {
+        const OP_NAME: u32 = 5;
+        const OP_DECORATE: u32 = 71;
+        const DEC_SPEC_ID: u32 = 1;
+        let words = self.words()?;
+        let mut target = None;
+        let mut ids = Vec::new();
+        let mut i = 5;
+        while i < words.len() {
+            let count = (words[i] >> 16) as usize;
+            let op = words[i] & 0xffff;
+            let Some(a) = words.get(i + 1..i + count.max(1)) else {
+                return Err(Error::invalid(
+                    self.name,
+                    "bad SPIR-V: truncated instruction",
+                ));
+            };
+            match op {
+                OP_NAME if a.len() >= 2 => {
+                    let bytes: Vec<u8> = a[1..].iter().flat_map(|w| w.to_le_bytes()).collect();
+                    let end = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
+                    if &bytes[..end] == name.as_bytes() {
+                        target = Some(a[0]);
+                    }
+                }
+                OP_DECORATE if a.len() >= 3 && a[1] == DEC_SPEC_ID => ids.push((a[0], a[2])),
+                _ => {}
+            }
+            i += count.max(1);
+        }
+        Ok(target.and_then(|t| ids.iter().find(|&&(id, _)| id == t).map(|&(_, c)| c)))
+    }
+
     /// Creates a shader module named after the file.
     pub fn module(&self, ctx: &Context) -> Result<vk::ShaderModule> {
         let words = self.words()?;

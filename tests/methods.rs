@@ -622,3 +622,74 @@ fn decal_silhouettes_for_every_method() {
     }
     finish(ctx);
 }
+
+/// The cell-pyramid traversals' two step rules (the start-level cap and the climb rule,
+/// `TRAVERSAL_RULES`: on for CPU devices, off for GPUs) change how many steps a traversal
+/// takes, never where it hits: with them off (a GPU's choice, forced here on lavapipe)
+/// `exact`, `dig-guarded` and `cone-exact` give bit-identical hits and `exact` with hard
+/// shadows the same visibility, while `exact`'s step count changes (so the switch
+/// reaches the shaders).
+#[test]
+fn traversal_rules_change_steps_not_hits() {
+    use dispmap::context::{Context, ContextOptions};
+    use dispmap::passes::shadow::{ShadowMode, ShadowSettings};
+    use std::sync::Arc;
+    let field = asset_map("rocks_depth.jpg", Convention::Depth);
+    let run = |rules: Option<bool>| {
+        let mut ctx = Context::headless(&ContextOptions {
+            validation: Some(true),
+            device: None,
+        })
+        .unwrap();
+        let default_rules = ctx.traversal_rules();
+        if let Some(on) = rules {
+            ctx = ctx.with_traversal_rules(on);
+        }
+        let ctx = Arc::new(ctx);
+        let mut out = Vec::new();
+        {
+            for method in [Method::Exact, Method::DigGuarded, Method::ConeExact] {
+                let mut s = settings(method, 5.0, Geometry::TiledPlane);
+                if method == Method::Exact {
+                    s.shadows = ShadowSettings {
+                        mode: ShadowMode::Hard,
+                        ..ShadowSettings::default()
+                    };
+                }
+                let mut renderer = Renderer::new(&ctx, &field, s).unwrap();
+                renderer.render().unwrap();
+                let hits = renderer.read_hits().unwrap();
+                let visibility = renderer.read_visibility().unwrap();
+                out.push((method, hits, visibility));
+            }
+        }
+        finish(ctx);
+        (default_rules, out)
+    };
+    let (default_rules, on) = run(Some(true));
+    assert!(
+        default_rules,
+        "lavapipe is a CPU device: the rules are on by default"
+    );
+    let (_, off) = run(Some(false));
+    for ((method, a, va), (_, b, vb)) in on.iter().zip(&off) {
+        let pos = |h: &[[f32; 4]]| h.iter().map(|t| [t[0], t[1], t[2]]).collect::<Vec<_>>();
+        let (pa, pb) = (pos(a), pos(b));
+        let differing = pa
+            .iter()
+            .zip(&pb)
+            .filter(|(x, y)| x.map(f32::to_bits) != y.map(f32::to_bits))
+            .count();
+        assert_eq!(differing, 0, "{method:?}: hits differ with the rules off");
+        assert_eq!(va, vb, "{method:?}: visibility differs with the rules off");
+        let steps = |h: &[[f32; 4]]| h.iter().map(|t| f64::from(t[3])).sum::<f64>();
+        eprintln!(
+            "{method:?}: steps with the rules {} / without {}",
+            steps(a),
+            steps(b)
+        );
+        if *method == Method::Exact {
+            assert_ne!(steps(a), steps(b), "the switch did not reach the shader");
+        }
+    }
+}

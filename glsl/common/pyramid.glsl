@@ -405,6 +405,14 @@ bool leave_node(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_ex
     return false;
 }
 
+// Whether the two step rules below (the climb rule and START_LEVEL_CAP) apply: a
+// specialization constant set from the device (Context::traversal_rules: on for CPU
+// devices, off for GPUs). Both only change how many steps a traversal takes, never
+// its hit. On lavapipe (8 invocations in lockstep) they save 8-14% of `exact`'s time;
+// on an NVIDIA H200 `exact` ran in 0.87-0.95x the time with them off (BENCHMARKS.md,
+// run V): on 32-wide warps the extra per-step work costs more than the steps it saves.
+layout(constant_id = 1) const bool TRAVERSAL_RULES = true;
+
 // The level after a skip of a level-`was` node from `from` into `cell`, where leave_node
 // climbed to `level` (was + 1, or the top): the climb stands only when the node entered
 // is the first of its parent along every axis the ray crossed (in the direction of
@@ -419,6 +427,9 @@ bool leave_node(vec2 exit, ivec2 lo, ivec2 hi, vec2 origin, vec2 dir, float t_ex
 // is its parity in the tile for power-of-two maps, and may be off across the tile seam
 // of others.
 int climb(int was, int level, ivec2 from, ivec2 cell, vec2 dir) {
+    if (!TRAVERSAL_RULES) {
+        return level;
+    }
     bool first = true;
     for (int a = 0; a < 2; ++a) {
         if (cell[a] != from[a]) {
@@ -486,7 +497,7 @@ float segment_hit(vec2 origin, vec2 dir, float t_start, float t_stop, int start_
     // any start level finds the same first hit; the steps from the root down to here
     // were 3 to 12 of every pixel's). Nor above START_LEVEL_CAP.
     float travel = max(abs(dir.x), abs(dir.y)) * (t_end - t);
-    int level = min(min(clamp(start_level, 0, top), level_for_span(travel)), START_LEVEL_CAP);
+    int level = min(min(clamp(start_level, 0, top), level_for_span(travel)), TRAVERSAL_RULES ? START_LEVEL_CAP : top);
     // Each skip moves a cell index by >= 1 along the ray and follows at most `top`
     // descents: the cap is only reached through a bug (then: no hit), or at
     // TRAVERSAL_CAP (frame.glsl), within the loop budget of a lavapipe invocation.

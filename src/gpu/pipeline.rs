@@ -41,21 +41,36 @@ impl ComputePipeline {
         declared: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
-        Self::specialized(ctx, name, shader, declared, push_constant_size, None)
+        Self::specialized(ctx, name, shader, declared, push_constant_size, &[])
     }
 
-    /// As [`ComputePipeline::new`], with the shader's specialization constants set by
-    /// `specialization` (a variant compiled with a feature on or off, its dead branches
-    /// removed by the driver).
+    /// As [`ComputePipeline::new`], with the shader's specialization constants
+    /// `(GLSL name, value)` set (a variant compiled with a feature on or off, its dead
+    /// branches removed by the driver); a name the shader does not declare is an error.
+    /// Every compute pipeline also gets the context's `TRAVERSAL_RULES`
+    /// ([`Context::traversal_rules`]) where its shader declares it.
     pub fn specialized(
         ctx: &Context,
         name: &str,
         shader: &Shader,
         declared: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
-        specialization: Option<&vk::SpecializationInfo>,
+        constants: &[(&str, u32)],
     ) -> Result<Self> {
         check_declared(shader, declared)?;
+        let mut all = Vec::new();
+        for &(name, value) in constants {
+            let id = shader.spec_constant_id(name)?.ok_or_else(|| {
+                Error::Internal(format!(
+                    "{} has no specialization constant {name}",
+                    shader.name
+                ))
+            })?;
+            all.push((id, value));
+        }
+        if let Some(id) = shader.spec_constant_id("TRAVERSAL_RULES")? {
+            all.push((id, vk::Bool32::from(ctx.traversal_rules())));
+        }
         let dev = ctx.device();
         let binding_info: Vec<_> = shader
             .bindings
@@ -90,9 +105,19 @@ impl ComputePipeline {
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main");
-        if let Some(spec) = specialization {
-            stage = stage.specialization_info(spec);
-        }
+        let entries: Vec<vk::SpecializationMapEntry> = (0u32..)
+            .zip(&all)
+            .map(|(i, &(constant_id, _))| vk::SpecializationMapEntry {
+                constant_id,
+                offset: 4 * i,
+                size: 4,
+            })
+            .collect();
+        let data: Vec<u32> = all.iter().map(|&(_, v)| v).collect();
+        let spec = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(bytemuck::cast_slice(&data));
+        stage = stage.specialization_info(&spec);
         let info = [vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout)];
@@ -322,7 +347,7 @@ impl FetchPipeline {
         bindings: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
     ) -> Result<Self> {
-        Self::specialized(ctx, name, shader, bindings, push_constant_size, None)
+        Self::specialized(ctx, name, shader, bindings, push_constant_size, &[])
     }
 
     /// As [`FetchPipeline::new`], with specialization constants
@@ -333,7 +358,7 @@ impl FetchPipeline {
         shader: &Shader,
         bindings: &[(&str, vk::DescriptorType)],
         push_constant_size: u32,
-        specialization: Option<&vk::SpecializationInfo>,
+        constants: &[(&str, u32)],
     ) -> Result<Self> {
         let mut pipeline = ComputePipeline::specialized(
             ctx,
@@ -341,7 +366,7 @@ impl FetchPipeline {
             shader,
             bindings,
             push_constant_size,
-            specialization,
+            constants,
         )?;
         match sampler(
             ctx,

@@ -151,22 +151,18 @@ impl TracePass {
             method.name(),
             if curved { ",curved" } else { "" }
         );
-        let on = vk::Bool32::from(curved);
-        let entries = [vk::SpecializationMapEntry {
-            constant_id: 0,
-            offset: 0,
-            size: std::mem::size_of::<vk::Bool32>(),
-        }];
-        let spec = vk::SpecializationInfo::default()
-            .map_entries(&entries)
-            .data(bytemuck::bytes_of(&on));
         let pipeline = FetchPipeline::specialized(
             ctx,
             &name,
             &method.shader(),
             &bindings(method.needs()),
             std::mem::size_of::<TraceParams>() as u32,
-            Some(&spec),
+            // The flat variant is the shader's default (`CURVED_VARIANT` false).
+            if curved {
+                &[("CURVED_VARIANT", vk::TRUE)]
+            } else {
+                &[]
+            },
         )?;
         Ok(TracePass {
             method,
