@@ -175,6 +175,14 @@ fn info(options: &ContextOptions) -> Result<()> {
     println!("timestamp valid bits: {}", i.timestamp_valid_bits);
     println!("max image 2D:         {}", i.max_image_dimension_2d);
     println!(
+        "traversal step rules: {}",
+        if ctx.traversal_rules() {
+            "on (a CPU device)"
+        } else {
+            "off (a GPU)"
+        }
+    );
+    println!(
         "validation:           {}",
         match (ctx.validation_enabled(), ctx.has_messenger()) {
             (true, true) => "on (Khronos validation layer, messages counted)",

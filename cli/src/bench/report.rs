@@ -75,11 +75,12 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     let _ = writeln!(s, "\n## Set-up\n");
     let _ = writeln!(
         s,
-        "- date: {}\n- command: `{command}`\n- device: {} (driver {}, Vulkan {})\n- wall time of the sweep: {:.1} s",
+        "- date: {}\n- command: `{command}`\n- device: {} (driver {}, Vulkan {}; traversal step rules {})\n- wall time of the sweep: {:.1} s",
         utc_timestamp(results.started),
         results.device,
         results.driver,
         results.api_version,
+        if results.traversal_rules { "on" } else { "off" },
         results.wall.as_secs_f64()
     );
     let _ = writeln!(

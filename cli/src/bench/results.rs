@@ -186,6 +186,9 @@ pub struct BenchResults {
     pub driver: String,
     /// Vulkan API version.
     pub api_version: String,
+    /// Whether the cell-pyramid traversals ran with their step rules
+    /// (`Context::traversal_rules`: on for CPU devices, off for GPUs).
+    pub traversal_rules: bool,
     /// The maps of the methods sweep.
     pub maps: Vec<MapInfo>,
     /// The map resampled by the map-size sweep, if it ran.

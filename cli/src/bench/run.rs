@@ -258,6 +258,7 @@ pub fn run(
         device: info.name.clone(),
         driver: info.driver.clone(),
         api_version: info.api_version.clone(),
+        traversal_rules: ctx.traversal_rules(),
         config,
         rows,
         pass_medians,

@@ -444,6 +444,7 @@ mod tests {
             device: "test device".into(),
             driver: "test".into(),
             api_version: "1.3".into(),
+            traversal_rules: true,
             maps: vec![MapInfo {
                 name: "rocks".into(),
                 label: "rocks".into(),
