@@ -1,15 +1,16 @@
 #version 460
-// classify: sorts the frame's 8x8 tiles by material (src/passes/classify.rs). One
-// workgroup per tile: each invocation reads its pixel's material (G-buffer depth and
-// tangent.w, glsl/common/tiles.glsl), the workgroup ORs them into a mask, and for every
-// material present the tile is appended to that material's list, whose count is the
-// workgroup count of the material's VkDispatchIndirectCommand (x = min(n, MAX_TILE_ROW),
-// y = rows): every later per-material pass is one indirect dispatch over its list. Pixels of no live material (no geometry, flat
-// geometry, an index past the table or of a removed material) get their hit buffer texel
-// here, since no trace writes it: (0, 0, NO_HIT_HEIGHT, 0) without geometry,
-// (0, 0, NOT_DISPLACED_HEIGHT, 0) for flat geometry. With the DEPTH variant (corrected
-// depth on) they also get their corrected depth: the G-buffer's own depth (0 without
-// geometry), the depth of a surface that is not displaced.
+// classify, step 1 of 3 (src/passes/classify.rs): counts the frame's 8x8 tiles per
+// material. One workgroup per tile: each invocation reads its pixel's material (G-buffer
+// depth and tangent.w, glsl/common/tiles.glsl), the workgroup ORs them into a mask, and
+// every material present adds one to its count; the tile's summary (no material, one, or
+// several) is kept for the scatter (glsl/classify_scatter.comp), after the offsets
+// (glsl/classify_offsets.comp) placed each material's list in the slot's one tile buffer.
+// Pixels of no live material (no geometry, flat geometry, an index past the table or of a
+// removed material) get their hit buffer texel here, since no trace writes it:
+// (0, 0, NO_HIT_HEIGHT, 0) without geometry, (0, 0, NOT_DISPLACED_HEIGHT, 0) for flat
+// geometry. With the DEPTH variant (corrected depth on) they also get their corrected
+// depth: the G-buffer's own depth (0 without geometry), the depth of a surface that is not
+// displaced.
 // dispmap-variant: DEPTH
 #include "frame.glsl"
 #include "tiles.glsl"
@@ -19,13 +20,12 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(set = 0, binding = 0) uniform sampler2D u_depth;
 layout(set = 0, binding = 1) uniform sampler2D u_tangent;
 layout(set = 0, binding = 2, rgba32f) uniform writeonly image2D u_hit;
-// Every material's list, `tile_capacity` entries each (material m at m * tile_capacity).
+// The slot's tile buffer (glsl/common/tiles.glsl): this step writes the tile summaries.
 layout(set = 0, binding = 3, std430) writeonly buffer Tiles {
     uint tiles[];
 } u_tiles;
-// Per material 4 words: a VkDispatchIndirectCommand (x, y, z), set to (0, 0, 1) before
-// the pass, and w = 1 for a live material, 0 for a vacant table entry. Then a count per
-// material (set to 0 before the pass): the length of its list.
+// The slot's arguments (glsl/common/tiles.glsl: ARGS_WORDS per table entry; the counts
+// zeroed before the pass): this step reads the live flags and adds to the counts.
 layout(set = 0, binding = 4, std430) buffer Args {
     uint args[];
 } u_args;
@@ -36,7 +36,7 @@ layout(set = 0, binding = 5, r32f) uniform writeonly image2D u_hit_depth;
 layout(push_constant) uniform ClassifyParams {
     uvec2 frame_size;    // pixels
     uint material_count; // table entries (live or vacant)
-    uint tile_capacity;  // entries per material list
+    uint entries_base;   // the tile buffer's first entry word (classify_offsets)
     uint flags;          // CLASSIFY_FLAG_*
     uint pad0;
     uint pad1;
@@ -49,19 +49,27 @@ layout(push_constant) uniform ClassifyParams {
 
 const uint MASK_WORDS = MAX_MATERIALS / 32u;
 shared uint s_mask[MASK_WORDS];
+shared uint s_min;
+shared uint s_max;
 
 void main() {
     uint lane = gl_LocalInvocationIndex;
     if (lane < MASK_WORDS) {
         s_mask[lane] = 0u;
     }
+    if (lane == 0u) {
+        s_min = NOT_DISPLACED;
+        s_max = 0u;
+    }
     barrier();
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
     if (all(lessThan(uvec2(pixel), pc.frame_size))) {
         float depth = texelFetch(u_depth, pixel, 0).r;
         uint m = depth > 0.0 ? decode_material(texelFetch(u_tangent, pixel, 0).w) : NOT_DISPLACED;
-        if (m < pc.material_count && u_args.args[4u * m + 3u] != 0u) {
+        if (m < pc.material_count && u_args.args[ARGS_WORDS * m + ARGS_LIVE] != 0u) {
             atomicOr(s_mask[m >> 5], 1u << (m & 31u));
+            atomicMin(s_min, m);
+            atomicMax(s_max, m);
         } else {
             if ((pc.flags & CLASSIFY_FLAG_WRITE_HITS) != 0u) {
                 float h = depth > 0.0 ? NOT_DISPLACED_HEIGHT : NO_HIT_HEIGHT;
@@ -73,18 +81,18 @@ void main() {
         }
     }
     barrier();
+    if (lane == 0u) {
+        uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        uint summary = s_min == NOT_DISPLACED ? TILE_EMPTY : (s_min == s_max ? s_min : TILE_MIXED);
+        u_tiles.tiles[TILE_HEADER_WORDS + tile] = summary;
+    }
     uint words = (pc.material_count + 31u) / 32u;
     if (lane < words) {
         uint bits = s_mask[lane];
-        uint tile = gl_WorkGroupID.x | (gl_WorkGroupID.y << 16);
         while (bits != 0u) {
             uint b = uint(findLSB(bits));
             bits &= bits - 1u;
-            uint m = lane * 32u + b;
-            uint i = atomicAdd(u_args.args[4u * pc.material_count + m], 1u);
-            u_tiles.tiles[m * pc.tile_capacity + i] = tile;
-            atomicMax(u_args.args[4u * m], min(i + 1u, MAX_TILE_ROW));
-            atomicMax(u_args.args[4u * m + 1u], i / MAX_TILE_ROW + 1u);
+            atomicAdd(u_args.args[ARGS_WORDS * (lane * 32u + b) + ARGS_COUNT], 1u);
         }
     }
 }

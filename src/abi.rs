@@ -146,8 +146,8 @@ pub struct ClassifyParams {
     pub frame_size: [u32; 2],
     /// Table entries (live or vacant).
     pub material_count: u32,
-    /// Entries per material list.
-    pub tile_capacity: u32,
+    /// The tile buffer's first entry word (after its header and tile summaries).
+    pub entries_base: u32,
     /// `CLASSIFY_FLAG_*`.
     pub flags: u32,
     /// Padding to 16 bytes.
@@ -692,14 +692,19 @@ mod tests {
 
     #[test]
     fn classify_params_layout() {
-        for shader in [&shaders::CLASSIFY_COMP, &shaders::CLASSIFY_COMP_DEPTH] {
+        for shader in [
+            &shaders::CLASSIFY_COMP,
+            &shaders::CLASSIFY_COMP_DEPTH,
+            &shaders::CLASSIFY_OFFSETS_COMP,
+            &shaders::CLASSIFY_SCATTER_COMP,
+        ] {
             check(
                 shader,
                 "ClassifyParams",
                 &[
                     ("frame_size", offset_of!(ClassifyParams, frame_size)),
                     ("material_count", offset_of!(ClassifyParams, material_count)),
-                    ("tile_capacity", offset_of!(ClassifyParams, tile_capacity)),
+                    ("entries_base", offset_of!(ClassifyParams, entries_base)),
                     ("flags", offset_of!(ClassifyParams, flags)),
                     ("pad0", offset_of!(ClassifyParams, pad)),
                     ("pad1", offset_of!(ClassifyParams, pad) + 4),

@@ -197,7 +197,7 @@ fn frame(
     let colors = host.colors(s);
     let image = pass.hit_depth(s as u32).expect("depth output on");
     let depth = read_image(
-        pass.context(),
+        pass.context().unwrap(),
         host.shot(),
         image,
         Access::COMPUTE_STORAGE_WRITE,

@@ -269,8 +269,10 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     for res in [Res::Visibility, Res::HitDepth, Res::Corners(0)] {
         g.tracker.enter(res, owned_entry(res));
     }
-    let stages: [(&[ShaderBinding], &[Res]); 7] = [
+    let stages: [(&[ShaderBinding], &[Res]); 9] = [
         (shaders::CLASSIFY_COMP_DEPTH.bindings, &[]),
+        (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
+        (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
         (shaders::DIG_CORNERS_COMP.bindings, &[]),
         (shaders::TRACE_DIG_COMP.bindings, &[]),
         (shaders::SHADOW_COMP.bindings, &[]),
@@ -290,6 +292,8 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     s.resolve()?;
     for (bindings, skip) in [
         (shaders::CLASSIFY_COMP.bindings, &[Res::Hit][..]),
+        (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
+        (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
         (shaders::SHADE_COMP_SHADOWS.bindings, &[]),
     ] {
         s.dispatch(bindings, 0, skip)?;
@@ -427,6 +431,8 @@ mod tests {
         let mut all = vec![
             shaders::CLASSIFY_COMP,
             shaders::CLASSIFY_COMP_DEPTH,
+            shaders::CLASSIFY_OFFSETS_COMP,
+            shaders::CLASSIFY_SCATTER_COMP,
             shaders::DIG_CORNERS_COMP,
             shaders::SHADOW_COMP,
             shaders::SHADOW_COMP_PYRAMID,

@@ -131,6 +131,10 @@ impl Destroy for CornerGrid {
             self.image.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.image.bytes()
+    }
 }
 
 /// The corner pass.

@@ -265,6 +265,10 @@ impl Destroy for Pyramid {
             self.image.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.image.bytes() + self.compact.bytes()
+    }
 }
 
 /// The compact format of a `kind` pyramid of a `height_format` map (module docs), if
