@@ -243,8 +243,9 @@ impl DisplacementPass {
                 Ok((new, _)) => swaps.push((old, new)),
                 Err(e) => {
                     for (_, new) in swaps {
+                        let unused = self.maps[new].take();
                         // SAFETY: never recorded: made above.
-                        unsafe { self.maps[new].take().destroy(&*self.context()?.clone()) };
+                        unsafe { self.destroy_unused(unused) };
                     }
                     return Err(e);
                 }
@@ -263,8 +264,9 @@ impl DisplacementPass {
             let back: Vec<(usize, usize)> = swaps.iter().map(|&(a, b)| (b, a)).collect();
             repoint(&mut self.materials, &back);
             for (_, new) in swaps {
+                let unused = self.maps[new].take();
                 // SAFETY: the failed sync recorded nothing with the new map.
-                unsafe { self.maps[new].take().destroy(&*self.context()?.clone()) };
+                unsafe { self.destroy_unused(unused) };
             }
             return Err(e);
         }

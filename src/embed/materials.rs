@@ -60,18 +60,16 @@ impl DisplacementPass {
         }
         if let Err(e) = self.sync() {
             // Never recorded: destroyed at once.
+            let unused = self.materials[index].take();
             // SAFETY: the failed sync recorded nothing with the new entry.
-            unsafe {
-                self.materials[index]
-                    .take()
-                    .destroy(&*self.context()?.clone())
-            };
+            unsafe { self.destroy_unused(unused) };
             if index + 1 == self.materials.len() {
                 self.materials.pop();
             }
             if new_map {
+                let unused = self.maps[map].take();
                 // SAFETY: the failed sync recorded nothing with the new map.
-                unsafe { self.maps[map].take().destroy(&*self.context()?.clone()) };
+                unsafe { self.destroy_unused(unused) };
             }
             return Err(e);
         }
@@ -185,8 +183,9 @@ impl DisplacementPass {
                 m.map = old;
             }
             if new_map {
+                let unused = self.maps[map].take();
                 // SAFETY: the failed sync recorded nothing with the new map.
-                unsafe { self.maps[map].take().destroy(&*self.context()?.clone()) };
+                unsafe { self.destroy_unused(unused) };
             }
             return Err(e);
         }

@@ -685,6 +685,18 @@ impl DisplacementPass {
         }
     }
 
+    /// Destroys `value`, made for the pass, at once (nothing if the pass is destroyed: it
+    /// then holds no context, and nothing it made is alive).
+    ///
+    /// # Safety
+    /// No command buffer uses `value` (it was never recorded).
+    unsafe fn destroy_unused(&self, mut value: impl Destroy) {
+        if let Some(ctx) = &self.ctx {
+            // SAFETY: this function's contract.
+            unsafe { value.destroy(ctx) };
+        }
+    }
+
     fn check_alive(&self) -> Result<()> {
         self.context().map(|_| ())
     }
