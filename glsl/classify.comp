@@ -1,10 +1,11 @@
 #version 460
-// classify, step 1 of 3 (src/passes/classify.rs): counts the frame's 8x8 tiles per
+// classify, step 1 of 4 (src/passes/classify.rs): counts the frame's 8x8 tiles per
 // material. One workgroup per tile: each invocation reads its pixel's material (G-buffer
 // depth and tangent.w, glsl/common/tiles.glsl), the workgroup ORs them into a mask, and
-// every material present adds one to its count; the tile's summary (no material, one, or
-// several) is kept for the scatter (glsl/classify_scatter.comp), after the offsets
-// (glsl/classify_offsets.comp) placed each material's list in the slot's one tile buffer.
+// every material present adds one to its count. The tile's summary (no material, its one
+// material, or several) is kept for the scatter (glsl/classify_scatter.comp), and a tile of
+// several materials is appended to the list glsl/classify_mixed.comp runs over, after
+// glsl/classify_offsets.comp placed each material's list in the slot's one tile buffer.
 // Pixels of no live material (no geometry, flat geometry, an index past the table or of a
 // removed material) get their hit buffer texel here, since no trace writes it:
 // (0, 0, NO_HIT_HEIGHT, 0) without geometry, (0, 0, NOT_DISPLACED_HEIGHT, 0) for flat
@@ -20,12 +21,14 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(set = 0, binding = 0) uniform sampler2D u_depth;
 layout(set = 0, binding = 1) uniform sampler2D u_tangent;
 layout(set = 0, binding = 2, rgba32f) uniform writeonly image2D u_hit;
-// The slot's tile buffer (glsl/common/tiles.glsl): this step writes the tile summaries.
+// The slot's tile buffer (glsl/common/tiles.glsl): this step writes the tile summaries and
+// the list of tiles of several materials.
 layout(set = 0, binding = 3, std430) writeonly buffer Tiles {
     uint tiles[];
 } u_tiles;
 // The slot's arguments (glsl/common/tiles.glsl: ARGS_WORDS per table entry; the counts
-// zeroed before the pass): this step reads the live flags and adds to the counts.
+// zeroed before the pass): this step reads the live flags and adds to the counts (the
+// mixed tiles' too).
 layout(set = 0, binding = 4, std430) buffer Args {
     uint args[];
 } u_args;
@@ -33,15 +36,7 @@ layout(set = 0, binding = 4, std430) buffer Args {
 layout(set = 0, binding = 5, r32f) uniform writeonly image2D u_hit_depth;
 #endif
 
-layout(push_constant) uniform ClassifyParams {
-    uvec2 frame_size;    // pixels
-    uint material_count; // table entries (live or vacant)
-    uint entries_base;   // the tile buffer's first entry word (classify_offsets)
-    uint flags;          // CLASSIFY_FLAG_*
-    uint pad0;
-    uint pad1;
-    uint pad2;
-} pc;
+CLASSIFY_PARAMS
 
 // Write the hit buffer texels of pixels without displacement (off when the host's hits
 // are shaded: DisplacementPass::record_shading).
@@ -49,17 +44,11 @@ layout(push_constant) uniform ClassifyParams {
 
 const uint MASK_WORDS = MAX_MATERIALS / 32u;
 shared uint s_mask[MASK_WORDS];
-shared uint s_min;
-shared uint s_max;
 
 void main() {
     uint lane = gl_LocalInvocationIndex;
     if (lane < MASK_WORDS) {
         s_mask[lane] = 0u;
-    }
-    if (lane == 0u) {
-        s_min = NOT_DISPLACED;
-        s_max = 0u;
     }
     barrier();
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -68,8 +57,6 @@ void main() {
         uint m = depth > 0.0 ? decode_material(texelFetch(u_tangent, pixel, 0).w) : NOT_DISPLACED;
         if (m < pc.material_count && u_args.args[ARGS_WORDS * m + ARGS_LIVE] != 0u) {
             atomicOr(s_mask[m >> 5], 1u << (m & 31u));
-            atomicMin(s_min, m);
-            atomicMax(s_max, m);
         } else {
             if ((pc.flags & CLASSIFY_FLAG_WRITE_HITS) != 0u) {
                 float h = depth > 0.0 ? NOT_DISPLACED_HEIGHT : NO_HIT_HEIGHT;
@@ -81,12 +68,25 @@ void main() {
         }
     }
     barrier();
-    if (lane == 0u) {
-        uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-        uint summary = s_min == NOT_DISPLACED ? TILE_EMPTY : (s_min == s_max ? s_min : TILE_MIXED);
-        u_tiles.tiles[TILE_HEADER_WORDS + tile] = summary;
-    }
     uint words = (pc.material_count + 31u) / 32u;
+    if (lane == 0u) {
+        // The summary: the mask's bit count and lowest bit (at most 32 words).
+        uint n = 0u;
+        uint first = 0u;
+        for (uint w = 0u; w < words; w++) {
+            uint bits = s_mask[w];
+            if (bits != 0u && n == 0u) {
+                first = w * 32u + uint(findLSB(bits));
+            }
+            n += uint(bitCount(bits));
+        }
+        uint index = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        u_tiles.tiles[TILE_HEADER_WORDS + index] = n == 0u ? TILE_EMPTY : (n == 1u ? first : TILE_MIXED);
+        if (n > 1u) {
+            uint i = atomicAdd(u_args.args[ARGS_MIXED + ARGS_COUNT], 1u);
+            u_tiles.tiles[TILE_HEADER_WORDS + pc.tile_count + i] = gl_WorkGroupID.x | (gl_WorkGroupID.y << 16);
+        }
+    }
     if (lane < words) {
         uint bits = s_mask[lane];
         while (bits != 0u) {

@@ -1,11 +1,12 @@
 #version 460
-// classify, step 2 of 3 (src/passes/classify.rs): places each material's tile list in
+// classify, step 2 of 4 (src/passes/classify.rs): places each material's tile list in
 // the slot's one tile buffer. One workgroup: an exclusive prefix sum of the counts of step
 // 1 (glsl/classify.comp) gives each table entry's first entry word; it writes the list's
 // place and length into the tile buffer's header (what the per-material passes read,
-// glsl/common/tiles.glsl), the scatter's cursor (glsl/classify_scatter.comp) and the
-// workgroup count of the entry's VkDispatchIndirectCommand (x = min(n, MAX_TILE_ROW),
-// y = rows; an empty list keeps (0, 0, 1): no workgroup). The counts of a frame sum to at
+// glsl/common/tiles.glsl), the scatter's cursor (glsl/classify_scatter.comp,
+// glsl/classify_mixed.comp) and the workgroup count of the entry's
+// VkDispatchIndirectCommand (x = min(n, MAX_TILE_ROW), y = rows; an empty list keeps
+// (0, 0, 1): no workgroup); and the one of the list of tiles of several materials. The counts of a frame sum to at
 // most tiles * LOCAL_SIZE^2 (a tile holds at most that many materials): the lists fit the
 // buffer. Each invocation handles MAX_MATERIALS / LOCAL_SIZE^2 consecutive entries (16
 // loop iterations; the prefix over the invocations below is at most 63).
@@ -24,15 +25,7 @@ layout(set = 0, binding = 1, std430) buffer Args {
     uint args[];
 } u_args;
 
-layout(push_constant) uniform ClassifyParams {
-    uvec2 frame_size;    // pixels
-    uint material_count; // table entries (live or vacant)
-    uint entries_base;   // the tile buffer's first entry word
-    uint flags;          // unused here
-    uint pad0;
-    uint pad1;
-    uint pad2;
-} pc;
+CLASSIFY_PARAMS
 
 const uint LANES = uint(LOCAL_SIZE * LOCAL_SIZE);
 const uint PER_LANE = MAX_MATERIALS / LANES;
@@ -66,6 +59,13 @@ void main() {
                 u_args.args[ARGS_WORDS * m + 1u] = (n - 1u) / MAX_TILE_ROW + 1u;
             }
             at += n;
+        }
+    }
+    if (lane == 0u) {
+        uint n = u_args.args[ARGS_MIXED + ARGS_COUNT];
+        if (n > 0u) {
+            u_args.args[ARGS_MIXED] = min(n, MAX_TILE_ROW);
+            u_args.args[ARGS_MIXED + 1u] = (n - 1u) / MAX_TILE_ROW + 1u;
         }
     }
 }

@@ -150,8 +150,10 @@ pub struct ClassifyParams {
     pub entries_base: u32,
     /// `CLASSIFY_FLAG_*`.
     pub flags: u32,
+    /// The frame's 8x8 tiles.
+    pub tile_count: u32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 3],
+    pub pad: [u32; 2],
 }
 
 /// `GBufferParams` in `glsl/common/gbuffer.glsl`.
@@ -697,6 +699,7 @@ mod tests {
             &shaders::CLASSIFY_COMP_DEPTH,
             &shaders::CLASSIFY_OFFSETS_COMP,
             &shaders::CLASSIFY_SCATTER_COMP,
+            &shaders::CLASSIFY_MIXED_COMP,
         ] {
             check(
                 shader,
@@ -706,9 +709,9 @@ mod tests {
                     ("material_count", offset_of!(ClassifyParams, material_count)),
                     ("entries_base", offset_of!(ClassifyParams, entries_base)),
                     ("flags", offset_of!(ClassifyParams, flags)),
+                    ("tile_count", offset_of!(ClassifyParams, tile_count)),
                     ("pad0", offset_of!(ClassifyParams, pad)),
                     ("pad1", offset_of!(ClassifyParams, pad) + 4),
-                    ("pad2", offset_of!(ClassifyParams, pad) + 8),
                 ],
                 size_of::<ClassifyParams>(),
             );

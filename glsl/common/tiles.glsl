@@ -37,11 +37,14 @@ float handedness(float tangent_w) {
 // The binding of a per-material pass's tile lists (src/passes/classify.rs: TILES).
 #define TILES_BINDING 15
 
-// The tile buffer of a frame slot (src/passes/classify.rs: TileLists), in words:
+// The tile buffer of a frame slot (src/passes/classify.rs: TileLists), in words, with
+// `tiles` the frame's 8x8 tiles:
 // [0, TILE_HEADER_WORDS): per material m, word 2m = the index of its list's first entry,
 //   2m + 1 = its length (written by classify_offsets for every table entry);
 // [TILE_HEADER_WORDS, + tiles): per tile (row-major) what classify found in it:
 //   TILE_EMPTY, TILE_MIXED or its one material;
+// [TILE_HEADER_WORDS + tiles, + tiles): the tiles of several materials (packed as below),
+//   the list classify_mixed runs over;
 // then the entries: each material's list, one after the other (tile (x, y) packed as
 //   x | y << 16); at most tiles * LOCAL_SIZE^2 of them, as a tile holds at most
 //   LOCAL_SIZE^2 distinct materials.
@@ -52,10 +55,25 @@ float handedness(float tangent_w) {
 // The argument buffer of a frame slot, ARGS_WORDS words per table entry: a
 // VkDispatchIndirectCommand (x, y, z: (0, 0, 1) before classify), a live flag (1: the entry
 // holds a material), the number of tiles holding the material, and the scatter's cursor.
+// Entry MAX_MATERIALS (ARGS_MIXED) is the list of tiles of several materials: its dispatch
+// and its length.
 #define ARGS_WORDS 8u
 #define ARGS_LIVE 3u
 #define ARGS_COUNT 4u
 #define ARGS_CURSOR 5u
+#define ARGS_MIXED (ARGS_WORDS * MAX_MATERIALS)
+
+// The push constants of every classify step (src/abi.rs: ClassifyParams).
+#define CLASSIFY_PARAMS \
+    layout(push_constant) uniform ClassifyParams { \
+        uvec2 frame_size;    /* pixels */ \
+        uint material_count; /* table entries (live or vacant) */ \
+        uint entries_base;   /* the tile buffer's first entry word */ \
+        uint flags;          /* CLASSIFY_FLAG_* (the count step) */ \
+        uint tile_count;     /* the frame's 8x8 tiles */ \
+        uint pad0; \
+        uint pad1; \
+    } pc;
 
 #ifdef DISPMAP_TILE_PASS
 // The slot's tile buffer (layout above).

@@ -131,8 +131,8 @@ pub(super) const ARGS_RESET: Access = Access {
     ..Access::TRANSFER_WRITE
 };
 
-/// A per-material pass's indirect dispatch reads its arguments.
-const INDIRECT: Access = Access {
+/// An indirect dispatch reads its arguments.
+pub(super) const INDIRECT: Access = Access {
     stage: vk::PipelineStageFlags2::DRAW_INDIRECT,
     access: vk::AccessFlags2::INDIRECT_COMMAND_READ,
     layout: vk::ImageLayout::UNDEFINED,
@@ -269,10 +269,11 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     for res in [Res::Visibility, Res::HitDepth, Res::Corners(0)] {
         g.tracker.enter(res, owned_entry(res));
     }
-    let stages: [(&[ShaderBinding], &[Res]); 9] = [
+    let stages: [(&[ShaderBinding], &[Res]); 10] = [
         (shaders::CLASSIFY_COMP_DEPTH.bindings, &[]),
         (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
         (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
+        (shaders::CLASSIFY_MIXED_COMP.bindings, &[]),
         (shaders::DIG_CORNERS_COMP.bindings, &[]),
         (shaders::TRACE_DIG_COMP.bindings, &[]),
         (shaders::SHADOW_COMP.bindings, &[]),
@@ -294,6 +295,7 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
         (shaders::CLASSIFY_COMP.bindings, &[Res::Hit][..]),
         (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
         (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
+        (shaders::CLASSIFY_MIXED_COMP.bindings, &[]),
         (shaders::SHADE_COMP_SHADOWS.bindings, &[]),
     ] {
         s.dispatch(bindings, 0, skip)?;
@@ -433,6 +435,7 @@ mod tests {
             shaders::CLASSIFY_COMP_DEPTH,
             shaders::CLASSIFY_OFFSETS_COMP,
             shaders::CLASSIFY_SCATTER_COMP,
+            shaders::CLASSIFY_MIXED_COMP,
             shaders::DIG_CORNERS_COMP,
             shaders::SHADOW_COMP,
             shaders::SHADOW_COMP_PYRAMID,

@@ -2,7 +2,7 @@
 //! per-material pass (`dig_corners` aside, `trace`, `shadow`, `shade`, `hit_depth`) is
 //! one indirect dispatch over the tiles that hold the material's pixels
 //! (`glsl/classify.comp`, `glsl/classify_offsets.comp`, `glsl/classify_scatter.comp`,
-//! `glsl/common/tiles.glsl`). A frame's cost then follows its displaced pixels, not its
+//! `glsl/classify_mixed.comp`, `glsl/common/tiles.glsl`). A frame's cost then follows its displaced pixels, not its
 //! size times its materials: this is the tile classification of deferred engines'
 //! material and lighting passes.
 //!
@@ -15,19 +15,21 @@
 //!
 //! Every material's list lives in one buffer per frame slot whose size follows the frame
 //! alone ([`TileLists::bytes_for`]): a tile holds at most 64 distinct materials, so the
-//! lists of a frame hold at most 64 entries per tile whatever the table's length. Three
+//! lists of a frame hold at most 64 entries per tile whatever the table's length. Four
 //! dispatches ([`ClassifyStep`]) fill it: `Count` counts the tiles of each material (and
-//! keeps a summary per tile), `Offsets` places each list by a prefix sum of the counts
-//! and writes the dispatch arguments, `Scatter` writes the entries (re-reading the pixels
-//! of tiles of several materials only). Adding or removing materials changes none of its
-//! buffers: the arguments have room for [`MAX_MATERIALS`] entries.
+//! keeps a summary per tile, and a list of the tiles of several materials), `Offsets`
+//! places each list by a prefix sum of the counts and writes the dispatch arguments,
+//! `Scatter` (one invocation per tile) writes the entries of tiles of one material, and
+//! `Mixed` (an indirect dispatch over the tiles of several materials, which it reads
+//! again) the others'. Adding or removing materials changes none of its buffers: the
+//! arguments have room for [`MAX_MATERIALS`] entries.
 //!
 //! Bindings (set 0, push descriptors), mirrored by the shaders:
 //!
 //! | binding (GLSL name; the shaders number them) | resource | steps | layout on entry |
 //! |---|---|---|---|
-//! | `u_depth` | G-buffer `depth` (sampled) | count, scatter | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_tangent` | G-buffer `tangent` (sampled) | count, scatter | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_depth` | G-buffer `depth` (sampled) | count, mixed | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_tangent` | G-buffer `tangent` (sampled) | count, mixed | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_hit` | hit buffer (storage, written for pixels without displacement) | count | `GENERAL` |
 //! | `u_tiles` | the tile buffer (storage buffer, written) | all | |
 //! | `u_args` | the dispatch arguments and counts (storage buffer, read and written) | all | |
@@ -67,6 +69,10 @@ const HEADER_WORDS: u64 = 2 * MAX_MATERIALS as u64;
 /// count and cursor, two words of padding (`ARGS_WORDS` in `glsl/common/tiles.glsl`).
 const ARGS_STRIDE: u64 = 32;
 
+/// Bytes of the argument buffer: [`MAX_MATERIALS`] entries and the list of tiles of
+/// several materials (`ARGS_MIXED`).
+const ARGS_BYTES: u64 = (MAX_MATERIALS as u64 + 1) * ARGS_STRIDE;
+
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
 const BUFFER: vk::DescriptorType = vk::DescriptorType::STORAGE_BUFFER;
@@ -75,10 +81,12 @@ const BUFFER: vk::DescriptorType = vk::DescriptorType::STORAGE_BUFFER;
 /// materials' indirect dispatch arguments. Their sizes follow the frame's size only.
 pub struct TileLists {
     /// The tile buffer: the lists' header (per table entry its list's first entry and
-    /// length), a summary per tile, then the entries (at most 64 per tile).
+    /// length), a summary per tile, the list of tiles of several materials, then the
+    /// entries (at most 64 per tile).
     pub tiles: Buffer,
     /// Per table entry ([`MAX_MATERIALS`] of them) a `VkDispatchIndirectCommand`, a live
-    /// flag, its count and the scatter's cursor (32 bytes).
+    /// flag, its count and the scatter's cursor (32 bytes); then the same for the list of
+    /// tiles of several materials.
     pub args: Buffer,
     tile_count: u32,
     extent: vk::Extent2D,
@@ -98,7 +106,7 @@ impl TileLists {
         let args = Buffer::new(
             ctx,
             &format!("{name}.args"),
-            u64::from(MAX_MATERIALS) * ARGS_STRIDE,
+            ARGS_BYTES,
             vk::BufferUsageFlags::STORAGE_BUFFER
                 | vk::BufferUsageFlags::INDIRECT_BUFFER
                 | vk::BufferUsageFlags::TRANSFER_DST,
@@ -122,10 +130,10 @@ impl TileLists {
     }
 
     /// The bytes the lists of one frame slot of `extent` take ([`TileLists::new`]'s two
-    /// buffers): `4 * (2048 + 65 * tiles) + 32 * 1024` with `tiles` the frame's 8x8
-    /// tiles (8.07 MiB at 1920x1080), whatever the number of materials.
+    /// buffers): `4 * (2048 + 66 * tiles) + 32 * 1025` with `tiles` the frame's 8x8
+    /// tiles (8.19 MiB at 1920x1080), whatever the number of materials.
     pub fn bytes_for(extent: vk::Extent2D) -> u64 {
-        tile_buffer_bytes(extent) + u64::from(MAX_MATERIALS) * ARGS_STRIDE
+        tile_buffer_bytes(extent) + ARGS_BYTES
     }
 
     /// The bytes these lists take (their buffers' sizes).
@@ -163,19 +171,19 @@ impl TileLists {
         }
     }
 
-    /// The word of the tile buffer where the entries start (after the header and the
-    /// tile summaries).
+    /// The word of the tile buffer where the entries start (after the header, the tile
+    /// summaries and the list of tiles of several materials).
     fn entries_base(&self) -> u32 {
-        HEADER_WORDS as u32 + self.tile_count
+        HEADER_WORDS as u32 + 2 * self.tile_count
     }
 }
 
-/// Bytes of the tile buffer of a frame of `extent`: the header, a summary word per tile
-/// and 64 entry words per tile.
+/// Bytes of the tile buffer of a frame of `extent`: the header, a summary word and a
+/// mixed-list word per tile and 64 entry words per tile.
 fn tile_buffer_bytes(extent: vk::Extent2D) -> u64 {
     let [tx, ty] = tile_count(extent);
     let tiles = u64::from(tx) * u64::from(ty);
-    4 * (HEADER_WORDS + tiles * (1 + TILE_PIXELS))
+    4 * (HEADER_WORDS + tiles * (2 + TILE_PIXELS))
 }
 
 impl Destroy for TileLists {
@@ -239,24 +247,28 @@ pub fn tile_count(extent: vk::Extent2D) -> [u32; 2] {
     ]
 }
 
-/// The three dispatches of `classify`, in their order (the module docs).
+/// The four dispatches of `classify`, in their order (the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ClassifyStep {
-    /// Counts each material's tiles, writes the hit texels (and corrected depth) of
-    /// pixels without displacement (`glsl/classify.comp`).
+    /// Counts each material's tiles, lists the tiles of several materials, writes the hit
+    /// texels (and corrected depth) of pixels without displacement (`glsl/classify.comp`).
     Count,
     /// Places each list and writes the dispatch arguments (`glsl/classify_offsets.comp`).
     Offsets,
-    /// Writes the lists' entries (`glsl/classify_scatter.comp`).
+    /// Writes the entries of tiles of one material (`glsl/classify_scatter.comp`).
     Scatter,
+    /// Writes the entries of tiles of several materials: an indirect dispatch, whose
+    /// arguments `Offsets` wrote (`glsl/classify_mixed.comp`).
+    Mixed,
 }
 
 impl ClassifyStep {
     /// The steps in their order.
-    pub const ALL: [ClassifyStep; 3] = [
+    pub const ALL: [ClassifyStep; 4] = [
         ClassifyStep::Count,
         ClassifyStep::Offsets,
         ClassifyStep::Scatter,
+        ClassifyStep::Mixed,
     ];
 }
 
@@ -281,12 +293,13 @@ pub struct ClassifyInputs<'a> {
 }
 
 /// The classification pipelines (the counting step without and with the corrected
-/// depth, the offsets and the scatter).
+/// depth, the offsets, the scatter and the mixed tiles' scatter).
 pub struct ClassifyPass {
     plain: FetchPipeline,
     depth: FetchPipeline,
     offsets: FetchPipeline,
     scatter: FetchPipeline,
+    mixed: FetchPipeline,
 }
 
 impl ClassifyPass {
@@ -307,6 +320,7 @@ impl ClassifyPass {
             ClassifyStep::Count => &self.plain,
             ClassifyStep::Offsets => &self.offsets,
             ClassifyStep::Scatter => &self.scatter,
+            ClassifyStep::Mixed => &self.mixed,
         }
     }
 
@@ -323,7 +337,7 @@ impl ClassifyPass {
         let mut with_depth = base.to_vec();
         with_depth.push(("u_hit_depth", STORAGE));
         let lists = [("u_tiles", BUFFER), ("u_args", BUFFER)];
-        let scatter = [
+        let mixed = [
             ("u_depth", SAMPLED),
             ("u_tangent", SAMPLED),
             ("u_tiles", BUFFER),
@@ -342,22 +356,21 @@ impl ClassifyPass {
             &with_depth,
         )?;
         let offsets = new("classify_offsets", &shaders::CLASSIFY_OFFSETS_COMP, &lists)?;
-        let scatter = new(
-            "classify_scatter",
-            &shaders::CLASSIFY_SCATTER_COMP,
-            &scatter,
-        )?;
+        let scatter = new("classify_scatter", &shaders::CLASSIFY_SCATTER_COMP, &lists)?;
+        let mixed = new("classify_mixed", &shaders::CLASSIFY_MIXED_COMP, &mixed)?;
         Ok(ClassifyPass {
             plain: plain.keep(),
             depth: depth.keep(),
             offsets: offsets.keep(),
             scatter: scatter.keep(),
+            mixed: mixed.keep(),
         })
     }
 
-    /// Records the reset of the lists' arguments: a transfer write of `inputs.lists`'
+    /// Records the reset of the lists' arguments: transfer writes of `inputs.lists`'
     /// argument buffer (each table entry's dispatch `(0, 0, 1)`, its live flag, its count
-    /// zeroed), which [`ClassifyPass::record`] then reads and writes.
+    /// zeroed; the same for the list of tiles of several materials), which
+    /// [`ClassifyPass::record`] then reads and writes.
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
@@ -371,26 +384,31 @@ impl ClassifyPass {
         inputs: &ClassifyInputs,
     ) {
         let n = material_count(inputs) as usize;
-        if n == 0 {
-            return;
-        }
         let words = (ARGS_STRIDE / 4) as usize;
         let mut init = vec![0u32; n * words];
         for (m, entry) in init.chunks_exact_mut(words).enumerate() {
             entry[2] = 1;
             entry[3] = u32::from(inputs.live[m]);
         }
+        let mut mixed = [0u32; 8];
+        mixed[2] = 1;
+        let args = inputs.lists.args.raw;
+        let dev = ctx.device();
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the update is `32 * n` bytes (a multiple of 4, at most 32 * MAX_MATERIALS
-        // = 32768 < 65536, not 0) of a live TRANSFER_DST buffer of 32 * MAX_MATERIALS.
+        // pass; each update is a multiple of 4 bytes, not 0 and under 65536 (at most
+        // 32 * MAX_MATERIALS = 32768), inside the live TRANSFER_DST buffer of
+        // 32 * (MAX_MATERIALS + 1) bytes.
         unsafe {
-            ctx.device().cmd_update_buffer(
+            if n > 0 {
+                dev.cmd_update_buffer(cmd, args, 0, bytemuck::cast_slice(&init));
+            }
+            dev.cmd_update_buffer(
                 cmd,
-                inputs.lists.args.raw,
-                0,
-                bytemuck::cast_slice(&init),
-            )
-        };
+                args,
+                u64::from(MAX_MATERIALS) * ARGS_STRIDE,
+                bytemuck::cast_slice(&mixed),
+            );
+        }
     }
 
     /// Records `step` of the classification (the module docs; `Count` also writes, with
@@ -429,7 +447,7 @@ impl ClassifyPass {
         let hit_depth = inputs.hit_depth.map(storage_view);
         let p = &pipeline.pipeline;
         let mut writes = vec![p.buffer("u_tiles", &tiles)?, p.buffer("u_args", &args)?];
-        if step != ClassifyStep::Offsets {
+        if matches!(step, ClassifyStep::Count | ClassifyStep::Mixed) {
             writes.push(p.image("u_depth", &depth)?);
             writes.push(p.image("u_tangent", &tangent)?);
         }
@@ -449,19 +467,35 @@ impl ClassifyPass {
             } else {
                 0
             },
-            pad: [0; 3],
+            tile_count: lists.tile_count,
+            pad: [0; 2],
         };
-        // One workgroup per tile; the offsets are one workgroup.
-        let [width, height] = match step {
-            ClassifyStep::Offsets => [1, 1],
-            _ => [extent.width, extent.height],
-        };
+        let push = bytemuck::bytes_of(&push);
+        // Count: one workgroup per tile; offsets: one workgroup; scatter: one invocation
+        // per tile; mixed: one workgroup per listed tile.
+        let [tx, ty] = tile_count(extent);
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match the pipeline's set 0 and name live resources in the
-        // layouts of the module's table, their earlier accesses ordered before; the push
-        // constants are the `ClassifyParams` the layout was built with.
+        // layouts of the module's table, their earlier accesses ordered before (for the
+        // mixed step, `Offsets`' write of its dispatch too); the push constants are the
+        // `ClassifyParams` the layout was built with; the argument buffer has
+        // INDIRECT_BUFFER usage and the mixed list's command at its offset.
         unsafe {
-            p.dispatch(ctx, cmd, &writes, bytemuck::bytes_of(&push), width, height);
+            match step {
+                ClassifyStep::Count => {
+                    p.dispatch(ctx, cmd, &writes, push, extent.width, extent.height)
+                }
+                ClassifyStep::Offsets => p.dispatch(ctx, cmd, &writes, push, 1, 1),
+                ClassifyStep::Scatter => p.dispatch(ctx, cmd, &writes, push, tx, ty),
+                ClassifyStep::Mixed => p.dispatch_indirect(
+                    ctx,
+                    cmd,
+                    &writes,
+                    push,
+                    lists.args.raw,
+                    u64::from(MAX_MATERIALS) * ARGS_STRIDE,
+                ),
+            }
         }
         Ok(())
     }
@@ -481,6 +515,7 @@ impl Destroy for ClassifyPass {
             self.depth.destroy(ctx);
             self.offsets.destroy(ctx);
             self.scatter.destroy(ctx);
+            self.mixed.destroy(ctx);
         }
     }
 }

@@ -49,6 +49,9 @@ impl DisplacementPass {
                 for step in ClassifyStep::ALL {
                     let bindings = self.classify.bindings(step, hit_depth.is_some());
                     g.dispatch(bindings, 0, skip)?;
+                    if step == ClassifyStep::Mixed {
+                        g.declare(Res::Args, super::super::graph::INDIRECT)?;
+                    }
                     g.flush(ctx, cmd, PassName::Classify)?;
                     self.classify.record(ctx, cmd, &classify, step)?;
                 }
