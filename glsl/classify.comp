@@ -2,7 +2,7 @@
 // classify, step 1 of 4 (src/passes/classify.rs): counts the frame's 8x8 tiles per
 // material. One workgroup per tile: each invocation reads its pixel's material (G-buffer
 // depth and tangent.w, glsl/common/tiles.glsl), the workgroup ORs them into a mask, and
-// every material present adds one to its count. The tile's summary (no material, its one
+// every material present adds one to its count and to the tile's. The tile's summary (no material, its one
 // material, or several) is kept for the scatter (glsl/classify_scatter.comp), and a tile of
 // several materials is appended to the list glsl/classify_mixed.comp runs over, after
 // glsl/classify_offsets.comp placed each material's list in the slot's one tile buffer.
@@ -44,11 +44,16 @@ CLASSIFY_PARAMS
 
 const uint MASK_WORDS = MAX_MATERIALS / 32u;
 shared uint s_mask[MASK_WORDS];
+shared uint s_n;
+shared uint s_first;
 
 void main() {
     uint lane = gl_LocalInvocationIndex;
     if (lane < MASK_WORDS) {
         s_mask[lane] = 0u;
+    }
+    if (lane == 0u) {
+        s_n = 0u;
     }
     barrier();
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -68,31 +73,29 @@ void main() {
         }
     }
     barrier();
+    // Each material present adds one to its count and to the tile's (s_n; the first one
+    // found names the tile's material in s_first).
     uint words = (pc.material_count + 31u) / 32u;
-    if (lane == 0u) {
-        // The summary: the mask's bit count and lowest bit (at most 32 words).
-        uint n = 0u;
-        uint first = 0u;
-        for (uint w = 0u; w < words; w++) {
-            uint bits = s_mask[w];
-            if (bits != 0u && n == 0u) {
-                first = w * 32u + uint(findLSB(bits));
-            }
-            n += uint(bitCount(bits));
-        }
-        uint index = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-        u_tiles.tiles[TILE_HEADER_WORDS + index] = n == 0u ? TILE_EMPTY : (n == 1u ? first : TILE_MIXED);
-        if (n > 1u) {
-            uint i = atomicAdd(u_args.args[ARGS_MIXED + ARGS_COUNT], 1u);
-            u_tiles.tiles[TILE_HEADER_WORDS + pc.tile_count + i] = gl_WorkGroupID.x | (gl_WorkGroupID.y << 16);
-        }
-    }
     if (lane < words) {
         uint bits = s_mask[lane];
         while (bits != 0u) {
             uint b = uint(findLSB(bits));
             bits &= bits - 1u;
-            atomicAdd(u_args.args[ARGS_WORDS * (lane * 32u + b) + ARGS_COUNT], 1u);
+            uint m = lane * 32u + b;
+            atomicAdd(u_args.args[ARGS_WORDS * m + ARGS_COUNT], 1u);
+            if (atomicAdd(s_n, 1u) == 0u) {
+                s_first = m;
+            }
+        }
+    }
+    barrier();
+    if (lane == 0u) {
+        uint n = s_n;
+        uint index = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        u_tiles.tiles[TILE_HEADER_WORDS + index] = n == 0u ? TILE_EMPTY : (n == 1u ? s_first : TILE_MIXED);
+        if (n > 1u) {
+            uint i = atomicAdd(u_args.args[ARGS_MIXED + ARGS_COUNT], 1u);
+            u_tiles.tiles[TILE_HEADER_WORDS + pc.tile_count + i] = gl_WorkGroupID.x | (gl_WorkGroupID.y << 16);
         }
     }
 }
