@@ -934,7 +934,7 @@ impl Engine {
             let _ = self.device.device_wait_idle();
             pass.destroy();
         }
-        drop(pass);
+        // `destroy` let go of the pass's context: only this one is left.
         ensure!(
             Arc::strong_count(&ctx) == 1,
             "the context is still shared after destroy"
@@ -1013,7 +1013,7 @@ impl Engine {
                     self.device.reset_fences(&[slot.fence])?;
                     slot.submitted = false;
                     timings.push(if s == 0 {
-                        embed::read_timestamps(pass.context(), &slot.host_scopes)?
+                        embed::read_timestamps(pass.context()?, &slot.host_scopes)?
                     } else {
                         pass.timings(s as u32)?
                     });
@@ -1324,7 +1324,7 @@ impl Engine {
                     self.device.reset_fences(&[slot.fence])?;
                     slot.submitted = false;
                     timings.push(if s == 0 {
-                        embed::read_timestamps(pass.context(), &slot.host_scopes)?
+                        embed::read_timestamps(pass.context()?, &slot.host_scopes)?
                     } else {
                         pass.timings(s as u32)?
                     });

@@ -166,12 +166,14 @@ pub struct ClassifyParams {
     pub frame_size: [u32; 2],
     /// Table entries (live or vacant).
     pub material_count: u32,
-    /// Entries per material list.
-    pub tile_capacity: u32,
+    /// The tile buffer's first entry word (after its header and tile summaries).
+    pub entries_base: u32,
     /// `CLASSIFY_FLAG_*`.
     pub flags: u32,
+    /// The frame's 8x8 tiles.
+    pub tile_count: u32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 3],
+    pub pad: [u32; 2],
 }
 
 /// `GBufferParams` in `glsl/common/gbuffer.glsl`.
@@ -720,18 +722,24 @@ mod tests {
 
     #[test]
     fn classify_params_layout() {
-        for shader in [&shaders::CLASSIFY_COMP, &shaders::CLASSIFY_COMP_DEPTH] {
+        for shader in [
+            &shaders::CLASSIFY_COMP,
+            &shaders::CLASSIFY_COMP_DEPTH,
+            &shaders::CLASSIFY_OFFSETS_COMP,
+            &shaders::CLASSIFY_SCATTER_COMP,
+            &shaders::CLASSIFY_MIXED_COMP,
+        ] {
             check(
                 shader,
                 "ClassifyParams",
                 &[
                     ("frame_size", offset_of!(ClassifyParams, frame_size)),
                     ("material_count", offset_of!(ClassifyParams, material_count)),
-                    ("tile_capacity", offset_of!(ClassifyParams, tile_capacity)),
+                    ("entries_base", offset_of!(ClassifyParams, entries_base)),
                     ("flags", offset_of!(ClassifyParams, flags)),
+                    ("tile_count", offset_of!(ClassifyParams, tile_count)),
                     ("pad0", offset_of!(ClassifyParams, pad)),
                     ("pad1", offset_of!(ClassifyParams, pad) + 4),
-                    ("pad2", offset_of!(ClassifyParams, pad) + 8),
                 ],
                 size_of::<ClassifyParams>(),
             );

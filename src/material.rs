@@ -204,6 +204,18 @@ impl Destroy for SharedImage {
         // SAFETY: Destroy's contract, passed on.
         unsafe { self.image.destroy(ctx) };
     }
+
+    fn bytes(&self) -> u64 {
+        self.image.bytes()
+    }
+}
+
+/// One holder's share of a shared value's bytes (the holders' shares sum to the value's
+/// bytes, give or take their rounding down).
+fn share<T: Destroy>(shared: &Option<std::sync::Arc<T>>) -> u64 {
+    shared
+        .as_ref()
+        .map_or(0, |v| v.bytes() / std::sync::Arc::strong_count(v) as u64)
 }
 
 /// Releases one holder's share of `shared`: the value is destroyed by its last holder.
@@ -369,6 +381,11 @@ impl Destroy for MaterialTextures {
             self.sampler = vk::Sampler::null();
         }
     }
+
+    /// This holder's share of the images (materials with the same map share one).
+    fn bytes(&self) -> u64 {
+        share(&self.albedo) + share(&self.normal_map)
+    }
 }
 
 /// The staging buffers of [`MaterialTextures::create_for_upload`] (albedo, normal map),
@@ -403,6 +420,11 @@ impl Destroy for MaterialStaging {
         unsafe {
             self.0.iter_mut().for_each(|b| release(b, ctx));
         }
+    }
+
+    /// This holder's share of the buffers.
+    fn bytes(&self) -> u64 {
+        self.0.iter().map(share).sum()
     }
 }
 

@@ -239,7 +239,6 @@ fn teardown(ctx: Arc<Context>, mut pass: DisplacementPass, host: Host, shot: One
     unsafe { shot.destroy(&ctx) };
     // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
     unsafe { pass.destroy() };
-    drop(pass);
     let leaked = ctx
         .allocator()
         .lock()

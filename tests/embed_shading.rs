@@ -332,7 +332,6 @@ fn teardown(ctx: Arc<Context>, mut pass: DisplacementPass, host: Host, shot: Opt
     }
     // SAFETY: every frame recorded with the pass completed (`Host::destroy` waited).
     unsafe { pass.destroy() };
-    drop(pass);
     common::finish(ctx);
 }
 

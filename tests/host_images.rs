@@ -211,7 +211,6 @@ fn wrong_host_images_are_refused_by_name() {
 
     // SAFETY: the one submission completed.
     unsafe { pass.destroy() };
-    drop(pass);
     for i in [&mut hit, &mut half_hit, &mut small_hit, &mut motion32] {
         // SAFETY: the one submission completed.
         unsafe { i.destroy(c) };

@@ -4,8 +4,8 @@
 //! allocation left after `destroy`).
 //!
 //! The frame's G-buffer is dispmap's own rasterised plane, read back and split into
-//! regions: each region's pixels get a material in `tangent.w` and the parallax vector of
-//! that material's depth scale, one region is flat (`tangent.w` = 0). Each material's
+//! regions: each region's pixels get a material in the frame's material field and the
+//! parallax vector of that material's depth scale, one region is flat (field 0). Each material's
 //! hits and colour must be bit-identical to a single-material pass's over the same
 //! G-buffer with only that material's pixels displaced (the others flat), and the flat
 //! pixels keep the host's colour, a `NOT_DISPLACED_HEIGHT` hit and the G-buffer's own
@@ -94,7 +94,7 @@ fn region(x: u32, y: u32) -> Option<usize> {
 }
 
 /// The rasterised G-buffer with the materials of `assign` (pixel -> table index or flat)
-/// written into tangent.w and each region's P scaled to its material's depth scale.
+/// written into the frame's material field and each region's P scaled to its material's depth scale.
 fn gbuffer(
     base: &GBufferTexels,
     depths: &[f32],
@@ -174,7 +174,7 @@ fn frame(
     let colors = host.colors(s);
     let image = pass.hit_depth(s as u32).expect("depth output on");
     let depth = read_image(
-        pass.context(),
+        pass.context().unwrap(),
         host.shot(),
         image,
         Access::COMPUTE_STORAGE_WRITE,

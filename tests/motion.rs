@@ -554,7 +554,6 @@ fn moving_object(turn_deg: f64, slide: DVec3) -> Vec<(f64, f64, f64)> {
     );
     // SAFETY: `hits` and `read_image` waited for the frame: nothing is pending.
     unsafe { pass.destroy() };
-    drop(pass);
     // SAFETY: `hits` and `read_image` waited for the frame: nothing is pending.
     unsafe { motion_image.destroy(&ctx) };
     host.destroy();

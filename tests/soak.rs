@@ -121,7 +121,6 @@ fn soak(frames: usize, swap_every: usize) {
     assert!(hits.iter().filter(|h| h[2] >= 0.0).count() > hits.len() / 2);
     // SAFETY: every frame completed (`wait_all`).
     unsafe { pass.destroy() };
-    drop(pass);
     host.destroy();
     finish(ctx);
 

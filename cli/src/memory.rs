@@ -26,8 +26,19 @@ const BASE_BYTES: u64 = 128 << 20;
 /// (16-bit) on 8192x8192 maps.
 const GPU_BYTES_PER_TEXEL_BYTE: u64 = 2;
 /// Bytes per frame pixel of the GPU's buffers and the colour read-back of any render:
-/// measured 62-65.
+/// measured 62-65 when the tile lists took a few kilobytes; they are counted apart now
+/// ([`tile_list_bytes`]).
 const FRAME_BYTES_PER_PIXEL: u64 = 72;
+
+/// Bytes of the displacement pass's tile lists for a `frame` (the standalone renderer
+/// has one frame slot): sized by the frame alone, whatever the number of materials
+/// (`TileLists::bytes_for`: about 4.06 bytes a pixel).
+pub fn tile_list_bytes(frame: [u32; 2]) -> u64 {
+    dispmap::passes::classify::TileLists::bytes_for(ash::vk::Extent2D {
+        width: frame[0],
+        height: frame[1],
+    })
+}
 /// Bytes per frame pixel `--heatmap` adds (hits and rays read back, the image): measured
 /// 69.
 const HEATMAP_BYTES_PER_PIXEL: u64 = 72;
@@ -311,7 +322,7 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
         } else {
             0
         };
-    let frame_bytes = pixels * per_pixel;
+    let frame_bytes = pixels * per_pixel + tile_list_bytes(frame);
     let (ref_map, ref_frame) = if extras.reference {
         (
             Reference::memory_bytes(map.size[0], map.size[1]),
@@ -401,7 +412,7 @@ pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: E
         } else {
             0
         };
-    let frame_bytes = pixels * per_pixel;
+    let frame_bytes = pixels * per_pixel + tile_list_bytes(frame);
     let ref_frame = if extras.reference {
         pixels * REFERENCE_BYTES_PER_PIXEL
     } else {

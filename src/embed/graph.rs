@@ -129,8 +129,8 @@ pub(super) const ARGS_RESET: Access = Access {
     ..Access::TRANSFER_WRITE
 };
 
-/// A per-material pass's indirect dispatch reads its arguments.
-const INDIRECT: Access = Access {
+/// An indirect dispatch reads its arguments.
+pub(super) const INDIRECT: Access = Access {
     stage: vk::PipelineStageFlags2::DRAW_INDIRECT,
     access: vk::AccessFlags2::INDIRECT_COMMAND_READ,
     layout: vk::ImageLayout::UNDEFINED,
@@ -267,8 +267,11 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     for res in [Res::Visibility, Res::HitDepth, Res::Corners(0)] {
         g.tracker.enter(res, owned_entry(res));
     }
-    let stages: [(&[ShaderBinding], &[Res]); 7] = [
+    let stages: [(&[ShaderBinding], &[Res]); 10] = [
         (shaders::CLASSIFY_COMP_DEPTH.bindings, &[]),
+        (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
+        (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
+        (shaders::CLASSIFY_MIXED_COMP.bindings, &[]),
         (shaders::DIG_CORNERS_COMP.bindings, &[]),
         (shaders::TRACE_DIG_COMP.bindings, &[]),
         (shaders::SHADOW_COMP.bindings, &[]),
@@ -288,6 +291,9 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     s.resolve()?;
     for (bindings, skip) in [
         (shaders::CLASSIFY_COMP.bindings, &[Res::Hit][..]),
+        (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
+        (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
+        (shaders::CLASSIFY_MIXED_COMP.bindings, &[]),
         (shaders::SHADE_COMP_SHADOWS.bindings, &[]),
     ] {
         s.dispatch(bindings, 0, skip)?;
@@ -420,6 +426,9 @@ mod tests {
         let mut all = vec![
             shaders::CLASSIFY_COMP,
             shaders::CLASSIFY_COMP_DEPTH,
+            shaders::CLASSIFY_OFFSETS_COMP,
+            shaders::CLASSIFY_SCATTER_COMP,
+            shaders::CLASSIFY_MIXED_COMP,
             shaders::DIG_CORNERS_COMP,
             shaders::SHADOW_COMP,
             shaders::SHADOW_COMP_PYRAMID,

@@ -190,7 +190,7 @@ impl DisplacementPass {
         settings: MaterialSettings,
     ) -> Result<MaterialId> {
         self.check_alive()?;
-        validate_material(&self.ctx, &settings)?;
+        validate_material(self.context()?, &settings)?;
         let index = self.free_index()?;
         let (entry, new_map) = self.host_map_for(map, settings.addressing, None)?;
         self.insert_material(index, settings, entry, new_map)
@@ -243,8 +243,9 @@ impl DisplacementPass {
                 Ok((new, _)) => swaps.push((old, new)),
                 Err(e) => {
                     for (_, new) in swaps {
+                        let unused = self.maps[new].take();
                         // SAFETY: never recorded: made above.
-                        unsafe { self.maps[new].take().destroy(&self.ctx) };
+                        unsafe { self.destroy_unused(unused) };
                     }
                     return Err(e);
                 }
@@ -263,8 +264,9 @@ impl DisplacementPass {
             let back: Vec<(usize, usize)> = swaps.iter().map(|&(a, b)| (b, a)).collect();
             repoint(&mut self.materials, &back);
             for (_, new) in swaps {
+                let unused = self.maps[new].take();
                 // SAFETY: the failed sync recorded nothing with the new map.
-                unsafe { self.maps[new].take().destroy(&self.ctx) };
+                unsafe { self.destroy_unused(unused) };
             }
             return Err(e);
         }
@@ -280,7 +282,7 @@ impl DisplacementPass {
         addressing: Addressing,
         version: Option<u64>,
     ) -> Result<(usize, bool)> {
-        let texel_format = map.check(&self.ctx)?;
+        let texel_format = map.check(self.context()?)?;
         let size = [map.extent.width, map.extent.height];
         if version.is_none()
             && let Some(i) = self.maps.iter().position(|m| {
@@ -301,7 +303,7 @@ impl DisplacementPass {
             map.format,
             addressing,
         );
-        let texture = map.texture(&self.ctx, texel_format, addressing)?;
+        let texture = map.texture(&self.context()?.clone(), texel_format, addressing)?;
         let entry = plan::MapEntry::new_host(key, texture);
         Ok((self.push_map(entry), true))
     }

@@ -16,7 +16,7 @@ impl DisplacementPass {
         settings: MaterialSettings,
     ) -> Result<MaterialId> {
         self.check_alive()?;
-        validate_material(&self.ctx, &settings)?;
+        validate_material(self.context()?, &settings)?;
         let index = self.free_index()?;
         let (map, new_map) = self.map_for(field, &settings)?;
         self.insert_material(index, settings, map, new_map)
@@ -61,14 +61,16 @@ impl DisplacementPass {
         }
         if let Err(e) = self.sync() {
             // Never recorded: destroyed at once.
+            let unused = self.materials[index].take();
             // SAFETY: the failed sync recorded nothing with the new entry.
-            unsafe { self.materials[index].take().destroy(&self.ctx) };
+            unsafe { self.destroy_unused(unused) };
             if index + 1 == self.materials.len() {
                 self.materials.pop();
             }
             if new_map {
+                let unused = self.maps[map].take();
                 // SAFETY: the failed sync recorded nothing with the new map.
-                unsafe { self.maps[map].take().destroy(&self.ctx) };
+                unsafe { self.destroy_unused(unused) };
             }
             return Err(e);
         }
@@ -138,7 +140,7 @@ impl DisplacementPass {
     ) -> Result<()> {
         self.check_alive()?;
         let i = self.entry_index(id)?;
-        validate_material(&self.ctx, &settings)?;
+        validate_material(self.context()?, &settings)?;
         let old = self.materials[i]
             .as_ref()
             .map(|m| m.settings)
@@ -182,8 +184,9 @@ impl DisplacementPass {
                 m.map = old;
             }
             if new_map {
+                let unused = self.maps[map].take();
                 // SAFETY: the failed sync recorded nothing with the new map.
-                unsafe { self.maps[map].take().destroy(&self.ctx) };
+                unsafe { self.destroy_unused(unused) };
             }
             return Err(e);
         }
@@ -199,7 +202,7 @@ impl DisplacementPass {
     pub fn set_material_maps(&mut self, id: MaterialId, images: &MaterialImages) -> Result<()> {
         self.check_alive()?;
         let i = self.entry_index(id)?;
-        let ctx = self.ctx.clone();
+        let ctx = self.context()?.clone();
         let addressing = self.entry(id)?.settings.addressing;
         let others = (self.materials.iter().flatten())
             .filter_map(|m| Some((m.shading.as_ref()?, m.pending_shading.as_ref())));
@@ -304,7 +307,7 @@ impl DisplacementPass {
             return Ok((i, false));
         }
         let chain = settings.params.lod_threshold.is_some();
-        let entry = plan::MapEntry::new(&self.ctx, field, key, chain)?;
+        let entry = plan::MapEntry::new(&self.context()?.clone(), field, key, chain)?;
         Ok((self.push_map(entry), true))
     }
 

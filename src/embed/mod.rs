@@ -250,6 +250,7 @@ mod graph;
 mod host_map;
 mod inputs;
 mod materials;
+mod memory;
 mod plan;
 mod prepare;
 mod record;
@@ -296,6 +297,7 @@ pub use host_map::{HOST_HEIGHT_FORMATS, HeightChannel, HostHeightMap};
 pub use inputs::{
     FrameInputs, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget, Timestamps,
 };
+pub use memory::{MaterialMemory, MemoryReport};
 
 /// The frame-wide settings: the frame size and the frames in flight.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -314,7 +316,9 @@ struct FrameSettings {
 /// whole frame. Destroy it explicitly with [`DisplacementPass::destroy`]; in debug builds
 /// one dropped without it logs a warning (and leaks its objects).
 pub struct DisplacementPass {
-    ctx: Arc<Context>,
+    /// The context (`None` once destroyed: the pass keeps no `Arc<Context>` after
+    /// [`DisplacementPass::destroy`]).
+    ctx: Option<Arc<Context>>,
     frame: FrameSettings,
     /// The first material's settings and the frame's (what [`DisplacementPass::settings`]
     /// returns), kept in step with the table.
@@ -350,7 +354,6 @@ pub struct DisplacementPass {
     prepared_mark: Option<usize>,
     /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
     shadows: ShadowSettings,
-    destroyed: bool,
 }
 
 impl DisplacementPass {
@@ -397,8 +400,7 @@ impl DisplacementPass {
             retired: RetireQueue::new(settings.frames_in_flight),
             prepared_mark: None,
             shadows: ShadowSettings::default(),
-            destroyed: false,
-            ctx,
+            ctx: Some(ctx),
         };
         match pass.add_material(field, settings.material()) {
             Ok(id) => {
@@ -418,9 +420,12 @@ impl DisplacementPass {
         &self.primary_settings
     }
 
-    /// The context the pass was built with.
-    pub fn context(&self) -> &Arc<Context> {
-        &self.ctx
+    /// The context the pass was built with ([`Error::Destroyed`] after
+    /// [`DisplacementPass::destroy`], which lets go of it).
+    pub fn context(&self) -> Result<&Arc<Context>> {
+        self.ctx
+            .as_ref()
+            .ok_or(Error::Destroyed("DisplacementPass"))
     }
 
     /// The handle of the material [`DisplacementPass::new`] made (the one the
@@ -447,7 +452,7 @@ impl DisplacementPass {
             .ok_or_else(|| Error::invalid("frame_slot", format!("no slot {frame_slot}")))?;
         // SAFETY: the scopes name the pass's own live pool; reading without WAIT cannot
         // block, and an unwritten or unfinished query is an error, not undefined.
-        unsafe { read_timestamps(&self.ctx, &slot.scopes) }
+        unsafe { read_timestamps(self.context()?, &slot.scopes) }
     }
 
     /// [`DisplacementPass::set_material_height_map`] of the first material
@@ -488,7 +493,7 @@ impl DisplacementPass {
     /// once, so this needs no GPU idle. On error the pass is unchanged.
     pub fn resize(&mut self, extent: vk::Extent2D) -> Result<()> {
         self.check_alive()?;
-        validate_frame(&self.ctx, extent, self.frame.frames_in_flight)?;
+        validate_frame(self.context()?, extent, self.frame.frames_in_flight)?;
         let old = self.frame.extent;
         self.frame.extent = extent;
         if let Err(e) = self.sync() {
@@ -562,7 +567,7 @@ impl DisplacementPass {
     pub fn set_motion_output(&mut self, settings: Option<MotionSettings>) -> Result<()> {
         self.check_alive()?;
         if let Some(m) = &settings {
-            m.validate(&self.ctx)?;
+            m.validate(self.context()?)?;
         }
         let old = self.motion_on;
         self.motion_on = settings;
@@ -644,18 +649,19 @@ impl DisplacementPass {
         self.maps.iter().flatten().count()
     }
 
-    /// Destroys every object and frees every allocation the pass made. Afterwards any
-    /// other call returns [`Error::Destroyed`].
+    /// Destroys every object and frees every allocation the pass made, and lets go of
+    /// the context (the host's `Arc::into_inner` succeeds without dropping the pass).
+    /// Afterwards any other call returns [`Error::Destroyed`] (or an empty value).
     ///
     /// # Safety
     /// No GPU work recorded with this pass may be pending: every frame recorded with it
     /// has completed (the host waited on all their fences, or for the device to idle),
     /// or was never submitted.
     pub unsafe fn destroy(&mut self) {
-        if self.destroyed {
+        let Some(ctx) = self.ctx.take() else {
             return;
-        }
-        let ctx = &*self.ctx;
+        };
+        let ctx = &*ctx;
         // SAFETY: this function's contract: no frame recorded with the pass is pending.
         unsafe {
             self.retired.destroy_all(ctx);
@@ -676,15 +682,22 @@ impl DisplacementPass {
             // SAFETY: this function's contract: no pending use.
             unsafe { ctx.device().destroy_query_pool(pool, None) };
         }
-        self.destroyed = true;
+    }
+
+    /// Destroys `value`, made for the pass, at once (nothing if the pass is destroyed: it
+    /// then holds no context, and nothing it made is alive).
+    ///
+    /// # Safety
+    /// No command buffer uses `value` (it was never recorded).
+    unsafe fn destroy_unused(&self, mut value: impl Destroy) {
+        if let Some(ctx) = &self.ctx {
+            // SAFETY: this function's contract.
+            unsafe { value.destroy(ctx) };
+        }
     }
 
     fn check_alive(&self) -> Result<()> {
-        if self.destroyed {
-            Err(Error::Destroyed("DisplacementPass"))
-        } else {
-            Ok(())
-        }
+        self.context().map(|_| ())
     }
 
     fn owned_pool(&mut self) -> Result<vk::QueryPool> {
@@ -692,7 +705,7 @@ impl DisplacementPass {
             return Ok(pool);
         }
         let pool = crate::timing::timestamp_pool(
-            &self.ctx,
+            self.context()?,
             "embed.timestamps",
             MAX_QUERIES * self.frame.frames_in_flight,
         )?;
@@ -704,7 +717,7 @@ impl DisplacementPass {
 impl Drop for DisplacementPass {
     fn drop(&mut self) {
         #[cfg(debug_assertions)]
-        if !self.destroyed {
+        if self.ctx.is_some() {
             log::warn!(
                 "DisplacementPass dropped without destroy(): its Vulkan objects and \
                  allocations leak (call destroy() once the GPU is done with it)"

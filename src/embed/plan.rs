@@ -18,7 +18,7 @@
 //! | `shadow` pipelines, visibility images | (query), extent | self-shadowing on |
 //! | corrected-depth pipeline and images | extent | the corrected depth on |
 //! | motion pipeline | image format | the motion output on |
-//! | tile lists | (table size, extent) | always |
+//! | tile lists | extent | always (their size follows the frame alone: adding or removing materials changes nothing) |
 //!
 //! What each frame in flight owns (tile lists, visibility, corrected depth, the
 //! timestamp scopes it recorded last) is one [`Slot`] per frame slot.
@@ -64,6 +64,13 @@ impl Destroy for Fill {
                 Fill::Upload(b) => b.destroy(ctx),
                 Fill::Copy(h) => h.destroy(ctx),
             }
+        }
+    }
+
+    fn bytes(&self) -> u64 {
+        match self {
+            Fill::Upload(b) => b.bytes(),
+            Fill::Copy(h) => h.bytes(),
         }
     }
 }
@@ -138,6 +145,10 @@ impl<T: Destroy> Destroy for Built<T> {
             self.value.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.value.bytes()
+    }
 }
 
 /// One height map of the table and what is derived from it.
@@ -209,6 +220,13 @@ impl Destroy for MapEntry {
             self.texture.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.pending_fill.bytes()
+            + self.cones.bytes()
+            + self.pyramids.bytes()
+            + self.texture.bytes()
+    }
 }
 
 /// One displaced material of the table.
@@ -237,6 +255,10 @@ impl Destroy for MaterialEntry {
             self.corners.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.shading.bytes() + self.pending_shading.bytes() + self.corners.bytes()
+    }
 }
 
 /// The corrected-depth output: the `hit_depth` pipeline and one `R32_SFLOAT` image per
@@ -253,6 +275,10 @@ impl Destroy for DepthParts {
             self.pass.destroy(ctx);
             self.images.destroy(ctx);
         }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.images.bytes()
     }
 }
 
@@ -277,6 +303,10 @@ impl Destroy for Slot {
             self.visibility.destroy(ctx);
             self.hit_depth.destroy(ctx);
         }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.tiles.bytes() + self.visibility.bytes() + self.hit_depth.bytes()
     }
 }
 
@@ -316,8 +346,6 @@ pub(super) struct Plan {
     shadowed_shade: bool,
     depth: bool,
     motion: Option<vk::Format>,
-    /// Entries of the tile lists (the material table's size, at least 1).
-    table: u32,
 }
 
 fn push_unique<T: PartialEq>(v: &mut Vec<T>, x: T) {
@@ -398,7 +426,6 @@ impl DisplacementPass {
             shadowed_shade: self.shadows.is_on(),
             depth: self.depth_on,
             motion: self.motion_on.map(|m| m.format),
-            table: (self.materials.len() as u32).max(1),
             ..Plan::default()
         };
         for (i, m) in self.materials.iter().enumerate() {
@@ -438,7 +465,7 @@ impl DisplacementPass {
     /// error nothing changed.
     pub(super) fn sync(&mut self) -> Result<()> {
         let plan = self.plan();
-        let ctx = self.ctx.clone();
+        let ctx = self.context()?.clone();
         let c = &*ctx;
         let extent = self.frame.extent;
         let frames = self.frame.frames_in_flight;
@@ -544,14 +571,9 @@ impl DisplacementPass {
         {
             add.motion = Some(MotionPass::new(c, format)?);
         }
-        if resized
-            || self
-                .slots
-                .first()
-                .is_none_or(|s| s.tiles.materials() != plan.table)
-        {
+        if resized || self.slots.is_empty() {
             add.tiles = Some(per_slot(c, frames, |s| {
-                TileLists::new(c, &format!("embed.tiles{s}"), extent, plan.table)
+                TileLists::new(c, &format!("embed.tiles{s}"), extent)
             })?);
         }
         let add = add.keep();

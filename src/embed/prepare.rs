@@ -72,7 +72,7 @@ impl DisplacementPass {
         // sampled-readable (the host images by this contract, dispmap's by their fills),
         // and what they retire waits past the next frame (the mark above).
         unsafe {
-            w.reset(&self.ctx, cmd);
+            w.reset(&self.context()?.clone(), cmd);
             self.record_builds(cmd, &mut w, None)?;
         }
         Ok(RecordedFrame {

@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::gpu::ViewRef;
 use crate::method::PyramidKind;
 use crate::passes::PassName;
-use crate::passes::classify::{ClassifyInputs, MaterialTiles};
+use crate::passes::classify::{ClassifyInputs, ClassifyStep, MaterialTiles};
 use crate::passes::dig::CornerRun;
 use crate::passes::hit_depth::HitDepthInputs;
 use crate::passes::motion::MotionInputs;
@@ -284,13 +284,15 @@ impl DisplacementPass {
             match self.prepared_mark.take() {
                 // A preparation was recorded since the last frame: what was retired since
                 // then waits for this frame too (`record_preparation`).
-                Some(mark) => self.retired.release_holding(&self.ctx, slot, mark),
-                None => self.retired.release(&self.ctx, slot),
+                Some(mark) => self
+                    .retired
+                    .release_holding(&self.context()?.clone(), slot, mark),
+                None => self.retired.release(&self.context()?.clone(), slot),
             }
         };
         let w = ScopeWriter::new(pool, first, MAX_QUERIES);
         // SAFETY: this function's contract (a live pool with the range).
-        unsafe { w.reset(&self.ctx, cmd) };
+        unsafe { w.reset(&self.context()?.clone(), cmd) };
         Ok(w)
     }
 
@@ -360,7 +362,7 @@ impl DisplacementPass {
         w: &mut ScopeWriter,
         slot: Option<u32>,
     ) -> Result<()> {
-        let ctx = self.ctx.clone();
+        let ctx = self.context()?.clone();
         let fills: Vec<(usize, Fill)> = (self.maps.iter_mut().enumerate())
             .filter_map(|(i, m)| Some((i, m.as_mut()?.pending_fill.take()?)))
             .collect();
@@ -464,7 +466,8 @@ impl DisplacementPass {
         if !self.maps.iter().flatten().any(ready) {
             return Ok(());
         }
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body: each height texture and cell pyramid is
         // sampled-readable (their fill and build, recorded before this in the same command

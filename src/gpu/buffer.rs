@@ -107,6 +107,10 @@ impl Destroy for Buffer {
             }
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.allocation.as_ref().map_or(0, |a| a.size())
+    }
 }
 
 impl Drop for Buffer {

@@ -523,6 +523,11 @@ impl Destroy for HeightTexture {
             self.sampler = vk::Sampler::null();
         }
     }
+
+    /// The image's memory (0 for a host's image: the host's memory).
+    fn bytes(&self) -> u64 {
+        self.image.bytes()
+    }
 }
 
 /// Where level 0 comes from.

@@ -301,6 +301,10 @@ impl Destroy for Image {
             }
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.allocation.as_ref().map_or(0, |a| a.size())
+    }
 }
 
 impl Drop for Image {

@@ -21,6 +21,13 @@ pub trait Destroy {
     /// [`RetireQueue`] holds them until the frames that could use them have completed).
     /// `ctx` is the context (device and allocator) they were made with.
     unsafe fn destroy(&mut self, ctx: &Context);
+
+    /// The bytes of device memory the value holds (its allocations' sizes; 0 for objects
+    /// without memory of their own, such as pipelines, samplers and views of another's
+    /// image): what [`crate::embed::MemoryReport`] sums.
+    fn bytes(&self) -> u64 {
+        0
+    }
 }
 
 impl<T: Destroy> Destroy for Option<T> {
@@ -29,6 +36,10 @@ impl<T: Destroy> Destroy for Option<T> {
             // SAFETY: this function's contract, passed on.
             unsafe { v.destroy(ctx) };
         }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.as_ref().map_or(0, T::bytes)
     }
 }
 
@@ -39,12 +50,20 @@ impl<T: Destroy> Destroy for Vec<T> {
             unsafe { v.destroy(ctx) };
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.iter().map(T::bytes).sum()
+    }
 }
 
 impl<T: Destroy + ?Sized> Destroy for Box<T> {
     unsafe fn destroy(&mut self, ctx: &Context) {
         // SAFETY: this function's contract, passed on.
         unsafe { (**self).destroy(ctx) };
+    }
+
+    fn bytes(&self) -> u64 {
+        (**self).bytes()
     }
 }
 
@@ -55,6 +74,10 @@ impl<A: Destroy, B: Destroy> Destroy for (A, B) {
             self.0.destroy(ctx);
             self.1.destroy(ctx);
         }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.0.bytes() + self.1.bytes()
     }
 }
 
@@ -197,6 +220,11 @@ impl RetireQueue {
             // SAFETY: this function's contract.
             unsafe { resource.destroy(ctx) };
         }
+    }
+
+    /// The bytes the waiting resources hold ([`Destroy::bytes`]).
+    pub fn bytes(&self) -> u64 {
+        self.waiting.iter().map(|(_, r)| r.bytes()).sum()
     }
 
     /// How many resources wait.

@@ -1,9 +1,10 @@
 //! The `classify` pass: sorts the frame's 8x8 tiles by material, so that every later
 //! per-material pass (`dig_corners` aside, `trace`, `shadow`, `shade`, `hit_depth`) is
 //! one indirect dispatch over the tiles that hold the material's pixels
-//! (`glsl/classify.comp`, `glsl/common/tiles.glsl`). A frame's cost then follows its
-//! displaced pixels, not its size times its materials: this is the tile classification
-//! of deferred engines' material and lighting passes.
+//! (`glsl/classify.comp`, `glsl/classify_offsets.comp`, `glsl/classify_scatter.comp`,
+//! `glsl/classify_mixed.comp`, `glsl/common/tiles.glsl`). A frame's cost then follows its displaced pixels, not its
+//! size times its materials: this is the tile classification of deferred engines'
+//! material and lighting passes.
 //!
 //! A pixel's material is its G-buffer frame's material field (index + 1, 0 = not
 //! displaced; read through `glsl/common/gbuffer.glsl`, packed by `glsl/include/dispmap_gbuffer.glsl`). Pixels of no
@@ -12,23 +13,35 @@
 //! geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry) and, with the corrected depth
 //! on, their corrected depth (the G-buffer's own depth).
 //!
-//! Bindings (set 0, push descriptors), mirrored by `glsl/classify.comp`:
+//! Every material's list lives in one buffer per frame slot whose size follows the frame
+//! alone ([`TileLists::bytes_for`]): a tile holds at most 64 distinct materials, so the
+//! lists of a frame hold at most 64 entries per tile whatever the table's length. Four
+//! dispatches ([`ClassifyStep`]) fill it: `Count` counts the tiles of each material (and
+//! keeps a summary per tile, and a list of the tiles of several materials), `Offsets`
+//! places each list by a prefix sum of the counts and writes the dispatch arguments,
+//! `Scatter` (one invocation per tile) writes the entries of tiles of one material, and
+//! `Mixed` (an indirect dispatch over the tiles of several materials, which it reads
+//! again) the others'. Adding or removing materials changes none of its buffers: the
+//! arguments have room for [`MAX_MATERIALS`] entries.
 //!
-//! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
-//! |---|---|---|
-//! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_frame` | G-buffer `frame` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_hit` | hit buffer (storage, written for pixels without displacement) | `GENERAL` |
-//! | `u_tiles` | the tile lists (storage buffer, written) | |
-//! | `u_args` | the dispatch arguments and counts (storage buffer, read and written) | |
-//! | `u_hit_depth` | corrected depth (`DEPTH` variant; storage, written) | `GENERAL` |
+//! Bindings (set 0, push descriptors), mirrored by the shaders:
 //!
-//! A per-material pass binds its material's list at binding [`TILES`] (`u_tiles`).
+//! | binding (GLSL name; the shaders number them) | resource | steps | layout on entry |
+//! |---|---|---|---|
+//! | `u_depth` | G-buffer `depth` (sampled) | count, mixed | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_frame` | G-buffer `frame` (sampled) | count, mixed | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_hit` | hit buffer (storage, written for pixels without displacement) | count | `GENERAL` |
+//! | `u_tiles` | the tile buffer (storage buffer, written) | all | |
+//! | `u_args` | the dispatch arguments and counts (storage buffer, read and written) | all | |
+//! | `u_hit_depth` | corrected depth (`DEPTH` variant; storage, written) | count | `GENERAL` |
+//!
+//! A per-material pass binds the slot's tile buffer at binding [`TILES`] (`u_tiles`) and
+//! finds its material's list in the buffer's header (`glsl/common/tiles.glsl`).
 
 use crate::abi::ClassifyParams;
 use crate::context::Context;
 use crate::error::{Error, Result};
-use crate::gpu::owned::Destroy;
+use crate::gpu::owned::{Destroy, Guard};
 use crate::gpu::pipeline::{FetchPipeline, LOCAL_SIZE, storage_view};
 use crate::gpu::{Buffer, ViewRef};
 use crate::shaders;
@@ -44,52 +57,56 @@ pub const TILES: (&str, vk::DescriptorType) = ("u_tiles", vk::DescriptorType::ST
 /// `CLASSIFY_FLAG_WRITE_HITS` in `glsl/classify.comp`.
 const FLAG_WRITE_HITS: u32 = 1;
 
-/// Entries of a material's list are a multiple of this (256 bytes: the largest
-/// `minStorageBufferOffsetAlignment` Vulkan allows, so every list starts aligned).
-const LIST_ALIGN: u32 = 64;
+/// Invocations of a workgroup: a tile's pixels, and the most distinct materials a tile
+/// holds.
+const TILE_PIXELS: u64 = (LOCAL_SIZE[0] * LOCAL_SIZE[1]) as u64;
 
-/// Bytes of one material's arguments: a `VkDispatchIndirectCommand` and its live flag.
-const ARGS_STRIDE: u64 = 16;
+/// Words of the tile buffer's header: per table entry its list's first entry and length
+/// (`TILE_HEADER_WORDS` in `glsl/common/tiles.glsl`).
+const HEADER_WORDS: u64 = 2 * MAX_MATERIALS as u64;
+
+/// Bytes of one table entry's arguments: a `VkDispatchIndirectCommand`, its live flag, its
+/// count and cursor, two words of padding (`ARGS_WORDS` in `glsl/common/tiles.glsl`).
+const ARGS_STRIDE: u64 = 32;
+
+/// Bytes of the argument buffer: [`MAX_MATERIALS`] entries and the list of tiles of
+/// several materials (`ARGS_MIXED`).
+const ARGS_BYTES: u64 = (MAX_MATERIALS as u64 + 1) * ARGS_STRIDE;
 
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
 const BUFFER: vk::DescriptorType = vk::DescriptorType::STORAGE_BUFFER;
 
-/// The tile lists of one frame slot: one list per material of the table and its
-/// indirect dispatch arguments.
+/// The tile lists of one frame slot: one buffer holding every material's list, and the
+/// materials' indirect dispatch arguments. Their sizes follow the frame's size only.
 pub struct TileLists {
-    /// Every material's list (`capacity` entries each).
+    /// The tile buffer: the lists' header (per table entry its list's first entry and
+    /// length), a summary per tile, the list of tiles of several materials, then the
+    /// entries (at most 64 per tile).
     pub tiles: Buffer,
-    /// Per material a `VkDispatchIndirectCommand` and a live flag (16 bytes), then a
-    /// count per material.
+    /// Per table entry ([`MAX_MATERIALS`] of them) a `VkDispatchIndirectCommand`, a live
+    /// flag, its count and the scatter's cursor (32 bytes); then the same for the list of
+    /// tiles of several materials.
     pub args: Buffer,
-    capacity: u32,
-    materials: u32,
+    tile_count: u32,
     extent: vk::Extent2D,
 }
 
 impl TileLists {
-    /// Lists for `materials` table entries of a frame of `extent`.
-    pub fn new(ctx: &Context, name: &str, extent: vk::Extent2D, materials: u32) -> Result<Self> {
-        if materials == 0 || materials > MAX_MATERIALS {
-            return Err(Error::invalid(
-                "materials",
-                format!("{materials} is outside 1..={MAX_MATERIALS}"),
-            ));
-        }
+    /// Lists for a frame of `extent`, for any table of up to [`MAX_MATERIALS`] entries.
+    pub fn new(ctx: &Context, name: &str, extent: vk::Extent2D) -> Result<Self> {
         let [tx, ty] = tile_count(extent);
-        let capacity = (tx * ty).next_multiple_of(LIST_ALIGN);
         let tiles = Buffer::new(
             ctx,
             &format!("{name}.tiles"),
-            u64::from(capacity) * u64::from(materials) * 4,
+            tile_buffer_bytes(extent),
             vk::BufferUsageFlags::STORAGE_BUFFER,
             MemoryLocation::GpuOnly,
         )?;
         let args = Buffer::new(
             ctx,
             &format!("{name}.args"),
-            args_bytes(materials),
+            ARGS_BYTES,
             vk::BufferUsageFlags::STORAGE_BUFFER
                 | vk::BufferUsageFlags::INDIRECT_BUFFER
                 | vk::BufferUsageFlags::TRANSFER_DST,
@@ -107,15 +124,21 @@ impl TileLists {
         Ok(TileLists {
             tiles,
             args,
-            capacity,
-            materials,
+            tile_count: tx * ty,
             extent,
         })
     }
 
-    /// The table entries the lists are for.
-    pub fn materials(&self) -> u32 {
-        self.materials
+    /// The bytes the lists of one frame slot of `extent` take ([`TileLists::new`]'s two
+    /// buffers): `4 * (2048 + 66 * tiles) + 32 * 1025` with `tiles` the frame's 8x8
+    /// tiles (8.19 MiB at 1920x1080), whatever the number of materials.
+    pub fn bytes_for(extent: vk::Extent2D) -> u64 {
+        tile_buffer_bytes(extent) + ARGS_BYTES
+    }
+
+    /// The bytes these lists take (their buffers' sizes).
+    pub fn bytes(&self) -> u64 {
+        self.tiles.size + self.args.size
     }
 
     /// The frame size the lists are for.
@@ -123,13 +146,13 @@ impl TileLists {
         self.extent
     }
 
-    /// Material `m`'s list, for the binding [`TILES`].
-    pub fn list(&self, m: u32) -> [vk::DescriptorBufferInfo; 1] {
-        let bytes = u64::from(self.capacity) * 4;
+    /// The tile buffer, for the binding [`TILES`]: every material's list (each pass
+    /// finds its own in the header).
+    pub fn list(&self) -> [vk::DescriptorBufferInfo; 1] {
         [vk::DescriptorBufferInfo {
             buffer: self.tiles.raw,
-            offset: u64::from(m) * bytes,
-            range: bytes,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
         }]
     }
 
@@ -142,11 +165,25 @@ impl TileLists {
     pub fn of(&self, m: u32) -> MaterialTiles {
         MaterialTiles {
             material: m,
-            list: self.list(m)[0],
+            list: self.list()[0],
             args: self.args.raw,
             args_offset: self.args_offset(m),
         }
     }
+
+    /// The word of the tile buffer where the entries start (after the header, the tile
+    /// summaries and the list of tiles of several materials).
+    fn entries_base(&self) -> u32 {
+        HEADER_WORDS as u32 + 2 * self.tile_count
+    }
+}
+
+/// Bytes of the tile buffer of a frame of `extent`: the header, a summary word and a
+/// mixed-list word per tile and 64 entry words per tile.
+fn tile_buffer_bytes(extent: vk::Extent2D) -> u64 {
+    let [tx, ty] = tile_count(extent);
+    let tiles = u64::from(tx) * u64::from(ty);
+    4 * (HEADER_WORDS + tiles * (2 + TILE_PIXELS))
 }
 
 impl Destroy for TileLists {
@@ -158,6 +195,10 @@ impl Destroy for TileLists {
             self.args.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        TileLists::bytes(self)
+    }
 }
 
 /// One material's tiles: what a per-material pass dispatches over.
@@ -165,7 +206,7 @@ impl Destroy for TileLists {
 pub struct MaterialTiles {
     /// The material (its index in the pass's table).
     pub material: u32,
-    /// Its list, bound at [`TILES`].
+    /// The slot's tile buffer (every material's list), bound at [`TILES`].
     pub list: vk::DescriptorBufferInfo,
     /// The buffer holding its `VkDispatchIndirectCommand`.
     pub args: vk::Buffer,
@@ -206,8 +247,29 @@ pub fn tile_count(extent: vk::Extent2D) -> [u32; 2] {
     ]
 }
 
-fn args_bytes(materials: u32) -> u64 {
-    u64::from(materials) * (ARGS_STRIDE + 4)
+/// The four dispatches of `classify`, in their order (the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ClassifyStep {
+    /// Counts each material's tiles, lists the tiles of several materials, writes the hit
+    /// texels (and corrected depth) of pixels without displacement (`glsl/classify.comp`).
+    Count,
+    /// Places each list and writes the dispatch arguments (`glsl/classify_offsets.comp`).
+    Offsets,
+    /// Writes the entries of tiles of one material (`glsl/classify_scatter.comp`).
+    Scatter,
+    /// Writes the entries of tiles of several materials: an indirect dispatch, whose
+    /// arguments `Offsets` wrote (`glsl/classify_mixed.comp`).
+    Mixed,
+}
+
+impl ClassifyStep {
+    /// The steps in their order.
+    pub const ALL: [ClassifyStep; 4] = [
+        ClassifyStep::Count,
+        ClassifyStep::Offsets,
+        ClassifyStep::Scatter,
+        ClassifyStep::Mixed,
+    ];
 }
 
 /// What `classify` reads and writes (layouts in the module docs).
@@ -225,28 +287,44 @@ pub struct ClassifyInputs<'a> {
     pub hit_depth: Option<vk::ImageView>,
     /// The slot's lists.
     pub lists: &'a TileLists,
-    /// Per table entry: whether it holds a material (`lists.materials()` entries).
+    /// Per table entry: whether it holds a material (the table's length, at most
+    /// [`MAX_MATERIALS`]).
     pub live: &'a [bool],
 }
 
-/// The classification pipelines (without and with the corrected depth).
+/// The classification pipelines (the counting step without and with the corrected
+/// depth, the offsets, the scatter and the mixed tiles' scatter).
 pub struct ClassifyPass {
     plain: FetchPipeline,
     depth: FetchPipeline,
+    offsets: FetchPipeline,
+    scatter: FetchPipeline,
+    mixed: FetchPipeline,
 }
 
 impl ClassifyPass {
-    /// The bindings of the variant with (`hit_depth`) or without the corrected depth, as
-    /// its shader declares them (reflected): what its dispatch reads and writes.
-    pub fn bindings(&self, hit_depth: bool) -> &'static [crate::shaders::ShaderBinding] {
-        if hit_depth {
-            self.depth.pipeline.bindings
-        } else {
-            self.plain.pipeline.bindings
+    /// The bindings of `step` (of the counting step's variant with (`hit_depth`) or
+    /// without the corrected depth), as its shader declares them (reflected): what its
+    /// dispatch reads and writes.
+    pub fn bindings(
+        &self,
+        step: ClassifyStep,
+        hit_depth: bool,
+    ) -> &'static [crate::shaders::ShaderBinding] {
+        self.pipeline(step, hit_depth).pipeline.bindings
+    }
+
+    fn pipeline(&self, step: ClassifyStep, hit_depth: bool) -> &FetchPipeline {
+        match step {
+            ClassifyStep::Count if hit_depth => &self.depth,
+            ClassifyStep::Count => &self.plain,
+            ClassifyStep::Offsets => &self.offsets,
+            ClassifyStep::Scatter => &self.scatter,
+            ClassifyStep::Mixed => &self.mixed,
         }
     }
 
-    /// Builds both pipelines.
+    /// Builds the pipelines.
     pub fn new(ctx: &Context) -> Result<Self> {
         let size = std::mem::size_of::<ClassifyParams>() as u32;
         let base = [
@@ -256,29 +334,43 @@ impl ClassifyPass {
             ("u_tiles", BUFFER),
             ("u_args", BUFFER),
         ];
-        let plain = FetchPipeline::new(ctx, "classify", &shaders::CLASSIFY_COMP, &base, size)?;
         let mut with_depth = base.to_vec();
         with_depth.push(("u_hit_depth", STORAGE));
-        match FetchPipeline::new(
-            ctx,
+        let lists = [("u_tiles", BUFFER), ("u_args", BUFFER)];
+        let mixed = [
+            ("u_depth", SAMPLED),
+            ("u_frame", SAMPLED),
+            ("u_tiles", BUFFER),
+            ("u_args", BUFFER),
+        ];
+        let new = |name, shader, bindings: &[(&str, vk::DescriptorType)]| {
+            // SAFETY: nothing records with the pipeline before it is kept below.
+            Ok::<_, Error>(unsafe {
+                Guard::new(ctx, FetchPipeline::new(ctx, name, shader, bindings, size)?)
+            })
+        };
+        let plain = new("classify", &shaders::CLASSIFY_COMP, &base)?;
+        let depth = new(
             "classify[depth]",
             &shaders::CLASSIFY_COMP_DEPTH,
             &with_depth,
-            size,
-        ) {
-            Ok(depth) => Ok(ClassifyPass { plain, depth }),
-            Err(e) => {
-                let mut plain = plain;
-                // SAFETY: built above and never used by a command.
-                unsafe { plain.destroy(ctx) };
-                Err(e)
-            }
-        }
+        )?;
+        let offsets = new("classify_offsets", &shaders::CLASSIFY_OFFSETS_COMP, &lists)?;
+        let scatter = new("classify_scatter", &shaders::CLASSIFY_SCATTER_COMP, &lists)?;
+        let mixed = new("classify_mixed", &shaders::CLASSIFY_MIXED_COMP, &mixed)?;
+        Ok(ClassifyPass {
+            plain: plain.keep(),
+            depth: depth.keep(),
+            offsets: offsets.keep(),
+            scatter: scatter.keep(),
+            mixed: mixed.keep(),
+        })
     }
 
-    /// Records the reset of the lists' arguments: a transfer write of `inputs.lists`'
-    /// argument buffer (the materials' counts zeroed, each live material's dispatch made
-    /// one workgroup high), which [`ClassifyPass::record`] then reads and writes.
+    /// Records the reset of the lists' arguments: transfer writes of `inputs.lists`'
+    /// argument buffer (each table entry's dispatch `(0, 0, 1)`, its live flag, its count
+    /// zeroed; the same for the list of tiles of several materials), which
+    /// [`ClassifyPass::record`] then reads and writes.
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
@@ -291,27 +383,39 @@ impl ClassifyPass {
         cmd: vk::CommandBuffer,
         inputs: &ClassifyInputs,
     ) {
-        let lists = inputs.lists;
-        let n = lists.materials as usize;
-        let mut init = Vec::with_capacity(n * 5);
-        for m in 0..n {
-            let live = u32::from(inputs.live.get(m).copied().unwrap_or(false));
-            init.extend_from_slice(&[0, 0, 1, live]);
+        let n = material_count(inputs) as usize;
+        let words = (ARGS_STRIDE / 4) as usize;
+        let mut init = vec![0u32; n * words];
+        for (m, entry) in init.chunks_exact_mut(words).enumerate() {
+            entry[2] = 1;
+            entry[3] = u32::from(inputs.live[m]);
         }
-        init.resize(n * 5, 0);
+        let mut mixed = [0u32; 8];
+        mixed[2] = 1;
+        let args = inputs.lists.args.raw;
+        let dev = ctx.device();
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the update is `args_bytes(materials)` bytes (a multiple of 4, at most
-        // 20 * MAX_MATERIALS < 65536) of a live TRANSFER_DST buffer.
+        // pass; each update is a multiple of 4 bytes, not 0 and under 65536 (at most
+        // 32 * MAX_MATERIALS = 32768), inside the live TRANSFER_DST buffer of
+        // 32 * (MAX_MATERIALS + 1) bytes.
         unsafe {
-            ctx.device()
-                .cmd_update_buffer(cmd, lists.args.raw, 0, bytemuck::cast_slice(&init))
-        };
+            if n > 0 {
+                dev.cmd_update_buffer(cmd, args, 0, bytemuck::cast_slice(&init));
+            }
+            dev.cmd_update_buffer(
+                cmd,
+                args,
+                u64::from(MAX_MATERIALS) * ARGS_STRIDE,
+                bytemuck::cast_slice(&mixed),
+            );
+        }
     }
 
-    /// Records the classification: the tile lists (and, with `write_hits`, the hit texels
-    /// of pixels without displacement; with `hit_depth`, their corrected depth), after
-    /// [`ClassifyPass::record_reset`]. Its accesses are its shader's bindings
-    /// ([`ClassifyPass::bindings`]); the caller's barriers order them.
+    /// Records `step` of the classification (the module docs; `Count` also writes, with
+    /// `write_hits`, the hit texels of pixels without displacement and, with `hit_depth`,
+    /// their corrected depth), after [`ClassifyPass::record_reset`] and the steps before
+    /// it. Its accesses are its shader's bindings ([`ClassifyPass::bindings`]); the
+    /// caller's barriers order them.
     ///
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
@@ -319,29 +423,22 @@ impl ClassifyPass {
     /// * The views belong to that device, with the formats and usages of the module's
     ///   table, of the lists' extent; when the command buffer executes they are in the
     ///   layouts of the module's table, and earlier accesses of every binding (the reset
-    ///   included) are ordered before and visible to this dispatch's (the caller's
-    ///   barriers).
+    ///   and the earlier steps included) are ordered before and visible to this dispatch's
+    ///   (the caller's barriers).
     /// * Everything stays alive until the command buffer has executed.
     pub unsafe fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: &ClassifyInputs,
+        step: ClassifyStep,
     ) -> Result<()> {
         let lists = inputs.lists;
-        let pipeline = if inputs.hit_depth.is_some() {
-            &self.depth
-        } else {
-            &self.plain
-        };
+        let pipeline = self.pipeline(step, inputs.hit_depth.is_some());
         let fetch = |view| pipeline.fetch_view(view);
         let (depth, frame) = (fetch(inputs.depth), fetch(inputs.frame));
         let hits = storage_view(inputs.hit.view);
-        let tiles = [vk::DescriptorBufferInfo {
-            buffer: lists.tiles.raw,
-            offset: 0,
-            range: vk::WHOLE_SIZE,
-        }];
+        let tiles = lists.list();
         let args = [vk::DescriptorBufferInfo {
             buffer: lists.args.raw,
             offset: 0,
@@ -349,53 +446,76 @@ impl ClassifyPass {
         }];
         let hit_depth = inputs.hit_depth.map(storage_view);
         let p = &pipeline.pipeline;
-        let mut writes = vec![
-            p.image("u_depth", &depth)?,
-            p.image("u_frame", &frame)?,
-            p.image("u_hit", &hits)?,
-            p.buffer("u_tiles", &tiles)?,
-            p.buffer("u_args", &args)?,
-        ];
-        if let Some(d) = &hit_depth {
-            writes.push(p.image("u_hit_depth", d)?);
+        let mut writes = vec![p.buffer("u_tiles", &tiles)?, p.buffer("u_args", &args)?];
+        if matches!(step, ClassifyStep::Count | ClassifyStep::Mixed) {
+            writes.push(p.image("u_depth", &depth)?);
+            writes.push(p.image("u_frame", &frame)?);
+        }
+        if step == ClassifyStep::Count {
+            writes.push(p.image("u_hit", &hits)?);
+            if let Some(d) = &hit_depth {
+                writes.push(p.image("u_hit_depth", d)?);
+            }
         }
         let extent = inputs.hit.extent;
         let push = ClassifyParams {
             frame_size: [extent.width, extent.height],
-            material_count: lists.materials,
-            tile_capacity: lists.capacity,
+            material_count: material_count(inputs),
+            entries_base: lists.entries_base(),
             flags: if inputs.write_hits {
                 FLAG_WRITE_HITS
             } else {
                 0
             },
-            pad: [0; 3],
+            tile_count: lists.tile_count,
+            pad: [0; 2],
         };
+        let push = bytemuck::bytes_of(&push);
+        // Count: one workgroup per tile; offsets: one workgroup; scatter: one invocation
+        // per tile; mixed: one workgroup per listed tile.
+        let [tx, ty] = tile_count(extent);
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match the pipeline's set 0 and name live resources in the
-        // layouts of the module's table, their earlier accesses ordered before; the push
-        // constants are the `ClassifyParams` the layout was built with.
+        // layouts of the module's table, their earlier accesses ordered before (for the
+        // mixed step, `Offsets`' write of its dispatch too); the push constants are the
+        // `ClassifyParams` the layout was built with; the argument buffer has
+        // INDIRECT_BUFFER usage and the mixed list's command at its offset.
         unsafe {
-            pipeline.pipeline.dispatch(
-                ctx,
-                cmd,
-                &writes,
-                bytemuck::bytes_of(&push),
-                extent.width,
-                extent.height,
-            );
+            match step {
+                ClassifyStep::Count => {
+                    p.dispatch(ctx, cmd, &writes, push, extent.width, extent.height)
+                }
+                ClassifyStep::Offsets => p.dispatch(ctx, cmd, &writes, push, 1, 1),
+                ClassifyStep::Scatter => p.dispatch(ctx, cmd, &writes, push, tx, ty),
+                ClassifyStep::Mixed => p.dispatch_indirect(
+                    ctx,
+                    cmd,
+                    &writes,
+                    push,
+                    lists.args.raw,
+                    u64::from(MAX_MATERIALS) * ARGS_STRIDE,
+                ),
+            }
         }
         Ok(())
     }
 }
 
+/// The table entries classified: `inputs.live`'s length, at most [`MAX_MATERIALS`].
+fn material_count(inputs: &ClassifyInputs) -> u32 {
+    (inputs.live.len() as u32).min(MAX_MATERIALS)
+}
+
 impl Destroy for ClassifyPass {
-    /// Destroys both pipelines. The GPU must be done with them.
+    /// Destroys the pipelines. The GPU must be done with them.
     unsafe fn destroy(&mut self, ctx: &Context) {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             self.plain.destroy(ctx);
             self.depth.destroy(ctx);
+            self.offsets.destroy(ctx);
+            self.scatter.destroy(ctx);
+            self.mixed.destroy(ctx);
         }
     }
 }

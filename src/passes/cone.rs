@@ -239,6 +239,11 @@ impl Destroy for ConeMap {
             self.image.destroy(ctx);
         }
     }
+
+    /// The cone map and, until the build is over, the relaxed map's falls pyramids.
+    fn bytes(&self) -> u64 {
+        self.image.bytes() + self.falls.bytes()
+    }
 }
 
 /// The cone generation pipeline of one [`ConeKind`].

@@ -129,6 +129,10 @@ impl Destroy for CornerGrid {
             self.image.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.image.bytes()
+    }
 }
 
 /// The corner pass.

@@ -309,6 +309,10 @@ impl Destroy for Pyramid {
             self.image.destroy(ctx);
         }
     }
+
+    fn bytes(&self) -> u64 {
+        self.image.bytes()
+    }
 }
 
 /// The format a `kind` pyramid of a map whose texels are of `height_format` (a

@@ -197,7 +197,7 @@ pub unsafe fn record(
         }
         None => None,
     };
-    let ctx = pass.context().clone();
+    let ctx = pass.context()?.clone();
     let dev = ctx.device();
     // SAFETY: the closure records into the encoder's own open command buffer and does not
     // end it (as_hal_mut's contract); nothing else touches the encoder meanwhile.

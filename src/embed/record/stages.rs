@@ -20,10 +20,10 @@ impl DisplacementPass {
         write_hits: bool,
         hit_depth: Option<vk::ImageView>,
     ) -> Result<()> {
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         let lists = &self.slots[inputs.frame_slot as usize].tiles;
-        let mut live: Vec<bool> = self.materials.iter().map(Option::is_some).collect();
-        live.resize(lists.materials() as usize, false);
+        let live: Vec<bool> = self.materials.iter().map(Option::is_some).collect();
         let classify = ClassifyInputs {
             depth: inputs.gbuffer.depth.view,
             frame: inputs.gbuffer.frame.view,
@@ -36,20 +36,26 @@ impl DisplacementPass {
             lists,
             live: &live,
         };
-        let bindings = self.classify.bindings(hit_depth.is_some());
         let skip: &[Res] = if write_hits { &[] } else { &[Res::Hit] };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body: the graph's barriers order the reset
-        // after the lists' last readers (the slot's previous frame) and the
-        // classification after the reset and the earlier accesses of its images.
+        // after the lists' last readers (the slot's previous frame), each step after the
+        // reset, the steps before it and the earlier accesses of its images.
         unsafe {
             w.scope(ctx, cmd, PassName::Classify, |cmd| {
                 g.declare(Res::Args, super::super::graph::ARGS_RESET)?;
                 g.flush(ctx, cmd, PassName::Classify)?;
                 self.classify.record_reset(ctx, cmd, &classify);
-                g.dispatch(bindings, 0, skip)?;
-                g.flush(ctx, cmd, PassName::Classify)?;
-                self.classify.record(ctx, cmd, &classify)
+                for step in ClassifyStep::ALL {
+                    let bindings = self.classify.bindings(step, hit_depth.is_some());
+                    g.dispatch(bindings, 0, skip)?;
+                    if step == ClassifyStep::Mixed {
+                        g.declare(Res::Args, super::super::graph::INDIRECT)?;
+                    }
+                    g.flush(ctx, cmd, PassName::Classify)?;
+                    self.classify.record(ctx, cmd, &classify, step)?;
+                }
+                Ok(())
             })
         }
     }
@@ -66,7 +72,8 @@ impl DisplacementPass {
         g: &mut FrameGraph,
         inputs: &FrameInputs,
     ) -> Result<()> {
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         let slot = inputs.frame_slot as usize;
         let Some(pass) = &self.corner_pass else {
             return Ok(());
@@ -123,7 +130,8 @@ impl DisplacementPass {
         inputs: &FrameInputs,
         camera: Option<&DepthCamera>,
     ) -> Result<()> {
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         let view = camera.map(|c| crate::passes::trace::TraceView::new(c.view_proj, c.eye));
         let hit = ViewRef {
             view: inputs.hit.view,
@@ -210,7 +218,8 @@ impl DisplacementPass {
         inputs: &FrameInputs,
         target: &ShadeTarget,
     ) -> Result<Option<vk::ImageView>> {
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         let Some(image) = &self.slots[inputs.frame_slot as usize].visibility else {
             return Ok(None);
         };
@@ -277,7 +286,8 @@ impl DisplacementPass {
         target: &ShadeTarget,
         visibility: Option<vk::ImageView>,
     ) -> Result<()> {
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         let live = self.live(inputs.frame_slot);
         for (tiles, _, _) in &live {
             g.dispatch(self.shade.bindings(), tiles.material, &[])?;
@@ -327,7 +337,8 @@ impl DisplacementPass {
         inputs: &FrameInputs,
         camera: &DepthCamera,
     ) -> Result<()> {
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         let (Some(depth), Some(image)) = (
             &self.depth,
             &self.slots[inputs.frame_slot as usize].hit_depth,
@@ -387,7 +398,8 @@ impl DisplacementPass {
         inputs: &FrameInputs,
         camera: &DepthCamera,
     ) -> Result<()> {
-        let ctx = &*self.ctx;
+        let ctx = self.context()?.clone();
+        let ctx = &*ctx;
         let (Some(pass), Some(frame), Some(settings)) =
             (&self.motion, &inputs.motion, &self.motion_on)
         else {
