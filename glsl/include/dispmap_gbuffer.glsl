@@ -86,8 +86,10 @@ vec3 dispmap_oct_decode(vec2 p) {
 }
 
 // Quantisation of an octahedral coordinate to 14 bits and back (snorm: -1, 0 and 1 exact).
+// Ties round to even (roundEven, not round, whose ties are the implementation's), as
+// the CPU twin does (src/passes/gbuffer/frame.rs: f32::round_ties_even).
 uint dispmap_snorm14(float x) {
-    return uint(int(round(clamp(x, -1.0, 1.0) * 8191.0)) + 8191);
+    return uint(int(roundEven(clamp(x, -1.0, 1.0) * 8191.0)) + 8191);
 }
 float dispmap_unsnorm14(uint q) {
     return float(int(q & 0x3FFFu) - 8191) / 8191.0;
@@ -127,7 +129,7 @@ uvec2 dispmap_frame_pack(vec3 normal, vec3 tangent, float handedness, uint mater
     vec3 b1, b2;
     dispmap_frame_basis(n, b1, b2);
     float angle = atan(dot(tangent, b2), dot(tangent, b1));
-    uint k = uint(int(round(angle * (DISPMAP_TANGENT_STEPS / 6.283185307179586)))) & 0x1FFFu;
+    uint k = uint(int(roundEven(angle * (DISPMAP_TANGENT_STEPS / 6.283185307179586)))) & 0x1FFFu;
     uint id = (uint(max(surface_id, 0.0) + 0.5) - 1u) & 0x7FFu;
     uint x = ou | (ov << 14) | ((id & 0xFu) << 28);
     uint y = k | (handedness < 0.0 ? 1u << 13 : 0u) | (min(material_plus_one, 0x7FFu) << 14)

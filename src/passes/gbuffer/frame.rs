@@ -67,8 +67,10 @@ fn oct_decode(p: [f32; 2]) -> Vec3 {
     n.normalize()
 }
 
+/// Ties round to even, as the GLSL encoder's `roundEven` (Rust's `round` would take them
+/// away from zero, GLSL's `round` as the implementation chooses).
 fn snorm14(x: f32) -> u32 {
-    ((x.clamp(-1.0, 1.0) * 8191.0).round() as i32 + 8191) as u32
+    ((x.clamp(-1.0, 1.0) * 8191.0).round_ties_even() as i32 + 8191) as u32
 }
 
 fn unsnorm14(q: u32) -> f32 {
@@ -101,7 +103,8 @@ pub fn pack(
     let n = oct_decode([unsnorm14(ou), unsnorm14(ov)]);
     let (b1, b2) = basis(n);
     let angle = tangent.dot(b2).atan2(tangent.dot(b1));
-    let k = ((angle * (TANGENT_STEPS / std::f32::consts::TAU)).round() as i32 as u32) & 0x1FFF;
+    let k = ((angle * (TANGENT_STEPS / std::f32::consts::TAU)).round_ties_even() as i32 as u32)
+        & 0x1FFF;
     let id = surface_id.wrapping_sub(1) & 0x7FF;
     let x = ou | (ov << 14) | ((id & 0xF) << 28);
     let y = k
@@ -173,6 +176,25 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A coordinate whose scaled value is a tie (k + 0.5 exactly in f32) quantises to the
+    /// even neighbour on both sides of zero, as the shader's `roundEven` does; `round`
+    /// would take 0.5 to 1 and -2.5 to -3.
+    #[test]
+    fn ties_round_to_even() {
+        let mut ties = 0;
+        for k in -200i32..200 {
+            let scaled = k as f32 + 0.5;
+            let x = scaled / 8191.0;
+            if x * 8191.0 != scaled {
+                continue;
+            }
+            ties += 1;
+            let even = if k % 2 == 0 { k } else { k + 1 };
+            assert_eq!(snorm14(x) as i32 - 8191, even, "x = {x} ({scaled} / 8191)");
+        }
+        assert!(ties > 50, "only {ties} exact ties");
     }
 
     /// The angle between two vectors, in f64 (f32's `acos` near 1 resolves 3e-4 rad).
