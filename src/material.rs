@@ -334,15 +334,16 @@ impl MaterialTextures {
         ctx: &Context,
         cmd: vk::CommandBuffer,
         staging: &MaterialStaging,
-    ) {
+    ) -> Result<()> {
         for (image, buffer) in [&self.albedo, &self.normal_map].into_iter().zip(&staging.0) {
             if let (Some(image), Some(buffer)) = (image, buffer) {
                 // SAFETY: this function's contract.
                 unsafe {
-                    record_upload_level0(ctx, cmd, buffer, &image.image, Access::COMPUTE_SAMPLED)
+                    record_upload_level0(ctx, cmd, buffer, &image.image, Access::COMPUTE_SAMPLED)?
                 };
             }
         }
+        Ok(())
     }
 
     /// Descriptors of bindings 5 (albedo) and 6 (normal map) of the shade pass; a missing

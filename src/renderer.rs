@@ -34,7 +34,7 @@ use crate::embed::{
 use crate::error::{Error, Result};
 use crate::gpu::commands::{read_image, upload_image};
 use crate::gpu::owned::{Destroy, Guard};
-use crate::gpu::sync::{self, Access};
+use crate::gpu::sync::Access;
 use crate::gpu::{Image, OneShot};
 use crate::heightfield::HeightField;
 use crate::material::MaterialImages;

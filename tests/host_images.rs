@@ -16,6 +16,7 @@ use dispmap::embed::{
 use dispmap::error::Error;
 use dispmap::gpu::owned::Destroy;
 use dispmap::gpu::sync::{self, Access};
+use dispmap::gpu::track::Tracker;
 use dispmap::gpu::{Image, OneShot};
 use dispmap::heightfield::{Addressing, Convention};
 use dispmap::method::{Method, MethodParams};
@@ -193,11 +194,12 @@ fn wrong_host_images_are_refused_by_name() {
     // SAFETY: `cmd` is recording (above); the G-buffer is discarded into the sampled
     // layout and the hit image into GENERAL for storage writes (barriers below).
     unsafe {
-        let entry = gbuffer.barriers(
-            (Access::UNDEFINED, Access::COMPUTE_SAMPLED),
-            (Access::UNDEFINED, Access::COMPUTE_SAMPLED),
-        );
-        sync::record(c, cmd, &entry);
+        let mut t = Tracker::new();
+        gbuffer.enter(&mut t, Access::UNDEFINED, Access::UNDEFINED);
+        gbuffer
+            .declare(&mut t, Access::COMPUTE_SAMPLED, Access::COMPUTE_SAMPLED)
+            .unwrap();
+        t.record(c, cmd).unwrap();
         sync::transition(
             c,
             cmd,

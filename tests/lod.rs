@@ -473,7 +473,7 @@ fn the_height_mip_chain_is_the_box_average_and_level_0_is_the_map() {
         // context's queue family) and is submitted and waited for below, while both
         // textures live; `texture` is `from`'s new twin (`create_like`), never accessed,
         // and `from` was left sampled-readable by its upload or derivation.
-        unsafe { texture.record_copy_from(&ctx, cmd, from) };
+        unsafe { texture.record_copy_from(&ctx, cmd, from).unwrap() };
         shot.submit_and_wait(&ctx).unwrap();
         texture
     };

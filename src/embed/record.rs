@@ -383,22 +383,23 @@ impl DisplacementPass {
             // The staging data and sources are retired below until the frames reading them
             // have completed, and the textures live until they are retired after them.
             unsafe {
-                w.scope(&ctx, cmd, PassName::Upload, |cmd| {
+                w.scope(&ctx, cmd, PassName::Upload, |cmd| -> Result<()> {
                     for (i, fill) in &fills {
                         let Some(map) = &self.maps[*i] else { continue };
                         match fill {
-                            Fill::Upload(staging) => map.texture.record_upload(&ctx, cmd, staging),
-                            Fill::Copy(source) => map.texture.record_copy_from(&ctx, cmd, source),
+                            Fill::Upload(staging) => map.texture.record_upload(&ctx, cmd, staging)?,
+                            Fill::Copy(source) => map.texture.record_copy_from(&ctx, cmd, source)?,
                         }
                     }
                     for (i, staging) in &shading {
                         if let Some(textures) =
                             self.materials[*i].as_ref().and_then(|m| m.shading.as_ref())
                         {
-                            textures.record_upload(&ctx, cmd, staging);
+                            textures.record_upload(&ctx, cmd, staging)?;
                         }
                     }
-                })
+                    Ok(())
+                })?
             };
         }
         for (_, fill) in fills {

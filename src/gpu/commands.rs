@@ -2,7 +2,8 @@
 //! upload and read-back copies built on them. Hosts never use this (they own their
 //! command buffers); the CLI, tests and benchmarks do.
 
-use super::sync::{self, Access};
+use super::sync::Access;
+use super::track::{Handle, Tracker};
 use super::{Buffer, Image};
 use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
@@ -173,7 +174,7 @@ pub fn upload_image(
     let result = (|| {
         let cmd = shot.begin(ctx)?;
         // SAFETY: `cmd` was just begun; the staging buffer holds level 0.
-        unsafe { record_upload_level0(ctx, cmd, &staging, image, after) };
+        unsafe { record_upload_level0(ctx, cmd, &staging, image, after)? };
         shot.submit_and_wait(ctx)
     })();
     // SAFETY: the one-shot submission that used it was waited for (or never made).
@@ -197,41 +198,23 @@ pub unsafe fn record_upload_level0(
     staging: &Buffer,
     image: &Image,
     after: Access,
-) {
-    let range = vk::ImageSubresourceRange {
-        level_count: 1,
-        ..image.range()
+) -> Result<()> {
+    // Level 0 is discarded (no earlier access pending: this function's contract), written
+    // by the copy, then left as `after`; the tracker places the barriers.
+    let level0 = Handle::level(image, 0);
+    let mut t = Tracker::new();
+    t.enter(level0, Access::UNDEFINED);
+    let step = |t: &mut Tracker<Handle>, access| -> Result<()> {
+        t.declare(level0, access)?;
+        // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
+        // pass and `image` is alive; level 0 entered discarded.
+        unsafe { t.record(ctx, cmd) }
     };
-    // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-    // pass and `image` is alive; level 0's contents are discarded (`UNDEFINED`).
-    unsafe {
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                range,
-                Access::UNDEFINED,
-                Access::TRANSFER_WRITE,
-            )],
-        )
-    };
+    step(&mut t, Access::TRANSFER_WRITE)?;
     // SAFETY: as above; level 0 is in `TRANSFER_DST_OPTIMAL` (the barrier above) and
     // `staging` holds it tightly packed (this function's contract).
     unsafe { record_copy_to_level0(ctx, cmd, staging, image) };
-    // SAFETY: as above; level 0 is in `TRANSFER_DST_OPTIMAL` after the copy.
-    unsafe {
-        sync::record(
-            ctx,
-            cmd,
-            &[sync::image_barrier(
-                image.raw,
-                range,
-                Access::TRANSFER_WRITE,
-                after,
-            )],
-        )
-    };
+    step(&mut t, after)
 }
 
 /// Records the copy of `staging` (tightly packed texels) into mip level 0 of `image`,
@@ -313,29 +296,22 @@ pub fn read_image_level(
     )?;
     let result = (|| {
         let cmd = shot.begin(ctx)?;
-        let range = vk::ImageSubresourceRange {
-            base_mip_level: level,
-            level_count: 1,
-            ..image.range()
-        };
+        // The level enters in `current` (this function's documented input), is read by
+        // the copy and returned to `current`; the copy's writes are made visible to the
+        // host. The tracker places the barriers.
+        let (source, target) = (Handle::level(image, level), Handle::buffer(&staging));
+        let mut t = Tracker::new();
+        t.enter(source, current);
+        t.enter(target, Access::UNDEFINED);
+        t.declare(source, Access::TRANSFER_READ)?;
+        t.declare(target, Access::BUFFER_TRANSFER_WRITE)?;
         // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
         // context's queue family) and is submitted and waited for below, while `image`
-        // is alive; the level is in `current` (this function's documented input).
-        unsafe {
-            sync::record(
-                ctx,
-                cmd,
-                &[sync::image_barrier(
-                    image.raw,
-                    range,
-                    current,
-                    Access::TRANSFER_READ,
-                )],
-            )
-        };
+        // and `staging` are alive; the level is in `current`, the buffer new.
+        unsafe { t.record(ctx, cmd)? };
         let region = vk::BufferImageCopy::default()
             .image_subresource(vk::ImageSubresourceLayers {
-                aspect_mask: range.aspect_mask,
+                aspect_mask: image.range().aspect_mask,
                 mip_level: level,
                 base_array_layer: 0,
                 layer_count: 1,
@@ -351,27 +327,10 @@ pub fn read_image_level(
                 &[region],
             )
         };
-        // Back to where the caller had it, and the copy made visible to the host.
-        let to_host = [vk::BufferMemoryBarrier2::default()
-            .buffer(staging.raw)
-            .size(vk::WHOLE_SIZE)
-            .src_stage_mask(vk::PipelineStageFlags2::COPY)
-            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-            .dst_stage_mask(vk::PipelineStageFlags2::HOST)
-            .dst_access_mask(vk::AccessFlags2::HOST_READ)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)];
-        let back = [sync::image_barrier(
-            image.raw,
-            range,
-            Access::TRANSFER_READ,
-            current,
-        )];
-        let dep = vk::DependencyInfo::default()
-            .buffer_memory_barriers(&to_host)
-            .image_memory_barriers(&back);
-        // SAFETY: `cmd` is recording; the buffer and image are alive.
-        unsafe { ctx.device().cmd_pipeline_barrier2(cmd, &dep) };
+        t.declare(source, current)?;
+        t.declare(target, Access::HOST_READ)?;
+        // SAFETY: as above; the level is in `TRANSFER_SRC_OPTIMAL` after the copy.
+        unsafe { t.record(ctx, cmd)? };
         shot.submit_and_wait(ctx)?;
         staging
             .mapped()

@@ -23,7 +23,8 @@
 //! 6.8 ms with level 0 alone).
 
 use super::commands::{OneShot, record_copy_to_level0};
-use super::sync::{self, Access};
+use super::sync::Access;
+use super::track::{Handle, Tracker};
 use super::{Buffer, Image};
 use crate::context::Context;
 use crate::error::{Result, VkContext};
@@ -66,7 +67,7 @@ impl HeightTexture {
             // context's queue family) and is submitted and waited for below, before
             // `staging` is destroyed; `staging` came with `texture` from
             // `create_for_upload`, and the new texture has no earlier accesses.
-            unsafe { texture.record_upload(ctx, cmd, &staging) };
+            unsafe { texture.record_upload(ctx, cmd, &staging)? };
             shot.submit_and_wait(ctx)
         })();
         // SAFETY: the one-shot submission that used it was waited for (or never made).
@@ -300,10 +301,10 @@ impl HeightTexture {
         ctx: &Context,
         cmd: vk::CommandBuffer,
         source: &HeightTexture,
-    ) {
+    ) -> Result<()> {
         // SAFETY: this function's # Safety contract is `record_fill`'s for an image
         // source.
-        unsafe { self.record_fill(ctx, cmd, Level0::Image(&source.image)) };
+        unsafe { self.record_fill(ctx, cmd, Level0::Image(&source.image)) }
     }
 
     /// Records the copy of `staging` (from [`HeightTexture::create_for_upload`]) into
@@ -320,10 +321,15 @@ impl HeightTexture {
     ///   texture (level 0's texels, tightly packed).
     /// * The texture's contents may be discarded: no earlier access of it is pending.
     /// * The texture and `staging` stay alive until the command buffer has executed.
-    pub unsafe fn record_upload(&self, ctx: &Context, cmd: vk::CommandBuffer, staging: &Buffer) {
+    pub unsafe fn record_upload(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        staging: &Buffer,
+    ) -> Result<()> {
         // SAFETY: this function's # Safety contract is `record_fill`'s for a buffer
         // source.
-        unsafe { self.record_fill(ctx, cmd, Level0::Buffer(staging)) };
+        unsafe { self.record_fill(ctx, cmd, Level0::Buffer(staging)) }
     }
 
     /// Level 0 from `source`, then the chain (see [`HeightTexture::record_upload`]).
@@ -332,16 +338,30 @@ impl HeightTexture {
     /// As [`HeightTexture::record_upload`] for a buffer source, as
     /// [`HeightTexture::record_copy_from`] for an image source (level 0 of a texture of
     /// the same size and format, distinct from this one, sampled-readable).
-    unsafe fn record_fill(&self, ctx: &Context, cmd: vk::CommandBuffer, source: Level0) {
+    unsafe fn record_fill(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        source: Level0,
+    ) -> Result<()> {
         let image = &self.image;
-        let level = |l: u32| vk::ImageSubresourceRange {
-            base_mip_level: l,
-            level_count: 1,
-            ..image.range()
-        };
+        // Each level is a resource of the fill's tracker, which places every barrier from
+        // the declared accesses: every level enters discarded (this function's contract)
+        // and is written once (level 0 by the copy, each other by its blit); an image
+        // source's level 0 enters sampled-readable and returns there after the copy.
+        let mut t = Tracker::new();
+        for l in 0..image.mip_levels {
+            t.enter(Handle::level(image, l), Access::UNDEFINED);
+            t.declare(Handle::level(image, l), Access::TRANSFER_WRITE)?;
+        }
+        if let Level0::Image(src) = &source {
+            t.enter(Handle::level(src, 0), Access::COMPUTE_SAMPLED);
+            t.declare(Handle::level(src, 0), Access::TRANSFER_READ)?;
+        }
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
-        // pass; the image is alive and its contents may be discarded.
-        unsafe { sync::transition(ctx, cmd, image, Access::UNDEFINED, Access::TRANSFER_WRITE) };
+        // pass; the images are alive, this one's contents may be discarded and the
+        // source's level 0 is sampled-readable.
+        unsafe { t.record(ctx, cmd)? };
         let aspect = image.range().aspect_mask;
         let layers = |l: u32| vk::ImageSubresourceLayers {
             aspect_mask: aspect,
@@ -356,31 +376,10 @@ impl HeightTexture {
         };
         match source {
             // SAFETY: this function's # Safety contract: `staging` holds level 0 tightly
-            // packed; level 0 is in `TRANSFER_DST_OPTIMAL` (the transition above); the
+            // packed; level 0 is in `TRANSFER_DST_OPTIMAL` (the barriers above); the
             // image has `TRANSFER_DST` usage (`create`).
             Level0::Buffer(staging) => unsafe { record_copy_to_level0(ctx, cmd, staging, image) },
             Level0::Image(src) => {
-                let src_level0 = vk::ImageSubresourceRange {
-                    base_mip_level: 0,
-                    level_count: 1,
-                    ..src.range()
-                };
-                // Earlier sampled reads of the source (frames in flight, in submission
-                // order on this queue) finish before the layout changes.
-                // SAFETY: this function's # Safety contract: the source is alive and its
-                // level 0 is in `SHADER_READ_ONLY_OPTIMAL`.
-                unsafe {
-                    sync::record(
-                        ctx,
-                        cmd,
-                        &[sync::image_barrier(
-                            src.raw,
-                            src_level0,
-                            Access::COMPUTE_SAMPLED,
-                            Access::TRANSFER_READ,
-                        )],
-                    )
-                };
                 let region = vk::ImageCopy::default()
                     .src_subresource(layers(0))
                     .dst_subresource(layers(0))
@@ -398,20 +397,8 @@ impl HeightTexture {
                         &[region],
                     )
                 };
-                // SAFETY: as above; the source's level 0 is in `TRANSFER_SRC_OPTIMAL`
-                // (the barrier before the copy).
-                unsafe {
-                    sync::record(
-                        ctx,
-                        cmd,
-                        &[sync::image_barrier(
-                            src.raw,
-                            src_level0,
-                            Access::TRANSFER_READ,
-                            Access::COMPUTE_SAMPLED,
-                        )],
-                    )
-                };
+                // The source back to sampled reads (frames in flight read it).
+                t.declare(Handle::level(src, 0), Access::COMPUTE_SAMPLED)?;
             }
         }
         let corner = |l: u32| vk::Offset3D {
@@ -420,21 +407,10 @@ impl HeightTexture {
             z: 1,
         };
         for l in 1..image.mip_levels {
+            t.declare(Handle::level(image, l - 1), Access::TRANSFER_READ)?;
             // SAFETY: this function's # Safety contract (`cmd` recording outside a render
-            // pass, the image alive); level `l - 1` was written in `TRANSFER_DST_OPTIMAL`
-            // (the copy or the previous blit).
-            unsafe {
-                sync::record(
-                    ctx,
-                    cmd,
-                    &[sync::image_barrier(
-                        image.raw,
-                        level(l - 1),
-                        Access::TRANSFER_WRITE,
-                        Access::TRANSFER_READ,
-                    )],
-                )
-            };
+            // pass, the images alive); the tracker knows every level's state.
+            unsafe { t.record(ctx, cmd)? };
             let blit = vk::ImageBlit::default()
                 .src_subresource(layers(l - 1))
                 .src_offsets([vk::Offset3D::default(), corner(l - 1)])
@@ -454,29 +430,11 @@ impl HeightTexture {
                 )
             };
         }
-        let last = image.mip_levels - 1;
-        let mut done = vec![sync::image_barrier(
-            image.raw,
-            level(last),
-            Access::TRANSFER_WRITE,
-            Access::COMPUTE_SAMPLED,
-        )];
-        if last > 0 {
-            done.push(sync::image_barrier(
-                image.raw,
-                vk::ImageSubresourceRange {
-                    base_mip_level: 0,
-                    level_count: last,
-                    ..image.range()
-                },
-                Access::TRANSFER_READ,
-                Access::COMPUTE_SAMPLED,
-            ));
+        for l in 0..image.mip_levels {
+            t.declare(Handle::level(image, l), Access::COMPUTE_SAMPLED)?;
         }
-        // SAFETY: this function's # Safety contract (`cmd` recording outside a render
-        // pass, the image alive); the last level is in `TRANSFER_DST_OPTIMAL`, the others
-        // in `TRANSFER_SRC_OPTIMAL` (the loop above).
-        unsafe { sync::record(ctx, cmd, &done) };
+        // SAFETY: as above.
+        unsafe { t.record(ctx, cmd) }
     }
 
     /// Size in texels.

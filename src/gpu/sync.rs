@@ -87,6 +87,18 @@ impl Access {
         access: vk::AccessFlags2::TRANSFER_WRITE,
         layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
     };
+    /// A buffer written by a copy or an update (`vkCmdUpdateBuffer`).
+    pub const BUFFER_TRANSFER_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::ALL_TRANSFER,
+        access: vk::AccessFlags2::TRANSFER_WRITE,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
+    /// A buffer read by the host after the submission completed.
+    pub const HOST_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::HOST,
+        access: vk::AccessFlags2::HOST_READ,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
 }
 
 /// An image barrier from `before` to `after` over `range`.

@@ -24,6 +24,7 @@
 //!   view (the host's, which never change layout here) share one global memory barrier.
 
 use super::sync::{self, Access};
+use super::{Buffer, Image};
 use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::shaders::ShaderBinding;
@@ -286,6 +287,89 @@ impl<K: Copy + Eq + std::fmt::Debug> Tracker<K> {
     pub fn exit(&self, key: K) -> Option<Access> {
         let (_, s) = self.states.iter().find(|(k, _)| *k == key)?;
         Some(s.exit())
+    }
+}
+
+/// A resource known by its Vulkan handle: what the standalone renderer and one-off
+/// recordings (uploads, read-backs, builds) track with a `Tracker<Handle>`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Handle {
+    /// Mip levels `base .. base + count` of an image (its format's aspect, one layer).
+    Image {
+        /// The image.
+        image: vk::Image,
+        /// Its format's aspect.
+        aspect: vk::ImageAspectFlags,
+        /// The first level.
+        base: u32,
+        /// The number of levels.
+        count: u32,
+    },
+    /// A buffer (its barriers are global memory barriers).
+    Buffer(vk::Buffer),
+}
+
+impl Handle {
+    /// Every level of `image`.
+    pub fn image(image: &Image) -> Handle {
+        let range = image.range();
+        Handle::Image {
+            image: image.raw,
+            aspect: range.aspect_mask,
+            base: 0,
+            count: range.level_count,
+        }
+    }
+
+    /// Level `level` of `image`.
+    pub fn level(image: &Image, level: u32) -> Handle {
+        Handle::Image {
+            image: image.raw,
+            aspect: image.range().aspect_mask,
+            base: level,
+            count: 1,
+        }
+    }
+
+    /// `buffer`.
+    pub fn buffer(buffer: &Buffer) -> Handle {
+        Handle::Buffer(buffer.raw)
+    }
+
+    /// What its barriers are recorded on.
+    pub fn target(self) -> Target {
+        match self {
+            Handle::Image {
+                image,
+                aspect,
+                base,
+                count,
+            } => Target::Image(
+                image,
+                vk::ImageSubresourceRange {
+                    aspect_mask: aspect,
+                    base_mip_level: base,
+                    level_count: count,
+                    base_array_layer: 0,
+                    layer_count: 1,
+                },
+            ),
+            Handle::Buffer(_) => Target::Memory,
+        }
+    }
+}
+
+impl Tracker<Handle> {
+    /// [`Tracker::flush`] with each handle's own [`Handle::target`].
+    ///
+    /// # Safety
+    /// As [`Tracker::flush`]: `cmd` is a command buffer of `ctx`'s device in the recording
+    /// state, outside a render pass instance; every handle declared is alive until the
+    /// command buffer has executed and, when it executes, in the state the tracker knows
+    /// (its entry state, then the declared accesses, recorded in this order).
+    pub unsafe fn record(&mut self, ctx: &Context, cmd: vk::CommandBuffer) -> Result<()> {
+        // SAFETY: this function's contract is the flush's.
+        unsafe { self.flush(ctx, cmd, Handle::target) }
     }
 }
 

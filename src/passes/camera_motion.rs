@@ -15,7 +15,8 @@ use crate::error::Result;
 use crate::gpu::owned::Destroy;
 use crate::gpu::owned::Guard;
 use crate::gpu::pipeline::{FetchPipeline, storage_view};
-use crate::gpu::sync::{self, Access};
+use crate::gpu::sync::Access;
+use crate::gpu::track::{Handle, Tracker};
 use crate::gpu::{Image, ViewRef};
 use crate::passes::motion::{DepthCamera, FrameMotion, MotionSettings};
 use crate::shaders;
@@ -157,30 +158,26 @@ impl CameraMotion {
             0.0,
             &MotionSettings::default(),
         );
+        // The image enters discarded after its previous frame's reads (compute, or a
+        // read-back copy), is written by the dispatch, and leaves for the pass's `motion`
+        // stage (read and written in place); the tracker places the barriers.
         let discard = Access {
             stage: vk::PipelineStageFlags2::COMPUTE_SHADER | vk::PipelineStageFlags2::COPY,
             ..Access::UNDEFINED
         };
+        let image = Handle::image(&self.image);
+        let mut t = Tracker::new();
+        t.enter(image, discard);
+        t.declare(image, Access::COMPUTE_STORAGE_WRITE)?;
         // SAFETY: this function's contract; the image is this pass's, its previous frame
         // completed (so it may be discarded), in `GENERAL` for the dispatch between the
         // barriers.
         unsafe {
-            sync::transition(
-                ctx,
-                cmd,
-                &self.image,
-                discard,
-                Access::COMPUTE_STORAGE_WRITE,
-            );
+            t.record(ctx, cmd)?;
             self.pass
                 .record(ctx, cmd, depth, self.image.view_ref(), &params)?;
-            sync::transition(
-                ctx,
-                cmd,
-                &self.image,
-                Access::COMPUTE_STORAGE_WRITE,
-                Access::COMPUTE_STORAGE_READ_WRITE,
-            );
+            t.declare(image, Access::COMPUTE_STORAGE_READ_WRITE)?;
+            t.record(ctx, cmd)?;
         }
         Ok(FrameMotion {
             image: self.image.host_view(),

@@ -230,7 +230,7 @@ impl ForwardPass {
         hit: &Image,
         height: &HeightTexture,
         (params, rays): (&GBufferParams, &PixelRayParams),
-    ) {
+    ) -> Result<()> {
         let extent = target.ray.extent;
         let attachment = crate::gpu::pipeline::cleared_color_attachment;
         let colors = [
@@ -272,7 +272,7 @@ impl ForwardPass {
         let dev = ctx.device();
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the pass (and its buffer) outlives the command buffer.
-        unsafe { self.rays.record_update(ctx, cmd, rays) };
+        unsafe { self.rays.record_update(ctx, cmd, rays)? };
         // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
         // size of attachments `Image::new` created (non-zero, within
         // `maxImageDimension2D`), which the viewport limits cover.
@@ -303,6 +303,7 @@ impl ForwardPass {
             dev.cmd_draw(cmd, params.vertex_count(), 1, 0, 0);
             dev.cmd_end_rendering(cmd);
         }
+        Ok(())
     }
 }
 

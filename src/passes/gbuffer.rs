@@ -32,7 +32,8 @@ use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{RasterDesc, raster_pipeline_specialized};
-use crate::gpu::sync::{self, Access};
+use crate::gpu::sync::Access;
+use crate::gpu::track::{Handle, Tracker};
 use crate::gpu::{HostView, Image};
 use crate::passes::pixel_ray_buffer::PixelRayBuffer;
 use crate::shaders;
@@ -130,26 +131,31 @@ impl GBuffer {
         [&self.ray, &self.frame]
     }
 
-    /// One barrier per image: the colour attachments from `color.0` to `color.1`, the
-    /// depth from `depth.0` to `depth.1` (e.g. discarded -> attachment writes before the
-    /// G-buffer pass, attachment writes -> compute sampled reads after it).
-    pub fn barriers(
-        &self,
-        color: (Access, Access),
-        depth: (Access, Access),
-    ) -> Vec<vk::ImageMemoryBarrier2<'static>> {
-        let mut b: Vec<_> = self
-            .colors()
-            .iter()
-            .map(|i| sync::image_barrier(i.raw, i.range(), color.0, color.1))
-            .collect();
-        b.push(sync::image_barrier(
-            self.depth.raw,
-            self.depth.range(),
-            depth.0,
-            depth.1,
-        ));
-        b
+    /// Its images as a tracker's resources: the colour attachments, then the depth.
+    pub fn handles(&self) -> [Handle; 3] {
+        [
+            Handle::image(&self.ray),
+            Handle::image(&self.frame),
+            Handle::image(&self.depth),
+        ]
+    }
+
+    /// Its images enter `t`: the colour attachments in `color`, the depth in `depth`
+    /// (e.g. discarded, or a host's state after its last frame).
+    pub fn enter(&self, t: &mut Tracker<Handle>, color: Access, depth: Access) {
+        let [ray, frame, d] = self.handles();
+        t.enter(ray, color);
+        t.enter(frame, color);
+        t.enter(d, depth);
+    }
+
+    /// Declares the colour attachments accessed as `color` and the depth as `depth` (e.g.
+    /// attachment writes for the G-buffer pass, compute sampled reads after it).
+    pub fn declare(&self, t: &mut Tracker<Handle>, color: Access, depth: Access) -> Result<()> {
+        let [ray, frame, d] = self.handles();
+        t.declare(ray, color)?;
+        t.declare(frame, color)?;
+        t.declare(d, depth)
     }
 }
 
@@ -347,10 +353,10 @@ impl GBufferPass {
         target: &GBuffer,
         params: &GBufferParams,
         rays: &PixelRayParams,
-    ) {
+    ) -> Result<()> {
         debug_assert!(!self.mesh, "the mesh pipeline draws with record_mesh");
         // SAFETY: this function's # Safety contract is `record_draw`'s without a mesh.
-        unsafe { self.record_draw(ctx, cmd, target, params, None, rays) };
+        unsafe { self.record_draw(ctx, cmd, target, params, None, rays) }
     }
 
     /// Records the pass: clears the G-buffer and draws `mesh` (its buffers must stay
@@ -366,7 +372,7 @@ impl GBufferPass {
         target: &GBuffer,
         params: &GBufferParams,
         mesh: &crate::mesh::MeshBuffers,
-    ) {
+    ) -> Result<()> {
         debug_assert!(self.mesh, "the plane pipeline draws with record");
         // SAFETY: this function's # Safety contract is `record_draw`'s with a mesh (which
         // reads no pixel rays).
@@ -379,7 +385,7 @@ impl GBufferPass {
                 Some(mesh),
                 &PixelRayParams::default(),
             )
-        };
+        }
     }
 
     /// # Safety
@@ -392,14 +398,14 @@ impl GBufferPass {
         params: &GBufferParams,
         mesh: Option<&crate::mesh::MeshBuffers>,
         rays: &PixelRayParams,
-    ) {
+    ) -> Result<()> {
         let draw = GBufferDraw {
             pass: self,
             params: *params,
             mesh,
         };
         // SAFETY: this function's # Safety contract is `record_draws`'s for one draw.
-        unsafe { record_draws(ctx, cmd, target, std::slice::from_ref(&draw), rays) };
+        unsafe { record_draws(ctx, cmd, target, std::slice::from_ref(&draw), rays) }
     }
 }
 
@@ -451,7 +457,7 @@ pub unsafe fn record_draws(
     target: &GBuffer,
     draws: &[GBufferDraw<'_>],
     rays: &PixelRayParams,
-) {
+) -> Result<()> {
     let extent = target.ray.extent;
     // Each plane pipeline's pixel-ray buffer, once.
     let mut updated: Vec<*const GBufferPass> = Vec::new();
@@ -462,7 +468,7 @@ pub unsafe fn record_draws(
             updated.push(std::ptr::from_ref(draw.pass));
             // SAFETY: this function's # Safety contract: `cmd` is recording outside a
             // render pass; the pass (and its buffer) outlives the command buffer.
-            unsafe { buffer.record_update(ctx, cmd, rays) };
+            unsafe { buffer.record_update(ctx, cmd, rays)? };
         }
     }
     let color_attachments: Vec<_> = target
@@ -529,4 +535,5 @@ pub unsafe fn record_draws(
         }
         dev.cmd_end_rendering(cmd);
     }
+    Ok(())
 }

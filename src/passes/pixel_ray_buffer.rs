@@ -8,7 +8,8 @@ use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::Buffer;
 use crate::gpu::owned::Destroy;
-use crate::gpu::sync::{self, Access};
+use crate::gpu::sync::Access;
+use crate::gpu::track::{Handle, Tracker};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
@@ -43,26 +44,25 @@ impl PixelRayBuffer {
         ctx: &Context,
         cmd: vk::CommandBuffer,
         rays: &PixelRayParams,
-    ) {
-        // The previous frame's fragment reads before the write (write-after-read), the
-        // write before this frame's reads.
-        let before = [sync::memory_barrier(
-            Access::FRAGMENT_UNIFORM_READ,
-            Access::TRANSFER_WRITE,
-        )];
-        let after = [sync::memory_barrier(
-            Access::TRANSFER_WRITE,
-            Access::FRAGMENT_UNIFORM_READ,
-        )];
-        let dev = ctx.device();
+    ) -> Result<()> {
+        // The buffer enters after the previous frame's fragment reads, is written by the
+        // update and then read by this frame's fragments; the tracker places the
+        // barriers (write-after-read, then read-after-write).
+        let buffer = Handle::buffer(&self.buffer);
+        let mut t = Tracker::new();
+        t.enter(buffer, Access::FRAGMENT_UNIFORM_READ);
+        t.declare(buffer, Access::BUFFER_TRANSFER_WRITE)?;
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the update is 128 bytes (a multiple of 4, under 65536) of a live buffer
         // with TRANSFER_DST usage.
         unsafe {
-            dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&before));
-            dev.cmd_update_buffer(cmd, self.buffer.raw, 0, bytemuck::bytes_of(rays));
-            dev.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&after));
+            t.record(ctx, cmd)?;
+            ctx.device()
+                .cmd_update_buffer(cmd, self.buffer.raw, 0, bytemuck::bytes_of(rays));
         }
+        t.declare(buffer, Access::FRAGMENT_UNIFORM_READ)?;
+        // SAFETY: as above.
+        unsafe { t.record(ctx, cmd) }
     }
 
     /// The descriptor of the whole buffer.

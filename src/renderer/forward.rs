@@ -28,7 +28,8 @@ use crate::embed::Timestamps;
 use crate::error::{Error, Result};
 use crate::gpu::HeightTexture;
 use crate::gpu::owned::Destroy;
-use crate::gpu::sync::{self, Access};
+use crate::gpu::sync::Access;
+use crate::gpu::track::{Handle, Tracker};
 use crate::heightfield::HeightField;
 use crate::passes::PassName;
 use crate::passes::forward::ForwardPass;
@@ -167,46 +168,38 @@ impl Renderer {
         // SAFETY: `cmd` was just begun; the pool is alive with the range.
         unsafe { w.reset(ctx, cmd) };
         let g = &self.gbuffer;
-        let mut to_attachments = vec![sync::image_barrier(
-            g.frame.raw,
-            g.frame.range(),
-            DISCARD,
-            Access::COLOR_ATTACHMENT_WRITE,
-        )];
-        to_attachments.extend([
-            sync::image_barrier(
-                g.depth.raw,
-                g.depth.range(),
-                DISCARD,
-                Access::DEPTH_ATTACHMENT_WRITE,
-            ),
-            sync::image_barrier(g.ray.raw, g.ray.range(), DISCARD, Access::COMPUTE_SAMPLED),
-            sync::image_barrier(
-                self.hit.raw,
-                self.hit.range(),
-                DISCARD,
-                HIT_ATTACHMENT_WRITE,
-            ),
-        ]);
-        if !forward.height_visible {
-            // The upload left the texture visible to compute shaders only.
-            let h = &forward.height.image;
-            to_attachments.push(sync::image_barrier(
-                h.raw,
-                h.range(),
-                Access::COMPUTE_SAMPLED,
-                FRAGMENT_SAMPLED,
-            ));
+        // The frame's images enter discarded (their previous frame was waited for), the
+        // forward height texture sampled-readable by compute since its upload (fragment
+        // shaders too after the first forward frame); the tracker places every barrier
+        // from the accesses declared below.
+        let mut t = Tracker::new();
+        let [ray, frame, depth] = g.handles();
+        let (hit, color) = (Handle::image(&self.hit), Handle::image(&self.color));
+        for image in [ray, frame, depth, hit, color] {
+            t.enter(image, DISCARD);
         }
+        let height = Handle::image(&forward.height.image);
+        t.enter(
+            height,
+            if forward.height_visible {
+                FRAGMENT_SAMPLED
+            } else {
+                Access::COMPUTE_SAMPLED
+            },
+        );
+        t.declare(frame, Access::COLOR_ATTACHMENT_WRITE)?;
+        t.declare(depth, Access::DEPTH_ATTACHMENT_WRITE)?;
+        // Not written: the pass's views stay in their entry layouts.
+        t.declare(ray, Access::COMPUTE_SAMPLED)?;
+        t.declare(hit, HIT_ATTACHMENT_WRITE)?;
+        t.declare(height, FRAGMENT_SAMPLED)?;
         // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
         // context's queue family) and is submitted and waited for below, while the images
-        // live; their previous frame was waited for, so the contents may be discarded; the
-        // G-buffer and the hit buffer have attachment usage (`GBuffer::new`,
-        // `frame_images`); the height texture is in `SHADER_READ_ONLY_OPTIMAL` since its
-        // upload.
-        unsafe { sync::record(ctx, cmd, &to_attachments) };
+        // live; they entered as the tracker knows; the G-buffer and the hit buffer have
+        // attachment usage (`GBuffer::new`, `frame_images`).
+        unsafe { t.record(ctx, cmd)? };
         let pass = &forward.passes[index];
-        let (hit, height) = (&self.hit, &forward.height);
+        let (hit_image, height_texture) = (&self.hit, &forward.height);
         // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
         // above (the scope's contract). In the body: the hit buffer is in `GENERAL`, the
         // frame in `COLOR_ATTACHMENT_OPTIMAL`, the depth in
@@ -220,46 +213,26 @@ impl Renderer {
                     ctx,
                     cmd,
                     g,
-                    hit,
-                    height,
+                    hit_image,
+                    height_texture,
                     (&gbuffer_params, &camera.pixel_ray_params()),
                 )
-            })
+            })?
         };
-        let mut entry = vec![
-            sync::image_barrier(
-                g.frame.raw,
-                g.frame.range(),
-                Access::COLOR_ATTACHMENT_WRITE,
-                Access::COMPUTE_SAMPLED,
-            ),
-            sync::image_barrier(
-                g.depth.raw,
-                g.depth.range(),
-                Access::DEPTH_ATTACHMENT_WRITE,
-                Access::COMPUTE_SAMPLED,
-            ),
-            sync::image_barrier(
-                self.hit.raw,
-                self.hit.range(),
-                HIT_ATTACHMENT_WRITE,
-                Access::COMPUTE_STORAGE_READ,
-            ),
-        ];
-        entry.push(sync::image_barrier(
-            self.color.raw,
-            self.color.range(),
-            DISCARD,
-            Access::COMPUTE_STORAGE_WRITE,
-        ));
+        // The pass's entry: the G-buffer sampled by compute, the hits read as storage,
+        // the colour written (the background, then `shade`).
+        t.declare(frame, Access::COMPUTE_SAMPLED)?;
+        t.declare(depth, Access::COMPUTE_SAMPLED)?;
+        t.declare(hit, Access::COMPUTE_STORAGE_READ)?;
+        t.declare(color, Access::COMPUTE_STORAGE_WRITE)?;
         // SAFETY: `cmd` is recording outside a render pass (begun above, submitted
-        // below); the attachments were written by the scope above; the colour image is
-        // the renderer's and its previous frame was waited for, so it may be discarded.
-        unsafe { sync::record(ctx, cmd, &entry) };
+        // below); the images are alive and in the states the tracker knows (the
+        // attachments written by the scope above).
+        unsafe { t.record(ctx, cmd)? };
         // SAFETY: `cmd` is recording outside a render pass and submitted below; the
         // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
         // (the barriers above).
-        unsafe { self.record_background(cmd, &target)? };
+        unsafe { self.record_background(cmd, &target, &mut t)? };
         let inputs = self.frame_inputs(Some(target));
         // SAFETY: `cmd` is recording outside a render pass on the context's queue and is
         // submitted below; the G-buffer views are in the entry states (the `ray` image

@@ -2,6 +2,7 @@
 //! the background, the displacement pass and the renderer's own barriers around them.
 
 use super::*;
+use crate::gpu::track::{Handle, Tracker};
 
 impl Renderer {
     /// Renders one frame and returns its per-pass GPU times (one-off passes included
@@ -16,15 +17,23 @@ impl Renderer {
         // SAFETY: `cmd` was just begun; the pool is alive with the range.
         unsafe { w.reset(ctx, cmd) };
 
-        let to_attachments = self.gbuffer.barriers(
-            (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
-            (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
-        );
+        // The frame's images enter discarded (their previous frame was waited for); the
+        // tracker places every barrier from the accesses declared below.
+        let mut t = Tracker::new();
+        self.gbuffer.enter(&mut t, DISCARD, DISCARD);
+        for image in [&self.hit, &self.color] {
+            t.enter(Handle::image(image), DISCARD);
+        }
+        self.gbuffer.declare(
+            &mut t,
+            Access::COLOR_ATTACHMENT_WRITE,
+            Access::DEPTH_ATTACHMENT_WRITE,
+        )?;
         // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
         // context's queue family) and is submitted and waited for below, while the
-        // G-buffer lives; its previous frame was waited for, so the contents may be
-        // discarded; the images have attachment usage (`GBuffer::new`).
-        unsafe { sync::record(ctx, cmd, &to_attachments) };
+        // images live; they entered as the tracker knows; the G-buffer's images have
+        // attachment usage (`GBuffer::new`).
+        unsafe { t.record(ctx, cmd)? };
         // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
         // above (the scope's contract). In the body (inside this block): the G-buffer is
         // in the attachment layouts (the barriers above); it, the pass and the mesh's
@@ -54,32 +63,23 @@ impl Renderer {
                         &camera.pixel_ray_params(),
                     ),
                 }
-            })
+            })?
         };
 
         // The pass's entry contract: G-buffer sampled by compute, hit buffer discarded in
         // GENERAL, colour in GENERAL with the host's background (below).
-        let mut entry = self.gbuffer.barriers(
-            (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-            (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-        );
+        self.gbuffer
+            .declare(&mut t, Access::COMPUTE_SAMPLED, Access::COMPUTE_SAMPLED)?;
         for image in [&self.hit, &self.color] {
-            entry.push(sync::image_barrier(
-                image.raw,
-                image.range(),
-                DISCARD,
-                Access::COMPUTE_STORAGE_WRITE,
-            ));
+            t.declare(Handle::image(image), Access::COMPUTE_STORAGE_WRITE)?;
         }
         // SAFETY: `cmd` is recording outside a render pass (begun above, submitted
-        // below); the G-buffer was written as attachments by the scope above; the hit and
-        // colour images are the renderer's, alive, and their previous frame was waited
-        // for, so they may be discarded.
-        unsafe { sync::record(ctx, cmd, &entry) };
+        // below); the images are alive and in the states the tracker knows.
+        unsafe { t.record(ctx, cmd)? };
         // SAFETY: `cmd` is recording outside a render pass and submitted below; the
         // G-buffer is sampled-readable and the colour image in GENERAL for storage writes
         // (the barriers above).
-        unsafe { self.record_background(cmd, &target)? };
+        unsafe { self.record_background(cmd, &target, &mut t)? };
         let mut inputs = self.frame_inputs(Some(target));
         let current = DepthCamera {
             view_proj: target.view_proj,
@@ -226,17 +226,19 @@ impl Renderer {
     }
 
     /// The host's background (sky, flat geometry) into the colour image, then the
-    /// colour's barrier for `shade`'s writes of the displaced pixels.
+    /// colour's barrier for `shade`'s writes of the displaced pixels (declared in `t`).
     ///
     /// # Safety
     /// `cmd` is recording outside a render pass on the context's queue and is submitted
     /// (and waited for) while the renderer lives; when it executes, the G-buffer is
     /// sampled-readable by compute and the colour image in `GENERAL`, earlier accesses
-    /// ordered before compute-shader storage writes.
+    /// ordered before compute-shader storage writes, as `t` knows it (its last declared
+    /// access a compute-shader storage write, recorded).
     pub(super) unsafe fn record_background(
         &self,
         cmd: vk::CommandBuffer,
         target: &ShadeTarget,
+        t: &mut Tracker<Handle>,
     ) -> Result<()> {
         let ctx = &*self.ctx;
         let e = self.settings.extent();
@@ -258,13 +260,9 @@ impl Renderer {
                 self.color.view_ref(),
                 &params,
             )?;
-            sync::transition(
-                ctx,
-                cmd,
-                &self.color,
-                Access::COMPUTE_STORAGE_WRITE,
-                Access::COMPUTE_STORAGE_WRITE,
-            );
+            // `shade` writes the displaced pixels after the background's writes.
+            t.declare(Handle::image(&self.color), Access::COMPUTE_STORAGE_WRITE)?;
+            t.record(ctx, cmd)?;
         }
         Ok(())
     }

@@ -2,6 +2,7 @@
 //! depth, rays, the pass's preparation images) and shading hits a caller gives.
 
 use super::*;
+use crate::gpu::track::{Handle, Tracker};
 
 impl Renderer {
     /// The last frame's light visibility (1 = lit), row by row; `None` when
@@ -287,9 +288,12 @@ impl Renderer {
         // context's queue family) and is submitted and waited for below; the colour image
         // is the renderer's, alive, and its previous frame was waited for, so it may be
         // discarded; the G-buffer is sampled-readable since the frame that drew it.
+        let mut t = Tracker::new();
+        t.enter(Handle::image(color), DISCARD);
+        t.declare(Handle::image(color), Access::COMPUTE_STORAGE_WRITE)?;
         unsafe {
-            sync::transition(ctx, cmd, color, DISCARD, Access::COMPUTE_STORAGE_WRITE);
-            self.record_background(cmd, &target)?;
+            t.record(ctx, cmd)?;
+            self.record_background(cmd, &target, &mut t)?;
         }
         // SAFETY: `cmd` is recording and submitted below; the hits (and the given
         // visibility) were uploaded and made visible to storage reads; one slot, whose

@@ -6,7 +6,8 @@
 use ash::vk;
 use dispmap::Context;
 use dispmap::abi::{GBufferParams, PixelRayParams};
-use dispmap::gpu::sync::{self, Access};
+use dispmap::gpu::sync::Access;
+use dispmap::gpu::track::Tracker;
 use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
 use std::sync::Arc;
 
@@ -171,30 +172,23 @@ pub unsafe fn record_gbuffer(
     params: &GBufferParams,
     rays: &PixelRayParams,
 ) {
+    // The images enter discarded; a tracker places the barriers from the declared uses.
+    let mut t = Tracker::new();
+    g.enter(&mut t, DISCARD, DISCARD);
+    g.declare(
+        &mut t,
+        Access::COLOR_ATTACHMENT_WRITE,
+        Access::DEPTH_ATTACHMENT_WRITE,
+    )
+    .unwrap();
     // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
     // pass; the G-buffer is alive and its contents may be discarded; its images have
     // attachment usage (`GBuffer::new`).
-    unsafe {
-        sync::record(
-            ctx,
-            cmd,
-            &g.barriers(
-                (DISCARD, Access::COLOR_ATTACHMENT_WRITE),
-                (DISCARD, Access::DEPTH_ATTACHMENT_WRITE),
-            ),
-        )
-    };
+    unsafe { t.record(ctx, cmd).unwrap() };
     // SAFETY: as above; the G-buffer is in the attachment layouts (the barriers above).
-    unsafe { pass.record(ctx, cmd, g, params, rays) };
+    unsafe { pass.record(ctx, cmd, g, params, rays).unwrap() };
+    g.declare(&mut t, Access::COMPUTE_SAMPLED, Access::COMPUTE_SAMPLED)
+        .unwrap();
     // SAFETY: as above; the G-buffer was written in the attachment layouts.
-    unsafe {
-        sync::record(
-            ctx,
-            cmd,
-            &g.barriers(
-                (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-                (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
-            ),
-        )
-    };
+    unsafe { t.record(ctx, cmd).unwrap() };
 }
