@@ -36,8 +36,7 @@ fn offences(source: &str) -> Vec<(usize, &'static str)> {
             }
         }
         // `use crate::gpu::sync::{self, transition}` and the like.
-        if code.contains("sync::{") && (code.contains("transition") || code.contains("record"))
-        {
+        if code.contains("sync::{") && (code.contains("transition") || code.contains("record")) {
             out.push((i + 1, "an import of sync's barrier helpers"));
         }
     }
@@ -63,7 +62,11 @@ fn only_the_tracker_and_the_host_helpers_build_barriers() {
     assert!(files.len() > 50, "the scan found the sources");
     let mut found = Vec::new();
     for path in &files {
-        let relative = path.strip_prefix(root).unwrap().to_string_lossy().replace('\\', "/");
+        let relative = path
+            .strip_prefix(root)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
         if ALLOWED.contains(&relative.as_str()) {
             continue;
         }

@@ -288,14 +288,16 @@ impl Host {
             // resolved image in `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), both of
             // the frame's extent; the resolve pass lives as long as the host.
             unsafe {
-                self.resolve.record(
-                    &ctx,
-                    cmd,
-                    source.view,
-                    slot.gbuffer.frame.view,
-                    slot.resolved.view,
-                    extent,
-                )
+                self.resolve
+                    .record(
+                        &ctx,
+                        cmd,
+                        source.view,
+                        slot.gbuffer.frame.view,
+                        slot.resolved.view,
+                        extent,
+                    )
+                    .unwrap()
             };
             slot.resolved_written = true;
         }

@@ -387,8 +387,12 @@ impl DisplacementPass {
                     for (i, fill) in &fills {
                         let Some(map) = &self.maps[*i] else { continue };
                         match fill {
-                            Fill::Upload(staging) => map.texture.record_upload(&ctx, cmd, staging)?,
-                            Fill::Copy(source) => map.texture.record_copy_from(&ctx, cmd, source)?,
+                            Fill::Upload(staging) => {
+                                map.texture.record_upload(&ctx, cmd, staging)?
+                            }
+                            Fill::Copy(source) => {
+                                map.texture.record_copy_from(&ctx, cmd, source)?
+                            }
                         }
                     }
                     for (i, staging) in &shading {

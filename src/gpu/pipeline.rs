@@ -294,14 +294,23 @@ impl Destroy for ComputePipeline {
 /// set 0 and a single descriptor (push descriptors of one set); the error names the
 /// shader and the difference. The numbers are the shader's alone.
 pub fn check_declared(shader: &Shader, declared: &[(&str, vk::DescriptorType)]) -> Result<()> {
+    check_bindings(shader.name, shader.bindings.iter(), declared)
+}
+
+/// [`check_declared`] for the bindings `bindings` of the shader (or shaders) `name`.
+fn check_bindings<'a>(
+    name: &str,
+    bindings: impl Iterator<Item = &'a ShaderBinding> + Clone,
+    declared: &[(&str, vk::DescriptorType)],
+) -> Result<()> {
     let mut ours: Vec<(&str, vk::DescriptorType)> = declared.to_vec();
     ours.sort_by_key(|&(n, _)| n);
     let mut theirs: Vec<(&str, vk::DescriptorType)> =
-        shader.bindings.iter().map(|b| (b.name, b.ty)).collect();
+        bindings.clone().map(|b| (b.name, b.ty)).collect();
     theirs.sort_by_key(|&(n, _)| n);
-    if let Some(b) = shader.bindings.iter().find(|b| b.set != 0 || b.count != 1) {
+    if let Some(b) = bindings.clone().find(|b| b.set != 0 || b.count != 1) {
         return Err(Error::invalid(
-            shader.name,
+            name,
             format!(
                 "binding {} ({}) is in set {} with {} descriptors; passes push one set of \
                  single descriptors",
@@ -311,11 +320,124 @@ pub fn check_declared(shader: &Shader, declared: &[(&str, vk::DescriptorType)]) 
     }
     if ours != theirs {
         return Err(Error::invalid(
-            shader.name,
+            name,
             format!("the pass binds {ours:?}, the shader declares {theirs:?}"),
         ));
     }
     Ok(())
+}
+
+/// Set 0 of a graphics pipeline, from its stages' reflected bindings ([`Shader::bindings`]):
+/// each binding once, visible to the stages that declare it, bound by its GLSL name (the
+/// numbers exist only in the GLSL).
+#[derive(Debug)]
+pub struct RasterSet {
+    name: String,
+    bindings: Vec<(&'static ShaderBinding, vk::ShaderStageFlags)>,
+}
+
+impl RasterSet {
+    /// The joined bindings of `stages` (each shader with its stage); `declared` is what
+    /// the pass binds, `(GLSL name, type)`, and must be exactly that table (as
+    /// [`check_declared`]); a binding number two stages give different names or types is
+    /// an error.
+    pub fn new(
+        stages: &[(&Shader, vk::ShaderStageFlags)],
+        declared: &[(&str, vk::DescriptorType)],
+    ) -> Result<Self> {
+        let name = stages
+            .iter()
+            .map(|(s, _)| s.name)
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let mut bindings: Vec<(&'static ShaderBinding, vk::ShaderStageFlags)> = Vec::new();
+        for &(shader, stage) in stages {
+            for b in shader.bindings {
+                match bindings
+                    .iter_mut()
+                    .find(|(o, _)| o.binding == b.binding && o.set == b.set)
+                {
+                    Some((o, flags)) if o.name == b.name && o.ty == b.ty => *flags |= stage,
+                    Some((o, _)) => {
+                        return Err(Error::invalid(
+                            name,
+                            format!(
+                                "binding {} is {} ({:?}) in one stage and {} ({:?}) in another",
+                                b.binding, o.name, o.ty, b.name, b.ty
+                            ),
+                        ));
+                    }
+                    None => bindings.push((b, stage)),
+                }
+            }
+        }
+        check_bindings(&name, bindings.iter().map(|(b, _)| *b), declared)?;
+        Ok(RasterSet { name, bindings })
+    }
+
+    /// Whether the stages bind nothing (the pipeline layout then has no set).
+    pub fn is_empty(&self) -> bool {
+        self.bindings.is_empty()
+    }
+
+    /// Creates set 0's push-descriptor layout, named `name`.
+    pub fn set_layout(&self, ctx: &Context, name: &str) -> Result<vk::DescriptorSetLayout> {
+        let info: Vec<_> = self
+            .bindings
+            .iter()
+            .map(|(b, stages)| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b.binding)
+                    .descriptor_type(b.ty)
+                    .descriptor_count(b.count)
+                    .stage_flags(*stages)
+            })
+            .collect();
+        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
+            .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+            .bindings(&info);
+        // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
+        let layout = unsafe { ctx.device().create_descriptor_set_layout(&set_info, None) }
+            .vk("vkCreateDescriptorSetLayout")?;
+        ctx.set_name(layout, name);
+        Ok(layout)
+    }
+
+    fn named(&self, name: &str) -> Result<&'static ShaderBinding> {
+        self.bindings
+            .iter()
+            .find(|(b, _)| b.name == name)
+            .map(|(b, _)| *b)
+            .ok_or_else(|| Error::Internal(format!("{} has no binding named {name}", self.name)))
+    }
+
+    /// A descriptor write of the image binding named `name` (its number and type the
+    /// shaders').
+    pub fn image<'a>(
+        &self,
+        name: &str,
+        info: &'a [vk::DescriptorImageInfo],
+    ) -> Result<vk::WriteDescriptorSet<'a>> {
+        let b = self.named(name)?;
+        Ok(vk::WriteDescriptorSet::default()
+            .dst_binding(b.binding)
+            .descriptor_type(b.ty)
+            .image_info(info))
+    }
+
+    /// A descriptor write of the buffer binding named `name` (its number and type the
+    /// shaders').
+    pub fn buffer<'a>(
+        &self,
+        name: &str,
+        info: &'a [vk::DescriptorBufferInfo],
+    ) -> Result<vk::WriteDescriptorSet<'a>> {
+        let b = self.named(name)?;
+        Ok(vk::WriteDescriptorSet::default()
+            .dst_binding(b.binding)
+            .descriptor_type(b.ty)
+            .buffer_info(info))
+    }
 }
 
 /// A descriptor write for binding `binding` of an image (sampled or storage).

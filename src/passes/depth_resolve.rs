@@ -18,7 +18,7 @@
 use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{RasterDesc, raster_pipeline};
+use crate::gpu::pipeline::{RasterDesc, RasterSet, raster_pipeline};
 use crate::shaders;
 use ash::vk;
 
@@ -30,13 +30,36 @@ pub struct DepthResolvePass {
     pipeline: vk::Pipeline,
     layout: vk::PipelineLayout,
     set_layout: vk::DescriptorSetLayout,
+    /// Set 0 as the shaders declare it.
+    set: RasterSet,
     sampler: vk::Sampler,
+}
+
+/// The GLSL names of the bindings (`glsl/depth_resolve.frag`): the corrected depth and the
+/// G-buffer frame.
+const SOURCE: &str = "u_hit_depth";
+const FRAME: &str = "u_frame";
+
+/// Set 0 as the shaders declare it: the corrected depth and the G-buffer frame, bound by
+/// their GLSL names.
+pub(crate) fn raster_set() -> Result<RasterSet> {
+    RasterSet::new(
+        &[
+            (&shaders::DEPTH_RESOLVE_VERT, vk::ShaderStageFlags::VERTEX),
+            (&shaders::DEPTH_RESOLVE_FRAG, vk::ShaderStageFlags::FRAGMENT),
+        ],
+        &[
+            (SOURCE, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+            (FRAME, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+        ],
+    )
 }
 
 impl DepthResolvePass {
     /// Builds the pipeline (dynamic rendering, `D32_SFLOAT` depth attachment only).
     pub fn new(ctx: &Context) -> Result<Self> {
         let dev = ctx.device();
+        let set = raster_set()?;
         let sampler = crate::gpu::pipeline::sampler(
             ctx,
             "depth_resolve.sampler",
@@ -47,6 +70,7 @@ impl DepthResolvePass {
             pipeline: vk::Pipeline::null(),
             layout: vk::PipelineLayout::null(),
             set_layout: vk::DescriptorSetLayout::null(),
+            set,
             sampler,
         };
         // On failure `pass` is destroyed with what exists.
@@ -61,21 +85,7 @@ impl DepthResolvePass {
     }
 
     fn build(&mut self, ctx: &Context, dev: &ash::Device) -> Result<()> {
-        let binding = |b: u32| {
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(b)
-                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                .descriptor_count(1)
-                .stage_flags(vk::ShaderStageFlags::FRAGMENT)
-        };
-        let bindings = [binding(0), binding(1)];
-        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
-            .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
-            .bindings(&bindings);
-        // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
-        self.set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
-            .vk("vkCreateDescriptorSetLayout")?;
-        ctx.set_name(self.set_layout, "depth_resolve.set_layout");
+        self.set_layout = self.set.set_layout(ctx, "depth_resolve.set_layout")?;
         let set_layouts = [self.set_layout];
         let layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
         // SAFETY: valid device and set layout.
@@ -125,7 +135,7 @@ impl DepthResolvePass {
         frame: vk::ImageView,
         target: vk::ImageView,
         extent: vk::Extent2D,
-    ) {
+    ) -> Result<()> {
         let depth_attachment = vk::RenderingAttachmentInfo::default()
             .image_view(target)
             .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
@@ -145,16 +155,8 @@ impl DepthResolvePass {
         };
         let (source_info, frame_info) = (info(source), info(frame));
         let writes = [
-            crate::gpu::pipeline::image_write(
-                0,
-                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-                &source_info,
-            ),
-            crate::gpu::pipeline::image_write(
-                1,
-                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-                &frame_info,
-            ),
+            self.set.image(SOURCE, &source_info)?,
+            self.set.image(FRAME, &frame_info)?,
         ];
         let dev = ctx.device();
         // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
@@ -162,7 +164,7 @@ impl DepthResolvePass {
         unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; source and target are alive and in the layouts documented above; the
-        // writes match the set layout (bindings 0 and 1, combined image samplers).
+        // writes match the set layout (both from the shaders' reflection).
         unsafe {
             dev.cmd_begin_rendering(cmd, &rendering);
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
@@ -176,6 +178,7 @@ impl DepthResolvePass {
             dev.cmd_draw(cmd, 3, 1, 0, 0);
             dev.cmd_end_rendering(cmd);
         }
+        Ok(())
     }
 }
 

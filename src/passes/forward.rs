@@ -36,10 +36,10 @@ use crate::context::Context;
 use crate::error::{Error, Result, VkContext};
 use crate::gpu::owned::Destroy;
 use crate::gpu::owned::Guard;
-use crate::gpu::pipeline::{RasterDesc, image_write, raster_pipeline};
+use crate::gpu::pipeline::{RasterDesc, RasterSet, raster_pipeline};
 use crate::gpu::{Buffer, HeightTexture, Image};
 use crate::method::{Method, MethodParams};
-use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, GBuffer};
+use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, GBuffer, PIXEL_RAYS};
 use crate::passes::pixel_ray_buffer::PixelRayBuffer;
 use crate::passes::trace::HIT_FORMAT;
 use crate::shaders;
@@ -52,8 +52,33 @@ pub struct ForwardPass {
     pipeline: vk::Pipeline,
     layout: vk::PipelineLayout,
     set_layout: vk::DescriptorSetLayout,
+    /// Set 0 as the shaders declare it.
+    set: RasterSet,
     params: Buffer,
     rays: PixelRayBuffer,
+}
+
+/// What the forward pass binds, `(GLSL name, type)`: the height texture, the march's step
+/// counts and the pixel rays (`glsl/forward/forward.glsl`).
+const DECLARED: [(&str, vk::DescriptorType); 3] = [
+    (HEIGHT, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
+    (MARCH, vk::DescriptorType::UNIFORM_BUFFER),
+    (PIXEL_RAYS, vk::DescriptorType::UNIFORM_BUFFER),
+];
+const HEIGHT: &str = "u_height";
+const MARCH: &str = "u_march";
+
+/// Set 0 of a forward pipeline whose fragment stage is `frag` (a method's
+/// [`Method::forward_shader`]) as the shaders declare it: the height texture, the march's
+/// step counts and the pixel rays, each bound by its GLSL name ([`DECLARED`]).
+pub(crate) fn raster_set(frag: &shaders::Shader) -> Result<RasterSet> {
+    RasterSet::new(
+        &[
+            (&shaders::GBUFFER_VERT, vk::ShaderStageFlags::VERTEX),
+            (frag, vk::ShaderStageFlags::FRAGMENT),
+        ],
+        &DECLARED,
+    )
 }
 
 /// Writes the step counts of `params` into `buffer` (host-visible, host-coherent: the
@@ -113,29 +138,8 @@ impl ForwardPass {
                 PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
             )
         };
-        let bindings = [
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(0)
-                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                .descriptor_count(1)
-                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(1)
-                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(2)
-                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
-        ];
-        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
-            .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
-            .bindings(&bindings);
-        // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
-        let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
-            .vk("vkCreateDescriptorSetLayout")?;
+        let set = raster_set(&frag)?;
+        let set_layout = set.set_layout(ctx, &format!("{name}.set_layout"))?;
         let ranges = [vk::PushConstantRange::default()
             .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
             .size(std::mem::size_of::<GBufferParams>() as u32)];
@@ -180,12 +184,12 @@ impl ForwardPass {
             }
         };
         ctx.set_name(layout, &format!("{name}.layout"));
-        ctx.set_name(set_layout, &format!("{name}.set_layout"));
         Ok(ForwardPass {
             method,
             pipeline,
             layout,
             set_layout,
+            set,
             params: params_buffer.keep(),
             rays: rays.keep(),
         })
@@ -259,15 +263,9 @@ impl ForwardPass {
         }];
         let ray_info = self.rays.info();
         let writes = [
-            image_write(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, &heights),
-            vk::WriteDescriptorSet::default()
-                .dst_binding(1)
-                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-                .buffer_info(&buffers),
-            vk::WriteDescriptorSet::default()
-                .dst_binding(2)
-                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-                .buffer_info(&ray_info),
+            self.set.image(HEIGHT, &heights)?,
+            self.set.buffer(MARCH, &buffers)?,
+            self.set.buffer(PIXEL_RAYS, &ray_info)?,
         ];
         let dev = ctx.device();
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
@@ -279,8 +277,8 @@ impl ForwardPass {
         unsafe { crate::gpu::pipeline::set_frame_viewport(ctx, cmd, extent) };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the attachments and the height texture are alive and in the layouts
-        // named above (the caller's barriers); the writes match set 0's layout (binding
-        // 0 a combined image sampler, 1 and 2 uniform buffers the pass owns); the push
+        // named above (the caller's barriers); the writes match set 0's layout (both from
+        // the shaders' reflection: the height texture, two uniform buffers the pass owns); the push
         // constants are the layout's range; the plane pipeline draws without vertex
         // buffers.
         unsafe {

@@ -16,7 +16,7 @@
 //! On the plane and the quad the entry (`uv0`, the position `P` and the depth derive from)
 //! is each pixel's own centre ray met with the surface in double-float arithmetic
 //! (`dispmap_plane_pixel_ray` in `glsl/include/dispmap_plane.glsl`), from the frame's
-//! [`PixelRayParams`] in a uniform buffer the plane pipeline owns (set 0, binding 0; the
+//! [`PixelRayParams`] in a uniform buffer the plane pipeline owns (`PixelRayBlock`; the
 //! push constants are full) and writes in each recording; the vertices only decide
 //! coverage, and a fragment whose centre ray misses the surface is discarded. Meshes
 //! interpolate their vertices' attributes.
@@ -31,7 +31,7 @@ use crate::abi::{GBufferParams, PixelRayParams};
 use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{RasterDesc, raster_pipeline_specialized};
+use crate::gpu::pipeline::{RasterDesc, RasterSet, raster_pipeline_specialized};
 use crate::gpu::sync::Access;
 use crate::gpu::track::{Handle, Tracker};
 use crate::gpu::{HostView, Image};
@@ -171,12 +171,40 @@ impl Destroy for GBuffer {
     }
 }
 
+/// The GLSL name of the pixel rays' uniform block (`glsl/gbuffer.frag`,
+/// `glsl/forward/forward.glsl`).
+pub(crate) const PIXEL_RAYS: &str = "PixelRayBlock";
+
+/// Set 0 of the plane's pipeline (`mesh` false) or the meshes' as the shaders declare it:
+/// the plane's pixel rays (a uniform buffer the pass owns and writes in each recording);
+/// meshes interpolate and bind nothing.
+pub(crate) fn raster_set(mesh: bool) -> Result<RasterSet> {
+    let (vert, frag, declared): (_, _, &[_]) = if mesh {
+        (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG, &[])
+    } else {
+        (
+            shaders::GBUFFER_VERT,
+            shaders::GBUFFER_FRAG,
+            &[(PIXEL_RAYS, vk::DescriptorType::UNIFORM_BUFFER)],
+        )
+    };
+    RasterSet::new(
+        &[
+            (&vert, vk::ShaderStageFlags::VERTEX),
+            (&frag, vk::ShaderStageFlags::FRAGMENT),
+        ],
+        declared,
+    )
+}
+
 /// The graphics pipeline of the G-buffer pass (the plane's also its set layout and the
 /// uniform buffer of the frame's pixel rays).
 pub struct GBufferPass {
     pipeline: vk::Pipeline,
     layout: vk::PipelineLayout,
     set_layout: vk::DescriptorSetLayout,
+    /// Set 0 as the shaders declare it (the plane's pixel rays; empty for meshes).
+    set: RasterSet,
     rays: Option<PixelRayBuffer>,
     mesh: bool,
     two_sided: bool,
@@ -222,8 +250,12 @@ impl GBufferPass {
             (true, false) => "gbuffer_mesh",
             (true, true) => "gbuffer_mesh_two_sided",
         };
-        // The plane's set 0: binding 0, the pixel rays (a uniform buffer the pass owns and
-        // writes in each recording); meshes interpolate and bind nothing.
+        let (vert, frag) = if mesh {
+            (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG)
+        } else {
+            (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG)
+        };
+        let set = raster_set(mesh)?;
         let (set_layout, rays) = if mesh {
             (vk::DescriptorSetLayout::null(), None)
         } else {
@@ -234,17 +266,7 @@ impl GBufferPass {
                     PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
                 )
             };
-            let bindings = [vk::DescriptorSetLayoutBinding::default()
-                .binding(0)
-                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
-            let set_info = vk::DescriptorSetLayoutCreateInfo::default()
-                .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
-                .bindings(&bindings);
-            // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
-            let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
-                .vk("vkCreateDescriptorSetLayout")?;
+            let set_layout = set.set_layout(ctx, &format!("{name}.set_layout"))?;
             (set_layout, Some(rays.keep()))
         };
         let ranges = [vk::PushConstantRange::default()
@@ -258,6 +280,7 @@ impl GBufferPass {
             pipeline: vk::Pipeline::null(),
             layout: vk::PipelineLayout::null(),
             set_layout,
+            set,
             rays,
             mesh,
             two_sided,
@@ -274,11 +297,6 @@ impl GBufferPass {
             }
         };
         let layout = owned.layout;
-        let (vert, frag) = if mesh {
-            (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG)
-        } else {
-            (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG)
-        };
         let bindings = [vk::VertexInputBindingDescription {
             binding: 0,
             stride: std::mem::size_of::<crate::mesh::Vertex>() as u32,
@@ -323,9 +341,6 @@ impl GBufferPass {
             }
         };
         ctx.set_name(layout, &format!("{name}.layout"));
-        if !mesh {
-            ctx.set_name(set_layout, &format!("{name}.set_layout"));
-        }
         owned.pipeline = pipeline;
         Ok(owned)
     }
@@ -489,6 +504,20 @@ pub unsafe fn record_draws(
         .layer_count(1)
         .color_attachments(&color_attachments)
         .depth_attachment(&depth_attachment);
+    // A plane pipeline's pixel rays, bound by the name its shaders give them.
+    let infos: Vec<_> = draws
+        .iter()
+        .map(|d| d.pass.rays.as_ref().map(PixelRayBuffer::info))
+        .collect();
+    let writes = draws
+        .iter()
+        .zip(&infos)
+        .map(|(d, info)| {
+            info.as_ref()
+                .map(|i| d.pass.set.buffer(PIXEL_RAYS, i))
+                .transpose()
+        })
+        .collect::<Result<Vec<_>>>()?;
     let dev = ctx.device();
     // SAFETY: this function's # Safety contract: `cmd` is recording; `extent` is the
     // size of attachments `Image::new` created (non-zero, within
@@ -498,23 +527,20 @@ pub unsafe fn record_draws(
     // pass; the attachments are alive and in the layouts documented above (the
     // caller's barriers); a mesh's buffers are alive and match the mesh pipeline's
     // vertex input (`MeshBuffers` holds `Vertex`es and `u32` indices); a plane
-    // pipeline's push descriptor is its set 0 (binding 0, a uniform buffer the pass owns,
-    // written above).
+    // pipeline's push descriptor is its set 0 (the pixel rays, a uniform buffer the pass
+    // owns, written above; the binding the shaders' reflection gives).
     unsafe {
         dev.cmd_begin_rendering(cmd, &rendering);
-        for draw in draws {
+        for (draw, write) in draws.iter().zip(&writes) {
             debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
-            if let Some(buffer) = &draw.pass.rays {
-                let info = buffer.info();
-                let writes = [crate::gpu::pipeline::buffer_write(0, &info)
-                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)];
+            if let Some(write) = write {
                 ctx.push_descriptor().cmd_push_descriptor_set(
                     cmd,
                     vk::PipelineBindPoint::GRAPHICS,
                     draw.pass.layout,
                     0,
-                    &writes,
+                    std::slice::from_ref(write),
                 );
             }
             dev.cmd_push_constants(
@@ -536,4 +562,51 @@ pub unsafe fn record_draws(
         dev.cmd_end_rendering(cmd);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What each graphics pass binds (the G-buffer's plane and meshes, every method's
+    /// forward pass, the depth resolve) is exactly what its shaders declare, numbers and
+    /// types reflected from the SPIR-V, and every binding is bound by a name.
+    #[test]
+    fn graphics_passes_bind_what_their_shaders_declare() {
+        let plane = raster_set(false).unwrap();
+        assert!(!plane.is_empty());
+        assert!(raster_set(true).unwrap().is_empty());
+        let mut forward = 0;
+        for m in crate::method::Method::ALL {
+            if let Some(frag) = m.forward_shader() {
+                crate::passes::forward::raster_set(&frag)
+                    .unwrap_or_else(|e| panic!("{}: {e}", m.name()));
+                forward += 1;
+            }
+        }
+        assert!(forward >= 2, "relief and pom have forward paths");
+        crate::passes::depth_resolve::raster_set().unwrap();
+    }
+
+    /// A binding the shaders lack, or one they type differently, is refused.
+    #[test]
+    fn a_graphics_binding_the_shaders_lack_is_refused() {
+        let stages = [
+            (&shaders::GBUFFER_VERT, vk::ShaderStageFlags::VERTEX),
+            (&shaders::GBUFFER_FRAG, vk::ShaderStageFlags::FRAGMENT),
+        ];
+        let ray = (PIXEL_RAYS, vk::DescriptorType::UNIFORM_BUFFER);
+        assert!(RasterSet::new(&stages, &[ray]).is_ok());
+        assert!(RasterSet::new(&stages, &[]).is_err());
+        let extra = ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER);
+        assert!(RasterSet::new(&stages, &[ray, extra]).is_err());
+        let retyped = (PIXEL_RAYS, vk::DescriptorType::STORAGE_BUFFER);
+        assert!(RasterSet::new(&stages, &[retyped]).is_err());
+        // Two stages giving one binding number different names.
+        let clash = [
+            (&shaders::GBUFFER_FRAG, vk::ShaderStageFlags::VERTEX),
+            (&shaders::DEPTH_RESOLVE_FRAG, vk::ShaderStageFlags::FRAGMENT),
+        ];
+        assert!(RasterSet::new(&clash, &[]).is_err());
+    }
 }

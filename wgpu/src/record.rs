@@ -275,7 +275,7 @@ pub unsafe fn record(
                         inputs.gbuffer.frame.view,
                         inputs.gbuffer.depth.view,
                         inputs.gbuffer.extent,
-                    );
+                    )?;
                     depth(
                         vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL,
                         vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
