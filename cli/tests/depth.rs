@@ -474,7 +474,11 @@ fn a_box_clips_at_the_displaced_height() {
     }
     // SAFETY: as above; `source` and the frame are sampled-readable by fragment shaders
     // and `depth` in `DEPTH_ATTACHMENT_OPTIMAL` (the barriers above), all of `extent`.
-    unsafe { resolve.record(&ctx, cmd, source.view, frame.view, depth.view, extent) };
+    unsafe {
+        resolve
+            .record(&ctx, cmd, source.view, frame.view, depth.view, extent)
+            .unwrap()
+    };
     // SAFETY: as above; `depth` was written in `DEPTH_ATTACHMENT_OPTIMAL` by the resolve.
     unsafe {
         sync::transition(
