@@ -174,19 +174,24 @@ pub struct GBufferPass {
     rays: Option<PixelRayBuffer>,
     mesh: bool,
     two_sided: bool,
+    /// The behind layer's variant (`BEHIND` in `glsl/gbuffer*.frag`): set 0 also has the
+    /// first layer's depth (binding 1) and hit buffer (binding 2).
+    behind: bool,
+    /// The behind variant's nearest sampler of the first layer's depth (null otherwise).
+    sampler: vk::Sampler,
 }
 
 impl GBufferPass {
     /// Builds the pipeline of the plane and the quad (dynamic rendering: no render pass
     /// object; no vertex buffer).
     pub fn new(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, false, false)
+        Self::build(ctx, false, false, false)
     }
 
     /// Builds the pipeline of meshes (`glsl/gbuffer_mesh.*`): one vertex buffer of
     /// [`crate::mesh::Vertex`] and `u32` indices, drawn by [`GBufferPass::record_mesh`].
     pub fn new_mesh(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, false)
+        Self::build(ctx, true, false, false)
     }
 
     /// As [`GBufferPass::new_mesh`] for two-sided meshes ([`crate::mesh::Mesh::two_sided`]):
@@ -196,7 +201,21 @@ impl GBufferPass {
     /// `TWO_SIDED` specialization constant set; built only for a frame that draws such a
     /// mesh.
     pub fn new_mesh_two_sided(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, true)
+        Self::build(ctx, true, true, false)
+    }
+
+    /// The behind layer's pipeline of the same kind as [`GBufferPass::new`] (`mesh`
+    /// false), [`GBufferPass::new_mesh`] or [`GBufferPass::new_mesh_two_sided`]: the
+    /// fragment stage's `BEHIND` variant keeps a fragment only at a pixel whose
+    /// first-layer trace missed, behind the first layer's surface
+    /// (`glsl/include/dispmap_behind.glsl`); drawn by [`record_draws_behind`].
+    pub fn new_behind(ctx: &Context, mesh: bool, two_sided: bool) -> Result<Self> {
+        Self::build(ctx, mesh, two_sided && mesh, true)
+    }
+
+    /// Whether this is a behind layer's pipeline ([`GBufferPass::new_behind`]).
+    pub fn is_behind(&self) -> bool {
+        self.behind
     }
 
     /// Whether this is the mesh pipeline.
@@ -209,17 +228,43 @@ impl GBufferPass {
         self.two_sided
     }
 
-    fn build(ctx: &Context, mesh: bool, two_sided: bool) -> Result<Self> {
+    fn build(ctx: &Context, mesh: bool, two_sided: bool, behind: bool) -> Result<Self> {
         let dev = ctx.device();
-        let name = match (mesh, two_sided) {
-            (false, _) => "gbuffer",
-            (true, false) => "gbuffer_mesh",
-            (true, true) => "gbuffer_mesh_two_sided",
+        let name = match (mesh, two_sided, behind) {
+            (false, _, false) => "gbuffer",
+            (true, false, false) => "gbuffer_mesh",
+            (true, true, false) => "gbuffer_mesh_two_sided",
+            (false, _, true) => "gbuffer_behind",
+            (true, false, true) => "gbuffer_mesh_behind",
+            (true, true, true) => "gbuffer_mesh_two_sided_behind",
         };
         // The plane's set 0: binding 0, the pixel rays (a uniform buffer the pass owns and
-        // writes in each recording); meshes interpolate and bind nothing.
-        let (set_layout, rays) = if mesh {
+        // writes in each recording); meshes interpolate and bind nothing. The behind
+        // variant's set 0 also has bindings 1 (the first layer's depth, sampled) and 2
+        // (its hit buffer, a storage image read).
+        let behind_bindings = [
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(1)
+                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(2)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+        ];
+        let has_set = !mesh || behind;
+        let (set_layout, rays) = if mesh && !behind {
             (vk::DescriptorSetLayout::null(), None)
+        } else if mesh {
+            let set_info = vk::DescriptorSetLayoutCreateInfo::default()
+                .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+                .bindings(&behind_bindings);
+            // SAFETY: valid device; VK_KHR_push_descriptor is enabled (requirements).
+            let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
+                .vk("vkCreateDescriptorSetLayout")?;
+            (set_layout, None)
         } else {
             // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
             let rays = unsafe {
@@ -228,11 +273,14 @@ impl GBufferPass {
                     PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
                 )
             };
-            let bindings = [vk::DescriptorSetLayoutBinding::default()
+            let mut bindings = vec![vk::DescriptorSetLayoutBinding::default()
                 .binding(0)
                 .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
                 .descriptor_count(1)
                 .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+            if behind {
+                bindings.extend(behind_bindings);
+            }
             let set_info = vk::DescriptorSetLayoutCreateInfo::default()
                 .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
                 .bindings(&bindings);
@@ -246,7 +294,7 @@ impl GBufferPass {
             .size(std::mem::size_of::<GBufferParams>() as u32)];
         let set_layouts = [set_layout];
         let layout_info = vk::PipelineLayoutCreateInfo::default()
-            .set_layouts(&set_layouts[..usize::from(!mesh)])
+            .set_layouts(&set_layouts[..usize::from(has_set)])
             .push_constant_ranges(&ranges);
         let mut owned = GBufferPass {
             pipeline: vk::Pipeline::null(),
@@ -255,7 +303,24 @@ impl GBufferPass {
             rays,
             mesh,
             two_sided,
+            behind,
+            sampler: vk::Sampler::null(),
         };
+        if behind {
+            owned.sampler = match crate::gpu::pipeline::sampler(
+                ctx,
+                &format!("{name}.fetch_sampler"),
+                vk::Filter::NEAREST,
+                vk::SamplerAddressMode::CLAMP_TO_EDGE,
+            ) {
+                Ok(s) => s,
+                Err(e) => {
+                    // SAFETY: built above and never used by a command.
+                    unsafe { owned.destroy(ctx) };
+                    return Err(e);
+                }
+            };
+        }
         // SAFETY: valid device and create info.
         owned.layout = match unsafe { dev.create_pipeline_layout(&layout_info, None) }
             .vk("vkCreatePipelineLayout")
@@ -268,10 +333,11 @@ impl GBufferPass {
             }
         };
         let layout = owned.layout;
-        let (vert, frag) = if mesh {
-            (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG)
-        } else {
-            (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG)
+        let (vert, frag) = match (mesh, behind) {
+            (true, false) => (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG),
+            (true, true) => (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG_BEHIND),
+            (false, false) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG),
+            (false, true) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG_BEHIND),
         };
         let bindings = [vk::VertexInputBindingDescription {
             binding: 0,
@@ -317,7 +383,7 @@ impl GBufferPass {
             }
         };
         ctx.set_name(layout, &format!("{name}.layout"));
-        if !mesh {
+        if has_set {
             ctx.set_name(set_layout, &format!("{name}.set_layout"));
         }
         owned.pipeline = pipeline;
@@ -413,6 +479,8 @@ impl Destroy for GBufferPass {
             ctx.device().destroy_pipeline_layout(self.layout, None);
             ctx.device()
                 .destroy_descriptor_set_layout(self.set_layout, None);
+            ctx.device().destroy_sampler(self.sampler, None);
+            self.sampler = vk::Sampler::null();
             self.pipeline = vk::Pipeline::null();
             self.layout = vk::PipelineLayout::null();
             self.set_layout = vk::DescriptorSetLayout::null();
@@ -451,6 +519,53 @@ pub unsafe fn record_draws(
     target: &GBuffer,
     draws: &[GBufferDraw<'_>],
     rays: &PixelRayParams,
+) {
+    // SAFETY: this function's # Safety contract.
+    unsafe { record_layer(ctx, cmd, target, draws, rays, None) }
+}
+
+/// What the behind layer's draws read of the first layer: its G-buffer depth (sampled,
+/// `SHADER_READ_ONLY_OPTIMAL`) and its hit buffer (a storage image read, `GENERAL`).
+#[derive(Clone, Copy, Debug)]
+pub struct FirstLayer {
+    /// The first layer's `D32_SFLOAT` depth view.
+    pub depth: vk::ImageView,
+    /// The first layer's hit buffer view (`R32G32B32A32_SFLOAT`).
+    pub hit: vk::ImageView,
+}
+
+/// Records the behind layer ([`GBufferPass::new_behind`], `glsl/include/dispmap_behind.glsl`)
+/// into `target`: as [`record_draws`], every draw's pass a behind pipeline, each fragment
+/// kept only at a pixel whose first-layer trace missed and behind the first layer's
+/// surface.
+///
+/// # Safety
+/// As [`record_draws`]; in addition, when the command buffer executes, `first.depth` is
+/// in `SHADER_READ_ONLY_OPTIMAL` and `first.hit` in `GENERAL`, their writes visible to
+/// fragment-shader sampled and storage reads, and both stay alive until it has executed.
+pub unsafe fn record_draws_behind(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    target: &GBuffer,
+    draws: &[GBufferDraw<'_>],
+    rays: &PixelRayParams,
+    first: FirstLayer,
+) {
+    // SAFETY: this function's # Safety contract.
+    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first)) }
+}
+
+/// [`record_draws`] (`first` `None`) or [`record_draws_behind`].
+///
+/// # Safety
+/// As those.
+unsafe fn record_layer(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    target: &GBuffer,
+    draws: &[GBufferDraw<'_>],
+    rays: &PixelRayParams,
+    first: Option<FirstLayer>,
 ) {
     let extent = target.ray.extent;
     // Each plane pipeline's pixel-ray buffer, once.
@@ -498,11 +613,37 @@ pub unsafe fn record_draws(
         dev.cmd_begin_rendering(cmd, &rendering);
         for draw in draws {
             debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
+            debug_assert_eq!(draw.pass.behind, first.is_some(), "behind pipeline vs layer");
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
-            if let Some(buffer) = &draw.pass.rays {
-                let info = buffer.info();
-                let writes = [crate::gpu::pipeline::buffer_write(0, &info)
-                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)];
+            let info = draw.pass.rays.as_ref().map(|b| b.info());
+            let depth_info = first.map(|f| {
+                [vk::DescriptorImageInfo {
+                    sampler: draw.pass.sampler,
+                    image_view: f.depth,
+                    image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+                }]
+            });
+            let hit_info = first.map(|f| crate::gpu::pipeline::storage_view(f.hit));
+            let mut writes = Vec::new();
+            if let Some(info) = &info {
+                writes.push(
+                    crate::gpu::pipeline::buffer_write(0, info)
+                        .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER),
+                );
+            }
+            if let (Some(d), Some(h)) = (&depth_info, &hit_info) {
+                writes.push(crate::gpu::pipeline::image_write(
+                    1,
+                    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                    d,
+                ));
+                writes.push(crate::gpu::pipeline::image_write(
+                    2,
+                    vk::DescriptorType::STORAGE_IMAGE,
+                    h,
+                ));
+            }
+            if !writes.is_empty() {
                 ctx.push_descriptor().cmd_push_descriptor_set(
                     cmd,
                     vk::PipelineBindPoint::GRAPHICS,
