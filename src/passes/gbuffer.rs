@@ -273,11 +273,13 @@ impl GBufferPass {
                     PixelRayBuffer::new(ctx, &format!("{name}.pixel_rays"))?,
                 )
             };
-            let mut bindings = vec![vk::DescriptorSetLayoutBinding::default()
-                .binding(0)
-                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+            let mut bindings = vec![
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(0)
+                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+            ];
             if behind {
                 bindings.extend(behind_bindings);
             }
@@ -335,7 +337,10 @@ impl GBufferPass {
         let layout = owned.layout;
         let (vert, frag) = match (mesh, behind) {
             (true, false) => (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG),
-            (true, true) => (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG_BEHIND),
+            (true, true) => (
+                shaders::GBUFFER_MESH_VERT,
+                shaders::GBUFFER_MESH_FRAG_BEHIND,
+            ),
             (false, false) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG),
             (false, true) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG_BEHIND),
         };
@@ -613,7 +618,11 @@ unsafe fn record_layer(
         dev.cmd_begin_rendering(cmd, &rendering);
         for draw in draws {
             debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
-            debug_assert_eq!(draw.pass.behind, first.is_some(), "behind pipeline vs layer");
+            debug_assert_eq!(
+                draw.pass.behind,
+                first.is_some(),
+                "behind pipeline vs layer"
+            );
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
             let info = draw.pass.rays.as_ref().map(|b| b.info());
             let depth_info = first.map(|f| {

@@ -179,7 +179,13 @@ impl Renderer {
                     ),
                     None => (false, false, false),
                 };
-                self.behind = Some(Behind::new(c, self.settings.extent(), plane, mesh, two_sided)?);
+                self.behind = Some(Behind::new(
+                    c,
+                    self.settings.extent(),
+                    plane,
+                    mesh,
+                    two_sided,
+                )?);
             }
             (false, Some(_)) => {
                 // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
@@ -305,7 +311,9 @@ impl Renderer {
             }
         }
         if !t.resolve()?.is_empty() {
-            return Err(Error::Internal("a written entry state needed a barrier".into()));
+            return Err(Error::Internal(
+                "a written entry state needed a barrier".into(),
+            ));
         }
         t.enter(Layer::FirstDepth, Access::COMPUTE_SAMPLED);
         for key in [Layer::Ray, Layer::Frame, Layer::Depth, Layer::Hit] {
