@@ -52,6 +52,16 @@ fn the_floor_shows_under_the_cubes_carved_bottom_edge() {
         // The first layer is the same with and without.
         assert_eq!(renderer.read_hits().unwrap(), hits);
 
+        let depth = renderer.read_macro_depth().unwrap();
+        let all_missed = (0..first.len())
+            .filter(|&i| depth[i] > 0.0 && hits[i][2] == -1.0)
+            .count();
+        let behind_displaced = behind_materials.iter().flatten().count();
+        eprintln!(
+            "frame {} pixels: first-layer misses {all_missed}, behind layer displaced pixels \
+             {behind_displaced}",
+            first.len()
+        );
         let missed: Vec<usize> = (0..first.len())
             .filter(|&i| first[i] == Some(cube) && hits[i][2] == -1.0)
             .collect();
