@@ -66,6 +66,11 @@ const FLOOR_VERT_SPV: &[u8] = include_bytes!(concat!(
     "/examples__host_engine_floor.vert.spv"
 ));
 const FRAG_SPV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/examples__host_engine.frag.spv"));
+/// The behind layer's fragment shader (`host_engine.frag`'s `BEHIND` variant).
+const FRAG_BEHIND_SPV: &[u8] = include_bytes!(concat!(
+    env!("OUT_DIR"),
+    "/examples__host_engine.frag__BEHIND.spv"
+));
 /// The cube's material index in the pass (the second material added).
 const CUBE_MATERIAL: u32 = 1;
 /// The cube's displacement depth (uv units), deeper than the floor's.
@@ -75,7 +80,7 @@ const BRICKS: &[u8] = include_bytes!("../assets/heightmaps/bricks_depth.jpg");
 
 const USAGE: &str = "usage: cargo run --example host_engine -- [--out host.png] \
                      [--size 256x144] [--frames 6] [--method exact] [--no-cube] \
-                     [--no-validation]";
+                     [--no-behind] [--no-validation]";
 
 const FRAMES_IN_FLIGHT: usize = 2;
 /// The floor's surface id (`FLOOR_ID` in `glsl/examples/host_engine_floor.vert`).
@@ -100,6 +105,9 @@ pub struct Options {
     pub validation: bool,
     /// Write the last frame's colour here.
     pub out: Option<PathBuf>,
+    /// Draw the behind layer: where a displaced ray misses (the cube is a clamp-addressed
+    /// decal per face), show the floor behind it rather than the sky.
+    pub behind: bool,
 }
 
 impl Default for Options {
@@ -112,6 +120,7 @@ impl Default for Options {
             cube: true,
             validation: true,
             out: None,
+            behind: true,
         }
     }
 }
@@ -124,6 +133,8 @@ pub struct Output {
     pub hits: Vec<[f32; 4]>,
     /// The last frame's surface ids (the G-buffer frame's; 0: nothing drawn).
     pub surface_ids: Vec<f32>,
+    /// The last frame's behind-layer surface ids (0: nothing drawn; empty without it).
+    pub behind_surface_ids: Vec<f32>,
     /// The last frame's colour (RGBA8).
     pub color: Vec<u8>,
     /// Per-pass milliseconds of each completed frame, in frame order.
@@ -180,6 +191,7 @@ fn main() -> Result<()> {
                     .ok_or_else(|| anyhow!("unknown method {v}"))?;
             }
             "--no-cube" => o.cube = false,
+            "--no-behind" => o.behind = false,
             "--no-validation" => o.validation = false,
             "--help" | "-h" => {
                 println!("{USAGE}");
@@ -276,6 +288,21 @@ struct Slot {
     submitted: bool,
     /// Host-pool timestamps of the frame in flight (slot 0 only).
     host_scopes: Vec<embed::TimestampScope>,
+    /// The behind layer's images (with `Options::behind`).
+    behind: Option<BehindImages>,
+}
+
+/// One slot's behind layer: a second G-buffer, its hit buffer, and the read-back of its
+/// frame; the colour image is the slot's own.
+struct BehindImages {
+    ray: EngineImage,
+    frame: EngineImage,
+    depth: EngineImage,
+    hit: EngineImage,
+    frame_readback: EngineBuffer,
+    /// Set 0 of the behind pipelines: the pixel rays, the slot's first-layer depth and
+    /// hit buffer.
+    set: vk::DescriptorSet,
 }
 
 /// Everything the engine created, destroyed in reverse order by [`Engine::destroy`].
@@ -302,6 +329,13 @@ struct Engine {
     floor_pipeline: vk::Pipeline,
     /// The cube: vertex buffer.
     cube_pipeline: vk::Pipeline,
+    /// The behind layer's set 0 (pixel rays, first-layer depth and hit), layout,
+    /// depth sampler and pipelines (null without `Options::behind`).
+    behind_set_layout: vk::DescriptorSetLayout,
+    behind_layout: vk::PipelineLayout,
+    sampler: vk::Sampler,
+    behind_floor_pipeline: vk::Pipeline,
+    behind_cube_pipeline: vk::Pipeline,
     /// The cube's vertices (none without the cube).
     vertices: Option<EngineBuffer>,
     cube_vertex_count: u32,
@@ -450,6 +484,11 @@ impl Engine {
                 pixel_rays: None,
                 floor_pipeline: vk::Pipeline::null(),
                 cube_pipeline: vk::Pipeline::null(),
+                behind_set_layout: vk::DescriptorSetLayout::null(),
+                behind_layout: vk::PipelineLayout::null(),
+                sampler: vk::Sampler::null(),
+                behind_floor_pipeline: vk::Pipeline::null(),
+                behind_cube_pipeline: vk::Pipeline::null(),
                 vertices: None,
                 cube_vertex_count: 0,
                 slots: Vec::new(),
@@ -633,13 +672,25 @@ impl Engine {
                 None,
             )?;
             self.name(self.set_layout, "engine.gbuffer.set_layout");
-            let pool_sizes = [vk::DescriptorPoolSize {
-                ty: vk::DescriptorType::UNIFORM_BUFFER,
-                descriptor_count: 1,
-            }];
+            // The behind layer's sets (one per slot: each reads its slot's first layer).
+            let behind_sets = if o.behind { FRAMES_IN_FLIGHT as u32 } else { 0 };
+            let pool_sizes = [
+                vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::UNIFORM_BUFFER,
+                    descriptor_count: 1 + behind_sets,
+                },
+                vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                    descriptor_count: behind_sets.max(1),
+                },
+                vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::STORAGE_IMAGE,
+                    descriptor_count: behind_sets.max(1),
+                },
+            ];
             self.descriptor_pool = dev.create_descriptor_pool(
                 &vk::DescriptorPoolCreateInfo::default()
-                    .max_sets(1)
+                    .max_sets(1 + behind_sets)
                     .pool_sizes(&pool_sizes),
                 None,
             )?;
@@ -779,6 +830,104 @@ impl Engine {
             self.name(self.floor_pipeline, "engine.gbuffer.floor_pipeline");
             self.name(self.cube_pipeline, "engine.gbuffer.cube_pipeline");
 
+            // The behind layer's pipelines: the same draws with the fragment shader's
+            // BEHIND variant, whose set 0 adds the first layer's depth and hit buffer.
+            if o.behind {
+                let bindings = [
+                    ubo[0],
+                    vk::DescriptorSetLayoutBinding::default()
+                        .binding(1)
+                        .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                        .descriptor_count(1)
+                        .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+                    vk::DescriptorSetLayoutBinding::default()
+                        .binding(2)
+                        .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                        .descriptor_count(1)
+                        .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+                ];
+                self.behind_set_layout = dev.create_descriptor_set_layout(
+                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                    None,
+                )?;
+                self.name(self.behind_set_layout, "engine.behind.set_layout");
+                self.behind_layout = dev.create_pipeline_layout(
+                    &vk::PipelineLayoutCreateInfo::default()
+                        .set_layouts(&[self.behind_set_layout])
+                        .push_constant_ranges(&ranges),
+                    None,
+                )?;
+                self.name(self.behind_layout, "engine.behind.layout");
+                self.sampler = dev.create_sampler(
+                    &vk::SamplerCreateInfo::default()
+                        .mag_filter(vk::Filter::NEAREST)
+                        .min_filter(vk::Filter::NEAREST)
+                        .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                        .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE),
+                    None,
+                )?;
+                self.name(self.sampler, "engine.behind.sampler");
+                let module = |bytes: &[u8]| -> Result<vk::ShaderModule> {
+                    let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes))?;
+                    Ok(dev.create_shader_module(
+                        &vk::ShaderModuleCreateInfo::default().code(&words),
+                        None,
+                    )?)
+                };
+                let vert = module(VERT_SPV)?;
+                let floor_vert = module(FLOOR_VERT_SPV)?;
+                let frag = module(FRAG_BEHIND_SPV)?;
+                let stages = |vert: vk::ShaderModule| {
+                    [
+                        vk::PipelineShaderStageCreateInfo::default()
+                            .stage(vk::ShaderStageFlags::VERTEX)
+                            .module(vert)
+                            .name(c"main"),
+                        vk::PipelineShaderStageCreateInfo::default()
+                            .stage(vk::ShaderStageFlags::FRAGMENT)
+                            .module(frag)
+                            .name(c"main"),
+                    ]
+                };
+                let (floor_stages, cube_stages) = (stages(floor_vert), stages(vert));
+                let mut floor_rendering = vk::PipelineRenderingCreateInfo::default()
+                    .color_attachment_formats(&color_formats)
+                    .depth_attachment_format(embed::DEPTH_FORMAT);
+                let mut cube_rendering = floor_rendering;
+                let info = |stages, vertex_input| {
+                    vk::GraphicsPipelineCreateInfo::default()
+                        .stages(stages)
+                        .vertex_input_state(vertex_input)
+                        .input_assembly_state(&input_assembly)
+                        .viewport_state(&viewport)
+                        .rasterization_state(&raster)
+                        .multisample_state(&multisample)
+                        .depth_stencil_state(&depth)
+                        .color_blend_state(&blend)
+                        .dynamic_state(&dynamic)
+                        .layout(self.behind_layout)
+                };
+                let infos = [
+                    info(&floor_stages, &no_vertex_input).push_next(&mut floor_rendering),
+                    info(&cube_stages, &vertex_input).push_next(&mut cube_rendering),
+                ];
+                let pipelines =
+                    dev.create_graphics_pipelines(vk::PipelineCache::null(), &infos, None);
+                dev.destroy_shader_module(vert, None);
+                dev.destroy_shader_module(floor_vert, None);
+                dev.destroy_shader_module(frag, None);
+                let pipelines = pipelines.map_err(|(created, e)| {
+                    for p in created {
+                        dev.destroy_pipeline(p, None);
+                    }
+                    e
+                })?;
+                (self.behind_floor_pipeline, self.behind_cube_pipeline) =
+                    (pipelines[0], pipelines[1]);
+                self.name(self.behind_floor_pipeline, "engine.behind.floor_pipeline");
+                self.name(self.behind_cube_pipeline, "engine.behind.cube_pipeline");
+            }
+
             // The cube's vertices (the floor has none).
             if o.cube {
                 let vertices = cube_vertices();
@@ -827,7 +976,7 @@ impl Engine {
                         MemoryLocation::GpuToCpu,
                     )
                 };
-                let slot = Slot {
+                let mut slot = Slot {
                     ray: self.image(&n("gbuffer.ray"), embed::RAY_FORMAT, extent, attachment)?,
                     frame: self.image(
                         &n("gbuffer.frame"),
@@ -856,7 +1005,76 @@ impl Engine {
                     fence,
                     submitted: false,
                     host_scopes: Vec::new(),
+                    behind: None,
                 };
+                if !o.behind {
+                    self.slots.push(slot);
+                    continue;
+                }
+                let set = dev.allocate_descriptor_sets(
+                    &vk::DescriptorSetAllocateInfo::default()
+                        .descriptor_pool(self.descriptor_pool)
+                        .set_layouts(&[self.behind_set_layout]),
+                )?[0];
+                let behind = BehindImages {
+                    ray: self.image(&n("behind.ray"), embed::RAY_FORMAT, extent, attachment)?,
+                    frame: self.image(
+                        &n("behind.frame"),
+                        embed::FRAME_FORMAT,
+                        extent,
+                        attachment,
+                    )?,
+                    depth: self.image(
+                        &n("behind.depth"),
+                        embed::DEPTH_FORMAT,
+                        extent,
+                        vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+                            | vk::ImageUsageFlags::SAMPLED,
+                    )?,
+                    hit: self.image(&n("behind.hits"), embed::HIT_FORMAT, extent, storage)?,
+                    frame_readback: readback("behind.frame.readback", pixels * 8)?,
+                    set,
+                };
+                let first = &slot;
+                let rays = [vk::DescriptorBufferInfo {
+                    buffer: self
+                        .pixel_rays
+                        .as_ref()
+                        .map_or(vk::Buffer::null(), |b| b.buffer),
+                    offset: 0,
+                    range: vk::WHOLE_SIZE,
+                }];
+                let depth = [vk::DescriptorImageInfo {
+                    sampler: self.sampler,
+                    image_view: first.depth.view,
+                    image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+                }];
+                let hit = [vk::DescriptorImageInfo {
+                    sampler: vk::Sampler::null(),
+                    image_view: first.hit.view,
+                    image_layout: vk::ImageLayout::GENERAL,
+                }];
+                dev.update_descriptor_sets(
+                    &[
+                        vk::WriteDescriptorSet::default()
+                            .dst_set(set)
+                            .dst_binding(0)
+                            .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                            .buffer_info(&rays),
+                        vk::WriteDescriptorSet::default()
+                            .dst_set(set)
+                            .dst_binding(1)
+                            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                            .image_info(&depth),
+                        vk::WriteDescriptorSet::default()
+                            .dst_set(set)
+                            .dst_binding(2)
+                            .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                            .image_info(&hit),
+                    ],
+                    &[],
+                );
+                slot.behind = Some(behind);
                 self.slots.push(slot);
             }
             Ok(())
@@ -900,7 +1118,9 @@ impl Engine {
                 depth_scale: scene.depth_scale,
                 addressing: scene.addressing(),
                 extent,
-                frames_in_flight: FRAMES_IN_FLIGHT as u32,
+                // The behind layer records the pass a second time per frame, on slots
+                // FRAMES_IN_FLIGHT.. (frame slot s's behind layer is s + FRAMES_IN_FLIGHT).
+                frames_in_flight: (FRAMES_IN_FLIGHT * if o.behind { 2 } else { 1 }) as u32,
             },
         )?;
         // The cube's sides: a second displaced material of the same pass.
@@ -911,7 +1131,9 @@ impl Engine {
                     method: Method::Relief,
                     params: MethodParams::for_method(Method::Relief),
                     depth_scale: CUBE_DEPTH_SCALE,
-                    addressing: scene.addressing(),
+                    // Each face one decal: a ray that leaves it before it hits is a miss,
+                    // which the behind layer fills with what lies behind the face.
+                    addressing: dispmap::Addressing::Clamp,
                 },
             );
             match added {
@@ -940,11 +1162,12 @@ impl Engine {
             "the context is still shared after destroy"
         );
         drop(ctx);
-        let (hits, surface_ids, color, timings) = result?;
+        let (hits, surface_ids, behind_surface_ids, color, timings) = result?;
         Ok(Output {
             device: device_name,
             hits,
             surface_ids,
+            behind_surface_ids,
             color,
             timings,
             validation_messages: 0,
@@ -967,6 +1190,7 @@ impl Engine {
         bricks: &HeightField,
     ) -> Result<(
         Vec<[f32; 4]>,
+        Vec<f32>,
         Vec<f32>,
         Vec<u8>,
         Vec<Vec<(embed::PassName, f64)>>,
@@ -1042,7 +1266,11 @@ impl Engine {
                 barrier(
                     img,
                     (
-                        vk::PipelineStageFlags2::COPY | vk::PipelineStageFlags2::COMPUTE_SHADER,
+                        // After read-back copies, compute reads and the behind layer's
+                        // fragment reads of the last frame of the slot.
+                        vk::PipelineStageFlags2::COPY
+                            | vk::PipelineStageFlags2::COMPUTE_SHADER
+                            | vk::PipelineStageFlags2::FRAGMENT_SHADER,
                         vk::AccessFlags2::NONE,
                         vk::ImageLayout::UNDEFINED,
                     ),
@@ -1243,6 +1471,140 @@ impl Engine {
             // family; the views are the slot's, in the entry states set above; the slot's
             // previous frame completed; the host pool has MAX_QUERIES queries.
             let recorded = unsafe { pass.record(cmd, &inputs, timestamps)? };
+            // The behind layer: where the first trace missed, the next surface along the
+            // view ray, drawn with the BEHIND fragment shader and traced and shaded by a
+            // second record into the same colour image.
+            let fragment_read = |access| {
+                (
+                    vk::PipelineStageFlags2::FRAGMENT_SHADER,
+                    access,
+                    if access == vk::AccessFlags2::SHADER_STORAGE_READ {
+                        vk::ImageLayout::GENERAL
+                    } else {
+                        vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL
+                    },
+                )
+            };
+            let hit_exit = (
+                vk::PipelineStageFlags2::COMPUTE_SHADER,
+                vk::AccessFlags2::SHADER_STORAGE_WRITE | vk::AccessFlags2::SHADER_STORAGE_READ,
+                vk::ImageLayout::GENERAL,
+            );
+            if let Some(b) = &slot.behind {
+                let before = [
+                    discard_to(&b.ray, color_write.0, color_write.1, color_write.2),
+                    discard_to(&b.frame, color_write.0, color_write.1, color_write.2),
+                    discard_to(&b.depth, depth_write.0, depth_write.1, depth_write.2),
+                    barrier(
+                        &slot.hit,
+                        hit_exit,
+                        fragment_read(vk::AccessFlags2::SHADER_STORAGE_READ),
+                    ),
+                    barrier(
+                        &slot.depth,
+                        sampled,
+                        fragment_read(vk::AccessFlags2::SHADER_SAMPLED_READ),
+                    ),
+                ];
+                let attachments: Vec<_> = [&b.ray, &b.frame]
+                    .iter()
+                    .map(|i| {
+                        vk::RenderingAttachmentInfo::default()
+                            .image_view(i.view)
+                            .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                            .load_op(vk::AttachmentLoadOp::CLEAR)
+                            .store_op(vk::AttachmentStoreOp::STORE)
+                            .clear_value(vk::ClearValue {
+                                color: vk::ClearColorValue { float32: [0.0; 4] },
+                            })
+                    })
+                    .collect();
+                let depth_attachment = depth_attachment.image_view(b.depth.view);
+                // SAFETY: `cmd` is recording outside a render pass; every image is the
+                // slot's and alive; the first layer's depth and hit are in the layouts the
+                // slot's behind set names (the barriers).
+                unsafe {
+                    pipeline_barrier(dev, cmd, &before);
+                    dev.cmd_begin_rendering(
+                        cmd,
+                        &vk::RenderingInfo::default()
+                            .render_area(area)
+                            .layer_count(1)
+                            .color_attachments(&attachments)
+                            .depth_attachment(&depth_attachment),
+                    );
+                    dev.cmd_bind_descriptor_sets(
+                        cmd,
+                        vk::PipelineBindPoint::GRAPHICS,
+                        self.behind_layout,
+                        0,
+                        &[b.set],
+                        &[],
+                    );
+                    dev.cmd_push_constants(
+                        cmd,
+                        self.behind_layout,
+                        vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                        0,
+                        bytemuck::bytes_of(&params),
+                    );
+                    dev.cmd_bind_pipeline(
+                        cmd,
+                        vk::PipelineBindPoint::GRAPHICS,
+                        self.behind_floor_pipeline,
+                    );
+                    dev.cmd_draw(cmd, floor_vertex_count, 1, 0, 0);
+                    if let Some(vb) = &self.vertices {
+                        let cube = EngineParams {
+                            camera_pos: camera.eye.extend(CUBE_MATERIAL as f32).to_array(),
+                            depth_scale: CUBE_DEPTH_SCALE,
+                            ..params
+                        };
+                        dev.cmd_push_constants(
+                            cmd,
+                            self.behind_layout,
+                            vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                            0,
+                            bytemuck::bytes_of(&cube),
+                        );
+                        dev.cmd_bind_pipeline(
+                            cmd,
+                            vk::PipelineBindPoint::GRAPHICS,
+                            self.behind_cube_pipeline,
+                        );
+                        dev.cmd_bind_vertex_buffers(cmd, 0, &[vb.buffer], &[0]);
+                        dev.cmd_draw(cmd, self.cube_vertex_count, 1, 0, 0);
+                    }
+                    dev.cmd_end_rendering(cmd);
+                    // The pass's entry contract on the behind layer; the colour keeps the
+                    // first record's pixels (its shade wrote them: write after write).
+                    pipeline_barrier(
+                        dev,
+                        cmd,
+                        &[
+                            barrier(&b.ray, color_write, sampled),
+                            barrier(&b.frame, color_write, sampled),
+                            barrier(&b.depth, depth_write, sampled),
+                            discard_to(&b.hit, storage_write.0, storage_write.1, storage_write.2),
+                            barrier(&slot.color, storage_write, storage_write),
+                        ],
+                    );
+                }
+                let behind_inputs = FrameInputs {
+                    frame_slot: (s + FRAMES_IN_FLIGHT) as u32,
+                    gbuffer: GBufferViews {
+                        ray: b.ray.host,
+                        frame: b.frame.host,
+                        depth: b.depth.host,
+                        extent,
+                    },
+                    hit: b.hit.host,
+                    ..inputs
+                };
+                // SAFETY: as the first record; the behind slot's previous frame is the
+                // same engine slot's, completed (waited above).
+                unsafe { pass.record(cmd, &behind_inputs, Timestamps::Off)? };
+            }
             // Read-back copies of the hits, the surface ids and the colour.
             let copy_src = (
                 vk::PipelineStageFlags2::COPY,
@@ -1252,25 +1614,34 @@ impl Engine {
             let after = [
                 barrier(
                     &slot.hit,
-                    (
-                        vk::PipelineStageFlags2::COMPUTE_SHADER,
-                        vk::AccessFlags2::SHADER_STORAGE_WRITE
-                            | vk::AccessFlags2::SHADER_STORAGE_READ,
-                        vk::ImageLayout::GENERAL,
-                    ),
+                    match &slot.behind {
+                        // Last read by the behind layer's fragment shader.
+                        Some(_) => fragment_read(vk::AccessFlags2::SHADER_STORAGE_READ),
+                        None => hit_exit,
+                    },
                     copy_src,
                 ),
                 barrier(&slot.color, storage_write, copy_src),
                 barrier(&slot.frame, sampled, copy_src),
             ];
+            let behind_copy: Vec<_> = slot
+                .behind
+                .iter()
+                .map(|b| barrier(&b.frame, sampled, copy_src))
+                .collect();
             // SAFETY: `cmd` is recording; images and buffers are the slot's.
             unsafe {
                 pipeline_barrier(dev, cmd, &after);
+                pipeline_barrier(dev, cmd, &behind_copy);
+                let behind_frame = slot.behind.as_ref().map(|b| (&b.frame, &b.frame_readback));
                 for (img, buf) in [
                     (&slot.hit, &slot.hit_readback),
                     (&slot.color, &slot.color_readback),
                     (&slot.frame, &slot.frame_readback),
-                ] {
+                ]
+                .into_iter()
+                .chain(behind_frame)
+                {
                     let region = vk::BufferImageCopy::default()
                         .image_subresource(vk::ImageSubresourceLayers {
                             aspect_mask: img.aspect,
@@ -1342,17 +1713,23 @@ impl Engine {
         let pixels = (o.width * o.height) as usize;
         let hits: Vec<[f32; 4]> =
             bytemuck::cast_slice(&read(&slot.hit_readback)?[..pixels * 16]).to_vec();
-        let frames = read(&slot.frame_readback)?;
-        let surface_ids = frames[..pixels * 8]
-            .chunks_exact(8)
-            .map(|t| {
-                let word = |i: usize| u32::from_le_bytes([t[i], t[i + 1], t[i + 2], t[i + 3]]);
-                match [word(0), word(4)] {
-                    [0, 0] => 0.0,
-                    bits => dispmap::passes::gbuffer::frame::unpack(bits).surface_id as f32,
-                }
-            })
-            .collect();
+        let ids = |frames: Vec<u8>| -> Vec<f32> {
+            frames[..pixels * 8]
+                .chunks_exact(8)
+                .map(|t| {
+                    let word = |i: usize| u32::from_le_bytes([t[i], t[i + 1], t[i + 2], t[i + 3]]);
+                    match [word(0), word(4)] {
+                        [0, 0] => 0.0,
+                        bits => dispmap::passes::gbuffer::frame::unpack(bits).surface_id as f32,
+                    }
+                })
+                .collect()
+        };
+        let surface_ids = ids(read(&slot.frame_readback)?);
+        let behind_surface_ids = match &slot.behind {
+            Some(b) => ids(read(&b.frame_readback)?),
+            None => Vec::new(),
+        };
         let color = read(&slot.color_readback)?[..pixels * 4].to_vec();
         if let Some(path) = &o.out {
             image::save_buffer(
@@ -1364,7 +1741,7 @@ impl Engine {
             )
             .with_context(|| format!("writing {}", path.display()))?;
         }
-        Ok((hits, surface_ids, color, timings))
+        Ok((hits, surface_ids, behind_surface_ids, color, timings))
     }
 
     /// Destroys everything the engine created; returns the allocations the allocator
@@ -1398,6 +1775,12 @@ impl Engine {
                 for buf in [slot.hit_readback, slot.frame_readback, slot.color_readback] {
                     free_buffer(self, buf);
                 }
+                if let Some(b) = slot.behind {
+                    for img in [b.ray, b.frame, b.depth, b.hit] {
+                        free_image(self, img);
+                    }
+                    free_buffer(self, b.frame_readback);
+                }
             }
             if let Some(vb) = self.vertices.take() {
                 free_buffer(self, vb);
@@ -1407,6 +1790,11 @@ impl Engine {
             }
             dev.destroy_pipeline(self.floor_pipeline, None);
             dev.destroy_pipeline(self.cube_pipeline, None);
+            dev.destroy_pipeline(self.behind_floor_pipeline, None);
+            dev.destroy_pipeline(self.behind_cube_pipeline, None);
+            dev.destroy_pipeline_layout(self.behind_layout, None);
+            dev.destroy_descriptor_set_layout(self.behind_set_layout, None);
+            dev.destroy_sampler(self.sampler, None);
             dev.destroy_pipeline_layout(self.layout, None);
             dev.destroy_descriptor_pool(self.descriptor_pool, None);
             dev.destroy_descriptor_set_layout(self.set_layout, None);

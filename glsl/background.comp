@@ -4,6 +4,9 @@
 // the sky (glsl/common/sky.glsl), pixels of flat geometry (G-buffer frame's material 0: not
 // displaced) the Lambert and Blinn-Phong light of shade.comp on their G-buffer normal with
 // a grey albedo. Displaced pixels are not written (the pass's `shade` writes them).
+// BEHIND variant (the behind layer's G-buffer, glsl/include/dispmap_behind.glsl): pixels
+// without geometry keep their colour (the first layer's), only flat geometry is lit.
+// dispmap-variant: BEHIND
 #include "frame.glsl"
 #include "sky.glsl"
 
@@ -35,7 +38,9 @@ void main() {
     vec4 far_point = pc.inv_view_proj * vec4(ndc, 0.5, 1.0);
     vec3 V = normalize(far_point.xyz / far_point.w - pc.camera_pos.xyz);
     if (texelFetch(u_depth, pixel, 0).r <= 0.0) {
+#ifndef BEHIND
         imageStore(u_color, pixel, vec4(sky_color(V), 1.0));
+#endif
         return;
     }
     if (gbuffer_material(pixel) != NOT_DISPLACED) {

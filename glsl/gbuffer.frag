@@ -5,9 +5,18 @@
 // (dispmap_plane_pixel_ray, glsl/include/dispmap_plane.glsl), not the rasteriser's
 // interpolation: fragments whose centre ray misses the plane or the quad are discarded,
 // as are back faces (viewer below the surface: nothing to displace).
+// BEHIND variant: the behind layer (glsl/include/dispmap_behind.glsl): a fragment is kept
+// only at a pixel whose first-layer trace missed, behind the first layer's surface.
+// dispmap-variant: BEHIND
 #include "gbuffer_params.glsl"
 #include "include/dispmap_plane.glsl"
 #include "include/dispmap_gbuffer.glsl"
+#ifdef BEHIND
+#include "include/dispmap_behind.glsl"
+// The first layer's G-buffer depth and hit buffer.
+layout(set = 0, binding = 1) uniform sampler2D u_first_depth;
+layout(set = 0, binding = 2, rgba32f) uniform readonly image2D u_first_hit;
+#endif
 
 // The frame's pixel rays (src/abi.rs PixelRayParams; a uniform buffer: the push
 // constants already take the 128 bytes every device guarantees).
@@ -31,6 +40,13 @@ void main() {
     }
     // The entry's own depth, not the rasteriser's interpolation (dispmap_plane.glsl).
     gl_FragDepth = dispmap_plane_pixel_depth(pc.view_proj, eye_rel);
+#ifdef BEHIND
+    ivec2 pixel = ivec2(gl_FragCoord.xy);
+    if (!dispmap_behind_keep(imageLoad(u_first_hit, pixel).z,
+                             texelFetch(u_first_depth, pixel, 0).r, gl_FragDepth)) {
+        discard;
+    }
+#endif
     // The quad lies on y = 0 with u along +x and v along +z.
     DispmapSurface s = DispmapSurface(eye_rel, vec3(0.0), uv, vec3(0.0, 1.0, 0.0),
         vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), SURFACE_ID, pc.depth_scale, pc.min_cos,

@@ -3,8 +3,17 @@
 // frame (Gram-Schmidt), encodes the ray with the shared include, then corrects P for the
 // uv stretch so depth_scale is in units of the local uv scale sqrt(s_u s_v) (src/mesh.rs
 // documents the choice): P.x *= sqrt(s_v / s_u), P.y *= sqrt(s_u / s_v).
+// BEHIND variant: the behind layer (glsl/include/dispmap_behind.glsl): a fragment is kept
+// only at a pixel whose first-layer trace missed, behind the first layer's surface.
+// dispmap-variant: BEHIND
 #include "gbuffer_params.glsl"
 #include "include/dispmap_gbuffer.glsl"
+#ifdef BEHIND
+#include "include/dispmap_behind.glsl"
+// The first layer's G-buffer depth and hit buffer.
+layout(set = 0, binding = 1) uniform sampler2D u_first_depth;
+layout(set = 0, binding = 2, rgba32f) uniform readonly image2D u_first_hit;
+#endif
 
 layout(location = 0) in vec3 v_eye_rel;
 layout(location = 1) in vec2 v_uv;
@@ -24,6 +33,13 @@ layout(location = 0) out vec4 out_ray;
 layout(location = 1) out uvec2 out_frame;
 
 void main() {
+#ifdef BEHIND
+    ivec2 pixel = ivec2(gl_FragCoord.xy);
+    if (!dispmap_behind_keep(imageLoad(u_first_hit, pixel).z,
+                             texelFetch(u_first_depth, pixel, 0).r, gl_FragCoord.z)) {
+        discard;
+    }
+#endif
     vec3 N = normalize(v_normal);
     vec3 T = v_tangent.xyz - N * dot(N, v_tangent.xyz);
     float tl = length(T);

@@ -18,6 +18,7 @@
 //! read-back helpers use exactly those states. The renderer keeps one frame slot and
 //! waits for each frame, so what the pass retires is destroyed by the next frame.
 
+mod behind;
 mod forward;
 mod frame;
 mod objects;
@@ -125,10 +126,13 @@ impl RenderSettings {
 /// Per-pass GPU milliseconds of one frame, in pass order.
 pub type PassTimes = Vec<(PassName, f64)>;
 
-/// Discarded contents, after compute reads or read-back copies of an earlier frame.
+/// Discarded contents, after compute or fragment reads (the behind layer's reads of the
+/// first layer) or read-back copies of an earlier frame.
 const DISCARD: Access = Access {
     stage: vk::PipelineStageFlags2::from_raw(
-        vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw() | vk::PipelineStageFlags2::COPY.as_raw(),
+        vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw()
+            | vk::PipelineStageFlags2::FRAGMENT_SHADER.as_raw()
+            | vk::PipelineStageFlags2::COPY.as_raw(),
     ),
     access: vk::AccessFlags2::NONE,
     layout: vk::ImageLayout::UNDEFINED,
@@ -170,6 +174,8 @@ pub struct Renderer {
     /// forward frame does not): what [`Renderer::reference_rays`] forms the centre rays
     /// of, even after a later `set_scene`.
     rays_frame: Option<(Scene, crate::scene::FrameCamera)>,
+    /// The behind layer ([`Renderer::set_behind`]), while on.
+    behind: Option<behind::Behind>,
 }
 
 impl Renderer {
@@ -415,6 +421,16 @@ impl Renderer {
             .iter()
             .position(|o| o.material.is_some())
             .unwrap_or(0);
+        // The behind layer (a miss shows what is behind it): for several objects of which
+        // a displaced one can miss, a mesh (curved tracing) or a clamp-addressed object (a
+        // ray that leaves its decal). Its second record uses the pass's frame slot 1.
+        let behind = objects.len() > 1
+            && objects.iter().any(|o| {
+                o.material.is_some_and(|m| {
+                    o.geometry != Geometry::TiledPlane
+                        || m.settings.addressing == crate::heightfield::Addressing::Clamp
+                })
+            });
         let mut pass = DisplacementPass::new(
             ctx.clone(),
             primary.field,
@@ -424,7 +440,7 @@ impl Renderer {
                 depth_scale: primary.settings.depth_scale,
                 addressing: primary.settings.addressing,
                 extent,
-                frames_in_flight: 1,
+                frames_in_flight: if behind { 2 } else { 1 },
             },
         )
         .map_err(of_object(primary_index))?;
@@ -470,14 +486,18 @@ impl Renderer {
             unsafe { pass.destroy() };
             return Err(e);
         }
-        Ok(host.keep(
+        let mut renderer = host.keep(
             ctx,
             settings,
             gbuffer_pass.keep(),
             None,
             Some(drawn.keep()),
             pass,
-        ))
+        );
+        if behind {
+            renderer.set_behind(true)?;
+        }
+        Ok(renderer)
     }
 
     /// The material of each object of [`Renderer::with_objects`] (`None`: flat), in the
@@ -530,6 +550,10 @@ impl Renderer {
         }
         let c = &*self.ctx;
         let (gbuffer, hit, color) = frame_images(c, extent)?;
+        let behind_images = match &self.behind {
+            Some(_) => Some(behind::Behind::images(c, extent)?),
+            None => None,
+        };
         if let Some(m) = &mut self.motion {
             // SAFETY: every frame of this renderer was waited for (`render` submits and
             // waits): nothing reads the old motion image.
@@ -545,6 +569,14 @@ impl Renderer {
         );
         // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
         unsafe { old.destroy(c) };
+        if let (Some(b), Some((g, h))) = (&mut self.behind, behind_images) {
+            let mut old = b.swap_images((g.keep(), h.keep()));
+            // SAFETY: as above.
+            unsafe {
+                old.0.destroy(c);
+                old.1.destroy(c);
+            }
+        }
         self.settings = settings;
         self.depth_written = false;
         self.rays_frame = None;
@@ -705,6 +737,7 @@ impl Drop for Renderer {
             self.mesh.destroy(ctx);
             self.objects.destroy(ctx);
             self.forward.destroy(ctx);
+            self.behind.destroy(ctx);
             self.gbuffer_pass.destroy(ctx);
             self.background.destroy(ctx);
             self.motion.destroy(ctx);
@@ -741,7 +774,7 @@ impl<'c> HostParts<'c> {
                 QueryPool(crate::timing::timestamp_pool(
                     c,
                     "renderer.timestamps",
-                    GBUFFER_QUERIES + MAX_QUERIES,
+                    GBUFFER_QUERIES + MAX_QUERIES + behind::BEHIND_QUERIES,
                 )?),
             )
         };
@@ -786,6 +819,7 @@ impl<'c> HostParts<'c> {
             builds: Vec::new(),
             forward: None,
             rays_frame: None,
+            behind: None,
         }
     }
 }

@@ -53,6 +53,15 @@ fn bits(h: &[f32; 4]) -> [u32; 4] {
 }
 
 fn engine(method: Method, cube: bool, out: Option<std::path::PathBuf>) -> host_engine::Output {
+    engine_with(method, cube, true, out)
+}
+
+fn engine_with(
+    method: Method,
+    cube: bool,
+    behind: bool,
+    out: Option<std::path::PathBuf>,
+) -> host_engine::Output {
     let _ = env_logger::builder().is_test(true).try_init();
     let out = run(&Options {
         width: W,
@@ -62,6 +71,7 @@ fn engine(method: Method, cube: bool, out: Option<std::path::PathBuf>) -> host_e
         cube,
         validation: true,
         out,
+        behind,
     })
     .unwrap();
     assert!(out.validated);
@@ -71,10 +81,10 @@ fn engine(method: Method, cube: bool, out: Option<std::path::PathBuf>) -> host_e
     );
     assert_eq!(out.leaked_allocations, 0, "allocations left after destroy");
     // Every frame was timed (host pool on slot 0, the pass's own on slot 1), and the
-    // height-map swaps in frames 1 and 3 re-ran the upload (and the pyramid) only there.
-    // With the cube, the floor's swap to bricks in frame 1 shares the cube material's
-    // bricks texture (one map, no upload: only the floor method's pyramid is built).
-    let uploads: &[usize] = if cube { &[0, 3] } else { &[0, 1, 3] };
+    // height-map swaps in frames 1 and 3 re-ran the upload (and the pyramid) only there
+    // (the cube's bricks are clamp-addressed, the floor's repeat: the floor's swap to
+    // bricks in frame 1 is a map of its own).
+    let uploads: &[usize] = &[0, 1, 3];
     assert_eq!(out.timings.len(), 6);
     for (i, t) in out.timings.iter().enumerate() {
         let names: Vec<_> = t.iter().map(|(n, _)| n.as_str()).collect();
@@ -124,5 +134,52 @@ fn host_engine_floor_only_equals_standalone_everywhere() {
     assert_eq!(out.hits.len(), expected.len());
     for (i, (got, want)) in out.hits.iter().zip(&expected).enumerate() {
         assert_eq!(bits(got), bits(want), "pixel {i}: {got:?} vs {want:?}");
+    }
+}
+
+/// A miss shows what is behind it in a host's own frame: the engine's cube faces are
+/// clamp-addressed decals, so rays through their carved edges leave the decal and miss.
+/// With the engine's behind layer (its own second G-buffer pass with the `BEHIND` fragment
+/// shader, `glsl/include/dispmap_behind.glsl`, and a second record of the pass) the
+/// missed pixels along the cube's bottom edge show the floor (behind-layer surface id 1,
+/// lit stone: red above blue) where without it they show the sky (blue above red); the
+/// first layer is bit-identical either way. Validation on, zero messages, no leaks (both
+/// runs, `engine_with`).
+#[test]
+fn host_engine_shows_the_floor_behind_the_cubes_carved_edge() {
+    let with = engine_with(Method::Exact, true, true, None);
+    let without = engine_with(Method::Exact, true, false, None);
+    assert!(without.behind_surface_ids.is_empty());
+    assert_eq!(with.hits.len(), without.hits.len());
+    for (i, (a, b)) in with.hits.iter().zip(&without.hits).enumerate() {
+        assert_eq!(bits(a), bits(b), "pixel {i}");
+    }
+    let missed: Vec<usize> = (0..with.hits.len())
+        .filter(|&i| with.surface_ids[i] >= 2.0 && with.hits[i][2] == -1.0)
+        .collect();
+    let on_floor: Vec<usize> = missed
+        .iter()
+        .copied()
+        .filter(|&i| with.behind_surface_ids[i] == 1.0)
+        .collect();
+    eprintln!(
+        "cube pixels {}, missed {}, floor behind {}",
+        with.surface_ids.iter().filter(|&&id| id >= 2.0).count(),
+        missed.len(),
+        on_floor.len()
+    );
+    assert!(on_floor.len() >= 3, "{} pixels", on_floor.len());
+    let rgb = |c: &[u8], i: usize| [c[4 * i], c[4 * i + 1], c[4 * i + 2]];
+    for &i in &on_floor {
+        let (a, b) = (rgb(&without.color, i), rgb(&with.color, i));
+        assert!(a[2] > a[0], "pixel {i} without: {a:?} is not the sky");
+        assert!(b[0] > b[2], "pixel {i} with: {b:?} is not the floor");
+    }
+    // Where the first trace hit, the behind layer is empty and the colour the same.
+    for i in 0..with.hits.len() {
+        if with.hits[i][2] != -1.0 {
+            assert_eq!(with.behind_surface_ids[i], 0.0, "pixel {i}");
+            assert_eq!(rgb(&with.color, i), rgb(&without.color, i), "pixel {i}");
+        }
     }
 }

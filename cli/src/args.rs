@@ -156,6 +156,11 @@ pub(crate) struct RenderArgs {
     /// show (methods exact, relief and pom; the others and the plane trace tangent planes).
     #[arg(long)]
     pub(crate) curved: bool,
+    /// Scenes of several objects: leave out the behind layer, so a displaced ray that
+    /// misses (leaves a decal or, with --curved, its shell) shows the sky instead of the
+    /// next surface behind it (the layer is on by default where an object can miss).
+    #[arg(long)]
+    pub(crate) no_behind: bool,
     /// Also write the per-pixel iteration count of the trace pass as a colour-mapped PNG
     /// (viridis-like: dark purple = few, yellow = many; black = no geometry; white = a
     /// non-finite count). Scaled to the frame's largest count unless --heatmap-max.

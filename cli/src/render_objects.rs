@@ -257,6 +257,9 @@ pub fn render(
             .map_err(|e| dispmap_cli::scene_file::in_file(path, e))?;
         renderer.set_depth_output(args.depth_out.is_some())?;
         renderer.set_curved(args.curved)?;
+        if args.no_behind {
+            renderer.set_behind(false)?;
+        }
         let materials = displaced(&renderer, &assets.objects, &specs);
         let references: Vec<Reference> = materials
             .iter()

@@ -279,7 +279,7 @@ mod tests {
         );
         assert_eq!(
             super::MAX_QUERIES as usize,
-            2 * (crate::passes::PassName::ALL.len() - 1)
+            2 * (crate::passes::PassName::ALL.len() - 2)
         );
     }
 }

@@ -30,11 +30,27 @@ pub struct BackgroundPass {
 impl BackgroundPass {
     /// Builds the pipeline.
     pub fn new(ctx: &Context) -> Result<Self> {
+        Self::build(ctx, false)
+    }
+
+    /// Builds the behind layer's variant (`glsl/background.comp`'s `BEHIND`): it lights
+    /// the flat geometry of the behind layer's G-buffer and leaves pixels without
+    /// geometry as they are (the first layer's colour), instead of drawing the sky there.
+    pub fn new_behind(ctx: &Context) -> Result<Self> {
+        Self::build(ctx, true)
+    }
+
+    fn build(ctx: &Context, behind: bool) -> Result<Self> {
+        let (name, shader) = if behind {
+            ("background[behind]", &shaders::BACKGROUND_COMP_BEHIND)
+        } else {
+            ("background", &shaders::BACKGROUND_COMP)
+        };
         Ok(BackgroundPass {
             pipeline: FetchPipeline::new(
                 ctx,
-                "background",
-                &shaders::BACKGROUND_COMP,
+                name,
+                shader,
                 &[
                     ("u_depth", SAMPLED),
                     ("u_frame", SAMPLED),

@@ -175,25 +175,45 @@ impl Destroy for GBuffer {
 /// `glsl/forward/forward.glsl`).
 pub(crate) const PIXEL_RAYS: &str = "PixelRayBlock";
 
+/// The GLSL names of the behind variant's reads of the first layer
+/// (`glsl/gbuffer.frag`, `glsl/gbuffer_mesh.frag` with `BEHIND`).
+const FIRST_DEPTH: &str = "u_first_depth";
+const FIRST_HIT: &str = "u_first_hit";
+
+/// The vertex and fragment shaders of the plane's pipeline (`mesh` false) or the
+/// meshes', the fragment stage's `BEHIND` variant for the behind layer.
+fn layer_shaders(mesh: bool, behind: bool) -> (shaders::Shader, shaders::Shader) {
+    match (mesh, behind) {
+        (true, false) => (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG),
+        (true, true) => (
+            shaders::GBUFFER_MESH_VERT,
+            shaders::GBUFFER_MESH_FRAG_BEHIND,
+        ),
+        (false, false) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG),
+        (false, true) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG_BEHIND),
+    }
+}
+
 /// Set 0 of the plane's pipeline (`mesh` false) or the meshes' as the shaders declare it:
 /// the plane's pixel rays (a uniform buffer the pass owns and writes in each recording);
-/// meshes interpolate and bind nothing.
-pub(crate) fn raster_set(mesh: bool) -> Result<RasterSet> {
-    let (vert, frag, declared): (_, _, &[_]) = if mesh {
-        (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG, &[])
-    } else {
-        (
-            shaders::GBUFFER_VERT,
-            shaders::GBUFFER_FRAG,
-            &[(PIXEL_RAYS, vk::DescriptorType::UNIFORM_BUFFER)],
-        )
-    };
+/// meshes interpolate and bind nothing; the behind variant (`behind`) also reads the
+/// first layer's depth (sampled) and hit buffer (a storage image).
+pub(crate) fn raster_set(mesh: bool, behind: bool) -> Result<RasterSet> {
+    let (vert, frag) = layer_shaders(mesh, behind);
+    let mut declared = Vec::new();
+    if !mesh {
+        declared.push((PIXEL_RAYS, vk::DescriptorType::UNIFORM_BUFFER));
+    }
+    if behind {
+        declared.push((FIRST_DEPTH, vk::DescriptorType::COMBINED_IMAGE_SAMPLER));
+        declared.push((FIRST_HIT, vk::DescriptorType::STORAGE_IMAGE));
+    }
     RasterSet::new(
         &[
             (&vert, vk::ShaderStageFlags::VERTEX),
             (&frag, vk::ShaderStageFlags::FRAGMENT),
         ],
-        declared,
+        &declared,
     )
 }
 
@@ -208,19 +228,24 @@ pub struct GBufferPass {
     rays: Option<PixelRayBuffer>,
     mesh: bool,
     two_sided: bool,
+    /// The behind layer's variant (`BEHIND` in `glsl/gbuffer*.frag`): set 0 also has the
+    /// first layer's depth and hit buffer.
+    behind: bool,
+    /// The behind variant's nearest sampler of the first layer's depth (null otherwise).
+    sampler: vk::Sampler,
 }
 
 impl GBufferPass {
     /// Builds the pipeline of the plane and the quad (dynamic rendering: no render pass
     /// object; no vertex buffer).
     pub fn new(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, false, false)
+        Self::build(ctx, false, false, false)
     }
 
     /// Builds the pipeline of meshes (`glsl/gbuffer_mesh.*`): one vertex buffer of
     /// [`crate::mesh::Vertex`] and `u32` indices, drawn by [`GBufferPass::record_mesh`].
     pub fn new_mesh(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, false)
+        Self::build(ctx, true, false, false)
     }
 
     /// As [`GBufferPass::new_mesh`] for two-sided meshes ([`crate::mesh::Mesh::two_sided`]):
@@ -230,7 +255,21 @@ impl GBufferPass {
     /// `TWO_SIDED` specialization constant set; built only for a frame that draws such a
     /// mesh.
     pub fn new_mesh_two_sided(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, true)
+        Self::build(ctx, true, true, false)
+    }
+
+    /// The behind layer's pipeline of the same kind as [`GBufferPass::new`] (`mesh`
+    /// false), [`GBufferPass::new_mesh`] or [`GBufferPass::new_mesh_two_sided`]: the
+    /// fragment stage's `BEHIND` variant keeps a fragment only at a pixel whose
+    /// first-layer trace missed, behind the first layer's surface
+    /// (`glsl/include/dispmap_behind.glsl`); drawn by [`record_draws_behind`].
+    pub fn new_behind(ctx: &Context, mesh: bool, two_sided: bool) -> Result<Self> {
+        Self::build(ctx, mesh, two_sided && mesh, true)
+    }
+
+    /// Whether this is a behind layer's pipeline ([`GBufferPass::new_behind`]).
+    pub fn is_behind(&self) -> bool {
+        self.behind
     }
 
     /// Whether this is the mesh pipeline.
@@ -243,21 +282,23 @@ impl GBufferPass {
         self.two_sided
     }
 
-    fn build(ctx: &Context, mesh: bool, two_sided: bool) -> Result<Self> {
+    fn build(ctx: &Context, mesh: bool, two_sided: bool, behind: bool) -> Result<Self> {
         let dev = ctx.device();
-        let name = match (mesh, two_sided) {
-            (false, _) => "gbuffer",
-            (true, false) => "gbuffer_mesh",
-            (true, true) => "gbuffer_mesh_two_sided",
+        let name = match (mesh, two_sided, behind) {
+            (false, _, false) => "gbuffer",
+            (true, false, false) => "gbuffer_mesh",
+            (true, true, false) => "gbuffer_mesh_two_sided",
+            (false, _, true) => "gbuffer_behind",
+            (true, false, true) => "gbuffer_mesh_behind",
+            (true, true, true) => "gbuffer_mesh_two_sided_behind",
         };
-        let (vert, frag) = if mesh {
-            (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG)
-        } else {
-            (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG)
-        };
-        let set = raster_set(mesh)?;
-        let (set_layout, rays) = if mesh {
+        let (vert, frag) = layer_shaders(mesh, behind);
+        let set = raster_set(mesh, behind)?;
+        let has_set = !set.is_empty();
+        let (set_layout, rays) = if !has_set {
             (vk::DescriptorSetLayout::null(), None)
+        } else if mesh {
+            (set.set_layout(ctx, &format!("{name}.set_layout"))?, None)
         } else {
             // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
             let rays = unsafe {
@@ -274,7 +315,7 @@ impl GBufferPass {
             .size(std::mem::size_of::<GBufferParams>() as u32)];
         let set_layouts = [set_layout];
         let layout_info = vk::PipelineLayoutCreateInfo::default()
-            .set_layouts(&set_layouts[..usize::from(!mesh)])
+            .set_layouts(&set_layouts[..usize::from(has_set)])
             .push_constant_ranges(&ranges);
         let mut owned = GBufferPass {
             pipeline: vk::Pipeline::null(),
@@ -284,7 +325,24 @@ impl GBufferPass {
             rays,
             mesh,
             two_sided,
+            behind,
+            sampler: vk::Sampler::null(),
         };
+        if behind {
+            owned.sampler = match crate::gpu::pipeline::sampler(
+                ctx,
+                &format!("{name}.fetch_sampler"),
+                vk::Filter::NEAREST,
+                vk::SamplerAddressMode::CLAMP_TO_EDGE,
+            ) {
+                Ok(s) => s,
+                Err(e) => {
+                    // SAFETY: built above and never used by a command.
+                    unsafe { owned.destroy(ctx) };
+                    return Err(e);
+                }
+            };
+        }
         // SAFETY: valid device and create info.
         owned.layout = match unsafe { dev.create_pipeline_layout(&layout_info, None) }
             .vk("vkCreatePipelineLayout")
@@ -434,6 +492,8 @@ impl Destroy for GBufferPass {
             ctx.device().destroy_pipeline_layout(self.layout, None);
             ctx.device()
                 .destroy_descriptor_set_layout(self.set_layout, None);
+            ctx.device().destroy_sampler(self.sampler, None);
+            self.sampler = vk::Sampler::null();
             self.pipeline = vk::Pipeline::null();
             self.layout = vk::PipelineLayout::null();
             self.set_layout = vk::DescriptorSetLayout::null();
@@ -473,6 +533,53 @@ pub unsafe fn record_draws(
     draws: &[GBufferDraw<'_>],
     rays: &PixelRayParams,
 ) -> Result<()> {
+    // SAFETY: this function's # Safety contract.
+    unsafe { record_layer(ctx, cmd, target, draws, rays, None) }
+}
+
+/// What the behind layer's draws read of the first layer: its G-buffer depth (sampled,
+/// `SHADER_READ_ONLY_OPTIMAL`) and its hit buffer (a storage image read, `GENERAL`).
+#[derive(Clone, Copy, Debug)]
+pub struct FirstLayer {
+    /// The first layer's `D32_SFLOAT` depth view.
+    pub depth: vk::ImageView,
+    /// The first layer's hit buffer view (`R32G32B32A32_SFLOAT`).
+    pub hit: vk::ImageView,
+}
+
+/// Records the behind layer ([`GBufferPass::new_behind`], `glsl/include/dispmap_behind.glsl`)
+/// into `target`: as [`record_draws`], every draw's pass a behind pipeline, each fragment
+/// kept only at a pixel whose first-layer trace missed and behind the first layer's
+/// surface.
+///
+/// # Safety
+/// As [`record_draws`]; in addition, when the command buffer executes, `first.depth` is
+/// in `SHADER_READ_ONLY_OPTIMAL` and `first.hit` in `GENERAL`, their writes visible to
+/// fragment-shader sampled and storage reads, and both stay alive until it has executed.
+pub unsafe fn record_draws_behind(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    target: &GBuffer,
+    draws: &[GBufferDraw<'_>],
+    rays: &PixelRayParams,
+    first: FirstLayer,
+) -> Result<()> {
+    // SAFETY: this function's # Safety contract.
+    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first)) }
+}
+
+/// [`record_draws`] (`first` `None`) or [`record_draws_behind`].
+///
+/// # Safety
+/// As those.
+unsafe fn record_layer(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    target: &GBuffer,
+    draws: &[GBufferDraw<'_>],
+    rays: &PixelRayParams,
+    first: Option<FirstLayer>,
+) -> Result<()> {
     let extent = target.ray.extent;
     // Each plane pipeline's pixel-ray buffer, once.
     let mut updated: Vec<*const GBufferPass> = Vec::new();
@@ -509,13 +616,33 @@ pub unsafe fn record_draws(
         .iter()
         .map(|d| d.pass.rays.as_ref().map(PixelRayBuffer::info))
         .collect();
+    // The behind variant's reads of the first layer, by the names its shaders give them.
+    let depth_infos: Vec<_> = draws
+        .iter()
+        .map(|d| {
+            first.map(|f| {
+                [vk::DescriptorImageInfo {
+                    sampler: d.pass.sampler,
+                    image_view: f.depth,
+                    image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+                }]
+            })
+        })
+        .collect();
+    let hit_info = first.map(|f| crate::gpu::pipeline::storage_view(f.hit));
     let writes = draws
         .iter()
-        .zip(&infos)
-        .map(|(d, info)| {
-            info.as_ref()
-                .map(|i| d.pass.set.buffer(PIXEL_RAYS, i))
-                .transpose()
+        .zip(infos.iter().zip(&depth_infos))
+        .map(|(d, (info, depth))| {
+            let mut w = Vec::new();
+            if let Some(i) = info {
+                w.push(d.pass.set.buffer(PIXEL_RAYS, i)?);
+            }
+            if let (Some(depth), Some(hit)) = (depth, &hit_info) {
+                w.push(d.pass.set.image(FIRST_DEPTH, depth)?);
+                w.push(d.pass.set.image(FIRST_HIT, hit)?);
+            }
+            Ok(w)
         })
         .collect::<Result<Vec<_>>>()?;
     let dev = ctx.device();
@@ -533,14 +660,19 @@ pub unsafe fn record_draws(
         dev.cmd_begin_rendering(cmd, &rendering);
         for (draw, write) in draws.iter().zip(&writes) {
             debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
+            debug_assert_eq!(
+                draw.pass.behind,
+                first.is_some(),
+                "behind pipeline vs layer"
+            );
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
-            if let Some(write) = write {
+            if !write.is_empty() {
                 ctx.push_descriptor().cmd_push_descriptor_set(
                     cmd,
                     vk::PipelineBindPoint::GRAPHICS,
                     draw.pass.layout,
                     0,
-                    std::slice::from_ref(write),
+                    write,
                 );
             }
             dev.cmd_push_constants(
@@ -573,9 +705,12 @@ mod tests {
     /// types reflected from the SPIR-V, and every binding is bound by a name.
     #[test]
     fn graphics_passes_bind_what_their_shaders_declare() {
-        let plane = raster_set(false).unwrap();
+        let plane = raster_set(false, false).unwrap();
         assert!(!plane.is_empty());
-        assert!(raster_set(true).unwrap().is_empty());
+        assert!(raster_set(true, false).unwrap().is_empty());
+        for mesh in [false, true] {
+            raster_set(mesh, true).unwrap_or_else(|e| panic!("behind, mesh {mesh}: {e}"));
+        }
         let mut forward = 0;
         for m in crate::method::Method::ALL {
             if let Some(frag) = m.forward_shader() {

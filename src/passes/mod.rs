@@ -55,11 +55,15 @@ pub enum PassName {
     HitDepth,
     /// The motion vectors of the displaced pixels.
     Motion,
+    /// The standalone renderer's behind layer, in one figure: its G-buffer raster, the
+    /// light of its flat geometry and the displacement pass recorded on it (a host
+    /// times its own).
+    Behind,
 }
 
 impl PassName {
     /// Every pass, in recording order.
-    pub const ALL: [PassName; 11] = [
+    pub const ALL: [PassName; 12] = [
         PassName::GBuffer,
         PassName::Upload,
         PassName::Pyramid,
@@ -71,10 +75,12 @@ impl PassName {
         PassName::Shade,
         PassName::HitDepth,
         PassName::Motion,
+        PassName::Behind,
     ];
 
     /// The name in reports, metrics files and debug labels (`gbuffer`, `upload`,
-    /// `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`, `motion`).
+    /// `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`,
+    /// `motion`, `behind`).
     pub fn as_str(self) -> &'static str {
         match self {
             PassName::GBuffer => "gbuffer",
@@ -88,16 +94,18 @@ impl PassName {
             PassName::Shade => "shade",
             PassName::HitDepth => "hit_depth",
             PassName::Motion => "motion",
+            PassName::Behind => "behind",
         }
     }
 
     /// How many passes of [`PassName::ALL`] the displacement pass records (every one but
-    /// the host's G-buffer pass): its timestamp queries are twice that.
+    /// the host's G-buffer pass and the renderer's behind layer): its timestamp queries are
+    /// twice that.
     pub const fn recorded_by_pass() -> u32 {
         let mut n = 0;
         let mut i = 0;
         while i < PassName::ALL.len() {
-            if !matches!(PassName::ALL[i], PassName::GBuffer) {
+            if !matches!(PassName::ALL[i], PassName::GBuffer | PassName::Behind) {
                 n += 1;
             }
             i += 1;

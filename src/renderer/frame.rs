@@ -105,13 +105,22 @@ impl Renderer {
                 },
             )?
         };
+        // SAFETY: `cmd` is recording outside a render pass, after the first record, and is
+        // submitted and waited for below; the behind layer's previous frame was waited for.
+        let behind = unsafe { self.record_behind(cmd, &camera, &target, inputs.motion)? };
+        let ctx = &*self.ctx;
         self.shot.submit_and_wait(ctx)?;
         self.depth_written |= self.pass.depth_output();
         if let Some(m) = &mut self.motion {
             m.previous = Some(current);
         }
         self.rays_frame = Some((self.settings.scene, camera));
-        self.frame_times(&w, &frame)
+        let mut times = self.frame_times(&w, &frame)?;
+        if let Some(b) = behind {
+            // SAFETY: the pool is alive and the frame completed (waited for above).
+            times.extend(unsafe { read_timestamps(&self.ctx, &b.scopes)? });
+        }
+        Ok(times)
     }
 
     /// The per-pass times of a completed frame (the renderer's scopes, then the pass's),

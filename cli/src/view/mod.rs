@@ -139,6 +139,7 @@ pub fn run(options: &ContextOptions, args: ViewArgs, matches: &ArgMatches) -> Re
         out: None,
         metrics: None,
         curved: false,
+        no_behind: false,
         heatmap: None,
         heatmap_max: None,
         interval_map: None,

@@ -1,0 +1,134 @@
+//! A miss shows what is behind it: in `scenes/materials.toml` (at 320x180) the bricks
+//! cube (clamp addressing, `exact`) has rays through its carved bottom edge that leave the
+//! decal without meeting the relief. With the renderer's behind layer (on by default for a
+//! scene of several objects) those pixels show the rocks floor: the behind layer's
+//! G-buffer has the floor's material there, its trace hits, and the colour is the lit
+//! stone (red above blue), where without the layer it is the sky (blue above red).
+//! Validation (core + synchronization) on: zero messages, nothing left allocated.
+
+#[path = "../../tests/common/mod.rs"]
+mod common;
+
+use common::{finish, validated_context};
+use dispmap::renderer::{Renderer, SceneAssets};
+use dispmap_cli::scene_file;
+
+#[test]
+fn the_floor_shows_under_the_cubes_carved_bottom_edge() {
+    let ctx = validated_context();
+    {
+        let path = common::repo_root().join("scenes/materials.toml");
+        let file = scene_file::SceneFile::read(&path).unwrap();
+        let specs = dispmap_cli::scene_objects::specs(&file, &path).unwrap();
+        let objects = dispmap_cli::scene_objects::load(&specs, &path).unwrap();
+        let field = objects[0].material.as_ref().unwrap().0.clone();
+        let mut settings = file.settings(&path).unwrap();
+        let (w, h) = (320u32, 180u32);
+        (settings.width, settings.height) = (w, h);
+        let assets = SceneAssets {
+            objects,
+            ..SceneAssets::default()
+        };
+        let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets).unwrap();
+        assert!(
+            renderer.behind(),
+            "a scene of several objects draws the behind layer"
+        );
+        // The objects' materials: the rocks floor (quad) and the bricks cube.
+        let materials = renderer.object_materials();
+        let floor = materials[0].unwrap().index();
+        let cube = materials[1].unwrap().index();
+
+        renderer.render().unwrap();
+        let first = renderer.read_materials().unwrap();
+        let hits = renderer.read_hits().unwrap();
+        let behind_materials = renderer.read_behind_materials().unwrap().unwrap();
+        let behind_hits = renderer.read_behind_hits().unwrap().unwrap();
+        let with = renderer.read_color().unwrap();
+        renderer.set_behind(false).unwrap();
+        renderer.render().unwrap();
+        assert_eq!(renderer.read_behind_hits().unwrap(), None);
+        let without = renderer.read_color().unwrap();
+        // The first layer is the same with and without.
+        assert_eq!(renderer.read_hits().unwrap(), hits);
+
+        let depth = renderer.read_macro_depth().unwrap();
+        let all_missed = (0..first.len())
+            .filter(|&i| depth[i] > 0.0 && hits[i][2] == -1.0)
+            .count();
+        let behind_displaced = behind_materials.iter().flatten().count();
+        eprintln!(
+            "frame {} pixels: first-layer misses {all_missed}, behind layer displaced pixels \
+             {behind_displaced}",
+            first.len()
+        );
+        let missed: Vec<usize> = (0..first.len())
+            .filter(|&i| first[i] == Some(cube) && hits[i][2] == -1.0)
+            .collect();
+        let on_floor: Vec<usize> = missed
+            .iter()
+            .copied()
+            .filter(|&i| behind_materials[i] == Some(floor))
+            .collect();
+        let rgb = |c: &[u8], i: usize| [c[4 * i], c[4 * i + 1], c[4 * i + 2]];
+        eprintln!(
+            "cube pixels {}, missed {}, floor behind {}",
+            first.iter().filter(|m| **m == Some(cube)).count(),
+            missed.len(),
+            on_floor.len()
+        );
+        // The carved bottom edge: the missed pixels in the lowest fifth of the cube's rows
+        // (at 320x180, a strip along its two visible bottom edges) all have the floor
+        // behind them.
+        let rows: Vec<u32> = (0..first.len() as u32)
+            .filter(|&i| first[i as usize] == Some(cube))
+            .map(|i| i / w)
+            .collect();
+        let (top, bottom) = (*rows.iter().min().unwrap(), *rows.iter().max().unwrap());
+        let edge: Vec<usize> = missed
+            .iter()
+            .copied()
+            .filter(|&i| i as u32 / w >= bottom - (bottom - top) / 5)
+            .collect();
+        eprintln!(
+            "cube rows {top}..={bottom}, bottom edge misses {}",
+            edge.len()
+        );
+        assert!(edge.len() >= 15, "{} pixels", edge.len());
+        for &i in &edge {
+            assert_eq!(
+                behind_materials[i],
+                Some(floor),
+                "pixel ({}, {})",
+                i as u32 % w,
+                i as u32 / w
+            );
+        }
+        for &i in &on_floor {
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            // The floor's relief is traced there: a hit on the floor's map.
+            let hit = behind_hits[i];
+            assert!(
+                (0.0..=1.0).contains(&hit[2]),
+                "({x}, {y}): behind hit {hit:?}"
+            );
+            let (a, b) = (rgb(&without, i), rgb(&with, i));
+            // Without the layer: the sky (its gradient is blue above red everywhere).
+            assert!(a[2] > a[0], "({x}, {y}) without: {a:?} is not the sky");
+            // With it: the lit stone of the floor (red above blue).
+            assert!(b[0] > b[2], "({x}, {y}) with: {b:?} is not the floor");
+        }
+        // Pixels whose first trace hit have nothing in the behind layer, and keep their
+        // colour.
+        for i in 0..first.len() {
+            if hits[i][2] != -1.0 {
+                assert_eq!(behind_materials[i], None, "pixel {i}");
+                assert_eq!(behind_hits[i][2], -1.0, "pixel {i}");
+            }
+            if !missed.contains(&i) && first[i].is_some() && hits[i][2] >= 0.0 {
+                assert_eq!(rgb(&with, i), rgb(&without, i), "pixel {i}");
+            }
+        }
+    }
+    finish(ctx);
+}

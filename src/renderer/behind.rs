@@ -1,0 +1,421 @@
+//! The behind layer of a frame of several objects: what a pixel whose displaced ray missed
+//! shows (the next surface along its view ray instead of the sky). After the frame's
+//! first record, the renderer rasterises the objects again into a second G-buffer, keeping
+//! a fragment only at a pixel whose first-layer trace missed and only behind the first
+//! layer's surface (`glsl/include/dispmap_behind.glsl`), lights that layer's flat
+//! geometry, and records the displacement pass a second time on it: frame slot 1, its own
+//! hit buffer, the same colour image (and motion image). The second trace and shade run
+//! only over the tiles that layer covers. docs/embedding.md, "What a miss shows", is the
+//! same route for a host.
+
+use super::*;
+use crate::gpu::track::{Target, Tracker};
+use crate::passes::gbuffer::FirstLayer;
+
+/// The frame slot of the pass the behind layer is recorded with (the first layer's is 0).
+pub(super) const BEHIND_SLOT: u32 = 1;
+
+/// Timestamp queries of the behind layer's one scope, after the pass's.
+pub(super) const BEHIND_QUERIES: u32 = 2;
+
+/// The behind layer's images and pipelines.
+pub(super) struct Behind {
+    /// Its G-buffer (the first layer's formats).
+    gbuffer: GBuffer,
+    /// Its hit buffer.
+    hit: Image,
+    /// The behind variants of the pipelines the objects are drawn with: the tiled
+    /// plane's, the meshes', the two-sided meshes' (each only when an object needs it).
+    plane: Option<GBufferPass>,
+    mesh: Option<GBufferPass>,
+    two_sided: Option<GBufferPass>,
+    /// The host's light of the layer's flat geometry (the sky is left as it is).
+    background: BackgroundPass,
+}
+
+impl Destroy for Behind {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.gbuffer.destroy(ctx);
+            self.hit.destroy(ctx);
+            self.plane.destroy(ctx);
+            self.mesh.destroy(ctx);
+            self.two_sided.destroy(ctx);
+            self.background.destroy(ctx);
+        }
+    }
+}
+
+/// The resources whose barriers the behind layer's tracker derives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Layer {
+    FirstHit,
+    FirstDepth,
+    Ray,
+    Frame,
+    Depth,
+    Hit,
+    Color,
+    Motion,
+}
+
+impl Behind {
+    /// The layer's images for `extent` and the pipelines of `objects`' kinds: the tiled
+    /// plane (`plane`), one-sided and two-sided meshes.
+    pub(super) fn new(
+        c: &Context,
+        extent: vk::Extent2D,
+        plane: bool,
+        mesh: bool,
+        two_sided: bool,
+    ) -> Result<Self> {
+        let (gbuffer, hit) = layer_images(c, extent)?;
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let background = unsafe { Guard::new(c, BackgroundPass::new_behind(c)?) };
+        let pipeline = |on: bool, mesh: bool, two_sided: bool| -> Result<Option<GBufferPass>> {
+            on.then(|| GBufferPass::new_behind(c, mesh, two_sided))
+                .transpose()
+        };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let plane = unsafe { Guard::new(c, pipeline(plane, false, false)?) };
+        // SAFETY: as above.
+        let mesh = unsafe { Guard::new(c, pipeline(mesh, true, false)?) };
+        let two_sided = pipeline(two_sided, true, true)?;
+        Ok(Behind {
+            gbuffer: gbuffer.keep(),
+            hit: hit.keep(),
+            plane: plane.keep(),
+            mesh: mesh.keep(),
+            two_sided,
+            background: background.keep(),
+        })
+    }
+
+    /// New images of `extent` (the caller swaps them in with [`Behind::swap_images`]).
+    pub(super) fn images<'c>(
+        c: &'c Context,
+        extent: vk::Extent2D,
+    ) -> Result<(Guard<'c, GBuffer>, Guard<'c, Image>)> {
+        layer_images(c, extent)
+    }
+
+    /// Swaps in `images`, returning the old ones (to destroy once no frame uses them).
+    pub(super) fn swap_images(&mut self, images: (GBuffer, Image)) -> (GBuffer, Image) {
+        (
+            std::mem::replace(&mut self.gbuffer, images.0),
+            std::mem::replace(&mut self.hit, images.1),
+        )
+    }
+
+    /// The behind pipeline of a first-layer draw's pipeline.
+    fn pass_of(&self, mesh: bool, two_sided: bool) -> Result<&GBufferPass> {
+        let p = match (mesh, two_sided) {
+            (false, _) => &self.plane,
+            (true, false) => &self.mesh,
+            (true, true) => &self.two_sided,
+        };
+        p.as_ref()
+            .ok_or_else(|| Error::Internal("no behind pipeline for an object's kind".into()))
+    }
+}
+
+/// The layer's G-buffer and hit buffer, guarded until the caller keeps them.
+fn layer_images(
+    c: &Context,
+    extent: vk::Extent2D,
+) -> Result<(Guard<'_, GBuffer>, Guard<'_, Image>)> {
+    // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+    let gbuffer = unsafe { Guard::new(c, GBuffer::new(c, extent)?) };
+    // SAFETY: as above.
+    let hit = unsafe {
+        Guard::new(
+            c,
+            Image::new(
+                c,
+                "behind.hits",
+                HIT_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?,
+        )
+    };
+    Ok((gbuffer, hit))
+}
+
+impl Renderer {
+    /// Whether frames draw the behind layer (see [`Renderer::set_behind`]).
+    pub fn behind(&self) -> bool {
+        self.behind.is_some()
+    }
+
+    /// Turns the behind layer on or off: with it, a pixel whose displaced ray misses (a
+    /// clamp-addressed ray that leaves its decal, a curved ray that leaves its shell)
+    /// shows the next surface along its view ray (the floor under a cube's carved bottom
+    /// edge) instead of the sky. A renderer of several objects
+    /// ([`Renderer::with_objects`]) draws it from the start when an object can miss (a
+    /// displaced mesh or a clamp-addressed object); one geometry alone has nothing
+    /// behind it and never does. Turning it on is refused for a renderer not built with
+    /// it (its pass has one frame slot); while it is off, what the pass retires is kept
+    /// until the layer is on again or the renderer is dropped (the pass waits for its
+    /// slot 1 to be recorded again).
+    pub fn set_behind(&mut self, on: bool) -> Result<()> {
+        let c = &*self.ctx;
+        match (on, &self.behind) {
+            (true, None) => {
+                if self.pass.settings().frames_in_flight <= BEHIND_SLOT {
+                    return Err(Error::invalid(
+                        "behind",
+                        "this renderer was built without a behind layer (one geometry, or \
+                         objects that cannot miss)",
+                    ));
+                }
+                let (plane, mesh, two_sided) = match &self.objects {
+                    Some(o) => (
+                        o.meshes.iter().any(Option::is_none),
+                        o.mesh_pass.is_some(),
+                        o.two_sided_pass.is_some(),
+                    ),
+                    None => (false, false, false),
+                };
+                self.behind = Some(Behind::new(
+                    c,
+                    self.settings.extent(),
+                    plane,
+                    mesh,
+                    two_sided,
+                )?);
+            }
+            (false, Some(_)) => {
+                // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
+                unsafe { self.behind.destroy(c) };
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The last frame's behind-layer hit buffer (`None` without the layer): `NO_HIT_HEIGHT`
+    /// where the layer has no geometry (every pixel whose first-layer trace hit).
+    pub fn read_behind_hits(&self) -> Result<Option<Vec<HitTexel>>> {
+        let Some(b) = &self.behind else {
+            return Ok(None);
+        };
+        let bytes = read_image(&self.ctx, &self.shot, &b.hit, Access::COMPUTE_STORAGE_READ)?;
+        Ok(Some(bytemuck::cast_slice::<u8, HitTexel>(&bytes).to_vec()))
+    }
+
+    /// Each pixel's material index in the last frame's behind layer (`None` without the
+    /// layer; inside, `None` where it has no geometry or flat geometry), as
+    /// [`Renderer::read_materials`] reads the first layer's.
+    pub fn read_behind_materials(&self) -> Result<Option<Vec<Option<u32>>>> {
+        let Some(b) = &self.behind else {
+            return Ok(None);
+        };
+        let frame = read_image(
+            &self.ctx,
+            &self.shot,
+            &b.gbuffer.frame,
+            Access::COMPUTE_SAMPLED,
+        )?;
+        let depth = read_image(
+            &self.ctx,
+            &self.shot,
+            &b.gbuffer.depth,
+            Access::COMPUTE_SAMPLED,
+        )?;
+        let depth: &[f32] = bytemuck::cast_slice(&depth);
+        Ok(Some(
+            frame
+                .chunks_exact(8)
+                .zip(depth)
+                .map(|(c, &d)| {
+                    let word = |i: usize| u32::from_le_bytes([c[i], c[i + 1], c[i + 2], c[i + 3]]);
+                    let f = crate::passes::gbuffer::frame::unpack([word(0), word(4)]);
+                    (d > 0.0 && f.material_plus_one >= 1).then(|| f.material_plus_one - 1)
+                })
+                .collect(),
+        ))
+    }
+
+    /// Records the behind layer after the frame's first record, in one timestamp scope
+    /// ([`PassName::Behind`]) of the renderer's pool: the layer's raster, its flat
+    /// geometry's light, and the pass's second record (slot [`BEHIND_SLOT`], its own hit
+    /// buffer, the same colour and motion images); `None` without the layer.
+    ///
+    /// # Safety
+    /// `cmd` is recording outside a render pass on the context's queue and is submitted
+    /// (and waited for) while the renderer lives, after the frame's first record in the
+    /// same command buffer (which left the hit buffer, colour and motion images in the
+    /// pass's exit states and the G-buffer depth sampled-readable by compute); the
+    /// layer's images' previous frame was waited for.
+    pub(super) unsafe fn record_behind(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        camera: &crate::scene::FrameCamera,
+        target: &ShadeTarget,
+        motion: Option<crate::passes::motion::FrameMotion>,
+    ) -> Result<Option<ScopeWriter>> {
+        let Some(behind) = &self.behind else {
+            return Ok(None);
+        };
+        let ctx = self.ctx.clone();
+        // The first layer's draws (their push constants), each drawn again with the behind
+        // variant of its pipeline.
+        let kinds: Vec<_> = self
+            .object_draws(camera)?
+            .unwrap_or_default()
+            .iter()
+            .map(|d| (d.params, d.pass.is_mesh(), d.pass.is_two_sided()))
+            .collect();
+        let Some(objects) = &self.objects else {
+            return Ok(None);
+        };
+        let draws = kinds
+            .into_iter()
+            .zip(&objects.meshes)
+            .map(|((params, mesh, two_sided), buffers)| {
+                Ok(GBufferDraw {
+                    pass: behind.pass_of(mesh, two_sided)?,
+                    params,
+                    mesh: buffers.as_ref(),
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let images = |key: Layer| -> Target {
+            let image = match key {
+                Layer::FirstHit => &self.hit,
+                Layer::FirstDepth => &self.gbuffer.depth,
+                Layer::Ray => &behind.gbuffer.ray,
+                Layer::Frame => &behind.gbuffer.frame,
+                Layer::Depth => &behind.gbuffer.depth,
+                Layer::Hit => &behind.hit,
+                Layer::Color => &self.color,
+                Layer::Motion => return Target::Memory,
+            };
+            Target::Image(image.raw, image.range())
+        };
+        let mut t = Tracker::new();
+        // The first record's exit states (the pass's module docs): the hit buffer, colour
+        // and motion last written by compute-shader storage writes; the G-buffer depth
+        // sampled by compute (the renderer's entry barrier made its writes visible there).
+        for (key, written) in [
+            (Layer::FirstHit, true),
+            (Layer::Color, true),
+            (Layer::Motion, motion.is_some()),
+        ] {
+            if written {
+                t.enter(key, Access::COMPUTE_STORAGE_WRITE);
+                t.declare(key, Access::COMPUTE_STORAGE_WRITE)?;
+            }
+        }
+        if !t.resolve()?.is_empty() {
+            return Err(Error::Internal(
+                "a written entry state needed a barrier".into(),
+            ));
+        }
+        t.enter(Layer::FirstDepth, Access::COMPUTE_SAMPLED);
+        for key in [Layer::Ray, Layer::Frame, Layer::Depth, Layer::Hit] {
+            t.enter(key, DISCARD);
+        }
+        let fragment = vk::PipelineStageFlags2::FRAGMENT_SHADER;
+        let mut w = ScopeWriter::new(
+            Some(self.timestamps.0),
+            GBUFFER_QUERIES + MAX_QUERIES,
+            BEHIND_QUERIES,
+        );
+        // SAFETY: `cmd` is recording outside a render pass (this function's contract);
+        // the pool holds the range (`HostParts::new`).
+        unsafe { w.reset(&ctx, cmd) };
+        let e = self.settings.extent();
+        let params = crate::abi::ShadeParams::new(
+            target.view_proj,
+            target.camera_pos,
+            target.light_dir,
+            target.light_intensity,
+            [e.width, e.height],
+            [1, 1],
+            0.0,
+        );
+        let inputs = FrameInputs {
+            frame_slot: BEHIND_SLOT,
+            gbuffer: behind.gbuffer.views(),
+            hit: behind.hit.host_view(),
+            shade: Some(*target),
+            motion,
+        };
+        let first = FirstLayer {
+            depth: self.gbuffer.depth.view,
+            hit: self.hit.view,
+        };
+        let rays = camera.pixel_ray_params();
+        let pass = &mut self.pass;
+        // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
+        // above (the scope's contract). In the body: each barrier is the tracker's, from
+        // the states above (this function's contract) through the declared accesses, in
+        // recording order; the layer's images, the first layer's, the colour and motion
+        // images and the pipelines are the renderer's and live until the frame has
+        // completed (it is waited for); the pass records slot 1, whose previous frame
+        // completed (every frame is waited for).
+        unsafe {
+            w.scope(&ctx, cmd, PassName::Behind, |cmd| -> Result<()> {
+                for (key, access) in [
+                    (Layer::Ray, Access::COLOR_ATTACHMENT_WRITE),
+                    (Layer::Frame, Access::COLOR_ATTACHMENT_WRITE),
+                    (Layer::Depth, Access::DEPTH_ATTACHMENT_WRITE),
+                    (
+                        Layer::FirstHit,
+                        Access {
+                            stage: fragment,
+                            access: vk::AccessFlags2::SHADER_STORAGE_READ,
+                            layout: vk::ImageLayout::GENERAL,
+                        },
+                    ),
+                    (
+                        Layer::FirstDepth,
+                        Access {
+                            stage: fragment,
+                            access: vk::AccessFlags2::SHADER_SAMPLED_READ,
+                            layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+                        },
+                    ),
+                ] {
+                    t.declare(key, access)?;
+                }
+                t.flush(&ctx, cmd, images)?;
+                crate::passes::gbuffer::record_draws_behind(
+                    &ctx,
+                    cmd,
+                    &behind.gbuffer,
+                    &draws,
+                    &rays,
+                    first,
+                )?;
+                // The layer's flat geometry, lit by the host (the background's variant).
+                for key in [Layer::Ray, Layer::Frame, Layer::Depth] {
+                    t.declare(key, Access::COMPUTE_SAMPLED)?;
+                }
+                t.declare(Layer::Color, Access::COMPUTE_STORAGE_WRITE)?;
+                t.flush(&ctx, cmd, images)?;
+                behind.background.record(
+                    &ctx,
+                    cmd,
+                    behind.gbuffer.views(),
+                    self.color.view_ref(),
+                    &params,
+                )?;
+                // The pass's entry contract on the layer.
+                t.declare(Layer::Color, Access::COMPUTE_STORAGE_WRITE)?;
+                t.declare(Layer::Hit, Access::COMPUTE_STORAGE_WRITE)?;
+                if inputs.motion.is_some() {
+                    t.declare(Layer::Motion, Access::COMPUTE_STORAGE_READ_WRITE)?;
+                }
+                t.flush(&ctx, cmd, images)?;
+                pass.record(cmd, &inputs, Timestamps::Off)?;
+                Ok(())
+            })?
+        };
+        Ok(Some(w))
+    }
+}
