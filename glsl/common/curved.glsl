@@ -41,57 +41,47 @@ Curve g_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, false);
 
 // The eye-relative position of pixel q's macro surface point (infinite reverse-Z: the
 // near-plane point of its centre ray over its depth).
-vec3 curve_position(ivec2 q) {
+vec3 curve_position(ivec2 q, float depth) {
     vec2 ndc = (vec2(q) + 0.5) / vec2(pc.frame_size) * 2.0 - 1.0;
     vec3 near = pc.view_origin.xyz + ndc.x * pc.view_dx.xyz + ndc.y * pc.view_dy.xyz;
-    return near / texelFetch(u_depth, q, 0).r;
+    return near / depth;
 }
 
-// A neighbour of `pixel` along axis `a` (the +a side first) on the same material and
-// surface, its normal within 60 degrees of N: its pixel and the side (+1 / -1). False
-// when neither side qualifies.
-bool curve_neighbour(ivec2 pixel, int a, vec3 N, float surface, out ivec2 q, out float side) {
-    for (int i = 0; i < 2; ++i) {
-        q = pixel;
-        side = i == 0 ? 1.0 : -1.0;
-        q[a] += i == 0 ? 1 : -1;
-        if (q[a] < 0 || q[a] >= int(pc.frame_size[a]) || pixel_material(q) != pc.material) {
-            continue;
-        }
-        if (gbuffer_surface(q) != surface || dot(gbuffer_normal(q), N) < 0.5) {
-            continue;
-        }
-        return true;
+// One pixel of the neighbourhood the curve reads, each fetched and decoded once: its
+// macro position, entry uv and normal, and whether it qualifies as a neighbour (inside
+// the frame, on the same material and surface, its normal within 60 degrees of N).
+struct CurvePx {
+    vec3 p;
+    vec2 uv;
+    vec3 n;
+    bool ok;
+};
+
+CurvePx curve_load(ivec2 q, float surface, vec3 N) {
+    CurvePx x = CurvePx(vec3(0.0), vec2(0.0), N, false);
+    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(pc.frame_size)))) {
+        return x;
     }
-    return false;
+    float depth = texelFetch(u_depth, q, 0).r;
+    uvec2 bits = gbuffer_frame_bits(q);
+    if (!(depth > 0.0) || gbuffer_frame_material(bits) != pc.material
+        || float(dispmap_frame_surface_id(bits)) != surface) {
+        return x;
+    }
+    x.n = dispmap_frame_normal(bits);
+    x.ok = dot(x.n, N) >= 0.5;
+    x.p = curve_position(q, depth);
+    x.uv = texelFetch(u_ray, q, 0).xy;
+    return x;
 }
 
-// The uv step from uv0 to pixel q's entry, times `side` (per pixel towards +a).
-vec2 curve_duv(ivec2 q, vec2 uv0, float side) {
-    vec2 d = texelFetch(u_ray, q, 0).xy - uv0;
+// The uv step from uv0 to a neighbour's entry, times `side` (per pixel towards +a).
+vec2 curve_duv(vec2 uv, vec2 uv0, float side) {
+    vec2 d = uv - uv0;
     if (pc.addressing == ADDRESSING_REPEAT) {
         d -= round(d);
     }
     return side * d;
-}
-
-// The uv and normal steps per pixel towards +a at `pixel`: central over its two
-// neighbours when the other side (of q, on side `side`) qualifies too, else one-sided.
-void curve_step(ivec2 pixel, int a, ivec2 q, float side, vec2 uv0, vec3 N, float surface,
-                out vec2 duv, out vec3 dn) {
-    duv = curve_duv(q, uv0, side);
-    dn = side * (gbuffer_normal(q) - N);
-    ivec2 o = pixel;
-    o[a] -= int(side);
-    if (o[a] < 0 || o[a] >= int(pc.frame_size[a]) || pixel_material(o) != pc.material) {
-        return;
-    }
-    vec3 n = gbuffer_normal(o);
-    if (gbuffer_surface(o) != surface || dot(n, N) < 0.5) {
-        return;
-    }
-    duv = 0.5 * (duv - curve_duv(o, uv0, side));
-    dn = 0.5 * (dn - side * (n - N));
 }
 
 // The 2 x 2 determinant of the uv steps, or 0 when they are (nearly) parallel.
@@ -101,24 +91,21 @@ float curve_det(vec2 du0, vec2 du1) {
 }
 
 // The log of the local uv scale S = sqrt(|dp/du| |dp/dv|) (world length of one uv unit)
-// at pixel q, from its neighbours' positions and uvs; false without two neighbours.
-bool curve_log_scale(ivec2 q, vec3 N, float surface, out float log_s) {
+// at a pixel (p, uv) from one neighbour along each axis (a on side sa along x, b on side
+// sb along y); false when they do not qualify or their uv steps are parallel.
+bool curve_log_scale(vec3 p, vec2 uv, CurvePx a, float sa, CurvePx b, float sb, out float log_s) {
     log_s = 0.0;
-    ivec2 q0, q1;
-    float s0, s1;
-    if (!curve_neighbour(q, 0, N, surface, q0, s0) || !curve_neighbour(q, 1, N, surface, q1, s1)) {
+    if (!a.ok || !b.ok) {
         return false;
     }
-    vec2 uv = texelFetch(u_ray, q, 0).xy;
-    vec2 du0 = curve_duv(q0, uv, s0);
-    vec2 du1 = curve_duv(q1, uv, s1);
+    vec2 du0 = curve_duv(a.uv, uv, sa);
+    vec2 du1 = curve_duv(b.uv, uv, sb);
     float det = curve_det(du0, du1);
     if (det == 0.0) {
         return false;
     }
-    vec3 p = curve_position(q);
-    vec3 dp0 = s0 * (curve_position(q0) - p);
-    vec3 dp1 = s1 * (curve_position(q1) - p);
+    vec3 dp0 = sa * (a.p - p);
+    vec3 dp1 = sb * (b.p - p);
     vec3 dpdu = (dp0 * du1.y - dp1 * du0.y) / det;
     vec3 dpdv = (dp1 * du0.x - dp0 * du1.x) / det;
     float area = length(dpdu) * length(dpdv);
@@ -131,30 +118,54 @@ bool curve_log_scale(ivec2 q, vec3 N, float surface, out float log_s) {
 
 void curve_extent(inout Curve c);
 
-// The curve of `pixel` (see the top of this file).
+// The curve of `pixel` (see the top of this file). Reads the pixel's 3 x 3 neighbourhood
+// at most (each pixel once): the four on its axes for J, two diagonals for the depth's
+// change.
 Curve curve_of(ivec2 pixel, Ray ray) {
     Curve flat_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, false);
     DispmapFrame f = gbuffer_frame(pixel);
     vec3 N = f.normal;
     vec3 T = f.tangent;
     vec3 B = gbuffer_bitangent(f);
-    float surface = gbuffer_surface(pixel);
-    vec3 V = normalize(curve_position(pixel));
+    float surface = f.surface_id;
+    vec3 p = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
+    vec3 V = normalize(p);
     float vz = -dot(V, N);
     if (!(vz > 1e-4)) {
         return flat_curve;
     }
-    ivec2 q0, q1;
-    float s0, s1;
-    if (!curve_neighbour(pixel, 0, N, surface, q0, s0) || !curve_neighbour(pixel, 1, N, surface, q1, s1)) {
+    // Each axis' neighbour: the +a side first (side s = +1), else the -a side; the
+    // opposite one (o) makes the difference central where it qualifies too.
+    CurvePx xp = curve_load(pixel + ivec2(1, 0), surface, N);
+    CurvePx xm = curve_load(pixel - ivec2(1, 0), surface, N);
+    CurvePx yp = curve_load(pixel + ivec2(0, 1), surface, N);
+    CurvePx ym = curve_load(pixel - ivec2(0, 1), surface, N);
+    if (!(xp.ok || xm.ok) || !(yp.ok || ym.ok)) {
         return flat_curve;
     }
-    // Central differences where both sides qualify (the f16 normals' rounding halves and
-    // the first-order bias of a one-sided step goes), else one-sided.
-    vec2 du0, du1;
-    vec3 dn0, dn1;
-    curve_step(pixel, 0, q0, s0, ray.uv0, N, surface, du0, dn0);
-    curve_step(pixel, 1, q1, s1, ray.uv0, N, surface, du1, dn1);
+    float s0 = xp.ok ? 1.0 : -1.0;
+    float s1 = yp.ok ? 1.0 : -1.0;
+    CurvePx a0 = xp.ok ? xp : xm;
+    CurvePx o0 = xp.ok ? xm : xp;
+    CurvePx a1 = yp.ok ? yp : ym;
+    CurvePx o1 = yp.ok ? ym : yp;
+    // One-sided steps (the uv scale's), then central differences where both sides
+    // qualify (the quantised normals' rounding halves and the first-order bias of a
+    // one-sided step goes).
+    vec2 e0 = curve_duv(a0.uv, ray.uv0, s0);
+    vec2 e1 = curve_duv(a1.uv, ray.uv0, s1);
+    vec2 du0 = e0;
+    vec2 du1 = e1;
+    vec3 dn0 = s0 * (a0.n - N);
+    vec3 dn1 = s1 * (a1.n - N);
+    if (o0.ok) {
+        du0 = 0.5 * (du0 - curve_duv(o0.uv, ray.uv0, s0));
+        dn0 = 0.5 * (dn0 - s0 * (o0.n - N));
+    }
+    if (o1.ok) {
+        du1 = 0.5 * (du1 - curve_duv(o1.uv, ray.uv0, s1));
+        dn1 = 0.5 * (dn1 - s1 * (o1.n - N));
+    }
     float det = curve_det(du0, du1);
     if (det == 0.0) {
         return flat_curve;
@@ -173,17 +184,30 @@ Curve curve_of(ivec2 pixel, Ray ray) {
         return flat_curve;
     }
     // The depth is depth_scale local uv units (src/mesh.rs): its change along the ray
-    // from the uv scale's at the pixel and its two neighbours (0 where one is unknown).
+    // from the uv scale's at the pixel and at its two neighbours a0, a1 (0 where one is
+    // unknown), each scale from one-sided steps: the pixel's to a0 and a1; a0's back to
+    // the pixel and to a diagonal (+y first), a1's back to the pixel and to a diagonal
+    // (+x first).
     float g = 0.0;
     float l, l0, l1;
-    if (curve_log_scale(pixel, N, surface, l) && curve_log_scale(q0, N, surface, l0)
-        && curve_log_scale(q1, N, surface, l1)) {
-        // One-sided steps here (the scale's neighbours are q0 and q1).
-        vec2 e0 = curve_duv(q0, ray.uv0, s0);
-        vec2 e1 = curve_duv(q1, ray.uv0, s1);
-        float d1 = curve_det(e0, e1);
-        vec2 v = d1 == 0.0 ? vec2(0.0)
-            : vec2(e1.y * ray.P.x - e1.x * ray.P.y, e0.x * ray.P.y - e0.y * ray.P.x) / d1;
+    CurvePx d0 = curve_load(pixel + ivec2(int(s0), 1), surface, N);
+    float t0 = 1.0;
+    if (!d0.ok) {
+        d0 = curve_load(pixel + ivec2(int(s0), -1), surface, N);
+        t0 = -1.0;
+    }
+    CurvePx d1 = curve_load(pixel + ivec2(1, int(s1)), surface, N);
+    float t1 = 1.0;
+    if (!d1.ok) {
+        d1 = curve_load(pixel + ivec2(-1, int(s1)), surface, N);
+        t1 = -1.0;
+    }
+    CurvePx c0 = CurvePx(p, ray.uv0, N, true);
+    if (curve_log_scale(p, ray.uv0, a0, s0, a1, s1, l) && curve_log_scale(a0.p, a0.uv, c0, -s0, d0, t0, l0)
+        && curve_log_scale(a1.p, a1.uv, d1, t1, c0, -s1, l1)) {
+        float dd = curve_det(e0, e1);
+        vec2 v = dd == 0.0 ? vec2(0.0)
+            : vec2(e1.y * ray.P.x - e1.x * ray.P.y, e0.x * ray.P.y - e0.y * ray.P.x) / dd;
         g = s0 * (l0 - l) * v.x + s1 * (l1 - l) * v.y;
         g = isnan(g) || isinf(g) ? 0.0 : g;
     }
@@ -215,18 +239,22 @@ float curve_foot(Curve c, float t) {
     return abs(c.a) > 1e-6 ? atan(y, x) / c.a : t / x;
 }
 
-vec2 curve_uv(Curve c, Ray ray, float t) {
-    return ray.uv0 + curve_foot(c, t) * ray.P;
+// The ray's height above the offset surface at t, as a fraction of the depth at its foot
+// (`foot`: curve_foot(c, t)); the depth relative to the pixel's is linear in the foot, at
+// least 1/16.
+float curve_h_at(Curve c, float t, float foot) {
+    return 1.0 - curve_delta(c, t) / max(1.0 + c.g * foot, 0.0625);
 }
 
-// The depth at the foot, relative to the pixel's (linear in the foot, at least 1/16).
-float curve_depth(Curve c, float t) {
-    return max(1.0 + c.g * curve_foot(c, t), 0.0625);
-}
-
-// The ray's height above the offset surface at t, as a fraction of the depth there.
 float curve_h(Curve c, float t) {
-    return 1.0 - curve_delta(c, t) / curve_depth(c, t);
+    return curve_h_at(c, t, curve_foot(c, t));
+}
+
+// The ray's height at t and its foot's uv (one foot for both).
+float curve_point(Curve c, Ray ray, float t, out vec2 uv) {
+    float foot = curve_foot(c, t);
+    uv = ray.uv0 + foot * ray.P;
+    return curve_h_at(c, t, foot);
 }
 
 // Where the circle ray (no depth change) reaches the offset circle of radius 1/kappa - 1
@@ -239,29 +267,63 @@ float curve_t_bottom_circle(Curve c) {
     return d >= 0.0 ? qc / (1.0 + sqrt(d)) : -1.0;
 }
 
-// Sets c.t_end and c.bottom: the first t where h reaches 0 (the offset surface), found
-// by bisection (h's bracket from the circle's), or else where the ray comes back out
-// through the base surface (delta = 0 again: t = 2 / (kappa + 2 k)).
+// The bottom's tolerance: t_end is the first t where h <= 0, found to within 1e-6 of the
+// depth in h (or to 1e-6 of t_end in t), at most CURVE_EXTENT_ITERATIONS evaluations.
+const float CURVE_EXTENT_TOL = 1e-6;
+const int CURVE_EXTENT_ITERATIONS = 16;
+
+// Sets c.t_end and c.bottom: the first t where h reaches 0 (the offset surface), or else
+// where the ray comes back out through the base surface (delta = 0 again: t = 2 /
+// (kappa + 2 k)). The root: the circle's closed form (exact when the depth does not
+// change, g = 0), then regula falsi with the Illinois modification in the bracket from
+// the circle ray's lowest point.
 void curve_extent(inout Curve c) {
     float qa = c.kappa + 2.0 * c.k;
     float t_top = qa > 0.0 ? 2.0 / qa : 3.0e38;
     // The lowest point of the circle ray (the middle of its chord through the base).
     float t_hi = qa > 0.0 ? 0.5 * t_top : max(curve_t_bottom_circle(c), 1.0);
-    for (int i = 0; i < 8 && qa <= 0.0 && curve_h(c, t_hi) > 0.0; ++i) {
+    float h_hi = curve_h(c, t_hi);
+    for (int i = 0; i < 8 && qa <= 0.0 && h_hi > 0.0; ++i) {
         t_hi *= 2.0;
+        h_hi = curve_h(c, t_hi);
     }
-    if (curve_h(c, t_hi) > 0.0) {
+    if (h_hi > 0.0) {
         c.t_end = t_top;
         c.bottom = false;
         return;
     }
     float t_lo = 0.0;
-    for (int i = 0; i < 24; ++i) {
-        float t_mid = 0.5 * (t_lo + t_hi);
-        if (curve_h(c, t_mid) > 0.0) {
-            t_lo = t_mid;
+    float h_lo = 1.0;
+    float t_c = curve_t_bottom_circle(c);
+    if (t_c > t_lo && t_c < t_hi) {
+        float h = curve_h(c, t_c);
+        if (h > 0.0) {
+            t_lo = t_c;
+            h_lo = h;
         } else {
-            t_hi = t_mid;
+            t_hi = t_c;
+            h_hi = h;
+        }
+    }
+    float f_lo = h_lo;
+    float f_hi = h_hi;
+    int kept = 0;
+    for (int i = 0; i < CURVE_EXTENT_ITERATIONS && h_hi < -CURVE_EXTENT_TOL
+         && t_hi - t_lo > CURVE_EXTENT_TOL * t_hi; ++i) {
+        float t = clamp((t_lo * f_hi - t_hi * f_lo) / (f_hi - f_lo), t_lo, t_hi);
+        float h = curve_h(c, t);
+        if (h > 0.0) {
+            t_lo = t;
+            h_lo = h;
+            f_lo = h;
+            f_hi = kept == 1 ? 0.5 * f_hi : f_hi;
+            kept = 1;
+        } else {
+            t_hi = t;
+            h_hi = h;
+            f_hi = h;
+            f_lo = kept == -1 ? 0.5 * f_lo : f_lo;
+            kept = -1;
         }
     }
     c.t_end = t_hi;
@@ -280,43 +342,59 @@ Hit curved_march(Ray ray, Curve c, uint steps, uint refine_steps, bool pom) {
     uint iterations = 0u;
     float t_prev = 0.0;
     float above_prev = 0.0;
-    for (uint i = 0u; i <= n; ++i) {
-        float t = i == n ? t_end : float(i) * dt;
-        vec2 uv = curve_uv(c, ray, t);
+    float t = 0.0;
+    float h = 1.0;
+    float s = 0.0;
+    bool crossed = false;
+    // The march finds the crossing and stops; the refinement runs after the loop (not
+    // inside it), so a SIMD CPU device (lavapipe) runs it once per group of lanes.
+    uint i = 0u;
+    for (; i <= n; ++i) {
+        t = i == n ? t_end : float(i) * dt;
+        vec2 uv;
+        h = curve_point(c, ray, t, uv);
         if (leaves_domain(uv)) {
-            return miss(ray, iterations);
+            break;
         }
-        float h = (i == n && c.bottom) ? 0.0 : curve_h(c, t);
+        h = (i == n && c.bottom) ? 0.0 : h;
         iterations += 1u;
-        float s = height_at(uv);
+        s = height_at(uv);
         if (s >= h) {
-            if (i == 0u) {
-                return Hit(ray.uv0, 1.0, iterations);
-            }
-            float t_hit;
-            if (pom) {
-                float w = above_prev / (above_prev + (s - h));
-                t_hit = mix(t_prev, t, w);
-            } else {
-                float t_above = t_prev;
-                float t_below = t;
-                for (uint j = 0u; j < refine_steps; ++j) {
-                    float t_mid = 0.5 * (t_above + t_below);
-                    iterations += 1u;
-                    if (height_at(curve_uv(c, ray, t_mid)) >= curve_h(c, t_mid)) {
-                        t_below = t_mid;
-                    } else {
-                        t_above = t_mid;
-                    }
-                }
-                t_hit = 0.5 * (t_above + t_below);
-            }
-            return Hit(curve_uv(c, ray, t_hit), curve_h(c, t_hit), iterations);
+            crossed = true;
+            break;
         }
         t_prev = t;
         above_prev = h - s;
     }
-    return miss(ray, iterations);
+    if (!crossed) {
+        return miss(ray, iterations);
+    }
+    if (i == 0u) {
+        return Hit(ray.uv0, 1.0, iterations);
+    }
+    float t_hit;
+    if (pom) {
+        float w = above_prev / (above_prev + (s - h));
+        t_hit = mix(t_prev, t, w);
+    } else {
+        float t_above = t_prev;
+        float t_below = t;
+        for (uint j = 0u; j < refine_steps; ++j) {
+            float t_mid = 0.5 * (t_above + t_below);
+            iterations += 1u;
+            vec2 uv_mid;
+            float h_mid = curve_point(c, ray, t_mid, uv_mid);
+            if (height_at(uv_mid) >= h_mid) {
+                t_below = t_mid;
+            } else {
+                t_above = t_mid;
+            }
+        }
+        t_hit = 0.5 * (t_above + t_below);
+    }
+    vec2 uv_hit;
+    float h_hit = curve_point(c, ray, t_hit, uv_hit);
+    return Hit(uv_hit, h_hit, iterations);
 }
 
 #endif

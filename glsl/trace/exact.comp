@@ -40,15 +40,16 @@ Hit curved_exact(Ray ray, Curve c) {
     int top = int(pc.pyramid_levels) - 1;
     float ta = 0.0;
     float ha = 1.0;
+    float fa = 0.0;
     for (float i = 1.0; i <= n; i += 1.0) {
         float tb = i == n ? t_desc : t_desc * (i / n);
-        float hb = (i == n && c.bottom) ? 0.0 : curve_h(c, tb);
+        float fb = curve_foot(c, tb);
+        float hb = (i == n && c.bottom) ? 0.0 : curve_h_at(c, tb, fb);
         if (!(ha - hb > 1e-6)) {
             break;
         }
-        float fa = curve_foot(c, ta);
         vec2 uva = ray.uv0 + fa * ray.P;
-        vec2 pc_dir = (ray.P * (curve_foot(c, tb) - fa)) / (ha - hb);
+        vec2 pc_dir = (ray.P * (fb - fa)) / (ha - hb);
         // The chord as a tangent-space ray h = 1 - s from (uva, ha): s in [1 - ha, 1 - hb].
         Ray chord = Ray(uva - (1.0 - ha) * pc_dir, pc_dir);
         float s = pyramid_segment_hit(chord, 1.0 - ha, 1.0 - hb, top, iterations);
@@ -57,6 +58,7 @@ Hit curved_exact(Ray ray, Curve c) {
         }
         ta = tb;
         ha = hb;
+        fa = fb;
     }
     if (c.bottom && ta >= c.t_end) {
         // The last chord ends on the offset surface, which every height reaches: only a
@@ -70,31 +72,44 @@ Hit curved_exact(Ray ray, Curve c) {
     float m = clamp(ceil(travel), 1.0, CURVE_MAX_CLIMB_STEPS);
     float dt = (t_top - ta) / m;
     float t_prev = ta;
+    float t = ta;
+    bool crossed = false;
+    // The crossing's bisection after the loop, not inside it (once per SIMD group of
+    // lanes on a CPU device).
     for (float j = 1.0; j <= m; j += 1.0) {
-        float t = j == m ? t_top : ta + j * dt;
-        vec2 uv = curve_uv(c, ray, t);
+        t = j == m ? t_top : ta + j * dt;
+        vec2 uv;
+        float h = curve_point(c, ray, t, uv);
         if (leaves_domain(uv)) {
-            return miss(ray, iterations);
+            break;
         }
         iterations += 1u;
-        float h = (j == m && c.bottom) ? 0.0 : curve_h(c, t);
+        h = (j == m && c.bottom) ? 0.0 : h;
         if (height_exact(uv) >= h) {
-            float t_above = t_prev;
-            float t_below = t;
-            for (uint b = 0u; b < CURVE_CLIMB_BISECTIONS; ++b) {
-                float t_mid = 0.5 * (t_above + t_below);
-                iterations += 1u;
-                if (height_exact(curve_uv(c, ray, t_mid)) >= curve_h(c, t_mid)) {
-                    t_below = t_mid;
-                } else {
-                    t_above = t_mid;
-                }
-            }
-            return Hit(curve_uv(c, ray, t_below), curve_h(c, t_below), iterations);
+            crossed = true;
+            break;
         }
         t_prev = t;
     }
-    return miss(ray, iterations);
+    if (!crossed) {
+        return miss(ray, iterations);
+    }
+    float t_above = t_prev;
+    float t_below = t;
+    for (uint b = 0u; b < CURVE_CLIMB_BISECTIONS; ++b) {
+        float t_mid = 0.5 * (t_above + t_below);
+        iterations += 1u;
+        vec2 uv_mid;
+        float h_mid = curve_point(c, ray, t_mid, uv_mid);
+        if (height_exact(uv_mid) >= h_mid) {
+            t_below = t_mid;
+        } else {
+            t_above = t_mid;
+        }
+    }
+    vec2 uv_below;
+    float h_below = curve_point(c, ray, t_below, uv_below);
+    return Hit(uv_below, h_below, iterations);
 }
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
