@@ -610,9 +610,11 @@ mod tests {
         let b = estimate_objects(&[one, one, one], frame, extras);
         // One material: the single-object estimate.
         assert_eq!(a.bytes, single.bytes);
-        // Two more materials add their maps only, not the frame or the reference rays.
+        // Two more materials add their maps only, not the frame, its tile lists (sized by
+        // the frame alone) or the reference rays.
         let per_material = a.bytes
             - BASE_BYTES
+            - tile_list_bytes(frame)
             - u64::from(frame[0])
                 * u64::from(frame[1])
                 * (FRAME_BYTES_PER_PIXEL + REFERENCE_BYTES_PER_PIXEL);
