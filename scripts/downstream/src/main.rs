@@ -222,14 +222,15 @@ impl Host {
         let g = &self.gbuffer;
         // SAFETY: `cmd` is recording outside a render pass; the buffer lives as long as
         // the host.
-        unsafe { self.rays.record_update(ctx, cmd, rays) };
+        unsafe { self.rays.record_update(ctx, cmd, rays)? };
         // SAFETY: `cmd` is recording outside a render pass; nothing else uses the images
         // (no frame in flight), so their contents may be discarded.
         unsafe {
             sync::record(
                 ctx,
                 cmd,
-                &g.barriers(
+                &gbuffer_barriers(
+                    g,
                     (Access::UNDEFINED, Access::COLOR_ATTACHMENT_WRITE),
                     (Access::UNDEFINED, Access::DEPTH_ATTACHMENT_WRITE),
                 ),
@@ -318,7 +319,8 @@ impl Host {
         // The pass's entry (dispmap::embed's table): the G-buffer sampled by compute
         // shaders, the hit buffer discarded into GENERAL for its storage writes, the
         // motion image's clear visible to the pass's storage reads and writes.
-        let mut barriers = g.barriers(
+        let mut barriers = gbuffer_barriers(
+            g,
             (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
             (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
         );
@@ -392,7 +394,7 @@ impl Host {
                 g.frame.view,
                 g.depth.view,
                 self.extent,
-            );
+            )?;
         }
         Ok(())
     }
@@ -656,4 +658,25 @@ fn main() -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// One barrier per G-buffer image: the colour attachments from `color.0` to `color.1`, the
+/// depth from `depth.0` to `depth.1` (this host's own barriers, with dispmap's helpers).
+fn gbuffer_barriers(
+    g: &GBuffer,
+    color: (Access, Access),
+    depth: (Access, Access),
+) -> Vec<vk::ImageMemoryBarrier2<'static>> {
+    let mut b: Vec<_> = g
+        .colors()
+        .iter()
+        .map(|i| sync::image_barrier(i.raw, i.range(), color.0, color.1))
+        .collect();
+    b.push(sync::image_barrier(
+        g.depth.raw,
+        g.depth.range(),
+        depth.0,
+        depth.1,
+    ));
+    b
 }
