@@ -66,7 +66,7 @@
 //!
 //! | image | owner | entry (the host's barrier makes it so) | exit |
 //! |---|---|---|---|
-//! | G-buffer `ray`, `normal`, `tangent` | host | `SHADER_READ_ONLY_OPTIMAL`, writes visible to `COMPUTE_SHADER` / `SHADER_SAMPLED_READ` (the barrier's `dstStageMask` / `dstAccessMask`; add `FRAGMENT_SHADER` for the `tangent` when the host records the depth resolve) | unchanged; last access `COMPUTE_SHADER` sampled read |
+//! | G-buffer `ray`, `frame` | host | `SHADER_READ_ONLY_OPTIMAL`, writes visible to `COMPUTE_SHADER` / `SHADER_SAMPLED_READ` (the barrier's `dstStageMask` / `dstAccessMask`; add `FRAGMENT_SHADER` for the `frame` when the host records the depth resolve) | unchanged; last access `COMPUTE_SHADER` sampled read |
 //! | G-buffer `depth` | host | as above (depth aspect) | as above |
 //! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded: the host's image barrier has `oldLayout = UNDEFINED`, `newLayout = GENERAL`, `srcStageMask`/`srcAccessMask` its last access, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` (the layout transition must be ordered before the pass's writes: a barrier without a destination access is a write-after-write hazard to synchronization validation) | `GENERAL`; every pixel written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), read by `SHADER_STORAGE_READ` (shade) |
 //! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL` with the host's colour (kept wherever nothing is displaced): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values), every other pixel as it entered |
@@ -216,11 +216,11 @@
 //!
 //! 1. barrier on [`DisplacementPass::hit_depth`]'s image: `GENERAL`, `COMPUTE_SHADER`
 //!    `SHADER_STORAGE_WRITE` -> `SHADER_READ_ONLY_OPTIMAL`, `FRAGMENT_SHADER`
-//!    `SHADER_SAMPLED_READ`; the G-buffer `tangent` visible to `FRAGMENT_SHADER`
+//!    `SHADER_SAMPLED_READ`; the G-buffer `frame` visible to `FRAGMENT_SHADER`
 //!    `SHADER_SAMPLED_READ` (`SHADER_READ_ONLY_OPTIMAL`); barrier on the host's depth
 //!    image: (its last access) -> `DEPTH_ATTACHMENT_OPTIMAL`, `EARLY/LATE_FRAGMENT_TESTS`
 //!    depth read and write (contents kept: the attachment is loaded);
-//! 2. `DepthResolvePass::record(ctx, cmd, image.view, tangent_view, host_depth_view,
+//! 2. `DepthResolvePass::record(ctx, cmd, image.view, frame_view, host_depth_view,
 //!    extent)` (it begins and ends its own dynamic rendering);
 //! 3. the host's barrier for what reads its depth next. The pass's image may be left in
 //!    `SHADER_READ_ONLY_OPTIMAL`: the next record of the slot discards it.
