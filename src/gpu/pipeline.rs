@@ -154,11 +154,7 @@ impl ComputePipeline {
         name: &str,
         info: &'a [vk::DescriptorImageInfo],
     ) -> Result<vk::WriteDescriptorSet<'a>> {
-        let b = self.named(name)?;
-        Ok(vk::WriteDescriptorSet::default()
-            .dst_binding(b.binding)
-            .descriptor_type(b.ty)
-            .image_info(info))
+        Ok(write_of(self.named(name)?).image_info(info))
     }
 
     /// A descriptor write of the buffer binding named `name`: its number and type are
@@ -168,11 +164,7 @@ impl ComputePipeline {
         name: &str,
         info: &'a [vk::DescriptorBufferInfo],
     ) -> Result<vk::WriteDescriptorSet<'a>> {
-        let b = self.named(name)?;
-        Ok(vk::WriteDescriptorSet::default()
-            .dst_binding(b.binding)
-            .descriptor_type(b.ty)
-            .buffer_info(info))
+        Ok(write_of(self.named(name)?).buffer_info(info))
     }
 
     /// Binds the pipeline, pushes `writes` as set 0 and `push` as push constants, and
@@ -418,11 +410,7 @@ impl RasterSet {
         name: &str,
         info: &'a [vk::DescriptorImageInfo],
     ) -> Result<vk::WriteDescriptorSet<'a>> {
-        let b = self.named(name)?;
-        Ok(vk::WriteDescriptorSet::default()
-            .dst_binding(b.binding)
-            .descriptor_type(b.ty)
-            .image_info(info))
+        Ok(write_of(self.named(name)?).image_info(info))
     }
 
     /// A descriptor write of the buffer binding named `name` (its number and type the
@@ -432,12 +420,16 @@ impl RasterSet {
         name: &str,
         info: &'a [vk::DescriptorBufferInfo],
     ) -> Result<vk::WriteDescriptorSet<'a>> {
-        let b = self.named(name)?;
-        Ok(vk::WriteDescriptorSet::default()
-            .dst_binding(b.binding)
-            .descriptor_type(b.ty)
-            .buffer_info(info))
+        Ok(write_of(self.named(name)?).buffer_info(info))
     }
+}
+
+/// A descriptor write of the reflected binding `b` (its number and type), for
+/// [`ComputePipeline`] and [`RasterSet`] to add the descriptors to.
+fn write_of<'a>(b: &ShaderBinding) -> vk::WriteDescriptorSet<'a> {
+    vk::WriteDescriptorSet::default()
+        .dst_binding(b.binding)
+        .descriptor_type(b.ty)
 }
 
 /// A descriptor write for binding `binding` of an image (sampled or storage).

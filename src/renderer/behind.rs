@@ -328,16 +328,7 @@ impl Renderer {
         // SAFETY: `cmd` is recording outside a render pass (this function's contract);
         // the pool holds the range (`HostParts::new`).
         unsafe { w.reset(&ctx, cmd) };
-        let e = self.settings.extent();
-        let params = crate::abi::ShadeParams::new(
-            target.view_proj,
-            target.camera_pos,
-            target.light_dir,
-            target.light_intensity,
-            [e.width, e.height],
-            [1, 1],
-            0.0,
-        );
+        let params = self.background_params(target);
         let inputs = FrameInputs {
             frame_slot: BEHIND_SLOT,
             gbuffer: behind.gbuffer.views(),

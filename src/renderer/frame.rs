@@ -234,6 +234,20 @@ impl Renderer {
         (camera, target)
     }
 
+    /// The background pass's constants of a frame lit as `target` says (both layers').
+    pub(super) fn background_params(&self, target: &ShadeTarget) -> crate::abi::ShadeParams {
+        let e = self.settings.extent();
+        crate::abi::ShadeParams::new(
+            target.view_proj,
+            target.camera_pos,
+            target.light_dir,
+            target.light_intensity,
+            [e.width, e.height],
+            [1, 1],
+            0.0,
+        )
+    }
+
     /// The host's background (sky, flat geometry) into the colour image, then the
     /// colour's barrier for `shade`'s writes of the displaced pixels (declared in `t`).
     ///
@@ -250,16 +264,7 @@ impl Renderer {
         t: &mut Tracker<Handle>,
     ) -> Result<()> {
         let ctx = &*self.ctx;
-        let e = self.settings.extent();
-        let params = crate::abi::ShadeParams::new(
-            target.view_proj,
-            target.camera_pos,
-            target.light_dir,
-            target.light_intensity,
-            [e.width, e.height],
-            [1, 1],
-            0.0,
-        );
+        let params = self.background_params(target);
         // SAFETY: this function's contract; the views are the renderer's, alive.
         unsafe {
             self.background.record(
