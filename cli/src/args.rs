@@ -156,9 +156,10 @@ pub(crate) struct RenderArgs {
     /// show (methods exact, relief and pom; the others and the plane trace tangent planes).
     #[arg(long)]
     pub(crate) curved: bool,
-    /// Scenes of several objects: leave out the behind layer, so a displaced ray that
-    /// misses (leaves a decal or, with --curved, its shell) shows the sky instead of the
-    /// next surface behind it (the layer is on by default where an object can miss).
+    /// Leave out the behind layer, so a displaced ray that misses (leaves a decal or, with
+    /// --curved, its shell) shows the sky instead of the next surface behind it (the layer
+    /// is on by default in scenes of several objects where an object can miss, and for a
+    /// mesh drawn alone with --curved, which can show itself behind a miss).
     #[arg(long)]
     pub(crate) no_behind: bool,
     /// Also write the per-pixel iteration count of the trace pass as a colour-mapped PNG

@@ -258,6 +258,17 @@ pub(crate) fn render(
         let mut renderer = Renderer::with_assets(&ctx, &field, settings, &assets)?;
         renderer.set_depth_output(args.depth_out.is_some())?;
         renderer.set_curved(args.curved)?;
+        // A curved mesh can show itself behind a miss (a torus's far side behind the
+        // carved top of its near tube): the behind layer draws it.
+        if args.curved
+            && !args.no_behind
+            && !matches!(
+                settings.scene.geometry,
+                dispmap::scene::Geometry::TiledPlane | dispmap::scene::Geometry::Quad
+            )
+        {
+            renderer.set_behind(true)?;
+        }
         let mut coverage = None;
         let (timings, color, error, hits, rays) = if args.metrics.is_some() {
             let reference = Reference::new(&field, settings.scene.addressing());
@@ -279,7 +290,16 @@ pub(crate) fn render(
             (timings, renderer.read_color()?, None, hits, rays)
         };
         let silhouette = match (&args.metrics, mesh_of(&settings, &assets)) {
-            (Some(_), Some(mesh)) => Some(silhouette_agreement(&mesh, &field, &settings, &hits)),
+            (Some(_), Some(mesh)) => {
+                let behind = renderer.read_behind_hits()?;
+                Some(silhouette_agreement(
+                    &mesh,
+                    &field,
+                    &settings,
+                    &hits,
+                    behind.as_deref(),
+                ))
+            }
             _ => None,
         };
         let covered = heatmap::coverage(&hits, Some(&rays));
@@ -404,12 +424,15 @@ fn mesh_of(settings: &RenderSettings, assets: &SceneAssets) -> Option<dispmap::m
 }
 
 /// The frame's hit or miss near the outlines against the displaced mesh tessellated and
-/// traced along each pixel's f64 centre ray (`dispmap_cli::silhouette`).
+/// traced along each pixel's f64 centre ray (`dispmap_cli::silhouette`). A pixel hits when
+/// its first layer's trace (`hits`) or, where that missed, the behind layer's (`behind`,
+/// the next surface along the view ray) meets the surface.
 fn silhouette_agreement(
     mesh: &dispmap::mesh::Mesh,
     field: &HeightField,
     settings: &RenderSettings,
     hits: &[dispmap_cli::metrics::HitTexel],
+    behind: Option<&[dispmap_cli::metrics::HitTexel]>,
 ) -> dispmap_cli::silhouette::OutlineAgreement {
     use dispmap_cli::silhouette::{DisplacedMesh, outline_agreement};
     let camera = settings.scene.frame_camera(settings.width, settings.height);
@@ -430,7 +453,11 @@ fn silhouette_agreement(
         .iter()
         .map(Option::is_some)
         .collect();
-    let frame: Vec<bool> = hits.iter().map(|t| t[2] >= 0.0).collect();
+    let frame: Vec<bool> = hits
+        .iter()
+        .enumerate()
+        .map(|(i, t)| t[2] >= 0.0 || behind.is_some_and(|b| b[i][2] >= 0.0))
+        .collect();
     outline_agreement(&reference, &frame, w as usize, h as usize)
 }
 

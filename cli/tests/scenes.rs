@@ -1051,14 +1051,28 @@ fn the_open_vase_shows_its_inner_wall_displaced() {
     finish(ctx);
 }
 
+/// The coverage bound: at least this share of the pixels within two pixels of an
+/// outline agree with the tessellated reference on hit or miss.
+const OUTLINE_BOUND: f64 = 0.995;
+
 /// `render --metrics` on a mesh compares the frame's hit-or-miss near the outlines with the
-/// displaced mesh tessellated and traced in f64 (`dispmap_cli::silhouette`). With the map at
-/// the top the displaced surface is the base mesh, and the sphere's and torus's outlines
-/// agree with the raster's to within the facets (the bound 99.5%); with the map at the
-/// bottom the displaced sphere lies a depth inside the base mesh and the tangent-plane
-/// tracing, which always hits where the base mesh is drawn, keeps the base outline:
-/// measured 50.7% at 320x180 (the limitation docs/guarantees.md names). `--curved` traces
-/// the meshes as curved and carves the outline (bounds below, with the measured values).
+/// displaced mesh tessellated and traced in f64 (`dispmap_cli::silhouette`), counting a
+/// miss that the behind layer fills (a torus's far side) as a hit. With the map at the top
+/// the displaced surface is the base mesh, and the sphere's and torus's outlines agree
+/// with the raster's to within the facets (the bound 99.5%). With the map at the bottom
+/// the displaced surface is the inward offset: the sphere, torus and cube rendered with
+/// `exact` at 30, 10 and 3 degrees of elevation, tangent-plane tracing against `--curved`.
+/// Tangent-plane tracing always hits where the base mesh is drawn and keeps the base
+/// outline, so it fails the bound on the sphere and torus at every elevation (measured
+/// 58-70%, asserted below 90%); the cube's faces are flat, so curved and tangent-plane
+/// tracing agree there. Curved tracing does not reach 99.5% on the curved meshes yet: the
+/// bounds below are the measured values (160x90), a point or so below, and where the bound
+/// is met (the cube at 10 and 3 degrees) it is asserted. What stays out (docs/methods.md,
+/// "Curved surfaces"): a pixel's outline from a per-pixel curvature estimate is off by up
+/// to a pixel in places; the thin shell near the sphere's pole at 30 degrees; behind-layer
+/// pixels without neighbours on both axes trace flat (a hit); on the cube at 30 degrees a
+/// ray that leaves the top face over its far edge is a miss where the reference meets the
+/// next face's offset.
 #[test]
 fn outlines_are_measured_against_the_tessellated_mesh() {
     let dir = scratch("silhouette");
@@ -1070,7 +1084,7 @@ fn outlines_are_measured_against_the_tessellated_mesh() {
         path
     };
     let (top, bottom) = (write_flat("top.png", 255), write_flat("bottom.png", 0));
-    let agreement = |geometry: &str, map: &Path, curved: bool| -> f64 {
+    let agreement = |geometry: &str, map: &Path, elevation: u32, curved: bool| -> f64 {
         let json = dir.join(format!("{geometry}.json"));
         let out = Command::new(env!("CARGO_BIN_EXE_dispmap"))
             .env("DISPMAP_VALIDATION", "1")
@@ -1083,15 +1097,13 @@ fn outlines_are_measured_against_the_tessellated_mesh() {
                 "0.1",
                 "--size",
                 "160x90",
-            ])
-            .args([
                 "--method",
                 "exact",
-                "--camera-elevation",
-                "10",
                 "--frames",
                 "1",
             ])
+            .arg("--camera-elevation")
+            .arg(elevation.to_string())
             .arg("--metrics")
             .arg(&json)
             .args(curved.then_some("--curved"))
@@ -1107,40 +1119,49 @@ fn outlines_are_measured_against_the_tessellated_mesh() {
             s["agreeing_pixels"].as_u64().unwrap(),
         );
         assert!(band > 100 && agreeing <= band, "{geometry}: {s}");
-        s["agreement"].as_f64().unwrap()
+        let a = s["agreement"].as_f64().unwrap();
+        eprintln!("{geometry} at {elevation} degrees, curved {curved}: {a}");
+        a
     };
     for geometry in ["sphere", "torus"] {
         for curved in [false, true] {
-            let a = agreement(geometry, &top, curved);
+            let a = agreement(geometry, &top, 10, curved);
             assert!(
-                a >= 0.995,
+                a >= OUTLINE_BOUND,
                 "{geometry}, map at the top, curved {curved}: {a}"
             );
         }
     }
-    // The map at the bottom: the displaced surface is the inward offset. Tangent-plane
-    // tracing keeps the base mesh's outline (measured: sphere 59.6%, torus 69.5%); curved
-    // tracing (`--curved`) carves it. The bound (99.5%) is not met yet: measured
-    // sphere 95.7%, torus 88.0% (its far side shows behind the near tube's carved top,
-    // which a one-layer G-buffer does not hold), cube 99.82% (flat faces: curved and
-    // tangent-plane tracing agree; the misses are the rays crossing a face's edge, which
-    // the reference sees hit the next face). These bounds hold the measured improvement.
-    let flat_sphere = agreement("sphere", &bottom, false);
-    assert!(
-        flat_sphere < 0.9,
-        "sphere, map at the bottom: {flat_sphere}"
-    );
-    let curved_sphere = agreement("sphere", &bottom, true);
-    assert!(
-        curved_sphere >= 0.93 && curved_sphere > flat_sphere + 0.3,
-        "sphere, map at the bottom, curved: {curved_sphere} (tangent plane {flat_sphere})"
-    );
-    let flat_torus = agreement("torus", &bottom, false);
-    let curved_torus = agreement("torus", &bottom, true);
-    assert!(
-        curved_torus >= 0.82 && curved_torus > flat_torus + 0.1,
-        "torus, map at the bottom, curved: {curved_torus} (tangent plane {flat_torus})"
-    );
-    let cube = agreement("cube", &bottom, true);
-    assert!(cube >= 0.995, "cube, map at the bottom, curved: {cube}");
+    // The map at the bottom: (geometry, elevation, the curved tracing's lower bound, the
+    // measured value).
+    let cases = [
+        ("sphere", 30, 0.93, 0.9395),
+        ("sphere", 10, 0.95, 0.9574),
+        ("sphere", 3, 0.955, 0.9614),
+        ("torus", 30, 0.925, 0.9321),
+        ("torus", 10, 0.915, 0.9252),
+        ("torus", 3, 0.94, 0.9500),
+        ("cube", 30, 0.89, 0.8981),
+        ("cube", 10, OUTLINE_BOUND, 0.9982),
+        ("cube", 3, OUTLINE_BOUND, 0.9964),
+    ];
+    let mut failed = Vec::new();
+    for (geometry, elevation, bound, measured) in cases {
+        let curved = agreement(geometry, &bottom, elevation, true);
+        if curved < bound {
+            failed.push(format!(
+                "{geometry} at {elevation} degrees, curved: {curved} < {bound} (measured {measured})"
+            ));
+        }
+        if geometry == "cube" {
+            continue;
+        }
+        let flat = agreement(geometry, &bottom, elevation, false);
+        if !(flat < 0.9 && curved > flat + 0.2) {
+            failed.push(format!(
+                "{geometry} at {elevation} degrees: tangent plane {flat}, curved {curved}"
+            ));
+        }
+    }
+    assert!(failed.is_empty(), "{failed:#?}");
 }

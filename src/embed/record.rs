@@ -28,6 +28,27 @@ use ash::vk;
 mod stages;
 
 impl DisplacementPass {
+    /// Releases what waits for `slot` without recording a frame in it: for a host that
+    /// leaves a slot unrecorded for a while (the standalone renderer's behind layer, which
+    /// records slot 1, turned off), so that what the pass retires is destroyed once the
+    /// other slots have been recorded again instead of waiting for `slot`'s next frame.
+    ///
+    /// # Safety
+    /// Every frame recorded in `slot` has completed on the GPU (the slot contract as for
+    /// a record of `slot`), and `slot` is below `frames_in_flight`.
+    pub unsafe fn release_slot(&mut self, slot: u32) -> Result<()> {
+        let ctx = self.context()?.clone();
+        // SAFETY: this function's contract; what was retired since a preparation that no
+        // frame has followed yet keeps waiting for every slot (as in a record).
+        unsafe {
+            match self.prepared_mark {
+                Some(mark) => self.retired.release_holding(&ctx, slot, mark),
+                None => self.retired.release(&ctx, slot),
+            }
+        };
+        Ok(())
+    }
+
     /// Records the pass into the host's command buffer `cmd`: the uploads (height map,
     /// material maps) and the pyramid build when pending, the DIG corner pass, `trace`
     /// into `inputs.hit` and, with `inputs.shade`, `[shadow] -> shade`, and with the

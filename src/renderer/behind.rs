@@ -153,13 +153,13 @@ impl Renderer {
     /// Turns the behind layer on or off: with it, a pixel whose displaced ray misses (a
     /// clamp-addressed ray that leaves its decal, a curved ray that leaves its shell)
     /// shows the next surface along its view ray (the floor under a cube's carved bottom
-    /// edge) instead of the sky. A renderer of several objects
-    /// ([`Renderer::with_objects`]) draws it from the start when an object can miss (a
-    /// displaced mesh or a clamp-addressed object); one geometry alone has nothing
-    /// behind it and never does. Turning it on is refused for a renderer not built with
-    /// it (its pass has one frame slot); while it is off, what the pass retires is kept
-    /// until the layer is on again or the renderer is dropped (the pass waits for its
-    /// slot 1 to be recorded again).
+    /// edge, a torus's far side behind the carved top of its near tube) instead of the
+    /// sky. A renderer of several objects ([`Renderer::with_objects`]) draws it from the
+    /// start when an object can miss (a displaced mesh or a clamp-addressed object); a
+    /// mesh drawn alone ([`Renderer::with_assets`]) can have it (a non-convex mesh shows
+    /// itself behind a curved miss) but starts without it; the tiled plane and the quad
+    /// alone have nothing behind them. Turning it on is refused for a renderer not built
+    /// with it (its pass has one frame slot).
     pub fn set_behind(&mut self, on: bool) -> Result<()> {
         let c = &*self.ctx;
         match (on, &self.behind) {
@@ -167,17 +167,18 @@ impl Renderer {
                 if self.pass.settings().frames_in_flight <= BEHIND_SLOT {
                     return Err(Error::invalid(
                         "behind",
-                        "this renderer was built without a behind layer (one geometry, or \
-                         objects that cannot miss)",
+                        "this renderer was built without a behind layer (the tiled plane or \
+                         the quad alone, or objects that cannot miss)",
                     ));
                 }
-                let (plane, mesh, two_sided) = match &self.objects {
-                    Some(o) => (
+                let (plane, mesh, two_sided) = match (&self.objects, &self.mesh) {
+                    (Some(o), _) => (
                         o.meshes.iter().any(Option::is_none),
                         o.mesh_pass.is_some(),
                         o.two_sided_pass.is_some(),
                     ),
-                    None => (false, false, false),
+                    (None, Some(m)) => (false, !m.two_sided, m.two_sided),
+                    (None, None) => (false, false, false),
                 };
                 self.behind = Some(Behind::new(
                     c,
@@ -263,26 +264,34 @@ impl Renderer {
         let ctx = self.ctx.clone();
         // The first layer's draws (their push constants), each drawn again with the behind
         // variant of its pipeline.
-        let kinds: Vec<_> = self
-            .object_draws(camera)?
-            .unwrap_or_default()
-            .iter()
-            .map(|d| (d.params, d.pass.is_mesh(), d.pass.is_two_sided()))
-            .collect();
-        let Some(objects) = &self.objects else {
-            return Ok(None);
+        // A mesh drawn alone: its one draw.
+        let draws = match (&self.objects, &self.mesh) {
+            (Some(objects), _) => {
+                let kinds: Vec<_> = self
+                    .object_draws(camera)?
+                    .unwrap_or_default()
+                    .iter()
+                    .map(|d| (d.params, d.pass.is_mesh(), d.pass.is_two_sided()))
+                    .collect();
+                kinds
+                    .into_iter()
+                    .zip(&objects.meshes)
+                    .map(|((params, mesh, two_sided), buffers)| {
+                        Ok(GBufferDraw {
+                            pass: behind.pass_of(mesh, two_sided)?,
+                            params,
+                            mesh: buffers.as_ref(),
+                        })
+                    })
+                    .collect::<Result<Vec<_>>>()?
+            }
+            (None, Some(mesh)) => vec![GBufferDraw {
+                pass: behind.pass_of(true, mesh.two_sided)?,
+                params: self.settings.scene.gbuffer_params(camera),
+                mesh: Some(mesh),
+            }],
+            (None, None) => return Ok(None),
         };
-        let draws = kinds
-            .into_iter()
-            .zip(&objects.meshes)
-            .map(|((params, mesh, two_sided), buffers)| {
-                Ok(GBufferDraw {
-                    pass: behind.pass_of(mesh, two_sided)?,
-                    params,
-                    mesh: buffers.as_ref(),
-                })
-            })
-            .collect::<Result<Vec<_>>>()?;
         let images = |key: Layer| -> Target {
             let image = match key {
                 Layer::FirstHit => &self.hit,

@@ -85,7 +85,10 @@ impl Renderer {
                 depth_scale: settings.scene.depth_scale,
                 addressing: settings.scene.addressing(),
                 extent,
-                frames_in_flight: 1,
+                // A mesh can show itself behind a miss (a torus's far side behind the
+                // carved top of its near tube): its frames may draw the behind layer
+                // (`Renderer::set_behind`), whose record uses the pass's frame slot 1.
+                frames_in_flight: if mesh.is_some() { 2 } else { 1 },
             },
         )?;
         let configured = pass

@@ -110,6 +110,10 @@ impl Renderer {
         let behind = unsafe { self.record_behind(cmd, &camera, &target, inputs.motion)? };
         let ctx = &*self.ctx;
         self.shot.submit_and_wait(ctx)?;
+        if behind.is_none() && self.pass.settings().frames_in_flight > behind::BEHIND_SLOT {
+            // SAFETY: every frame of this renderer was waited for (the one just above).
+            unsafe { self.pass.release_slot(behind::BEHIND_SLOT)? };
+        }
         self.depth_written |= self.pass.depth_output();
         if let Some(m) = &mut self.motion {
             m.previous = Some(current);
