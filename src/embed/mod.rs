@@ -249,6 +249,7 @@ mod device;
 mod graph;
 mod host_map;
 mod inputs;
+mod map_preparations;
 mod materials;
 mod memory;
 mod plan;
@@ -334,6 +335,11 @@ pub struct DisplacementPass {
     pyramid_pass: Option<PyramidPass>,
     corner_pass: Option<DigCornerPass>,
     cone_passes: Vec<ConePass>,
+    /// The pipelines of the map preparations with a map to prepare.
+    prepare_passes: Vec<plan::PreparePass>,
+    /// The map preparations the host asked for (indices of
+    /// [`crate::passes::prepare::KINDS`]; [`DisplacementPass::set_map_preparation`]).
+    prepare_requested: Vec<usize>,
     shadow_passes: Vec<ShadowPass>,
     /// What each frame in flight owns, by frame slot (built by the first sync).
     slots: Vec<plan::Slot>,
@@ -389,6 +395,8 @@ impl DisplacementPass {
             pyramid_pass: None,
             corner_pass: None,
             cone_passes: Vec::new(),
+            prepare_passes: Vec::new(),
+            prepare_requested: Vec::new(),
             shadow_passes: Vec::new(),
             slots: Vec::new(),
             depth: None,
@@ -672,6 +680,7 @@ impl DisplacementPass {
             self.slots.destroy(ctx);
             self.shadow_passes.destroy(ctx);
             self.cone_passes.destroy(ctx);
+            self.prepare_passes.destroy(ctx);
             self.corner_pass.destroy(ctx);
             self.pyramid_pass.destroy(ctx);
             self.classify.destroy(ctx);

@@ -19,12 +19,15 @@
 //! | corrected-depth pipeline and images | extent | the corrected depth on |
 //! | motion pipeline | image format | the motion output on |
 //! | tile lists | extent | always (their size follows the frame alone: adding or removing materials changes nothing) |
+//! | map preparations ([`crate::passes::MAP_PREPARATIONS`]) and their pipelines | (map, kind) | the host asked for the kind ([`DisplacementPass::set_map_preparation`]) and a live material uses the map |
 //!
 //! What each frame in flight owns (tile lists, visibility, corrected depth, the
 //! timestamp scopes it recorded last) is one [`Slot`] per frame slot.
 //!
-//! A new preparation pass needs a key here, a constructor and a build stage in
-//! `record.rs`.
+//! A new preparation pass of a map is an entry of the keyed table of map preparations:
+//! its type implements [`crate::passes::prepare::MapPreparation`] (a constructor, its
+//! pipeline and its record) and is listed in [`crate::passes::MAP_PREPARATIONS`]; the table
+//! keys, builds, records, retires and hands out its entries (`prepared.rs`).
 
 use super::{DisplacementPass, HIT_DEPTH_FORMAT, MaterialSettings, VISIBILITY_FORMAT};
 use crate::context::Context;
@@ -39,6 +42,8 @@ use crate::passes::cone::{ConeMap, ConePass};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::hit_depth::HitDepthPass;
 use crate::passes::motion::MotionPass;
+use crate::passes::prepare;
+use crate::passes::prepare::Erased;
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
 use crate::passes::shadow::{ShadowPass, ShadowTrace};
@@ -159,6 +164,41 @@ pub(super) struct MapEntry {
     pub pending_fill: Option<Fill>,
     pub pyramids: Vec<Built<Pyramid>>,
     pub cones: Vec<Built<ConeMap>>,
+    /// Its entries of the table of map preparations.
+    pub prepared: Vec<Prepared>,
+}
+
+/// An entry of the table of map preparations: its kind (an index of
+/// [`crate::passes::prepare::KINDS`]) and its value, built by a record or still to be;
+/// its key is (its map, `kind`).
+pub(super) struct Prepared {
+    pub kind: usize,
+    pub value: Box<dyn Erased>,
+    pub built: bool,
+}
+
+impl Destroy for Prepared {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe { self.value.destroy(ctx) }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.value.bytes()
+    }
+}
+
+/// The pipelines of one kind of map preparation.
+pub(super) struct PreparePass {
+    pub kind: usize,
+    pub pass: Box<dyn Erased>,
+}
+
+impl Destroy for PreparePass {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe { self.pass.destroy(ctx) }
+    }
 }
 
 impl MapEntry {
@@ -172,6 +212,7 @@ impl MapEntry {
             pending_fill: Some(Fill::Upload(staging)),
             pyramids: Vec::new(),
             cones: Vec::new(),
+            prepared: Vec::new(),
         })
     }
 
@@ -183,6 +224,7 @@ impl MapEntry {
             pending_fill: None,
             pyramids: Vec::new(),
             cones: Vec::new(),
+            prepared: Vec::new(),
         }
     }
 
@@ -207,6 +249,7 @@ impl MapEntry {
         self.pending_fill.is_some()
             || self.pyramids.iter().any(|p| !p.built)
             || self.cones.iter().any(|c| !c.built)
+            || self.prepared.iter().any(|p| !p.built)
     }
 }
 
@@ -215,6 +258,7 @@ impl Destroy for MapEntry {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             self.pending_fill.destroy(ctx);
+            self.prepared.destroy(ctx);
             self.cones.destroy(ctx);
             self.pyramids.destroy(ctx);
             self.texture.destroy(ctx);
@@ -223,6 +267,7 @@ impl Destroy for MapEntry {
 
     fn bytes(&self) -> u64 {
         self.pending_fill.bytes()
+            + self.prepared.bytes()
             + self.cones.bytes()
             + self.pyramids.bytes()
             + self.texture.bytes()
@@ -329,6 +374,8 @@ struct MapPlan {
     chain: bool,
     pyramids: Vec<PyramidKind>,
     cones: Vec<ConeKind>,
+    /// Its map preparations (kinds).
+    prepared: Vec<usize>,
 }
 
 /// What the settings need: a key per resource (module docs).
@@ -338,6 +385,8 @@ pub(super) struct Plan {
     pyramid_pass: bool,
     corner_pass: bool,
     cone_kinds: Vec<ConeKind>,
+    /// The kinds of map preparation with a live map to prepare.
+    prepare_kinds: Vec<usize>,
     /// Per entry of the map table (`None`: no live material uses it).
     maps: Vec<Option<MapPlan>>,
     /// Per entry of the material table: the DIG block of its grids.
@@ -361,11 +410,13 @@ struct Additions {
     pyramid_pass: Option<PyramidPass>,
     corner_pass: Option<DigCornerPass>,
     cone_passes: Vec<ConePass>,
+    prepare_passes: Vec<PreparePass>,
     shadow_passes: Vec<ShadowPass>,
     shade: Option<ShadePass>,
     textures: Vec<(usize, HeightTexture)>,
     pyramids: Vec<(usize, Pyramid)>,
     cones: Vec<(usize, ConeMap)>,
+    prepared: Vec<(usize, Prepared)>,
     corners: Vec<(usize, Vec<CornerGrid>)>,
     visibility: Option<Vec<Image>>,
     depth: Option<DepthParts>,
@@ -381,6 +432,7 @@ impl Destroy for Additions {
             self.pyramid_pass.destroy(ctx);
             self.corner_pass.destroy(ctx);
             self.cone_passes.destroy(ctx);
+            self.prepare_passes.destroy(ctx);
             self.shadow_passes.destroy(ctx);
             self.shade.destroy(ctx);
             for (_, t) in &mut self.textures {
@@ -391,6 +443,9 @@ impl Destroy for Additions {
             }
             for (_, c) in &mut self.cones {
                 c.destroy(ctx);
+            }
+            for (_, p) in &mut self.prepared {
+                p.destroy(ctx);
             }
             for (_, g) in &mut self.corners {
                 g.destroy(ctx);
@@ -445,6 +500,10 @@ impl DisplacementPass {
                 push_unique(&mut map.cones, kind);
                 push_unique(&mut plan.cone_kinds, kind);
             }
+            for &kind in &self.prepare_requested {
+                push_unique(&mut map.prepared, kind);
+                push_unique(&mut plan.prepare_kinds, kind);
+            }
             if needs.dig_corners {
                 plan.corners[i] = Some(s.params.block);
             }
@@ -488,6 +547,12 @@ impl DisplacementPass {
                 add.cone_passes.push(ConePass::new(c, k)?);
             }
         }
+        for &k in &plan.prepare_kinds {
+            if !self.prepare_passes.iter().any(|p| p.kind == k) {
+                let pass = prepare::KINDS[k].new_pass(c)?;
+                add.prepare_passes.push(PreparePass { kind: k, pass });
+            }
+        }
         for &t in &plan.shadow_traces {
             if !self.shadow_passes.iter().any(|p| p.trace() == t) {
                 add.shadow_passes.push(ShadowPass::new(c, t)?);
@@ -520,6 +585,17 @@ impl DisplacementPass {
                 if !map.cones.iter().any(|m| m.value.kind == kind) {
                     let m = ConeMap::new(c, size, map.key.addressing, kind, format)?;
                     add.cones.push((i, m));
+                }
+            }
+            for &kind in &want.prepared {
+                if !map.prepared.iter().any(|p| p.kind == kind) {
+                    let value = prepare::KINDS[kind].new_prepared(c, &map.texture)?;
+                    let entry = Prepared {
+                        kind,
+                        value,
+                        built: false,
+                    };
+                    add.prepared.push((i, entry));
                 }
             }
         }
@@ -608,6 +684,12 @@ impl DisplacementPass {
             .partition(|p| plan.cone_kinds.contains(&p.kind));
         self.cone_passes = keep;
         retired.retire(drop);
+        self.prepare_passes.extend(add.prepare_passes);
+        let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.prepare_passes)
+            .into_iter()
+            .partition(|p| plan.prepare_kinds.contains(&p.kind));
+        self.prepare_passes = keep;
+        retired.retire(drop);
         self.shadow_passes.extend(add.shadow_passes);
         let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.shadow_passes)
             .into_iter()
@@ -647,6 +729,11 @@ impl DisplacementPass {
                 });
             }
         }
+        for (i, p) in add.prepared {
+            if let Some(map) = &mut self.maps[i] {
+                map.prepared.push(p);
+            }
+        }
         for (i, want) in plan.maps.iter().enumerate() {
             match want {
                 None => retired.retire(self.maps[i].take()),
@@ -663,6 +750,11 @@ impl DisplacementPass {
                         .into_iter()
                         .partition(|c| want.cones.contains(&c.value.kind));
                     map.cones = keep;
+                    retired.retire(drop);
+                    let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut map.prepared)
+                        .into_iter()
+                        .partition(|p| want.prepared.contains(&p.kind));
+                    map.prepared = keep;
                     retired.retire(drop);
                 }
             }

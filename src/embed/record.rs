@@ -477,7 +477,10 @@ impl DisplacementPass {
             }
         }
         // SAFETY: `record`'s contract, as above.
-        unsafe { self.record_cones(w, cmd) }
+        unsafe {
+            self.record_cones(w, cmd)?;
+            self.record_map_preparations(w, cmd)
+        }
     }
 
     /// The `cone` scope (cone methods): each unbuilt cone map from its map's (built) cell

@@ -22,10 +22,16 @@ pub mod hit_depth;
 pub mod hit_resolve;
 pub mod motion;
 pub mod pixel_ray_buffer;
+pub mod prepare;
 pub mod pyramid;
 pub mod shade;
 pub mod shadow;
 pub mod trace;
+
+/// Every map preparation ([`prepare::MapPreparation`]), in recording order (after the
+/// uploads, pyramids and cone maps): the displacement pass's table keys its entries by
+/// (map, index here) and builds those a host asked for.
+pub static MAP_PREPARATIONS: &[&dyn prepare::Kind] = &[];
 
 /// The passes of a frame, in recording order; what timestamps and debug labels name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
