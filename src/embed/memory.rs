@@ -101,7 +101,6 @@ impl DisplacementPass {
             let Some(m) = m else { continue };
             r.material_maps += m.shading.bytes();
             r.uploads += m.pending_shading.bytes();
-            r.corner_grids += m.corners.bytes();
             let map = self.maps.get(m.map).and_then(Option::as_ref);
             r.materials.push(MaterialMemory {
                 id: MaterialId {
@@ -115,7 +114,10 @@ impl DisplacementPass {
                     .flatten()
                     .filter(|o| o.map == m.map)
                     .count() as u32,
-                corner_grids: m.corners.bytes(),
+                corner_grids: (self.slots.iter())
+                    .filter_map(|s| s.corner_grid(i))
+                    .map(Destroy::bytes)
+                    .sum(),
                 material_maps: m.shading.bytes() + m.pending_shading.bytes(),
             });
         }
@@ -123,6 +125,7 @@ impl DisplacementPass {
             r.tile_lists += s.tiles.bytes();
             r.visibility += s.visibility.bytes();
             r.hit_depth += s.hit_depth.bytes();
+            r.corner_grids += s.corners.bytes();
         }
         r.retired = self.retired.bytes();
         r

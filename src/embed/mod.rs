@@ -246,6 +246,7 @@
 //! (`DEP_DISPMAP_INCLUDE`) for the same point: the corrected depth uses it too.
 
 mod device;
+mod entries;
 mod graph;
 mod host_map;
 mod inputs;
@@ -623,7 +624,8 @@ impl DisplacementPass {
 
     /// A material's DIG corner grid of `frame_slot` (as [`DisplacementPass::corner_grid`]).
     pub fn material_corner_grid(&self, id: MaterialId, frame_slot: u32) -> Option<&CornerGrid> {
-        self.entry(id).ok()?.corners.get(frame_slot as usize)
+        let i = self.entry_index(id).ok()?;
+        self.slots.get(frame_slot as usize)?.corner_grid(i)
     }
 
     /// The first material's method pyramid once a record has built it (`None` for
