@@ -51,7 +51,6 @@ impl DisplacementPass {
             map,
             shading: None,
             pending_shading: None,
-            corners: Vec::new(),
             curved: false,
         };
         if index == self.materials.len() {

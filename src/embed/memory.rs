@@ -20,6 +20,9 @@ pub struct MemoryReport {
     pub pyramids: u64,
     /// The cone maps (and, until their build, a relaxed cone map's scratch pyramids).
     pub cone_maps: u64,
+    /// The map preparations the host asked for
+    /// ([`DisplacementPass::set_map_preparation`]).
+    pub map_preparations: u64,
     /// The materials' albedo and normal maps (an image shared by several materials once).
     pub material_maps: u64,
     /// Staging buffers of uploads the next record copies (height, albedo and normal maps).
@@ -63,10 +66,15 @@ impl MemoryReport {
         self.maps() + self.frame() + self.retired
     }
 
-    /// What follows the content: height textures, pyramids, cone maps, material maps and
-    /// pending uploads.
+    /// What follows the content: height textures, pyramids, cone maps, map preparations,
+    /// material maps and pending uploads.
     pub fn maps(&self) -> u64 {
-        self.height_textures + self.pyramids + self.cone_maps + self.material_maps + self.uploads
+        self.height_textures
+            + self.pyramids
+            + self.cone_maps
+            + self.map_preparations
+            + self.material_maps
+            + self.uploads
     }
 
     /// What follows the frame's size: tile lists, corner grids, visibility and corrected
@@ -86,13 +94,13 @@ impl DisplacementPass {
             r.height_textures += map.texture.bytes();
             r.pyramids += map.pyramids.bytes();
             r.cone_maps += map.cones.bytes();
+            r.map_preparations += map.prepared.bytes();
             r.uploads += map.pending_fill.bytes();
         }
         for (i, m) in self.materials.iter().enumerate() {
             let Some(m) = m else { continue };
             r.material_maps += m.shading.bytes();
             r.uploads += m.pending_shading.bytes();
-            r.corner_grids += m.corners.bytes();
             let map = self.maps.get(m.map).and_then(Option::as_ref);
             r.materials.push(MaterialMemory {
                 id: MaterialId {
@@ -106,7 +114,10 @@ impl DisplacementPass {
                     .flatten()
                     .filter(|o| o.map == m.map)
                     .count() as u32,
-                corner_grids: m.corners.bytes(),
+                corner_grids: (self.slots.iter())
+                    .filter_map(|s| s.corner_grid(i))
+                    .map(Destroy::bytes)
+                    .sum(),
                 material_maps: m.shading.bytes() + m.pending_shading.bytes(),
             });
         }
@@ -114,6 +125,7 @@ impl DisplacementPass {
             r.tile_lists += s.tiles.bytes();
             r.visibility += s.visibility.bytes();
             r.hit_depth += s.hit_depth.bytes();
+            r.corner_grids += s.corners.bytes();
         }
         r.retired = self.retired.bytes();
         r

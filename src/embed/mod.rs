@@ -246,9 +246,11 @@
 //! (`DEP_DISPMAP_INCLUDE`) for the same point: the corrected depth uses it too.
 
 mod device;
+mod entries;
 mod graph;
 mod host_map;
 mod inputs;
+mod map_preparations;
 mod materials;
 mod memory;
 mod plan;
@@ -334,6 +336,11 @@ pub struct DisplacementPass {
     pyramid_pass: Option<PyramidPass>,
     corner_pass: Option<DigCornerPass>,
     cone_passes: Vec<ConePass>,
+    /// The pipelines of the map preparations with a map to prepare.
+    prepare_passes: Vec<plan::PreparePass>,
+    /// The map preparations the host asked for (indices of
+    /// [`crate::passes::prepare::KINDS`]; [`DisplacementPass::set_map_preparation`]).
+    prepare_requested: Vec<usize>,
     shadow_passes: Vec<ShadowPass>,
     /// What each frame in flight owns, by frame slot (built by the first sync).
     slots: Vec<plan::Slot>,
@@ -389,6 +396,8 @@ impl DisplacementPass {
             pyramid_pass: None,
             corner_pass: None,
             cone_passes: Vec::new(),
+            prepare_passes: Vec::new(),
+            prepare_requested: Vec::new(),
             shadow_passes: Vec::new(),
             slots: Vec::new(),
             depth: None,
@@ -615,7 +624,8 @@ impl DisplacementPass {
 
     /// A material's DIG corner grid of `frame_slot` (as [`DisplacementPass::corner_grid`]).
     pub fn material_corner_grid(&self, id: MaterialId, frame_slot: u32) -> Option<&CornerGrid> {
-        self.entry(id).ok()?.corners.get(frame_slot as usize)
+        let i = self.entry_index(id).ok()?;
+        self.slots.get(frame_slot as usize)?.corner_grid(i)
     }
 
     /// The first material's method pyramid once a record has built it (`None` for
@@ -672,6 +682,7 @@ impl DisplacementPass {
             self.slots.destroy(ctx);
             self.shadow_passes.destroy(ctx);
             self.cone_passes.destroy(ctx);
+            self.prepare_passes.destroy(ctx);
             self.corner_pass.destroy(ctx);
             self.pyramid_pass.destroy(ctx);
             self.classify.destroy(ctx);

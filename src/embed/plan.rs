@@ -19,247 +19,36 @@
 //! | corrected-depth pipeline and images | extent | the corrected depth on |
 //! | motion pipeline | image format | the motion output on |
 //! | tile lists | extent | always (their size follows the frame alone: adding or removing materials changes nothing) |
+//! | map preparations ([`crate::passes::MAP_PREPARATIONS`]) and their pipelines | (map, kind) | the host asked for the kind ([`DisplacementPass::set_map_preparation`]) and a live material uses the map |
 //!
 //! What each frame in flight owns (tile lists, visibility, corrected depth, the
 //! timestamp scopes it recorded last) is one [`Slot`] per frame slot.
 //!
-//! A new preparation pass needs a key here, a constructor and a build stage in
-//! `record.rs`.
+//! A new preparation pass of a map is an entry of the keyed table of map preparations:
+//! its type implements [`crate::passes::prepare::MapPreparation`] (a constructor, its
+//! pipeline and its record) and is listed in [`crate::passes::MAP_PREPARATIONS`]; the table
+//! keys, builds, records, retires and hands out its entries (`map_preparations.rs`).
 
-use super::{DisplacementPass, HIT_DEPTH_FORMAT, MaterialSettings, VISIBILITY_FORMAT};
+pub(super) use super::entries::{
+    Built, Fill, MapEntry, MapKey, MapSource, MaterialEntry, PreparePass, Prepared, Slot,
+};
+use super::{DisplacementPass, HIT_DEPTH_FORMAT, VISIBILITY_FORMAT};
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::owned::{Destroy, Guard};
-use crate::gpu::{Buffer, HeightTexture, Image};
-use crate::heightfield::{Addressing, HeightField};
-use crate::material::{MaterialStaging, MaterialTextures};
+use crate::gpu::{HeightTexture, Image};
 use crate::method::{ConeKind, Method, PyramidKind};
 use crate::passes::classify::TileLists;
 use crate::passes::cone::{ConeMap, ConePass};
 use crate::passes::dig::{CornerGrid, DigCornerPass};
 use crate::passes::hit_depth::HitDepthPass;
 use crate::passes::motion::MotionPass;
+use crate::passes::prepare;
 use crate::passes::pyramid::{Pyramid, PyramidPass};
 use crate::passes::shade::ShadePass;
 use crate::passes::shadow::{ShadowPass, ShadowTrace};
 use crate::passes::trace::TracePass;
-use crate::timing::TimestampScope;
 use ash::vk;
-use std::hash::{Hash, Hasher};
-
-/// A height texture's contents not yet recorded.
-pub(super) enum Fill {
-    /// A new map's staging buffer.
-    Upload(Buffer),
-    /// The texture it replaces (level of detail switched on or off: the mip chain added
-    /// or dropped), whose level 0 is copied; frames in flight may still sample it.
-    Copy(HeightTexture),
-}
-
-impl Destroy for Fill {
-    unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
-        unsafe {
-            match self {
-                Fill::Upload(b) => b.destroy(ctx),
-                Fill::Copy(h) => h.destroy(ctx),
-            }
-        }
-    }
-
-    fn bytes(&self) -> u64 {
-        match self {
-            Fill::Upload(b) => b.bytes(),
-            Fill::Copy(h) => h.bytes(),
-        }
-    }
-}
-
-/// What identifies a height map: two materials with the same key share one texture and
-/// everything derived from it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct MapKey {
-    /// A 64-bit hash of the texels, or the host's image.
-    hash: MapSource,
-    size: [u32; 2],
-    format: vk::Format,
-    pub addressing: Addressing,
-}
-
-/// Where a map's texels are.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum MapSource {
-    /// dispmap's upload of texels with this 64-bit hash.
-    Texels(u64),
-    /// A host engine's image as the host describes it, and the version of its contents
-    /// (a new one each time the host says they changed: a new entry, new preparations).
-    Host {
-        map: super::HostHeightMap,
-        version: u64,
-    },
-}
-
-impl MapKey {
-    pub fn of(field: &HeightField, addressing: Addressing) -> Self {
-        let mut h = std::collections::hash_map::DefaultHasher::new();
-        field.bytes().hash(&mut h);
-        MapKey {
-            hash: MapSource::Texels(h.finish()),
-            size: [field.width(), field.height()],
-            format: field.format(),
-            addressing,
-        }
-    }
-
-    /// The key of a host image's map.
-    pub fn host(
-        source: MapSource,
-        size: [u32; 2],
-        format: vk::Format,
-        addressing: Addressing,
-    ) -> Self {
-        MapKey {
-            hash: source,
-            size,
-            format,
-            addressing,
-        }
-    }
-
-    /// The host image's source, `None` for dispmap's upload.
-    pub fn host_source(&self) -> Option<MapSource> {
-        matches!(self.hash, MapSource::Host { .. }).then_some(self.hash)
-    }
-}
-
-/// A resource built by a record (`built`) or still to be.
-pub(super) struct Built<T> {
-    pub value: T,
-    pub built: bool,
-}
-
-impl<T: Destroy> Destroy for Built<T> {
-    unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
-        unsafe {
-            self.value.destroy(ctx);
-        }
-    }
-
-    fn bytes(&self) -> u64 {
-        self.value.bytes()
-    }
-}
-
-/// One height map of the table and what is derived from it.
-pub(super) struct MapEntry {
-    pub key: MapKey,
-    pub texture: HeightTexture,
-    /// How `texture` is still to be filled (the next record); `None` once filled.
-    pub pending_fill: Option<Fill>,
-    pub pyramids: Vec<Built<Pyramid>>,
-    pub cones: Vec<Built<ConeMap>>,
-}
-
-impl MapEntry {
-    /// A new map's texture and its staged upload.
-    pub fn new(ctx: &Context, field: &HeightField, key: MapKey, chain: bool) -> Result<Self> {
-        let (texture, staging) =
-            HeightTexture::create_for_upload(ctx, field, key.addressing, chain)?;
-        Ok(MapEntry {
-            key,
-            texture,
-            pending_fill: Some(Fill::Upload(staging)),
-            pyramids: Vec::new(),
-            cones: Vec::new(),
-        })
-    }
-
-    /// A host image's map: its texture (views of the host's image), nothing to fill.
-    pub fn new_host(key: MapKey, texture: HeightTexture) -> Self {
-        MapEntry {
-            key,
-            texture,
-            pending_fill: None,
-            pyramids: Vec::new(),
-            cones: Vec::new(),
-        }
-    }
-
-    /// The built pyramid of `kind`.
-    pub fn pyramid(&self, kind: PyramidKind) -> Option<&Pyramid> {
-        self.pyramids
-            .iter()
-            .find(|p| p.built && p.value.kind == kind)
-            .map(|p| &p.value)
-    }
-
-    /// The built cone map of `kind`.
-    pub fn cone(&self, kind: ConeKind) -> Option<&ConeMap> {
-        self.cones
-            .iter()
-            .find(|c| c.built && c.value.kind == kind)
-            .map(|c| &c.value)
-    }
-
-    /// Whether the next record has work for it (a fill, a pyramid or cone build).
-    pub fn pending(&self) -> bool {
-        self.pending_fill.is_some()
-            || self.pyramids.iter().any(|p| !p.built)
-            || self.cones.iter().any(|c| !c.built)
-    }
-}
-
-impl Destroy for MapEntry {
-    unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
-        unsafe {
-            self.pending_fill.destroy(ctx);
-            self.cones.destroy(ctx);
-            self.pyramids.destroy(ctx);
-            self.texture.destroy(ctx);
-        }
-    }
-
-    fn bytes(&self) -> u64 {
-        self.pending_fill.bytes()
-            + self.cones.bytes()
-            + self.pyramids.bytes()
-            + self.texture.bytes()
-    }
-}
-
-/// One displaced material of the table.
-pub(super) struct MaterialEntry {
-    pub generation: u32,
-    pub settings: MaterialSettings,
-    /// Its map in the pass's map table.
-    pub map: usize,
-    /// Albedo and normal map for `shade`.
-    pub shading: Option<MaterialTextures>,
-    /// Their staging buffers until a record copies them.
-    pub pending_shading: Option<MaterialStaging>,
-    /// One DIG corner grid per frame slot (DIG methods only).
-    pub corners: Vec<CornerGrid>,
-    /// Trace its pixels as curved macro geometry
-    /// ([`super::DisplacementPass::set_material_curved`]).
-    pub curved: bool,
-}
-
-impl Destroy for MaterialEntry {
-    unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
-        unsafe {
-            self.shading.destroy(ctx);
-            self.pending_shading.destroy(ctx);
-            self.corners.destroy(ctx);
-        }
-    }
-
-    fn bytes(&self) -> u64 {
-        self.shading.bytes() + self.pending_shading.bytes() + self.corners.bytes()
-    }
-}
 
 /// The corrected-depth output: the `hit_depth` pipeline and one `R32_SFLOAT` image per
 /// frame slot.
@@ -282,34 +71,6 @@ impl Destroy for DepthParts {
     }
 }
 
-/// What one frame in flight owns: a frame recorded in the slot uses these, and only
-/// that slot's frames do.
-pub(super) struct Slot {
-    /// The material tile lists.
-    pub tiles: TileLists,
-    /// The light visibility (self-shadowing on).
-    pub visibility: Option<Image>,
-    /// The corrected depth (the corrected-depth output on).
-    pub hit_depth: Option<Image>,
-    /// The owned-pool timestamp scopes the slot recorded last.
-    pub scopes: Vec<TimestampScope>,
-}
-
-impl Destroy for Slot {
-    unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
-        unsafe {
-            self.tiles.destroy(ctx);
-            self.visibility.destroy(ctx);
-            self.hit_depth.destroy(ctx);
-        }
-    }
-
-    fn bytes(&self) -> u64 {
-        self.tiles.bytes() + self.visibility.bytes() + self.hit_depth.bytes()
-    }
-}
-
 /// Swaps `new[i]` into `field(slot i)`, returning what it replaced (to retire).
 fn swap_per_slot(
     slots: &mut [Slot],
@@ -329,6 +90,8 @@ struct MapPlan {
     chain: bool,
     pyramids: Vec<PyramidKind>,
     cones: Vec<ConeKind>,
+    /// Its map preparations (kinds).
+    prepared: Vec<usize>,
 }
 
 /// What the settings need: a key per resource (module docs).
@@ -338,6 +101,8 @@ pub(super) struct Plan {
     pyramid_pass: bool,
     corner_pass: bool,
     cone_kinds: Vec<ConeKind>,
+    /// The kinds of map preparation with a live map to prepare.
+    prepare_kinds: Vec<usize>,
     /// Per entry of the map table (`None`: no live material uses it).
     maps: Vec<Option<MapPlan>>,
     /// Per entry of the material table: the DIG block of its grids.
@@ -361,11 +126,13 @@ struct Additions {
     pyramid_pass: Option<PyramidPass>,
     corner_pass: Option<DigCornerPass>,
     cone_passes: Vec<ConePass>,
+    prepare_passes: Vec<PreparePass>,
     shadow_passes: Vec<ShadowPass>,
     shade: Option<ShadePass>,
     textures: Vec<(usize, HeightTexture)>,
     pyramids: Vec<(usize, Pyramid)>,
     cones: Vec<(usize, ConeMap)>,
+    prepared: Vec<(usize, Prepared)>,
     corners: Vec<(usize, Vec<CornerGrid>)>,
     visibility: Option<Vec<Image>>,
     depth: Option<DepthParts>,
@@ -381,6 +148,7 @@ impl Destroy for Additions {
             self.pyramid_pass.destroy(ctx);
             self.corner_pass.destroy(ctx);
             self.cone_passes.destroy(ctx);
+            self.prepare_passes.destroy(ctx);
             self.shadow_passes.destroy(ctx);
             self.shade.destroy(ctx);
             for (_, t) in &mut self.textures {
@@ -391,6 +159,9 @@ impl Destroy for Additions {
             }
             for (_, c) in &mut self.cones {
                 c.destroy(ctx);
+            }
+            for (_, p) in &mut self.prepared {
+                p.destroy(ctx);
             }
             for (_, g) in &mut self.corners {
                 g.destroy(ctx);
@@ -445,6 +216,10 @@ impl DisplacementPass {
                 push_unique(&mut map.cones, kind);
                 push_unique(&mut plan.cone_kinds, kind);
             }
+            for &kind in &self.prepare_requested {
+                push_unique(&mut map.prepared, kind);
+                push_unique(&mut plan.prepare_kinds, kind);
+            }
             if needs.dig_corners {
                 plan.corners[i] = Some(s.params.block);
             }
@@ -488,6 +263,12 @@ impl DisplacementPass {
                 add.cone_passes.push(ConePass::new(c, k)?);
             }
         }
+        for &k in &plan.prepare_kinds {
+            if !self.prepare_passes.iter().any(|p| p.kind == k) {
+                let pass = prepare::KINDS[k].new_pass(c)?;
+                add.prepare_passes.push(PreparePass { kind: k, pass });
+            }
+        }
         for &t in &plan.shadow_traces {
             if !self.shadow_passes.iter().any(|p| p.trace() == t) {
                 add.shadow_passes.push(ShadowPass::new(c, t)?);
@@ -522,12 +303,24 @@ impl DisplacementPass {
                     add.cones.push((i, m));
                 }
             }
+            for &kind in &want.prepared {
+                if !map.prepared.iter().any(|p| p.kind == kind) {
+                    let value = prepare::KINDS[kind].new_prepared(c, &map.texture)?;
+                    let entry = Prepared {
+                        kind,
+                        value,
+                        built: false,
+                    };
+                    add.prepared.push((i, entry));
+                }
+            }
         }
         for (i, want) in plan.corners.iter().enumerate() {
-            let (Some(block), Some(m)) = (want, &self.materials[i]) else {
+            let (Some(block), Some(_)) = (want, &self.materials[i]) else {
                 continue;
             };
-            if resized || m.corners.first().is_none_or(|g| g.block != *block) {
+            let current = self.slots.first().and_then(|s| s.corner_grid(i));
+            if resized || current.is_none_or(|g| g.block != *block) {
                 let grids = per_slot(c, frames, |_| {
                     CornerGrid::new(c, [extent.width, extent.height], *block)
                 })?;
@@ -608,6 +401,12 @@ impl DisplacementPass {
             .partition(|p| plan.cone_kinds.contains(&p.kind));
         self.cone_passes = keep;
         retired.retire(drop);
+        self.prepare_passes.extend(add.prepare_passes);
+        let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.prepare_passes)
+            .into_iter()
+            .partition(|p| plan.prepare_kinds.contains(&p.kind));
+        self.prepare_passes = keep;
+        retired.retire(drop);
         self.shadow_passes.extend(add.shadow_passes);
         let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut self.shadow_passes)
             .into_iter()
@@ -647,6 +446,11 @@ impl DisplacementPass {
                 });
             }
         }
+        for (i, p) in add.prepared {
+            if let Some(map) = &mut self.maps[i] {
+                map.prepared.push(p);
+            }
+        }
         for (i, want) in plan.maps.iter().enumerate() {
             match want {
                 None => retired.retire(self.maps[i].take()),
@@ -664,17 +468,12 @@ impl DisplacementPass {
                         .partition(|c| want.cones.contains(&c.value.kind));
                     map.cones = keep;
                     retired.retire(drop);
+                    let (keep, drop): (Vec<_>, Vec<_>) = std::mem::take(&mut map.prepared)
+                        .into_iter()
+                        .partition(|p| want.prepared.contains(&p.kind));
+                    map.prepared = keep;
+                    retired.retire(drop);
                 }
-            }
-        }
-        for (i, grids) in add.corners {
-            if let Some(m) = &mut self.materials[i] {
-                retired.retire(std::mem::replace(&mut m.corners, grids));
-            }
-        }
-        for (i, want) in plan.corners.iter().enumerate() {
-            if let (None, Some(m)) = (want, &mut self.materials[i]) {
-                retired.retire(std::mem::take(&mut m.corners));
             }
         }
         // The tile lists first: the first sync makes the slots with them.
@@ -686,6 +485,7 @@ impl DisplacementPass {
                         tiles,
                         visibility: None,
                         hit_depth: None,
+                        corners: Vec::new(),
                         scopes: Vec::new(),
                     })
                     .collect();
@@ -697,6 +497,22 @@ impl DisplacementPass {
                     .map(|(s, t)| std::mem::replace(&mut s.tiles, t))
                     .collect();
                 retired.retire(old);
+            }
+        }
+        // The corner grids after the slots: each slot's of material `i` at its index.
+        for (i, grids) in add.corners {
+            for (s, grid) in self.slots.iter_mut().zip(grids) {
+                if s.corners.len() <= i {
+                    s.corners.resize_with(i + 1, || None);
+                }
+                retired.retire(s.corners[i].replace(grid));
+            }
+        }
+        for s in &mut self.slots {
+            for (i, grid) in s.corners.iter_mut().enumerate() {
+                if plan.corners.get(i).is_none_or(Option::is_none) {
+                    retired.retire(grid.take());
+                }
             }
         }
         if let Some(v) = add.visibility {

@@ -332,8 +332,8 @@ impl DisplacementPass {
         if let Some(d) = &s.hit_depth {
             g.own(Res::HitDepth, d);
         }
-        for (i, m) in self.materials.iter().enumerate() {
-            if let Some(grid) = m.as_ref().and_then(|m| m.corners.get(slot)) {
+        for (i, grid) in s.corners.iter().enumerate() {
+            if let Some(grid) = grid {
                 g.own(Res::Corners(i as u32), &grid.image);
             }
         }
@@ -477,7 +477,10 @@ impl DisplacementPass {
             }
         }
         // SAFETY: `record`'s contract, as above.
-        unsafe { self.record_cones(w, cmd) }
+        unsafe {
+            self.record_cones(w, cmd)?;
+            self.record_map_preparations(w, cmd)
+        }
     }
 
     /// The `cone` scope (cone methods): each unbuilt cone map from its map's (built) cell

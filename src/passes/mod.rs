@@ -18,14 +18,22 @@ pub mod depth_resolve;
 pub mod dig;
 pub mod forward;
 pub mod gbuffer;
+pub mod height_range;
 pub mod hit_depth;
 pub mod hit_resolve;
 pub mod motion;
 pub mod pixel_ray_buffer;
+pub mod prepare;
 pub mod pyramid;
 pub mod shade;
 pub mod shadow;
 pub mod trace;
+
+/// Every map preparation ([`prepare::MapPreparation`]), in recording order (after the
+/// uploads, pyramids and cone maps): the displacement pass's table keys its entries by
+/// (map, index here) and builds those a host asked for.
+pub static MAP_PREPARATIONS: &[&dyn prepare::Kind] =
+    &[&prepare::KindOf::<height_range::HeightRange>::NEW];
 
 /// The passes of a frame, in recording order; what timestamps and debug labels name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -41,6 +49,9 @@ pub enum PassName {
     /// The cone map of the cone-stepping methods (built from the pyramid). One-off:
     /// built once per height map.
     Cone,
+    /// A map's lowest and highest height ([`height_range`], a map preparation a host asks
+    /// for). One-off: built once per height map.
+    HeightRange,
     /// The classification of the frame's tiles by material (every frame).
     Classify,
     /// The DIG corner pass.
@@ -63,11 +74,12 @@ pub enum PassName {
 
 impl PassName {
     /// Every pass, in recording order.
-    pub const ALL: [PassName; 12] = [
+    pub const ALL: [PassName; 13] = [
         PassName::GBuffer,
         PassName::Upload,
         PassName::Pyramid,
         PassName::Cone,
+        PassName::HeightRange,
         PassName::Classify,
         PassName::DigCorners,
         PassName::Trace,
@@ -79,7 +91,7 @@ impl PassName {
     ];
 
     /// The name in reports, metrics files and debug labels (`gbuffer`, `upload`,
-    /// `pyramid`, `cone`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`,
+    /// `pyramid`, `cone`, `height_range`, `classify`, `dig_corners`, `trace`, `shadow`, `shade`, `hit_depth`,
     /// `motion`, `behind`).
     pub fn as_str(self) -> &'static str {
         match self {
@@ -87,6 +99,7 @@ impl PassName {
             PassName::Upload => "upload",
             PassName::Pyramid => "pyramid",
             PassName::Cone => "cone",
+            PassName::HeightRange => "height_range",
             PassName::Classify => "classify",
             PassName::DigCorners => "dig_corners",
             PassName::Trace => "trace",
@@ -116,7 +129,10 @@ impl PassName {
     /// Whether the pass runs once after a change (a new map or method) rather than
     /// every frame: such times are reported apart from the per-frame total.
     pub fn is_one_off(self) -> bool {
-        matches!(self, PassName::Upload | PassName::Pyramid | PassName::Cone)
+        matches!(
+            self,
+            PassName::Upload | PassName::Pyramid | PassName::Cone | PassName::HeightRange
+        )
     }
 }
 

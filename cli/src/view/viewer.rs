@@ -120,14 +120,16 @@ impl Viewer {
             Ok(r) => r,
             Err(e) => {
                 let mut presenter = presenter;
-                presenter.destroy(&ctx);
+                // SAFETY: this thread alone submits with the presenter; the window lives.
+                unsafe { presenter.destroy(&ctx) };
                 return Err(e);
             }
         };
         let right = match state.right.map(|m| build(side_of(&settings, state, m))) {
             Some(Err(e)) => {
                 let mut presenter = presenter;
-                presenter.destroy(&ctx);
+                // SAFETY: this thread alone submits with the presenter; the window lives.
+                unsafe { presenter.destroy(&ctx) };
                 drop(left);
                 return Err(e);
             }
@@ -137,7 +139,8 @@ impl Viewer {
         let gui = match ui.then(|| ui::Gui::new(&ctx, &window, presenter.format())) {
             Some(Err(e)) => {
                 let mut presenter = presenter;
-                presenter.destroy(&ctx);
+                // SAFETY: this thread alone submits with the presenter; the window lives.
+                unsafe { presenter.destroy(&ctx) };
                 drop((left, right));
                 return Err(e);
             }
@@ -216,7 +219,9 @@ impl Viewer {
             // SAFETY: the device is idle (waited above): no frame uses the panel's objects.
             unsafe { gui.destroy(&ctx) };
         }
-        presenter.destroy(&ctx);
+        // SAFETY: the device is idle (waited above) and this thread alone submits; the
+        // window is dropped after.
+        unsafe { presenter.destroy(&ctx) };
         drop(right);
         drop(left);
         let result = finish(ctx);

@@ -81,7 +81,10 @@ impl DisplacementPass {
         let grids: Vec<_> = self
             .live(inputs.frame_slot)
             .into_iter()
-            .filter_map(|(t, m, map)| Some((t.material, m.corners.get(slot)?, map, m)))
+            .filter_map(|(t, m, map)| {
+                let grid = self.slots[slot].corner_grid(t.material as usize)?;
+                Some((t.material, grid, map, m))
+            })
             .collect();
         if grids.is_empty() {
             return Ok(());
@@ -171,7 +174,7 @@ impl DisplacementPass {
                             height: &map.texture,
                             hit,
                             pyramid: needs.pyramid.and_then(|k| map.pyramid(k)),
-                            corners: m.corners.get(slot),
+                            corners: self.slots[slot].corner_grid(tiles.material as usize),
                             cone: needs.cone.and_then(|k| map.cone(k)),
                             tiles: *tiles,
                             curved: view.filter(|_| m.curved),

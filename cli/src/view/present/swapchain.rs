@@ -60,7 +60,9 @@ impl Presenter {
         match p.init(ctx, size) {
             Ok(()) => Ok(p),
             Err(e) => {
-                p.destroy(ctx);
+                // SAFETY: nothing was submitted with the half-made presenter; the window
+                // is the caller's, alive.
+                unsafe { p.destroy(ctx) };
                 Err(e)
             }
         }
@@ -299,12 +301,17 @@ impl Presenter {
         Ok(true)
     }
 
-    /// Destroys everything (the caller waits for the device first; the window is still
-    /// alive).
-    pub fn destroy(&mut self, ctx: &Context) {
+    /// Destroys everything, after waiting for the device; idempotent (each handle is
+    /// nulled or taken).
+    ///
+    /// # Safety
+    /// No other thread submits work using the presenter's objects meanwhile (the wait
+    /// covers what was submitted before the call), and the window is still alive (the
+    /// surface is destroyed before it).
+    pub unsafe fn destroy(&mut self, ctx: &Context) {
         let device = ctx.device();
-        // SAFETY: the caller's contract: nothing is pending; each handle is destroyed
-        // once (nulled or taken after).
+        // SAFETY: this function's contract and the wait below: nothing is pending; each
+        // handle is destroyed once (nulled or taken after).
         unsafe {
             let _ = device.device_wait_idle();
             for s in self.rendered.drain(..) {
