@@ -293,11 +293,12 @@ pub use crate::passes::motion::{
 };
 pub use crate::passes::shade::COLOR_FORMAT;
 pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
-pub use crate::passes::trace::HIT_FORMAT;
+pub use crate::passes::trace::{HIT_HEIGHT_FORMAT, HIT_UV_FORMAT, HitViews, ITERATIONS_FORMAT};
 pub use crate::timing::{TimestampScope, read_timestamps};
 pub use host_map::{HOST_HEIGHT_FORMATS, HeightChannel, HostHeightMap};
 pub use inputs::{
-    FrameInputs, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget, Timestamps,
+    FrameInputs, HitImages, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget,
+    Timestamps,
 };
 pub use memory::{MaterialMemory, MemoryReport};
 
@@ -348,6 +349,8 @@ pub struct DisplacementPass {
     depth: Option<HitDepthPass>,
     /// Whether the corrected depth is requested.
     depth_on: bool,
+    /// Whether the iteration counts are requested.
+    iterations_on: bool,
     /// The motion pass (`None` when off).
     motion: Option<crate::passes::motion::MotionPass>,
     /// The motion output as requested.
@@ -370,6 +373,18 @@ impl DisplacementPass {
     /// [`DisplacementPass::record`] copies it and builds what its method needs). Records
     /// and submits nothing.
     pub fn new(ctx: Arc<Context>, field: &HeightField, settings: PassSettings) -> Result<Self> {
+        Self::with_iterations(ctx, field, settings, false)
+    }
+
+    /// [`DisplacementPass::new`] with the iteration-count output on from the start
+    /// ([`DisplacementPass::set_iterations_output`]), so that the trace pipelines are
+    /// built once, in their variant that writes the counts.
+    pub fn with_iterations(
+        ctx: Arc<Context>,
+        field: &HeightField,
+        settings: PassSettings,
+        iterations: bool,
+    ) -> Result<Self> {
         validate_frame(&ctx, settings.extent, settings.frames_in_flight)?;
         validate_material(&ctx, &settings.material())?;
         let c = &*ctx;
@@ -402,6 +417,7 @@ impl DisplacementPass {
             slots: Vec::new(),
             depth: None,
             depth_on: false,
+            iterations_on: iterations,
             motion: None,
             motion_on: None,
             built_extent: vk::Extent2D::default(),
@@ -564,6 +580,41 @@ impl DisplacementPass {
     /// Whether the corrected-depth output is on.
     pub fn depth_output(&self) -> bool {
         self.depth.is_some()
+    }
+
+    /// Turns the iteration-count output on (every trace pipeline is rebuilt in its
+    /// variant that also writes each pixel's iteration count, the height-field or pyramid
+    /// fetches its method spent, and the pass owns one [`ITERATIONS_FORMAT`] image per
+    /// frame slot; every later `record` or `record_with_camera` writes it, 0 at pixels
+    /// without displacement) or off (retires them; the default: a host that does not
+    /// profile its methods holds no such image). Read it with
+    /// [`DisplacementPass::iterations`]. Needs no GPU idle. On error (an allocation or
+    /// pipeline failure) the pass is unchanged.
+    pub fn set_iterations_output(&mut self, on: bool) -> Result<()> {
+        self.check_alive()?;
+        let old = self.iterations_on;
+        self.iterations_on = on;
+        if let Err(e) = self.sync() {
+            self.iterations_on = old;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Whether the iteration-count output is on.
+    pub fn iterations_output(&self) -> bool {
+        self.iterations_on
+    }
+
+    /// The iteration counts of `frame_slot` (`R32_UINT`, [`ITERATIONS_FORMAT`]: each
+    /// displaced pixel's height-field or pyramid fetches, 0 at every other pixel);
+    /// `None` when the output is off. After a `record` or `record_with_camera` of that
+    /// slot it is in `GENERAL`, last written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`
+    /// (`record_shading` leaves it alone); usage `STORAGE | TRANSFER_SRC`. The host may
+    /// read it (after its own barrier from that state) and leave it in any layout: the
+    /// next record of the slot discards it.
+    pub fn iterations(&self, frame_slot: u32) -> Option<&Image> {
+        self.slots.get(frame_slot as usize)?.iterations.as_ref()
     }
 
     /// Turns the motion output on with `settings` (builds the `motion` pipeline for the

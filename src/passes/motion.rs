@@ -191,8 +191,8 @@ impl MotionSettings {
 /// The images the pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct MotionInputs {
-    /// The hit buffer (read).
-    pub hit: vk::ImageView,
+    /// The hit images (read).
+    pub hit: crate::passes::trace::HitViews,
     /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The host's motion image (read and written in place).
