@@ -68,24 +68,25 @@
 //! |---|---|---|---|
 //! | G-buffer `ray`, `frame` | host | `SHADER_READ_ONLY_OPTIMAL`, writes visible to `COMPUTE_SHADER` / `SHADER_SAMPLED_READ` (the barrier's `dstStageMask` / `dstAccessMask`; add `FRAGMENT_SHADER` for the `frame` when the host records the depth resolve) | unchanged; last access `COMPUTE_SHADER` sampled read |
 //! | G-buffer `depth` | host | as above (depth aspect) | as above |
-//! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded: the host's image barrier has `oldLayout = UNDEFINED`, `newLayout = GENERAL`, `srcStageMask`/`srcAccessMask` its last access, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` (the layout transition must be ordered before the pass's writes: a barrier without a destination access is a write-after-write hazard to synchronization validation) | `GENERAL`; every pixel written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), read by `SHADER_STORAGE_READ` (shade) |
+//! | hit uv (`R32G32_SFLOAT`) and hit height (`R32_SFLOAT`), `STORAGE` ([`HitImages`]) | host | `GENERAL`, contents discarded: the host's image barrier on each has `oldLayout = UNDEFINED`, `newLayout = GENERAL`, `srcStageMask`/`srcAccessMask` its last access, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` (the layout transition must be ordered before the pass's writes: a barrier without a destination access is a write-after-write hazard to synchronization validation) | `GENERAL`; every pixel written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), read by `SHADER_STORAGE_READ` (shade) |
 //! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL` with the host's colour (kept wherever nothing is displaced): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values), every other pixel as it entered |
 //! | motion (`R16G16_SFLOAT` or `R32G32_SFLOAT` as [`MotionSettings::format`], `STORAGE`; only with [`DisplacementPass::set_motion_output`] on) | host | `GENERAL` with the host's motion of every pixel (source `Surface`; any contents for `Camera`): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_READ \| SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels with a hit written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`, every other pixel as it entered |
 //! | height maps, pyramids, cone maps, DIG corner grids, tile lists | pass | (internal) | (internal; read-only for the host) |
 //! | host height map ([`HostHeightMap`], only for [`DisplacementPass::add_host_material`]) | host | `SHADER_READ_ONLY_OPTIMAL`, every mip level, its writes visible to `COMPUTE_SHADER` `SHADER_SAMPLED_READ` whenever a frame or preparation recorded with a material on it executes (see "Height maps the host owns") | unchanged; read only by `COMPUTE_SHADER` `SHADER_SAMPLED_READ` |
 //! | visibility (`R16_SFLOAT`, one per slot; only with [`DisplacementPass::set_shadows`] on and a [`ShadeTarget`]) | pass | (internal: discarded by the pass) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (shadow), last read by `SHADER_STORAGE_READ` (shade); read-only for the host ([`DisplacementPass::visibility`]) |
 //! | corrected depth (`R32_SFLOAT`, one per slot; only with [`DisplacementPass::set_depth_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (hit_depth); the host may read it (after its own barrier from that state) and leave it in any layout |
+//! | iteration counts (`R32_UINT`, one per slot; only with [`DisplacementPass::set_iterations_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: 0) by `record`; `record_shading` leaves it alone; the host may read it (after its own barrier from that state) and leave it in any layout |
 //!
 //! Every host image comes as a [`HostView`] (view, format, size, usage): `record` checks
 //! each against this table and the pass's frame size before it records anything, and
-//! refuses a mismatch with [`Error::InvalidInput`] naming the image (`gbuffer.ray`, `hit`,
+//! refuses a mismatch with [`Error::InvalidInput`] naming the image (`gbuffer.ray`, `hit.uv`,
 //! `color`, `motion`, ...). A view's format is not visible to Vulkan's validation of a
 //! storage write, so a wrong one would otherwise render garbage without a message.
 //!
 //! The pass places every barrier between its own passes: each stage declares what its
 //! dispatches read and write (its shaders' reflected bindings) and one tracker derives
 //! the barriers from each resource's last access (`src/embed/graph.rs`,
-//! [`crate::gpu::track`]); the hit buffer's, being known by its view only, are global
+//! [`crate::gpu::track`]); the hit images', being known by their views only, are global
 //! memory barriers. docs/embedding.md's table of entry and exit states is computed from
 //! the same declarations (a test checks it).
 //!
@@ -512,7 +513,7 @@ impl DisplacementPass {
         self.set_material_settings(self.primary, settings)
     }
 
-    /// Changes the frame size (the host's G-buffer, hit buffer and colour image must
+    /// Changes the frame size (the host's G-buffer, hit images and colour image must
     /// have the new size from the next record on). Frame-sized resources of the old size
     /// (tile lists, DIG grids, visibility, corrected depth) are retired, not destroyed at
     /// once, so this needs no GPU idle. On error the pass is unchanged.
@@ -539,7 +540,7 @@ impl DisplacementPass {
     /// of the table.
     ///
     /// The `shadow` pass runs only in frames recorded with a [`ShadeTarget`] (it
-    /// darkens dispmap's colour; a host shading from the hit buffer itself gets no
+    /// darkens dispmap's colour; a host shading from the hit images itself gets no
     /// visibility). Its light is the frame's `ShadeTarget::light_dir`.
     ///
     /// GPU-use contract: as [`DisplacementPass::set_material_settings`]. On error

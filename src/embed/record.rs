@@ -84,7 +84,7 @@ impl DisplacementPass {
 
     /// [`DisplacementPass::record`] with the frame's camera for the corrected depth
     /// ([`DisplacementPass::set_depth_output`]), for a host that has no [`ShadeTarget`]
-    /// (shades from the hit buffer itself). With a `ShadeTarget` its `view_proj` and
+    /// (shades from the hit images itself). With a `ShadeTarget` its `view_proj` and
     /// `camera_pos` are the camera and `camera` is ignored.
     ///
     /// # Safety
@@ -138,7 +138,7 @@ impl DisplacementPass {
         // places the barriers between the stages.
         unsafe {
             self.record_builds(cmd, &mut w, Some(inputs.frame_slot))?;
-            self.record_classify(cmd, &mut w, &mut g, inputs, false, None, None)?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, false)?;
         }
         let visibility = match visibility {
             Some(v) => Some(v),
@@ -217,23 +217,13 @@ impl DisplacementPass {
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
         let slot = inputs.frame_slot;
         let mut g = self.graph(inputs, Entry::Frame, false);
-        let depth_view = self.hit_depth(slot).map(|i| i.view);
-        let iterations_view = self.iterations(slot).map(|i| i.view);
         // SAFETY: this function's contract (the host's images enter as the module docs'
         // table says, the slot's by the slot contract); `begin` reset the writer's
         // queries; the builds leave every map sampled-readable, and the graph places the
         // barriers between the stages after them.
         unsafe {
             self.record_builds(cmd, &mut w, Some(slot))?;
-            self.record_classify(
-                cmd,
-                &mut w,
-                &mut g,
-                inputs,
-                true,
-                depth_view,
-                iterations_view,
-            )?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, true)?;
             self.record_corners(cmd, &mut w, &mut g, inputs)?;
             self.record_trace(cmd, &mut w, &mut g, inputs, camera.as_ref())?;
         }

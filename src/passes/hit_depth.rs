@@ -95,7 +95,7 @@ impl HitDepthPass {
     /// * `inputs`' views belong to that device and have the formats and usages of the
     ///   module's table; the hit images and the G-buffer are of `inputs.hit_depth`'s size.
     /// * When the command buffer executes, the images are in the layouts of the module's
-    ///   table: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   table: the hit images in `GENERAL`, their writes visible to compute-shader storage
     ///   reads; the G-buffer in `SHADER_READ_ONLY_OPTIMAL`, its writes visible to
     ///   compute-shader sampled reads; the corrected depth in `GENERAL`, earlier accesses
     ///   ordered before compute-shader storage writes (the caller's barriers); the tile

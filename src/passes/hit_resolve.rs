@@ -1,5 +1,5 @@
 //! The pipeline shape `hit_depth` and `motion` share: one indirect dispatch per material
-//! over its tiles ([`crate::passes::classify`]) that reads the hit buffer and the G-buffer
+//! over its tiles ([`crate::passes::classify`]) that reads the hit images and the G-buffer
 //! and writes one storage image of the frame's size.
 //!
 //! Bindings (set 0, push descriptors), mirrored by `glsl/hit_depth.comp` and

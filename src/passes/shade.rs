@@ -130,10 +130,10 @@ impl ShadePass {
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
     /// * `inputs`' views belong to that device and have the formats and usages of the
-    ///   module's table; the hit buffer, the G-buffer and the visibility are of
+    ///   module's table; the hit images, the G-buffer and the visibility are of
     ///   `inputs.color`'s size.
     /// * When the command buffer executes, the images are in the layouts of the module's
-    ///   table: the hit buffer and the visibility in `GENERAL`, their writes visible to
+    ///   table: the hit images and the visibility in `GENERAL`, their writes visible to
     ///   compute-shader storage reads; the G-buffer, `height` and the material maps in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
     ///   reads; the colour image in `GENERAL`, earlier accesses ordered before

@@ -307,10 +307,10 @@ impl ShadowPass {
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
     /// * `inputs`' views belong to that device and have the formats and usages of the
-    ///   module's table; the hit buffer and the G-buffer are of `inputs.visibility`'s
+    ///   module's table; the hit images and the G-buffer are of `inputs.visibility`'s
     ///   size.
     /// * When the command buffer executes, the images are in the layouts of the module's
-    ///   table: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   table: the hit images in `GENERAL`, their writes visible to compute-shader storage
     ///   reads; the G-buffer, `height` and the pyramid in `SHADER_READ_ONLY_OPTIMAL`,
     ///   their writes visible to compute-shader sampled reads; the visibility in
     ///   `GENERAL`, earlier accesses ordered before compute-shader storage writes (the

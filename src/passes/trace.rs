@@ -1,4 +1,4 @@
-//! The `trace` pass: runs one method per pixel and writes the hit buffer.
+//! The `trace` pass: runs one method per pixel and writes the hit images.
 //!
 //! Bindings (set 0, push descriptors), by their GLSL names; `glsl/common/trace.glsl` (and
 //! the includes of the methods that read more) give their numbers, which Rust takes from

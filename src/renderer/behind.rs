@@ -193,7 +193,7 @@ impl Renderer {
 
     /// The last frame's behind-layer hits (`None` without the layer): `NO_HIT_HEIGHT`
     /// where the layer has no geometry (every pixel whose first-layer trace hit); the
-    /// iteration counts are the pass's of slot [`BEHIND_SLOT`].
+    /// iteration counts are the pass's of its frame slot 1.
     pub fn read_behind_hits(&self) -> Result<Option<Vec<HitTexel>>> {
         let Some(b) = &self.behind else {
             return Ok(None);

@@ -236,7 +236,7 @@ impl Renderer {
         t.declare(height, FRAGMENT_SAMPLED)?;
         // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
         // context's queue family) and is submitted and waited for below, while the images
-        // live; they entered as the tracker knows; the G-buffer and the hit buffer have
+        // live; they entered as the tracker knows; the G-buffer and the hit images have
         // attachment usage (`GBuffer::new`, `frame_images`, the iteration image above).
         unsafe { t.record(ctx, cmd)? };
         let pass = &forward.passes[index];
@@ -247,7 +247,7 @@ impl Renderer {
         };
         let height_texture = &forward.height;
         // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
-        // above (the scope's contract). In the body: the hit buffer is in `GENERAL`, the
+        // above (the scope's contract). In the body: the hit images and iteration counts are in `GENERAL`, the
         // frame in `COLOR_ATTACHMENT_OPTIMAL`, the depth in
         // `DEPTH_ATTACHMENT_OPTIMAL` and the height texture visible to fragment-shader
         // reads (the barriers above, or the first forward frame's); the parameter buffer

@@ -6,12 +6,11 @@ use super::*;
 
 impl DisplacementPass {
     /// The `classify` scope: the slot's tile lists (and, with `write_hits`, the hit
-    /// texels of pixels without displacement; with `hit_depth`, their corrected depth;
-    /// with `iterations`, their iteration count).
+    /// texels of pixels without displacement, with them their corrected depth and
+    /// iteration count when those outputs are on).
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; `g` is this record's graph, `hit_depth` the
-    /// slot's corrected depth's view and `iterations` its iteration counts' view.
+    /// As [`DisplacementPass::record`]; `g` is this record's graph.
     pub(super) unsafe fn record_classify(
         &self,
         cmd: vk::CommandBuffer,
@@ -19,9 +18,10 @@ impl DisplacementPass {
         g: &mut FrameGraph,
         inputs: &FrameInputs,
         write_hits: bool,
-        hit_depth: Option<vk::ImageView>,
-        iterations: Option<vk::ImageView>,
     ) -> Result<()> {
+        let slot = inputs.frame_slot;
+        let hit_depth = self.hit_depth(slot).filter(|_| write_hits).map(|i| i.view);
+        let iterations = self.iterations(slot).filter(|_| write_hits).map(|i| i.view);
         let ctx = self.context()?.clone();
         let ctx = &*ctx;
         let lists = &self.slots[inputs.frame_slot as usize].tiles;
@@ -168,7 +168,7 @@ impl DisplacementPass {
         unsafe { g.flush(ctx, cmd, PassName::Trace)? };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the graph's barriers
-        // above made every binding ready (the G-buffer in its entry state, the hit buffer
+        // above made every binding ready (the G-buffer in its entry state, the hit images
         // and tile lists ordered after the classification, the maps sampled-readable, the
         // slot's corner grids sampled-readable after `record_corners`).
         unsafe {
