@@ -11,7 +11,9 @@
 //! * Variants: a line `// dispmap-variant: NAME` in an entry point also compiles it with
 //!   `#define NAME 1`, as the constant `<PATH CONSTANT>_<NAME>` (e.g. `SHADE_COMP_SHADOWS`)
 //!   named `<path>[NAME]`; a pass that needs a binding only sometimes picks the variant
-//!   instead of binding a placeholder.
+//!   instead of binding a placeholder. `// dispmap-variant: A+B` defines both `A` and `B`
+//!   (the constant `<PATH CONSTANT>_A_B`, named `<path>[A+B]`), for passes whose optional
+//!   bindings combine.
 //!
 //! * Each shader's descriptor bindings (set, binding, type, count, name, and whether it
 //!   reads or writes) are reflected from its SPIR-V (the entry point's interface) into
@@ -63,9 +65,9 @@ fn main() -> Result<()> {
                     let (const_name, name, file) = match &variant {
                         None => (base_const.clone(), rel.clone(), rel.replace('/', "__")),
                         Some(v) => (
-                            format!("{base_const}_{v}"),
+                            format!("{base_const}_{}", v.replace('+', "_")),
                             format!("{rel}[{v}]"),
-                            format!("{}__{v}", rel.replace('/', "__")),
+                            format!("{}__{}", rel.replace('/', "__"), v.replace('+', "_")),
                         ),
                     };
                     let spv = out.join(format!("{file}.spv"));
@@ -142,9 +144,11 @@ fn variants_of(path: &Path) -> Result<Vec<String>> {
     for line in source.lines() {
         if let Some(name) = line.trim().strip_prefix("// dispmap-variant:") {
             let name = name.trim();
-            if name.is_empty() || !name.chars().all(|c| c.is_ascii_uppercase() || c == '_') {
+            let valid =
+                |n: &str| !n.is_empty() && n.chars().all(|c| c.is_ascii_uppercase() || c == '_');
+            if !name.split('+').all(valid) {
                 bail!(
-                    "{}: bad variant name '{name}' (A-Z and _ only)",
+                    "{}: bad variant name '{name}' (A-Z and _, names joined by +)",
                     path.display()
                 );
             }
@@ -181,7 +185,7 @@ fn compile(
     options.set_optimization_level(shaderc::OptimizationLevel::Performance);
     options.set_warnings_as_errors();
     options.set_generate_debug_info();
-    if let Some(name) = variant {
+    for name in variant.into_iter().flat_map(|v| v.split('+')) {
         options.add_macro_definition(name, Some("1"));
     }
     let common = root.join("common");

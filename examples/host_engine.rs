@@ -32,7 +32,7 @@
 //! colour there, a plain grey clear, stays as it was). The draw's material comes to the
 //! fragment shader in the push constants' `camera_pos.w`.
 //!
-//! Frames: two in flight, each slot with its own G-buffer, hit buffer, colour image,
+//! Frames: two in flight, each slot with its own G-buffer, hit images, colour image,
 //! read-back buffers, command buffer and fence. Slot 0 times the pass into the engine's
 //! own query pool, slot 1 into the pass's own pool. At frame 1 the engine swaps the
 //! height map to bricks and at frame 3 back to the rocks map, so the pass re-uploads it
@@ -45,7 +45,8 @@ use anyhow::{Context as _, Result, anyhow, bail, ensure};
 use ash::vk;
 use dispmap::context::{Context, HostHandles};
 use dispmap::embed::{
-    self, DisplacementPass, FrameInputs, MaterialSettings, PassSettings, ShadeTarget, Timestamps,
+    self, DisplacementPass, FrameInputs, HitImages, MaterialSettings, PassSettings, ShadeTarget,
+    Timestamps,
 };
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
@@ -129,7 +130,7 @@ impl Default for Options {
 pub struct Output {
     /// Device name.
     pub device: String,
-    /// The last frame's hit buffer.
+    /// The last frame's hits (`u`, `v`, height; iteration 0: not asked for).
     pub hits: Vec<[f32; 4]>,
     /// The last frame's surface ids (the G-buffer frame's; 0: nothing drawn).
     pub surface_ids: Vec<f32>,
@@ -278,9 +279,11 @@ struct Slot {
     ray: EngineImage,
     frame: EngineImage,
     depth: EngineImage,
-    hit: EngineImage,
+    hit_uv: EngineImage,
+    hit_height: EngineImage,
     color: EngineImage,
     hit_readback: EngineBuffer,
+    height_readback: EngineBuffer,
     frame_readback: EngineBuffer,
     color_readback: EngineBuffer,
     cmd: vk::CommandBuffer,
@@ -292,16 +295,17 @@ struct Slot {
     behind: Option<BehindImages>,
 }
 
-/// One slot's behind layer: a second G-buffer, its hit buffer, and the read-back of its
+/// One slot's behind layer: a second G-buffer, its hit images, and the read-back of its
 /// frame; the colour image is the slot's own.
 struct BehindImages {
     ray: EngineImage,
     frame: EngineImage,
     depth: EngineImage,
-    hit: EngineImage,
+    hit_uv: EngineImage,
+    hit_height: EngineImage,
     frame_readback: EngineBuffer,
     /// Set 0 of the behind pipelines: the pixel rays, the slot's first-layer depth and
-    /// hit buffer.
+    /// hit height.
     set: vk::DescriptorSet,
 }
 
@@ -831,7 +835,7 @@ impl Engine {
             self.name(self.cube_pipeline, "engine.gbuffer.cube_pipeline");
 
             // The behind layer's pipelines: the same draws with the fragment shader's
-            // BEHIND variant, whose set 0 adds the first layer's depth and hit buffer.
+            // BEHIND variant, whose set 0 adds the first layer's depth and hit height.
             if o.behind {
                 let bindings = [
                     ubo[0],
@@ -991,14 +995,21 @@ impl Engine {
                         vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
                             | vk::ImageUsageFlags::SAMPLED,
                     )?,
-                    hit: self.image(&n("hits"), embed::HIT_FORMAT, extent, storage)?,
+                    hit_uv: self.image(&n("hits.uv"), embed::HIT_UV_FORMAT, extent, storage)?,
+                    hit_height: self.image(
+                        &n("hits.height"),
+                        embed::HIT_HEIGHT_FORMAT,
+                        extent,
+                        storage,
+                    )?,
                     color: self.image(
                         &n("color"),
                         embed::COLOR_FORMAT,
                         extent,
                         storage | vk::ImageUsageFlags::TRANSFER_DST,
                     )?,
-                    hit_readback: readback("hits.readback", pixels * 16)?,
+                    hit_readback: readback("hits.uv.readback", pixels * 8)?,
+                    height_readback: readback("hits.height.readback", pixels * 4)?,
                     frame_readback: readback("frame.readback", pixels * 8)?,
                     color_readback: readback("color.readback", pixels * 4)?,
                     cmd,
@@ -1031,7 +1042,18 @@ impl Engine {
                         vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
                             | vk::ImageUsageFlags::SAMPLED,
                     )?,
-                    hit: self.image(&n("behind.hits"), embed::HIT_FORMAT, extent, storage)?,
+                    hit_uv: self.image(
+                        &n("behind.hits.uv"),
+                        embed::HIT_UV_FORMAT,
+                        extent,
+                        storage,
+                    )?,
+                    hit_height: self.image(
+                        &n("behind.hits.height"),
+                        embed::HIT_HEIGHT_FORMAT,
+                        extent,
+                        storage,
+                    )?,
                     frame_readback: readback("behind.frame.readback", pixels * 8)?,
                     set,
                 };
@@ -1051,7 +1073,7 @@ impl Engine {
                 }];
                 let hit = [vk::DescriptorImageInfo {
                     sampler: vk::Sampler::null(),
-                    image_view: first.hit.view,
+                    image_view: first.hit_height.view,
                     image_layout: vk::ImageLayout::GENERAL,
                 }];
                 dev.update_descriptor_sets(
@@ -1406,12 +1428,14 @@ impl Engine {
                 .map(|i| barrier(i, color_write, sampled))
                 .collect();
             entry.push(barrier(&slot.depth, depth_write, sampled));
-            entry.push(discard_to(
-                &slot.hit,
-                storage_write.0,
-                storage_write.1,
-                storage_write.2,
-            ));
+            for hit in [&slot.hit_uv, &slot.hit_height] {
+                entry.push(discard_to(
+                    hit,
+                    storage_write.0,
+                    storage_write.1,
+                    storage_write.2,
+                ));
+            }
             // The colour image holds the engine's own colour where nothing is displaced
             // (here a plain clear: sky and the cube's flat top); the pass writes only the
             // displaced pixels.
@@ -1457,7 +1481,10 @@ impl Engine {
                     depth: slot.depth.host,
                     extent,
                 },
-                hit: slot.hit.host,
+                hit: HitImages {
+                    uv: slot.hit_uv.host,
+                    height: slot.hit_height.host,
+                },
                 shade: Some(ShadeTarget {
                     color: slot.color.host,
                     view_proj: camera.view_proj,
@@ -1496,7 +1523,7 @@ impl Engine {
                     discard_to(&b.frame, color_write.0, color_write.1, color_write.2),
                     discard_to(&b.depth, depth_write.0, depth_write.1, depth_write.2),
                     barrier(
-                        &slot.hit,
+                        &slot.hit_height,
                         hit_exit,
                         fragment_read(vk::AccessFlags2::SHADER_STORAGE_READ),
                     ),
@@ -1585,7 +1612,18 @@ impl Engine {
                             barrier(&b.ray, color_write, sampled),
                             barrier(&b.frame, color_write, sampled),
                             barrier(&b.depth, depth_write, sampled),
-                            discard_to(&b.hit, storage_write.0, storage_write.1, storage_write.2),
+                            discard_to(
+                                &b.hit_uv,
+                                storage_write.0,
+                                storage_write.1,
+                                storage_write.2,
+                            ),
+                            discard_to(
+                                &b.hit_height,
+                                storage_write.0,
+                                storage_write.1,
+                                storage_write.2,
+                            ),
                             barrier(&slot.color, storage_write, storage_write),
                         ],
                     );
@@ -1598,7 +1636,10 @@ impl Engine {
                         depth: b.depth.host,
                         extent,
                     },
-                    hit: b.hit.host,
+                    hit: HitImages {
+                        uv: b.hit_uv.host,
+                        height: b.hit_height.host,
+                    },
                     ..inputs
                 };
                 // SAFETY: as the first record; the behind slot's previous frame is the
@@ -1612,8 +1653,9 @@ impl Engine {
                 vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
             );
             let after = [
+                barrier(&slot.hit_uv, hit_exit, copy_src),
                 barrier(
-                    &slot.hit,
+                    &slot.hit_height,
                     match &slot.behind {
                         // Last read by the behind layer's fragment shader.
                         Some(_) => fragment_read(vk::AccessFlags2::SHADER_STORAGE_READ),
@@ -1635,7 +1677,8 @@ impl Engine {
                 pipeline_barrier(dev, cmd, &behind_copy);
                 let behind_frame = slot.behind.as_ref().map(|b| (&b.frame, &b.frame_readback));
                 for (img, buf) in [
-                    (&slot.hit, &slot.hit_readback),
+                    (&slot.hit_uv, &slot.hit_readback),
+                    (&slot.hit_height, &slot.height_readback),
                     (&slot.color, &slot.color_readback),
                     (&slot.frame, &slot.frame_readback),
                 ]
@@ -1711,8 +1754,12 @@ impl Engine {
                 .to_vec())
         };
         let pixels = (o.width * o.height) as usize;
-        let hits: Vec<[f32; 4]> =
-            bytemuck::cast_slice(&read(&slot.hit_readback)?[..pixels * 16]).to_vec();
+        // `u`, `v`, height; the engine does not ask for the pass's iteration counts (0).
+        let hits = dispmap::passes::trace::join_hits(
+            &read(&slot.hit_readback)?[..pixels * 8],
+            &read(&slot.height_readback)?[..pixels * 4],
+            None,
+        );
         let ids = |frames: Vec<u8>| -> Vec<f32> {
             frames[..pixels * 8]
                 .chunks_exact(8)
@@ -1769,14 +1816,26 @@ impl Engine {
             };
             for slot in std::mem::take(&mut self.slots) {
                 dev.destroy_fence(slot.fence, None);
-                for img in [slot.ray, slot.frame, slot.depth, slot.hit, slot.color] {
+                for img in [
+                    slot.ray,
+                    slot.frame,
+                    slot.depth,
+                    slot.hit_uv,
+                    slot.hit_height,
+                    slot.color,
+                ] {
                     free_image(self, img);
                 }
-                for buf in [slot.hit_readback, slot.frame_readback, slot.color_readback] {
+                for buf in [
+                    slot.hit_readback,
+                    slot.height_readback,
+                    slot.frame_readback,
+                    slot.color_readback,
+                ] {
                     free_buffer(self, buf);
                 }
                 if let Some(b) = slot.behind {
-                    for img in [b.ray, b.frame, b.depth, b.hit] {
+                    for img in [b.ray, b.frame, b.depth, b.hit_uv, b.hit_height] {
                         free_image(self, img);
                     }
                     free_buffer(self, b.frame_readback);

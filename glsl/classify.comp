@@ -7,12 +7,14 @@
 // several materials is appended to the list glsl/classify_mixed.comp runs over, after
 // glsl/classify_offsets.comp placed each material's list in the slot's one tile buffer.
 // Pixels of no live material (no geometry, flat geometry, an index past the table or of a
-// removed material) get their hit buffer texel here, since no trace writes it:
-// (0, 0, NO_HIT_HEIGHT, 0) without geometry, (0, 0, NOT_DISPLACED_HEIGHT, 0) for flat
-// geometry. With the DEPTH variant (corrected depth on) they also get their corrected
-// depth: the G-buffer's own depth (0 without geometry), the depth of a surface that is not
-// displaced.
+// removed material) get their hit texels here, since no trace writes them: uv (0, 0) and
+// height NO_HIT_HEIGHT without geometry, NOT_DISPLACED_HEIGHT for flat geometry. With the
+// DEPTH variant (corrected depth on) they also get their corrected depth: the G-buffer's
+// own depth (0 without geometry), the depth of a surface that is not displaced; with the
+// ITERATIONS variant (the iteration output on) an iteration count of 0.
 // dispmap-variant: DEPTH
+// dispmap-variant: ITERATIONS
+// dispmap-variant: DEPTH+ITERATIONS
 #include "frame.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
@@ -20,7 +22,8 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(set = 0, binding = 0) uniform sampler2D u_depth;
 layout(set = 0, binding = 1) uniform usampler2D u_frame;
 #include "tiles.glsl"
-layout(set = 0, binding = 2, rgba32f) uniform writeonly image2D u_hit;
+layout(set = 0, binding = 2, rg32f) uniform writeonly image2D u_hit_uv;
+layout(set = 0, binding = 6, r32f) uniform writeonly image2D u_hit_height;
 // The slot's tile buffer (glsl/common/tiles.glsl): this step writes the tile summaries and
 // the list of tiles of several materials.
 layout(set = 0, binding = 3, std430) writeonly buffer Tiles {
@@ -35,10 +38,13 @@ layout(set = 0, binding = 4, std430) buffer Args {
 #ifdef DEPTH
 layout(set = 0, binding = 5, r32f) uniform writeonly image2D u_hit_depth;
 #endif
+#ifdef ITERATIONS
+layout(set = 0, binding = 7, r32ui) uniform writeonly uimage2D u_iterations;
+#endif
 
 CLASSIFY_PARAMS
 
-// Write the hit buffer texels of pixels without displacement (off when the host's hits
+// Write the hit texels of pixels without displacement (off when the host's hits
 // are shaded: DisplacementPass::record_shading).
 #define CLASSIFY_FLAG_WRITE_HITS 1u
 
@@ -65,8 +71,12 @@ void main() {
         } else {
             if ((pc.flags & CLASSIFY_FLAG_WRITE_HITS) != 0u) {
                 float h = depth > 0.0 ? NOT_DISPLACED_HEIGHT : NO_HIT_HEIGHT;
-                imageStore(u_hit, pixel, vec4(0.0, 0.0, h, 0.0));
+                imageStore(u_hit_uv, pixel, vec4(0.0));
+                imageStore(u_hit_height, pixel, vec4(h));
             }
+#ifdef ITERATIONS
+            imageStore(u_iterations, pixel, uvec4(0u));
+#endif
 #ifdef DEPTH
             imageStore(u_hit_depth, pixel, vec4(max(depth, 0.0)));
 #endif

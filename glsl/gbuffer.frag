@@ -13,9 +13,9 @@
 #include "include/dispmap_gbuffer.glsl"
 #ifdef BEHIND
 #include "include/dispmap_behind.glsl"
-// The first layer's G-buffer depth and hit buffer.
+// The first layer's G-buffer depth and hit height.
 layout(set = 0, binding = 1) uniform sampler2D u_first_depth;
-layout(set = 0, binding = 2, rgba32f) uniform readonly image2D u_first_hit;
+layout(set = 0, binding = 2, r32f) uniform readonly image2D u_first_hit_height;
 #endif
 
 // The frame's pixel rays (src/abi.rs PixelRayParams; a uniform buffer: the push
@@ -42,7 +42,7 @@ void main() {
     gl_FragDepth = dispmap_plane_pixel_depth(pc.view_proj, eye_rel);
 #ifdef BEHIND
     ivec2 pixel = ivec2(gl_FragCoord.xy);
-    if (!dispmap_behind_keep(imageLoad(u_first_hit, pixel).z,
+    if (!dispmap_behind_keep(imageLoad(u_first_hit_height, pixel).x,
                              texelFetch(u_first_depth, pixel, 0).r, gl_FragDepth)) {
         discard;
     }

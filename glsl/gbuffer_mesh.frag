@@ -10,9 +10,9 @@
 #include "include/dispmap_gbuffer.glsl"
 #ifdef BEHIND
 #include "include/dispmap_behind.glsl"
-// The first layer's G-buffer depth and hit buffer.
+// The first layer's G-buffer depth and hit height.
 layout(set = 0, binding = 1) uniform sampler2D u_first_depth;
-layout(set = 0, binding = 2, rgba32f) uniform readonly image2D u_first_hit;
+layout(set = 0, binding = 2, r32f) uniform readonly image2D u_first_hit_height;
 #endif
 
 layout(location = 0) in vec3 v_eye_rel;
@@ -35,7 +35,7 @@ layout(location = 1) out uvec2 out_frame;
 void main() {
 #ifdef BEHIND
     ivec2 pixel = ivec2(gl_FragCoord.xy);
-    if (!dispmap_behind_keep(imageLoad(u_first_hit, pixel).z,
+    if (!dispmap_behind_keep(imageLoad(u_first_hit_height, pixel).x,
                              texelFetch(u_first_depth, pixel, 0).r, gl_FragCoord.z)) {
         discard;
     }

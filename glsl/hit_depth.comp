@@ -17,7 +17,8 @@
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
+layout(set = 0, binding = 0, rg32f) uniform readonly image2D u_hit_uv;
+layout(set = 0, binding = 4, r32f) uniform readonly image2D u_hit_height;
 layout(set = 0, binding = 1) uniform sampler2D u_ray;
 layout(set = 0, binding = 2) uniform sampler2D u_depth;
 layout(set = 0, binding = 3) uniform usampler2D u_frame;
@@ -43,7 +44,7 @@ void main() {
         return;
     }
     float depth = texelFetch(u_depth, pixel, 0).r;
-    vec4 hit = imageLoad(u_hit, pixel);
+    vec4 hit = vec4(imageLoad(u_hit_uv, pixel).xy, imageLoad(u_hit_height, pixel).x, 0.0);
     if (depth <= 0.0 || hit.z < 0.0) {
         imageStore(u_hit_depth, pixel, vec4(0.0));
         return;

@@ -10,7 +10,9 @@
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
+// The hit images: uv and height (< 0: no hit).
+layout(set = 0, binding = 0, rg32f) uniform readonly image2D u_hit_uv;
+layout(set = 0, binding = 2, r32f) uniform readonly image2D u_hit_height;
 layout(set = 0, binding = 1) uniform usampler2D u_frame;
 layout(set = 0, binding = 3) uniform sampler2D u_height;
 layout(set = 0, binding = 4, rgba8) uniform writeonly image2D u_color;
@@ -53,7 +55,7 @@ void main() {
     vec4 far_point = pc.inv_view_proj * vec4(ndc, 0.5, 1.0);
     vec3 V = normalize(far_point.xyz / far_point.w - pc.camera_pos.xyz);
 
-    vec4 hit = imageLoad(u_hit, pixel);
+    vec4 hit = vec4(imageLoad(u_hit_uv, pixel).xy, imageLoad(u_hit_height, pixel).x, 0.0);
     if (hit.z < 0.0) {
         // A ray that left the decal: the sky.
         imageStore(u_color, pixel, vec4(sky_color(V), 1.0));

@@ -63,7 +63,8 @@
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
-layout(set = 0, binding = 0, rgba32f) uniform readonly image2D u_hit;
+layout(set = 0, binding = 0, rg32f) uniform readonly image2D u_hit_uv;
+layout(set = 0, binding = 2, r32f) uniform readonly image2D u_hit_height;
 layout(set = 0, binding = 1) uniform usampler2D u_frame;
 // The height field (linear filtering, the map's addressing).
 layout(set = 0, binding = 3) uniform sampler2D u_height;
@@ -163,7 +164,7 @@ void main() {
     if (!material_pixel(pc.material, pc.frame_size, pixel)) {
         return;
     }
-    vec4 hit = imageLoad(u_hit, pixel);
+    vec4 hit = vec4(imageLoad(u_hit_uv, pixel).xy, imageLoad(u_hit_height, pixel).x, 0.0);
     float visibility = 1.0; // no hit: nothing to shadow
     if (hit.z >= 0.0) {
         DispmapFrame f = gbuffer_frame(pixel);

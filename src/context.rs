@@ -55,6 +55,22 @@ pub mod requirements {
                     | vk::FormatFeatureFlags::SAMPLED_IMAGE.as_raw(),
             ),
         ),
+        // The hit uv image (a colour attachment of the forward path).
+        (
+            vk::Format::R32G32_SFLOAT,
+            vk::FormatFeatureFlags::from_raw(
+                vk::FormatFeatureFlags::COLOR_ATTACHMENT.as_raw()
+                    | vk::FormatFeatureFlags::STORAGE_IMAGE.as_raw(),
+            ),
+        ),
+        // The iteration counts (a colour attachment of the forward path).
+        (
+            vk::Format::R32_UINT,
+            vk::FormatFeatureFlags::from_raw(
+                vk::FormatFeatureFlags::COLOR_ATTACHMENT.as_raw()
+                    | vk::FormatFeatureFlags::STORAGE_IMAGE.as_raw(),
+            ),
+        ),
         (
             vk::Format::R32G32_UINT,
             vk::FormatFeatureFlags::from_raw(
@@ -81,9 +97,14 @@ pub mod requirements {
             vk::Format::R16_UNORM,
             vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR,
         ),
+        // Height maps (filtered), the hit height image and the corrected depth.
         (
             vk::Format::R32_SFLOAT,
-            vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR,
+            vk::FormatFeatureFlags::from_raw(
+                vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR.as_raw()
+                    | vk::FormatFeatureFlags::COLOR_ATTACHMENT.as_raw()
+                    | vk::FormatFeatureFlags::STORAGE_IMAGE.as_raw(),
+            ),
         ),
     ];
 }

@@ -61,20 +61,25 @@
 //! use std::sync::Arc;
 //!
 //! /// One frame of a host whose device was created with `embed::requirements()` enabled;
-//! /// `cmd` is recording, the G-buffer and hit buffer are in the documented layouts.
+//! /// `cmd` is recording, the G-buffer and hit images are in the documented layouts.
 //! fn frame(
 //!     handles: HostHandles,
 //!     field: &HeightField,
 //!     cmd: vk::CommandBuffer,
 //!     gbuffer: GBufferViews,
-//!     hit: vk::ImageView,
+//!     [hit_uv, hit_height]: [vk::ImageView; 2],
 //! ) -> dispmap::Result<()> {
-//!     // The hit buffer as the pass checks it (format, size, usage: a wrong one is refused).
-//!     let hit = embed::HostView {
-//!         view: hit,
-//!         format: embed::HIT_FORMAT,
+//!     // The hit images as the pass checks them (format, size, usage: a wrong one is
+//!     // refused).
+//!     let view = |view, format| embed::HostView {
+//!         view,
+//!         format,
 //!         extent: gbuffer.extent,
 //!         usage: vk::ImageUsageFlags::STORAGE,
+//!     };
+//!     let hit = embed::HitImages {
+//!         uv: view(hit_uv, embed::HIT_UV_FORMAT),
+//!         height: view(hit_height, embed::HIT_HEIGHT_FORMAT),
 //!     };
 //!     // 1. The device has what the pass needs (an error naming what is missing).
 //!     // SAFETY: the host's physical device was enumerated from its live instance.
@@ -106,13 +111,14 @@
 //! ```
 //!
 //! A frame is a pass graph: `gbuffer` (raster) -> `[upload]` -> `[pyramid]` ->
-//! `[dig_corners]` -> `trace` (the method, writing the hit buffer) -> `[shadow]` -> `shade`
+//! `[dig_corners]` -> `trace` (the method, writing the hit images) -> `[shadow]` -> `shade`
 //! -> `[hit_depth]` ([`passes::PassName`]). Every pass records into a command buffer it is
 //! given and is bracketed by GPU timestamps.
 //!
 //! Conventions (`docs/design.md` in the repository): heights in `[0, 1]` with 1 the
 //! macro surface; texel centres at `(i + 0.5) / W`; the tangent-space ray
-//! `uv(h) = uv0 + (1 - h) P`; the hit buffer holds `(u, v, height, iterations)`.
+//! `uv(h) = uv0 + (1 - h) P`; the hit images hold each hit's `(u, v)` and height, and
+//! the pass's optional iteration output its iteration count.
 //!
 //! Features:
 //!

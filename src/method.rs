@@ -217,6 +217,25 @@ impl Method {
         }
     }
 
+    /// The method's trace shader in its `ITERATIONS` variant: [`Method::shader`] that
+    /// also writes each pixel's iteration count.
+    pub fn iterations_shader(self) -> Shader {
+        match self {
+            Method::Bump => shaders::TRACE_BUMP_COMP_ITERATIONS,
+            Method::Linear => shaders::TRACE_LINEAR_COMP_ITERATIONS,
+            Method::Relief => shaders::TRACE_RELIEF_COMP_ITERATIONS,
+            Method::Pom => shaders::TRACE_POM_COMP_ITERATIONS,
+            Method::Secant => shaders::TRACE_SECANT_COMP_ITERATIONS,
+            Method::Dig => shaders::TRACE_DIG_COMP_ITERATIONS,
+            Method::DigGuarded => shaders::TRACE_DIG_GUARDED_COMP_ITERATIONS,
+            Method::Pyramid => shaders::TRACE_PYRAMID_COMP_ITERATIONS,
+            Method::Exact => shaders::TRACE_EXACT_COMP_ITERATIONS,
+            Method::Cone => shaders::TRACE_CONE_COMP_ITERATIONS,
+            Method::ConeExact => shaders::TRACE_CONE_EXACT_COMP_ITERATIONS,
+            Method::RelaxedCone => shaders::TRACE_CONE_COMP_RELAXED_ITERATIONS,
+        }
+    }
+
     /// The fragment shader of the method's forward path ([`crate::passes::forward`]: the
     /// march inside the G-buffer pass, as engines run relief mapping and POM): `relief`
     /// and `pom`; `None` for the others.

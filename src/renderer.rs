@@ -6,16 +6,18 @@
 //! 1. G-buffer images: discarded (`UNDEFINED`, after last frame's compute reads and
 //!    read-back copies) -> attachment layouts; `gbuffer` clears and writes them (timed
 //!    in the renderer's own scope).
-//! 2. G-buffer -> `SHADER_READ_ONLY_OPTIMAL` for compute; hit buffer and colour:
+//! 2. G-buffer -> `SHADER_READ_ONLY_OPTIMAL` for compute; hit images and colour:
 //!    discarded -> `GENERAL` for storage writes (the pass's entry contract).
 //! 3. [`DisplacementPass::record`] with a [`ShadeTarget`]: `[upload] -> [pyramid] ->
 //!    [dig_corners] -> trace -> [shadow] -> shade -> [hit_depth]`, each stage placing its
 //!    own barriers, timed into the renderer's pool after the G-buffer's queries.
 //!
-//! After a frame the hit buffer is in `GENERAL` (last access: storage read), the colour
+//! After a frame the hit images are in `GENERAL` (last access: storage read), the colour
 //! in `GENERAL` (last access: storage write), the G-buffer in
 //! `SHADER_READ_ONLY_OPTIMAL`, and the pass's images as its module docs say; the
-//! read-back helpers use exactly those states. The renderer keeps one frame slot and
+//! read-back helpers use exactly those states. The renderer turns the pass's iteration counts on
+//! ([`DisplacementPass::with_iterations`]: its read-backs, metrics and benchmark use them),
+//! keeps one frame slot and
 //! waits for each frame, so what the pass retires is destroyed by the next frame.
 
 mod behind;
@@ -30,8 +32,8 @@ use objects::{Objects, bounding_sphere, check_eye, objects_settings};
 
 use crate::context::Context;
 use crate::embed::{
-    DepthCamera, DisplacementPass, FrameInputs, MAX_QUERIES, MaterialId, MaterialSettings,
-    MotionSettings, PassSettings, ShadeTarget, Timestamps,
+    DepthCamera, DisplacementPass, FrameInputs, HitImages, MAX_QUERIES, MaterialId,
+    MaterialSettings, MotionSettings, PassSettings, ShadeTarget, Timestamps,
 };
 use crate::error::{Error, Result};
 use crate::gpu::commands::{read_image, upload_image};
@@ -49,10 +51,11 @@ use crate::passes::dig::Corner;
 use crate::passes::gbuffer::{GBuffer, GBufferDraw, GBufferPass, Ray};
 use crate::passes::shade::COLOR_FORMAT;
 use crate::passes::shadow::{ShadowSettings, VISIBILITY_FORMAT};
-use crate::passes::trace::{HIT_FORMAT, HitTexel};
+use crate::passes::trace::{HIT_HEIGHT_FORMAT, HIT_UV_FORMAT, HitTexel};
 use crate::scene::{Geometry, Placement, Scene};
 use crate::timing::{QueryPool, ScopeWriter, read_timestamps};
 use ash::vk;
+use build::Hits;
 use std::sync::Arc;
 
 /// Largest frame side the CLI accepts (a sanity bound; the device's limit applies too).
@@ -152,7 +155,7 @@ pub struct Renderer {
     shot: OneShot,
     timestamps: QueryPool,
     gbuffer: GBuffer,
-    hit: Image,
+    hit: Hits,
     color: Image,
     gbuffer_pass: GBufferPass,
     /// The host's shading of what the pass leaves alone: sky and flat geometry.
@@ -177,6 +180,9 @@ pub struct Renderer {
     rays_frame: Option<(Scene, crate::scene::FrameCamera)>,
     /// The behind layer ([`Renderer::set_behind`]), while on.
     behind: Option<behind::Behind>,
+    /// Whether the last frame was a forward frame ([`Renderer::render_forward`]): its
+    /// iteration counts are the forward path's, not the pass's.
+    forward_frame: bool,
 }
 
 impl Renderer {
@@ -211,7 +217,7 @@ impl Renderer {
         &self.ctx
     }
 
-    /// Changes the frame size: a new G-buffer, hit buffer and colour image of `width` x
+    /// Changes the frame size: a new G-buffer, hit images and colour image of `width` x
     /// `height`, and the pass's [`DisplacementPass::resize`]; the map, method, shadows
     /// and scene stay. Every frame of this renderer was waited for, so the old images
     /// are destroyed here; a caller that recorded work of its own on

@@ -13,14 +13,13 @@
 mod common;
 
 use ash::vk;
-use common::frames::{DISCARD, FrameSlots, record_gbuffer};
+use common::frames::{FrameSlots, HitPair, record_gbuffer};
 use common::{asset_map, validated_context};
 use dispmap::Context;
-use dispmap::embed::{DisplacementPass, FrameInputs, HIT_FORMAT, PassSettings, Timestamps};
-use dispmap::gpu::commands::read_image;
+use dispmap::embed::{DisplacementPass, FrameInputs, PassSettings, Timestamps};
+use dispmap::gpu::OneShot;
 use dispmap::gpu::owned::Destroy;
-use dispmap::gpu::sync::{self, Access};
-use dispmap::gpu::{Image, OneShot};
+use dispmap::gpu::sync::Access;
 use dispmap::heightfield::{Convention, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
@@ -33,7 +32,7 @@ const SLOTS: usize = 2;
 /// One frame-in-flight slot's images.
 struct Slot {
     gbuffer: GBuffer,
-    hit: Image,
+    hit: HitPair,
 }
 
 /// The test host: its G-buffer pipeline, slots' images and frame plumbing.
@@ -47,17 +46,14 @@ struct Host {
     frame: usize,
 }
 
-fn images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, Image) {
+fn images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, HitPair) {
     let gbuffer = GBuffer::new(ctx, extent).unwrap();
-    let hit = Image::new(
+    let hit = HitPair::new(
         ctx,
         &format!("host.hit{s}"),
-        HIT_FORMAT,
         extent,
-        1,
         vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-    )
-    .unwrap();
+    );
     (gbuffer, hit)
 }
 
@@ -99,7 +95,7 @@ impl Host {
         self.frame += 1;
         let cmd = self.frames.begin(s);
         let ctx = self.ctx.clone();
-        if self.slots[s].hit.extent != self.extent {
+        if self.slots[s].hit.extent() != self.extent {
             // Slot `s`'s last frame has completed (`begin` waited): its old images are
             // unused.
             let (gbuffer, hit) = images(&ctx, self.extent, s);
@@ -131,12 +127,12 @@ impl Host {
                 &camera.pixel_ray_params(),
             )
         };
-        // SAFETY: as above, for the slot's hit image.
-        unsafe { sync::transition(&ctx, cmd, &slot.hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
+        // SAFETY: as above, for the slot's hit images.
+        unsafe { slot.hit.discard(&ctx, cmd) };
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: g.views(),
-            hit: slot.hit.host_view(),
+            hit: slot.hit.host(),
             shade: None,
             motion: None,
         };
@@ -149,17 +145,16 @@ impl Host {
         recorded.passes.iter().map(|p| p.as_str()).collect()
     }
 
-    /// The hit buffer of slot `s` (its last frame must have completed: `wait_all`).
-    fn hits(&self, s: usize, shot: &OneShot) -> Vec<[f32; 4]> {
+    /// The hits of slot `s` with the pass's iteration counts of the slot (its last frame
+    /// must have completed: `wait_all`).
+    fn hits(&self, s: usize, shot: &OneShot, pass: &DisplacementPass) -> Vec<[f32; 4]> {
         assert!(!self.frames.in_flight(s));
-        let bytes = read_image(
+        self.slots[s].hit.read(
             &self.ctx,
             shot,
-            &self.slots[s].hit,
             Access::COMPUTE_STORAGE_WRITE,
+            pass.iterations(s as u32),
         )
-        .unwrap();
-        bytemuck::cast_slice::<u8, [f32; 4]>(&bytes).to_vec()
     }
 
     fn destroy(mut self) {
@@ -278,6 +273,10 @@ fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
     let mut host = Host::new(ctx.clone(), Scene::default(), small);
     let mut pass =
         DisplacementPass::new(ctx.clone(), &rocks, settings(method, params, small)).unwrap();
+    // The standalone renderer's hits carry iteration counts: the host asks for them.
+    assert!(!pass.iterations_output() && pass.iterations(0).is_none());
+    pass.set_iterations_output(true).unwrap();
+    assert!(pass.iterations_output());
 
     // Frames at the first size; the first uploads the map and builds the pyramid.
     assert_eq!(
@@ -301,8 +300,8 @@ fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
 
     let expected = standalone(&ctx, &rocks, method, params, large);
     for s in 0..SLOTS {
-        assert_eq!(host.slots[s].hit.extent, large);
-        let got = host.hits(s, &shot);
+        assert_eq!(host.slots[s].hit.extent(), large);
+        let got = host.hits(s, &shot, &pass);
         assert_bit_identical(&got, &expected, &format!("slot {s} after resize"));
     }
 
@@ -318,7 +317,7 @@ fn resize_with_frames_in_flight_matches_standalone_at_the_new_size() {
     host.wait_all();
     let expected = standalone(&ctx, &rocks, method, params, small);
     for s in 0..SLOTS {
-        let got = host.hits(s, &shot);
+        let got = host.hits(s, &shot, &pass);
         assert_bit_identical(&got, &expected, &format!("slot {s} after resizing back"));
     }
     assert!(
@@ -417,7 +416,9 @@ fn set_method_with_frames_in_flight_matches_standalone_for_each_method() {
     let shot = OneShot::new(&ctx, "test.readback").unwrap();
     let mut host = Host::new(ctx.clone(), Scene::default(), extent);
     let (m0, p0, _, _) = steps[0];
-    let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(m0, p0, extent)).unwrap();
+    let mut pass =
+        DisplacementPass::with_iterations(ctx.clone(), &rocks, settings(m0, p0, extent), true)
+            .unwrap();
     for (i, &(method, params, first, later)) in steps.iter().enumerate() {
         assert_eq!(
             host.frame(&mut pass),
@@ -454,7 +455,7 @@ fn set_method_with_frames_in_flight_matches_standalone_for_each_method() {
         host.wait_all();
         let expected = standalone(&ctx, &rocks, method, params, extent);
         for s in 0..SLOTS {
-            let got = host.hits(s, &shot);
+            let got = host.hits(s, &shot, &pass);
             assert_bit_identical(&got, &expected, &format!("{} slot {s}", method.name()));
         }
     }

@@ -15,12 +15,12 @@
 mod common;
 
 use ash::vk;
-use common::frames::{DISCARD, FrameSlots, record_gbuffer};
+use common::frames::{DISCARD, FrameSlots, HitPair, record_gbuffer};
 use common::{asset_map, validated_context};
 use dispmap::Context;
 use dispmap::embed::{
-    COLOR_FORMAT, DepthCamera, DisplacementPass, FrameInputs, HIT_FORMAT, PassSettings,
-    ShadeTarget, ShadowMode, ShadowSettings, Timestamps,
+    COLOR_FORMAT, DepthCamera, DisplacementPass, FrameInputs, PassSettings, ShadeTarget,
+    ShadowMode, ShadowSettings, Timestamps,
 };
 use dispmap::gpu::commands::read_image;
 use dispmap::gpu::owned::Destroy;
@@ -55,7 +55,7 @@ const FRAGMENT_SAMPLED: Access = Access {
 
 struct Slot {
     gbuffer: GBuffer,
-    hit: Image,
+    hit: HitPair,
     color: Image,
     /// The host's own `D32_SFLOAT` depth attachment the corrected depth is resolved into.
     resolved: Image,
@@ -86,15 +86,15 @@ enum Output {
     HitsWithCamera,
 }
 
-/// A slot's host images of `extent`: G-buffer, hit buffer, colour, D32 depth.
-fn slot_images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, Image, Image, Image) {
+/// A slot's host images of `extent`: G-buffer, hit images, colour, D32 depth.
+fn slot_images(ctx: &Context, extent: vk::Extent2D, s: usize) -> (GBuffer, HitPair, Image, Image) {
     let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC;
     let image = |name: &str, format, usage| {
         Image::new(ctx, &format!("host.{name}{s}"), format, extent, 1, usage).unwrap()
     };
     (
         GBuffer::new(ctx, extent).unwrap(),
-        image("hit", HIT_FORMAT, usage),
+        HitPair::new(ctx, &format!("host.hit{s}"), extent, usage),
         image("color", COLOR_FORMAT, usage),
         image(
             "resolved_depth",
@@ -151,7 +151,7 @@ impl Host {
         let ctx = self.ctx.clone();
         let extent = self.extent;
         let slot = &mut self.slots[s];
-        if slot.hit.extent != extent {
+        if slot.hit.extent() != extent {
             // The slot's last frame has completed (`begin` waited): its images are unused.
             let (gbuffer, hit, color, resolved) = slot_images(&ctx, extent, s);
             // SAFETY: the slot's last frame has completed (`begin` waited): nothing reads the old images.
@@ -185,7 +185,7 @@ impl Host {
             )
         };
         let mut entry = Vec::new();
-        for image in [&slot.hit, &slot.color] {
+        for image in [&slot.hit.uv, &slot.hit.height, &slot.color] {
             entry.push(sync::image_barrier(
                 image.raw,
                 image.range(),
@@ -205,7 +205,7 @@ impl Host {
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: g.views(),
-            hit: slot.hit.host_view(),
+            hit: slot.hit.host(),
             shade: (output == Output::Shaded).then_some(shade),
             motion: None,
         };
@@ -363,8 +363,14 @@ fn read_slot(
     let ctx = &host.ctx;
     let slot = &host.slots[s];
     assert!(!host.frames.in_flight(s));
-    let hits = read_image(ctx, shot, &slot.hit, Access::COMPUTE_STORAGE_READ).unwrap();
-    let hits = bytemuck::cast_slice::<u8, [f32; 4]>(&hits)
+    let hits = slot
+        .hit
+        .read(
+            ctx,
+            shot,
+            Access::COMPUTE_STORAGE_READ,
+            pass.iterations(s as u32),
+        )
         .iter()
         .map(|h| h.map(f32::to_bits))
         .collect();
@@ -626,7 +632,9 @@ fn shadows_and_corrected_depth_match_standalone_with_frames_in_flight_and_toggle
     ];
     let shot = OneShot::new(&ctx, "test.readback").unwrap();
     let mut host = Host::new(ctx.clone(), Scene::default());
-    let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(steps[0].method)).unwrap();
+    let mut pass =
+        DisplacementPass::with_iterations(ctx.clone(), &rocks, settings(steps[0].method), true)
+            .unwrap();
     assert!(pass.visibility(0).is_none() && pass.hit_depth(0).is_none());
     // Nothing is built while the features are off; bad samples are refused.
     assert!(
@@ -736,7 +744,8 @@ fn set_height_map_with_shadows_rebuilds_the_own_cell_pyramid() {
     let hard = shadows(ShadowMode::Hard, 8);
     let shot = OneShot::new(&ctx, "test.readback").unwrap();
     let mut host = Host::new(ctx.clone(), Scene::default());
-    let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(method)).unwrap();
+    let mut pass =
+        DisplacementPass::with_iterations(ctx.clone(), &rocks, settings(method), true).unwrap();
     pass.set_shadows(hard).unwrap();
     pass.set_depth_output(true).unwrap();
     let (_, first) = host.frame(&mut pass, Output::Shaded);
@@ -806,7 +815,8 @@ fn resize_with_shadows_and_depth_in_flight_matches_standalone_at_the_new_size() 
     };
     let shot = OneShot::new(&ctx, "test.readback").unwrap();
     let mut host = Host::new(ctx.clone(), Scene::default());
-    let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings(method)).unwrap();
+    let mut pass =
+        DisplacementPass::with_iterations(ctx.clone(), &rocks, settings(method), true).unwrap();
     pass.set_shadows(soft).unwrap();
     pass.set_depth_output(true).unwrap();
     let later = [
@@ -852,7 +862,7 @@ fn depth_output_without_a_camera_is_a_clear_error() {
     let inputs = FrameInputs {
         frame_slot: 0,
         gbuffer: slot.gbuffer.views(),
-        hit: slot.hit.host_view(),
+        hit: slot.hit.host(),
         shade: None,
         motion: None,
     };

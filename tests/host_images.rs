@@ -1,4 +1,4 @@
-//! The host images the pass reads and writes (the G-buffer, hit buffer, colour, motion)
+//! The host images the pass reads and writes (the G-buffer, hit images, colour, motion)
 //! are checked before anything is recorded: a wrong format, a smaller size or a missing
 //! usage is refused with an error naming the image, and motion inputs must match the motion
 //! output's state. Vulkan itself would not say: a storage image of the wrong format is
@@ -10,8 +10,8 @@ mod common;
 use ash::vk;
 use common::{asset_map, finish, validated_context};
 use dispmap::embed::{
-    COLOR_FORMAT, DepthCamera, DisplacementPass, FrameInputs, FrameMotion, HIT_FORMAT, HostView,
-    MotionSettings, PassSettings, ShadeTarget, Timestamps,
+    COLOR_FORMAT, DepthCamera, DisplacementPass, FrameInputs, FrameMotion, HIT_HEIGHT_FORMAT,
+    HIT_UV_FORMAT, HitImages, HostView, MotionSettings, PassSettings, ShadeTarget, Timestamps,
 };
 use dispmap::error::Error;
 use dispmap::gpu::owned::Destroy;
@@ -46,11 +46,12 @@ fn wrong_host_images_are_refused_by_name() {
         Image::new(c, name, format, extent, 1, storage).unwrap()
     };
     let mut gbuffer = GBuffer::new(c, EXTENT).unwrap();
-    let mut hit = image("hit", HIT_FORMAT, EXTENT);
+    let mut hit_uv = image("hit.uv", HIT_UV_FORMAT, EXTENT);
+    let mut hit_height = image("hit.height", HIT_HEIGHT_FORMAT, EXTENT);
     let mut half_hit = image("hit16", vk::Format::R16G16B16A16_SFLOAT, EXTENT);
     let mut small_hit = image(
         "small_hit",
-        HIT_FORMAT,
+        HIT_UV_FORMAT,
         vk::Extent2D {
             width: 16,
             height: 16,
@@ -74,10 +75,14 @@ fn wrong_host_images_are_refused_by_name() {
     let inputs = FrameInputs {
         frame_slot: 0,
         gbuffer: gbuffer.views(),
-        hit: hit.host_view(),
+        hit: HitImages {
+            uv: hit_uv.host_view(),
+            height: hit_height.host_view(),
+        },
         shade: None,
         motion: None,
     };
+    let hit = inputs.hit;
     let camera = DepthCamera {
         view_proj: Mat4::IDENTITY,
         eye: Vec3::ZERO,
@@ -91,25 +96,53 @@ fn wrong_host_images_are_refused_by_name() {
     };
 
     let (name, message) = refused(record(&FrameInputs {
-        hit: half_hit.host_view(),
-        ..inputs
-    }));
-    assert_eq!(name, "hit");
-    assert!(message.contains("R16G16B16A16_SFLOAT"), "{message}");
-    let (name, message) = refused(record(&FrameInputs {
-        hit: small_hit.host_view(),
-        ..inputs
-    }));
-    assert_eq!(name, "hit");
-    assert!(message.contains("16x16"), "{message}");
-    let (name, message) = refused(record(&FrameInputs {
-        hit: HostView {
-            usage: vk::ImageUsageFlags::SAMPLED,
-            ..hit.host_view()
+        hit: HitImages {
+            uv: half_hit.host_view(),
+            ..hit
         },
         ..inputs
     }));
-    assert_eq!(name, "hit");
+    assert_eq!(name, "hit.uv");
+    assert!(message.contains("R16G16B16A16_SFLOAT"), "{message}");
+    // The two images swapped: each is refused by its own name.
+    let (name, message) = refused(record(&FrameInputs {
+        hit: HitImages {
+            uv: hit.height,
+            height: hit.uv,
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "hit.uv");
+    assert!(message.contains("R32_SFLOAT"), "{message}");
+    let (name, message) = refused(record(&FrameInputs {
+        hit: HitImages {
+            height: hit.uv,
+            ..hit
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "hit.height");
+    assert!(message.contains("R32G32_SFLOAT"), "{message}");
+    let (name, message) = refused(record(&FrameInputs {
+        hit: HitImages {
+            uv: small_hit.host_view(),
+            ..hit
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "hit.uv");
+    assert!(message.contains("16x16"), "{message}");
+    let (name, message) = refused(record(&FrameInputs {
+        hit: HitImages {
+            height: HostView {
+                usage: vk::ImageUsageFlags::SAMPLED,
+                ..hit.height
+            },
+            ..hit
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "hit.height");
     assert!(message.contains("STORAGE"), "{message}");
     // The G-buffer: a half-float ray image (uv0 would lose its bits) and a depth view
     // without SAMPLED usage.
@@ -154,7 +187,7 @@ fn wrong_host_images_are_refused_by_name() {
     assert!(message.contains(&format!("{COLOR_FORMAT:?}")), "{message}");
 
     // A camera that would write NaN colour, depths or motion.
-    let mut nan_camera = shaded(hit.host_view());
+    let mut nan_camera = shaded(half_hit.host_view());
     if let Some(t) = &mut nan_camera.shade {
         t.view_proj = Mat4::from_cols_array(&[f32::NAN; 16]);
     }
@@ -192,7 +225,7 @@ fn wrong_host_images_are_refused_by_name() {
 
     // The refusals changed nothing: a valid frame records and runs.
     // SAFETY: `cmd` is recording (above); the G-buffer is discarded into the sampled
-    // layout and the hit image into GENERAL for storage writes (barriers below).
+    // layout and the hit images into GENERAL for storage writes (barriers below).
     unsafe {
         let mut t = Tracker::new();
         gbuffer.enter(&mut t, Access::UNDEFINED, Access::UNDEFINED);
@@ -200,20 +233,28 @@ fn wrong_host_images_are_refused_by_name() {
             .declare(&mut t, Access::COMPUTE_SAMPLED, Access::COMPUTE_SAMPLED)
             .unwrap();
         t.record(c, cmd).unwrap();
-        sync::transition(
-            c,
-            cmd,
-            &hit,
-            Access::UNDEFINED,
-            Access::COMPUTE_STORAGE_WRITE,
-        );
+        for image in [&hit_uv, &hit_height] {
+            sync::transition(
+                c,
+                cmd,
+                image,
+                Access::UNDEFINED,
+                Access::COMPUTE_STORAGE_WRITE,
+            );
+        }
         pass.record(cmd, &inputs, Timestamps::Off).unwrap();
     }
     shot.submit_and_wait(c).unwrap();
 
     // SAFETY: the one submission completed.
     unsafe { pass.destroy() };
-    for i in [&mut hit, &mut half_hit, &mut small_hit, &mut motion32] {
+    for i in [
+        &mut hit_uv,
+        &mut hit_height,
+        &mut half_hit,
+        &mut small_hit,
+        &mut motion32,
+    ] {
         // SAFETY: the one submission completed.
         unsafe { i.destroy(c) };
     }

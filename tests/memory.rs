@@ -1,8 +1,9 @@
 //! What `DisplacementPass` holds ([`DisplacementPass::memory`]) when materials come and go:
 //! the tile lists follow the frame's size alone, a batch of 1024 materials at 1920x1080
 //! stays within the pass's memory bounds, materials added and removed every frame leave
-//! the memory flat, the report counts every allocation the pass made, and `destroy` lets
-//! go of the context. Validation (core + synchronization) is on throughout: zero messages
+//! the memory flat, the report counts every allocation the pass made, `destroy` lets go
+//! of the context, and the bytes per pixel of the G-buffer contract are the documented 40
+//! (the iteration counts only where they are asked for). Validation (core + synchronization) is on throughout: zero messages
 //! from the context's creation to the device's destruction, no allocation left.
 
 mod common;
@@ -12,7 +13,11 @@ use common::host::{GBufferTexels, RayHost};
 use common::{finish, validated_context};
 use dispmap::Context;
 use dispmap::abi::NO_HIT_HEIGHT;
-use dispmap::embed::{DisplacementPass, MaterialId, MaterialSettings, MemoryReport, PassSettings};
+use dispmap::embed::{
+    DEPTH_FORMAT, DisplacementPass, FRAME_FORMAT, HIT_HEIGHT_FORMAT, HIT_UV_FORMAT,
+    ITERATIONS_FORMAT, MaterialId, MaterialSettings, MemoryReport, PassSettings, RAY_FORMAT,
+};
+use dispmap::gpu::image::texel_size;
 use dispmap::heightfield::{Addressing, HeightField};
 use dispmap::method::{Method, MethodParams};
 use dispmap::passes::classify::TileLists;
@@ -346,4 +351,75 @@ fn destroy_lets_go_of_the_context() {
     // `finish` takes the context back with `Arc::into_inner` while `pass` is alive.
     finish(ctx);
     drop(pass);
+}
+
+/// The G-buffer contract's bytes per pixel and frame slot, from the formats `record`
+/// checks: ray 16 + frame 8 + depth 4 + hit uv 8 + hit height 4 = 40 (the hit images were
+/// one `R32G32B32A32_SFLOAT` buffer with the iteration count: 44; before the packed frame,
+/// 52), as docs/embedding.md states; the iteration counts (4 more) are the pass's, and only
+/// while asked for.
+#[test]
+fn the_gbuffer_contract_is_40_bytes_a_pixel() {
+    let bytes =
+        |formats: &[vk::Format]| -> u32 { formats.iter().map(|&f| texel_size(f).unwrap()).sum() };
+    let contract = [
+        RAY_FORMAT,
+        FRAME_FORMAT,
+        DEPTH_FORMAT,
+        HIT_UV_FORMAT,
+        HIT_HEIGHT_FORMAT,
+    ];
+    assert_eq!(bytes(&contract), 40);
+    assert_eq!(bytes(&[HIT_UV_FORMAT, HIT_HEIGHT_FORMAT]), 12);
+    assert_eq!(bytes(&[ITERATIONS_FORMAT]), 4);
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/embedding.md")).unwrap();
+    let stated = "The G-buffer contract alone (ray, frame, depth, hit uv, hit height) is 40 bytes";
+    assert!(
+        doc.replace('\n', " ").contains(stated),
+        "docs/embedding.md does not say: {stated}"
+    );
+}
+
+/// The pass allocates the iteration counts (one `R32_UINT` image per frame slot) only
+/// while the output is on: none after `new`, 4 bytes a pixel per slot when turned on, and
+/// retired (not freed under frames in flight) when turned off.
+#[test]
+fn the_iteration_counts_exist_only_when_asked_for() {
+    let ctx = validated_context();
+    let extent = vk::Extent2D {
+        width: 64,
+        height: 32,
+    };
+    let relief = material(Method::Relief);
+    let mut pass = DisplacementPass::new(
+        ctx.clone(),
+        &flat_map(0.5),
+        pass_settings(relief, extent, 2),
+    )
+    .unwrap();
+    assert!(!pass.iterations_output());
+    assert_eq!(pass.memory().iterations, 0);
+    assert!(pass.iterations(0).is_none() && pass.iterations(1).is_none());
+    pass.set_iterations_output(true).unwrap();
+    let on = pass.memory();
+    let pixels = u64::from(extent.width * extent.height);
+    assert!(
+        (2 * 4 * pixels..=2 * (4 * pixels + PADDING_PER_ALLOCATION)).contains(&on.iterations),
+        "{} bytes of iteration counts for two slots of {pixels} pixels",
+        on.iterations
+    );
+    for s in 0..2 {
+        let image = pass.iterations(s).unwrap();
+        assert_eq!((image.format, image.extent), (ITERATIONS_FORMAT, extent));
+    }
+    check_complete(&ctx, &on);
+    pass.set_iterations_output(false).unwrap();
+    let off = pass.memory();
+    assert_eq!(off.iterations, 0);
+    assert!(off.retired >= 2 * 4 * pixels, "the images are retired");
+    assert!(pass.iterations(0).is_none());
+    // SAFETY: nothing was recorded with the pass.
+    unsafe { pass.destroy() };
+    finish(ctx);
 }

@@ -1,5 +1,5 @@
-//! The largest frame a device can render: a frame's largest images (the G-buffer's ray
-//! image and the hit buffer, `R32G32B32A32_SFLOAT`, 16 bytes per pixel) and their
+//! The largest frame a device can render: a frame's largest image (the G-buffer's ray
+//! image, `R32G32B32A32_SFLOAT`, 16 bytes per pixel; the hit uv image, 8) and their
 //! read-back buffers must each fit the device's `maxResourceSize` for that format and its
 //! `maxMemoryAllocationSize`. [`check`] refuses a frame size above that before anything
 //! is allocated, naming the limit (a 16384x16384 frame needs 4 GiB per image; lavapipe
@@ -8,9 +8,9 @@
 use anyhow::{Result, bail};
 use ash::vk;
 use dispmap::context::Context;
-use dispmap::passes::{gbuffer::RAY_FORMAT, trace::HIT_FORMAT};
+use dispmap::passes::{gbuffer::RAY_FORMAT, trace::HIT_UV_FORMAT};
 
-/// Bytes per pixel of the frame's largest images (ray and hit, RGBA f32).
+/// Bytes per pixel of the frame's largest image (the ray, RGBA f32).
 pub const LARGEST_PIXEL_BYTES: u64 = 16;
 
 /// The limit a frame runs into, for messages.
@@ -30,7 +30,7 @@ impl Limit {
 }
 
 /// The device's limit on one frame image: the smaller of `maxResourceSize` (for the ray
-/// and hit images' format, usage and tiling) and `maxMemoryAllocationSize`.
+/// and hit uv images' formats, usage and tiling) and `maxMemoryAllocationSize`.
 pub fn limit(ctx: &Context) -> Limit {
     let (instance, pd) = (ctx.instance(), ctx.physical_device());
     let mut limit = Limit {
@@ -45,7 +45,7 @@ pub fn limit(ctx: &Context) -> Limit {
                 | vk::ImageUsageFlags::TRANSFER_SRC,
         ),
         (
-            HIT_FORMAT,
+            HIT_UV_FORMAT,
             vk::ImageUsageFlags::STORAGE
                 | vk::ImageUsageFlags::TRANSFER_SRC
                 | vk::ImageUsageFlags::TRANSFER_DST,
@@ -96,8 +96,8 @@ pub fn check(ctx: &Context, width: u32, height: u32, option: &str) -> Result<()>
     if pixels > limit.pixels() {
         let side = (limit.pixels() as f64).sqrt().floor() as u64;
         bail!(
-            "invalid {option}: a {width}x{height} frame needs {} bytes per image (ray and hit \
-             buffers: {LARGEST_PIXEL_BYTES} bytes per pixel), more than device {}'s {} of {} \
+            "invalid {option}: a {width}x{height} frame needs {} bytes per image (the ray \
+             image: {LARGEST_PIXEL_BYTES} bytes per pixel), more than device {}'s {} of {} \
              bytes: at most {} pixels (e.g. {side}x{side})",
             pixels * LARGEST_PIXEL_BYTES,
             ctx.info().name,

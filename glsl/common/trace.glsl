@@ -1,7 +1,7 @@
 // The trace pass: everything a method shares. A method file defines
 //     Hit trace_ray(Ray ray, ivec2 pixel);
 // after including this file; `main` below reads the G-buffer, calls it and writes the
-// hit buffer. Bindings and push constants mirror src/passes/trace.rs and src/abi.rs.
+// hit images. Bindings and push constants mirror src/passes/trace.rs and src/abi.rs.
 // Methods that read more (the pyramid, the DIG corner grid) declare those bindings in
 // their own includes (pyramid.glsl, dig.glsl).
 #ifndef DISPMAP_TRACE_GLSL
@@ -16,8 +16,13 @@ layout(set = 0, binding = 0) uniform sampler2D u_ray;
 layout(set = 0, binding = 1) uniform sampler2D u_depth;
 // The height field (linear filtering, the map's addressing).
 layout(set = 0, binding = 2) uniform sampler2D u_height;
-// The hit buffer.
-layout(set = 0, binding = 3, rgba32f) uniform writeonly image2D u_hit;
+// The hit images: the hit's uv and its height (< 0: no hit).
+layout(set = 0, binding = 3, rg32f) uniform writeonly image2D u_hit_uv;
+layout(set = 0, binding = 7, r32f) uniform writeonly image2D u_hit_height;
+#ifdef ITERATIONS
+// The iteration counts (the ITERATIONS variant: the pass's iteration output on).
+layout(set = 0, binding = 9, r32ui) uniform writeonly uimage2D u_iterations;
+#endif
 // G-buffer frame: the material (glsl/common/tiles.glsl) and the surface id (DIG's corner
 // test, the footprint's neighbours), read through glsl/common/gbuffer.glsl.
 layout(set = 0, binding = 6) uniform usampler2D u_frame;
@@ -180,7 +185,11 @@ void main() {
         g_curve = curve_of(pixel, Ray(g.xy, g.zw));
     }
     Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);
-    imageStore(u_hit, pixel, vec4(hit.uv, hit.h, float(hit.iterations)));
+    imageStore(u_hit_uv, pixel, vec4(hit.uv, 0.0, 0.0));
+    imageStore(u_hit_height, pixel, vec4(hit.h));
+#ifdef ITERATIONS
+    imageStore(u_iterations, pixel, uvec4(hit.iterations));
+#endif
 }
 
 #endif

@@ -18,14 +18,14 @@ layout(set = 0, binding = 0, std140) uniform PixelRayBlock {
 
 #ifdef BEHIND
 #include "../include/dispmap_behind.glsl"
-// The first layer's G-buffer depth and hit buffer (the same frame slot's).
+// The first layer's G-buffer depth and hit height (the same frame slot's).
 layout(set = 0, binding = 1) uniform sampler2D u_first_depth;
-layout(set = 0, binding = 2, rgba32f) uniform readonly image2D u_first_hit;
+layout(set = 0, binding = 2, r32f) uniform readonly image2D u_first_hit_height;
 
 // Discards the fragment unless it belongs to the behind layer; `depth` is the one it writes.
 void keep_behind_only(float depth) {
     ivec2 pixel = ivec2(gl_FragCoord.xy);
-    if (!dispmap_behind_keep(imageLoad(u_first_hit, pixel).z,
+    if (!dispmap_behind_keep(imageLoad(u_first_hit_height, pixel).x,
                              texelFetch(u_first_depth, pixel, 0).r, depth)) {
         discard;
     }

@@ -2,8 +2,8 @@
 // pass, as engines do (Bevy, Godot, Unity, Unreal run the marcher in the fragment shader
 // that writes their G-buffer). One invocation encodes the fragment exactly as
 // glsl/gbuffer.frag does (the same include) and marches its ray at once: it writes the hit
-// (the hit buffer's channels: hit u, hit v, hit height, iterations) where the deferred
-// G-buffer writes the ray, and the frame the shading reads. A method file
+// (the hit images: uv, height, and the iteration count) where the deferred G-buffer
+// writes the ray, and the frame the shading reads. A method file
 // defines
 //     Hit trace_ray(Ray ray);
 // after including this file (glsl/forward/relief.frag, glsl/forward/pom.frag). Bindings
@@ -39,8 +39,10 @@ layout(set = 0, binding = 2, std140) uniform PixelRayBlock {
 
 #include "march.glsl"
 
-layout(location = 0) out vec4 out_hit;
+layout(location = 0) out vec2 out_hit_uv;
 layout(location = 1) out uvec2 out_frame;
+layout(location = 2) out float out_hit_height;
+layout(location = 3) out uint out_iterations;
 
 // The id of the one surface this pass draws (glsl/gbuffer.frag's).
 const float SURFACE_ID = 1.0;
@@ -71,11 +73,15 @@ void main() {
     if (material_plus_one == 0u) {
         // Not displaced: what the classification pass writes for such a pixel.
         dispmap_gbuffer_encode_flat(s.normal, s.tangent, SURFACE_ID, ray, out_frame);
-        out_hit = vec4(0.0, 0.0, NOT_DISPLACED_HEIGHT, 0.0);
+        out_hit_uv = vec2(0.0);
+        out_hit_height = NOT_DISPLACED_HEIGHT;
+        out_iterations = 0u;
         return;
     }
     Hit hit = trace_ray(Ray(ray.xy, ray.zw));
-    out_hit = vec4(hit.uv, hit.h, float(hit.iterations));
+    out_hit_uv = hit.uv;
+    out_hit_height = hit.h;
+    out_iterations = hit.iterations;
 }
 
 #endif

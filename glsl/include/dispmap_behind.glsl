@@ -3,24 +3,24 @@
 //
 // A displaced ray that leaves its surface without meeting it (a clamp-addressed ray that
 // leaves the decal, a curved ray that leaves the relief's shell) is a miss: hit height
-// -1 in the hit buffer. What the pixel should show is the next surface along its view ray,
+// -1 in the hit height image. What the pixel should show is the next surface along its view ray,
 // which a one-layer G-buffer does not hold. The behind layer is a second G-buffer pass,
 // drawn after the first frame's trace, whose fragment shader keeps a fragment only where
 // `dispmap_behind_keep` says so: at a pixel whose first-layer trace missed, behind the
 // first layer's surface. The displacement pass is then recorded on that layer (its own
-// frame slot, its own hit buffer, the same colour image) and traces and shades only the
+// frame slot, its own hit images, the same colour image) and traces and shades only the
 // pixels the layer covers.
 #ifndef DISPMAP_INCLUDE_BEHIND_GLSL
 #define DISPMAP_INCLUDE_BEHIND_GLSL
 
-// The hit buffer's miss (NO_HIT_HEIGHT in src/abi.rs): a displaced ray that met nothing.
+// The hit height image's miss (NO_HIT_HEIGHT in src/abi.rs): a displaced ray that met nothing.
 #define DISPMAP_MISS_HEIGHT (-1.0)
 // A fragment nearer than this fraction of the first layer's reverse-Z depth behind it is
 // the first layer's own surface drawn again (same triangle, same depth up to rounding).
 #define DISPMAP_BEHIND_MARGIN 1e-5
 
 // Whether a fragment of the behind layer is kept: `first_hit_height` is the first layer's
-// hit height at the pixel (the hit buffer's z), `first_depth` its G-buffer depth
+// hit height at the pixel (the hit height image's value), `first_depth` its G-buffer depth
 // (reverse-Z, 0 = no geometry), `depth` the fragment's own depth (reverse-Z: smaller is
 // farther).
 bool dispmap_behind_keep(float first_hit_height, float first_depth, float depth) {

@@ -4,7 +4,7 @@
 // host compute the same point from the same code.
 //
 // Inputs are what the pass and the G-buffer hold for a pixel (glsl/include/dispmap_gbuffer.glsl
-// documents the G-buffer): the hit (hit buffer texel: uv.x, uv.y, height in [0, 1],
+// documents the G-buffer): the hit (uv.x, uv.y from the hit uv image, height in [0, 1] from the hit height image,
 // height < 0 for no hit), the G-buffer's uv0 (ray.xy), N, T and the handedness of its
 // frame (dispmap_frame_unpack in dispmap_gbuffer.glsl), the material's depth scale (tile units), and the entry point: the macro
 // surface point under the pixel centre, which dispmap_entry_eye_rel unprojects from the

@@ -12,6 +12,8 @@
 // crossed it once; the height at the step's end tells, and the bisection then runs over
 // the whole step.
 // dispmap-variant: RELAXED
+// dispmap-variant: ITERATIONS
+// dispmap-variant: RELAXED+ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
 #ifdef RELAXED

@@ -5,6 +5,7 @@
 // refines inside it: a linear search with a fixed horizontal step, I_L = floor(|R_xy|/s)
 // (equation 2), then I_B bisections (section 5). Blocks whose corners are not all on the
 // pixel's surface use the unconstrained search. Details: glsl/common/dig.glsl.
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 #include "dig.glsl"
 

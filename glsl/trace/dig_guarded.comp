@@ -21,6 +21,7 @@
 // as wide as the step (intersecting exactly only the steps not cleared) was measured on
 // issue 3's scenes: the same answers with about 1.9x the fetches, so the traversal
 // replaces the steps. Measured (README): its fetches are `exact`'s plus the restart.
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
 #include "dig.glsl"

@@ -15,6 +15,7 @@
 // intersects exactly; the part that climbs back to the base surface (k > 1/4, only near
 // outlines) by a march in steps of at most one texel with the exact bilinear height,
 // refined by bisection. No hit before the ray leaves the shell: a miss.
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
 

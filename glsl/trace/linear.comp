@@ -2,6 +2,7 @@
 // linear: steep parallax mapping (McGuire & McGuire 2005). `steps` equal steps in
 // height from the entry point, early exit at the first sample on or below the surface;
 // the hit is that sample (no refinement), so the error is up to one step.
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {

@@ -14,6 +14,7 @@
 // trace.glsl, shared by every method).
 // The march: pom_search in search.glsl (shared with the forward path); on curved meshes
 // (TRACE_FLAG_CURVED) curved_march (curved.glsl) with the same sample count per unit t.
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {

@@ -42,6 +42,7 @@
 // in the paper's Fig. 18).
 //
 // Iterations: one per pyramid fetch, two per refinement, one per eighth check.
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
 

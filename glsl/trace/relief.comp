@@ -5,6 +5,7 @@
 // (relief_search in search.glsl, shared with DIG's unconstrained search and the forward
 // path). On curved meshes (TRACE_FLAG_CURVED) the same march along the curved ray
 // (curved_march in curved.glsl).
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {

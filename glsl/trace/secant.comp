@@ -11,6 +11,7 @@
 // of the ray, nearest first; pass k samples [1 - k/K, 1 - (k+1)/K] with N points, and
 // the first pass with a crossing gives the hit (later passes would be depth-tested away,
 // so they are not run). N = 1 is taken as N = 2 (a segment needs both its ends).
+// dispmap-variant: ITERATIONS
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {

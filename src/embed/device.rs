@@ -241,14 +241,15 @@ mod tests {
         assert!(
             r.formats
                 .iter()
-                .any(|(f, _)| *f == crate::passes::trace::HIT_FORMAT)
+                .any(|(f, _)| *f == crate::passes::trace::HIT_UV_FORMAT)
         );
-        // The self-shadowed shade variant pushes the most descriptors (9, reflected).
+        // The self-shadowed shade variant pushes the most descriptors (10, reflected; as many
+        // as the iteration variant of `dig-guarded`'s trace).
         assert_eq!(
             r.max_push_descriptors,
             crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
         );
-        assert_eq!(r.max_push_descriptors, 9);
+        assert_eq!(r.max_push_descriptors, 10);
         let largest = [
             std::mem::size_of::<crate::abi::ShadowParams>(),
             std::mem::size_of::<crate::abi::HitDepthParams>(),

@@ -279,6 +279,8 @@ pub(super) struct Slot {
     pub visibility: Option<Image>,
     /// The corrected depth (the corrected-depth output on).
     pub hit_depth: Option<Image>,
+    /// The iteration counts (the iteration output on).
+    pub iterations: Option<Image>,
     /// The DIG corner grid of each DIG material, by material index.
     pub corners: Vec<Option<CornerGrid>>,
     /// The owned-pool timestamp scopes the slot recorded last.
@@ -292,12 +294,17 @@ impl Destroy for Slot {
             self.tiles.destroy(ctx);
             self.visibility.destroy(ctx);
             self.hit_depth.destroy(ctx);
+            self.iterations.destroy(ctx);
             self.corners.destroy(ctx);
         }
     }
 
     fn bytes(&self) -> u64 {
-        self.tiles.bytes() + self.visibility.bytes() + self.hit_depth.bytes() + self.corners.bytes()
+        self.tiles.bytes()
+            + self.visibility.bytes()
+            + self.hit_depth.bytes()
+            + self.iterations.bytes()
+            + self.corners.bytes()
     }
 }
 

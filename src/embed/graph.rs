@@ -21,8 +21,10 @@ pub(super) enum Res {
     /// The G-buffer's frame (normal, tangent, material, surface id).
     GFrame,
     Depth,
-    /// The host's hit buffer.
-    Hit,
+    /// The host's hit uv image.
+    HitUv,
+    /// The host's hit height image.
+    HitHeight,
     /// The host's colour image (with a [`super::ShadeTarget`]).
     Color,
     /// The host's motion image (the motion output on).
@@ -31,6 +33,8 @@ pub(super) enum Res {
     Visibility,
     /// The slot's corrected depth.
     HitDepth,
+    /// The slot's iteration counts.
+    Iterations,
     /// The slot's DIG corner grid of a material (by index).
     Corners(u32),
     /// The slot's tile lists.
@@ -48,7 +52,9 @@ fn resource(name: &str, material: u32) -> Option<Res> {
         "u_ray" => Res::Ray,
         "u_frame" => Res::GFrame,
         "u_depth" => Res::Depth,
-        "u_hit" => Res::Hit,
+        "u_hit_uv" => Res::HitUv,
+        "u_hit_height" => Res::HitHeight,
+        "u_iterations" => Res::Iterations,
         "u_color" => Res::Color,
         "u_motion" => Res::Motion,
         "u_visibility" => Res::Visibility,
@@ -72,28 +78,30 @@ pub(super) const ORDER: [PassName; 7] = [
     PassName::Motion,
 ];
 
-/// Which entry point records: the hit buffer enters differently.
+/// Which entry point records: the hit images enter differently.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Entry {
-    /// `record` / `record_with_camera`: the hit buffer's contents are discarded.
+    /// `record` / `record_with_camera`: the hit images' contents are discarded.
     Frame,
-    /// `record_shading`: the hit buffer (and a given visibility) hold the host's values.
+    /// `record_shading`: the hit images (and a given visibility) hold the host's values.
     Shading,
 }
 
 /// The host's images and the state each enters in (the module docs' entry column): what
 /// the host's barrier made the image's earlier writes visible to, and its layout.
-pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 6] {
+pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 7] {
+    let hit = match entry {
+        // Discarded by the host's barrier (UNDEFINED -> GENERAL) and ordered before the
+        // pass's writes.
+        Entry::Frame => Access::COMPUTE_STORAGE_WRITE,
+        Entry::Shading => Access::COMPUTE_STORAGE_READ,
+    };
     [
         (Res::Ray, Access::COMPUTE_SAMPLED),
         (Res::GFrame, Access::COMPUTE_SAMPLED),
         (Res::Depth, Access::COMPUTE_SAMPLED),
-        match entry {
-            // Discarded by the host's barrier (UNDEFINED -> GENERAL) and ordered before
-            // the pass's writes.
-            Entry::Frame => (Res::Hit, Access::COMPUTE_STORAGE_WRITE),
-            Entry::Shading => (Res::Hit, Access::COMPUTE_STORAGE_READ),
-        },
+        (Res::HitUv, hit),
+        (Res::HitHeight, hit),
         (Res::Color, Access::COMPUTE_STORAGE_WRITE),
         (Res::Motion, Access::COMPUTE_STORAGE_READ_WRITE),
     ]
@@ -111,7 +119,7 @@ pub(super) fn owned_entry(res: Res) -> Access {
     match res {
         // The host may have read it in any stage and left it in any layout: discarded
         // after every earlier access.
-        Res::HitDepth => after(vk::PipelineStageFlags2::ALL_COMMANDS),
+        Res::HitDepth | Res::Iterations => after(vk::PipelineStageFlags2::ALL_COMMANDS),
         // The slot's previous frame (its last reader) has completed: discarded.
         Res::Visibility | Res::Corners(_) => after(vk::PipelineStageFlags2::COMPUTE_SHADER),
         // Last read by the slot's previous frame's indirect dispatches.
@@ -169,7 +177,8 @@ impl FrameGraph {
         }
     }
 
-    /// A pass-owned image of the slot (visibility, corrected depth, a corner grid): it
+    /// A pass-owned image of the slot (visibility, corrected depth, iteration counts, a
+    /// corner grid): it
     /// enters as [`owned_entry`] says, and its barriers are image barriers on `image`.
     pub(super) fn own(&mut self, res: Res, image: &Image) {
         self.tracker.enter(res, owned_entry(res));
@@ -259,21 +268,27 @@ impl FrameGraph {
 #[cfg(test)]
 /// The exit state of every image the host gives or may read, computed by running the
 /// declarations of a frame with every output on (shade with self-shadowing, corrected
-/// depth, motion; one DIG material) and of `record_shading`: `(image, entry, exit)`.
+/// depth, motion, iteration counts; one DIG material) and of `record_shading`:
+/// `(image, entry, exit)`.
 /// With fewer outputs the layouts are the same and the accesses a subset.
 pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     use crate::shaders;
     let mut g = FrameGraph::new(Entry::Frame, true, true);
-    for res in [Res::Visibility, Res::HitDepth, Res::Corners(0)] {
+    for res in [
+        Res::Visibility,
+        Res::HitDepth,
+        Res::Iterations,
+        Res::Corners(0),
+    ] {
         g.tracker.enter(res, owned_entry(res));
     }
     let stages: [(&[ShaderBinding], &[Res]); 10] = [
-        (shaders::CLASSIFY_COMP_DEPTH.bindings, &[]),
+        (shaders::CLASSIFY_COMP_DEPTH_ITERATIONS.bindings, &[]),
         (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
         (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
         (shaders::CLASSIFY_MIXED_COMP.bindings, &[]),
         (shaders::DIG_CORNERS_COMP.bindings, &[]),
-        (shaders::TRACE_DIG_COMP.bindings, &[]),
+        (shaders::TRACE_DIG_COMP_ITERATIONS.bindings, &[]),
         (shaders::SHADOW_COMP.bindings, &[]),
         (shaders::SHADE_COMP_SHADOWS.bindings, &[]),
         (shaders::HIT_DEPTH_COMP.bindings, &[]),
@@ -290,7 +305,10 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     s.declare(Res::Args, ARGS_RESET)?;
     s.resolve()?;
     for (bindings, skip) in [
-        (shaders::CLASSIFY_COMP.bindings, &[Res::Hit][..]),
+        (
+            shaders::CLASSIFY_COMP.bindings,
+            &[Res::HitUv, Res::HitHeight][..],
+        ),
         (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
         (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
         (shaders::CLASSIFY_MIXED_COMP.bindings, &[]),
@@ -321,7 +339,16 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
             entry(Entry::Frame, Res::Depth),
             g.exit(Res::Depth),
         ),
-        ("hit", entry(Entry::Frame, Res::Hit), g.exit(Res::Hit)),
+        (
+            "hit uv",
+            entry(Entry::Frame, Res::HitUv),
+            g.exit(Res::HitUv),
+        ),
+        (
+            "hit height",
+            entry(Entry::Frame, Res::HitHeight),
+            g.exit(Res::HitHeight),
+        ),
         ("color", entry(Entry::Frame, Res::Color), g.exit(Res::Color)),
         (
             "motion",
@@ -339,9 +366,19 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
             g.exit(Res::HitDepth),
         ),
         (
-            "hit (record_shading)",
-            entry(Entry::Shading, Res::Hit),
-            s.exit(Res::Hit),
+            "iterations (the pass's)",
+            Some(owned_entry(Res::Iterations)),
+            g.exit(Res::Iterations),
+        ),
+        (
+            "hit uv (record_shading)",
+            entry(Entry::Shading, Res::HitUv),
+            s.exit(Res::HitUv),
+        ),
+        (
+            "hit height (record_shading)",
+            entry(Entry::Shading, Res::HitHeight),
+            s.exit(Res::HitHeight),
         ),
         (
             "visibility (record_shading, the host's)",
@@ -426,6 +463,8 @@ mod tests {
         let mut all = vec![
             shaders::CLASSIFY_COMP,
             shaders::CLASSIFY_COMP_DEPTH,
+            shaders::CLASSIFY_COMP_ITERATIONS,
+            shaders::CLASSIFY_COMP_DEPTH_ITERATIONS,
             shaders::CLASSIFY_OFFSETS_COMP,
             shaders::CLASSIFY_SCATTER_COMP,
             shaders::CLASSIFY_MIXED_COMP,
@@ -439,6 +478,11 @@ mod tests {
             shaders::MOTION_COMP_WIDE,
         ];
         all.extend(crate::method::Method::ALL.iter().map(|m| m.shader()));
+        all.extend(
+            crate::method::Method::ALL
+                .iter()
+                .map(|m| m.iterations_shader()),
+        );
         for s in all {
             for b in s.bindings {
                 assert!(

@@ -16,7 +16,7 @@ pub struct PassSettings {
     /// Height-map addressing: `Repeat` for tiled surfaces, `Clamp` for decals (must match
     /// the `addressing` the host's G-buffer shader used for `uv0`).
     pub addressing: Addressing,
-    /// Frame size in pixels (the G-buffer's, hit buffer's and colour image's size).
+    /// Frame size in pixels (the G-buffer's, hit images' and colour image's size).
     pub extent: vk::Extent2D,
     /// Frames the host keeps in flight (1..=[`MAX_FRAMES_IN_FLIGHT`]): the number of
     /// slots of the per-frame resources the pass owns.
@@ -46,14 +46,35 @@ pub struct FrameInputs {
     pub frame_slot: u32,
     /// The host's G-buffer views; `extent` must equal the pass's.
     pub gbuffer: GBufferViews,
-    /// The hit buffer this frame writes (`R32G32B32A32_SFLOAT`, `STORAGE` usage, the
-    /// frame's size).
-    pub hit: HostView,
-    /// Shade the hits into a colour image (`None`: the host shades from the hit buffer).
+    /// The hit images this frame writes (`STORAGE` usage, the frame's size).
+    pub hit: HitImages,
+    /// Shade the hits into a colour image (`None`: the host shades from the hit images).
     pub shade: Option<ShadeTarget>,
     /// The host's motion image and previous camera: required while the motion output is
     /// on ([`DisplacementPass::set_motion_output`]), refused while it is off.
     pub motion: Option<FrameMotion>,
+}
+
+/// The host's hit images of one frame slot: each displaced pixel's hit, written by the
+/// pass (layouts and access on entry and exit: module docs). The pass's iteration counts
+/// are its own optional output ([`DisplacementPass::set_iterations_output`]).
+#[derive(Clone, Copy, Debug)]
+pub struct HitImages {
+    /// The hit's `u`, `v` ([`HIT_UV_FORMAT`], `R32G32_SFLOAT`).
+    pub uv: HostView,
+    /// The hit's height in `[0, 1]`, `NO_HIT_HEIGHT` (-1) for a ray that met nothing,
+    /// [`NOT_DISPLACED_HEIGHT`] for flat geometry ([`HIT_HEIGHT_FORMAT`], `R32_SFLOAT`).
+    pub height: HostView,
+}
+
+impl HitImages {
+    /// The views the passes bind.
+    pub fn views(&self) -> crate::passes::trace::HitViews {
+        crate::passes::trace::HitViews {
+            uv: self.uv.view,
+            height: self.height.view,
+        }
+    }
 }
 
 /// Where [`DisplacementPass::record`] writes its timestamps.

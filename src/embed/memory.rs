@@ -9,7 +9,7 @@ use crate::gpu::owned::Destroy;
 
 /// The device memory a [`DisplacementPass`] holds, in bytes, by kind of resource
 /// ([`MemoryReport::total`] is their sum) and per material ([`MemoryReport::materials`]).
-/// A host's own images (its G-buffer, hit buffer, a [`super::HostHeightMap`]) are the
+/// A host's own images (its G-buffer, hit images, a [`super::HostHeightMap`]) are the
 /// host's and not counted.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct MemoryReport {
@@ -36,6 +36,8 @@ pub struct MemoryReport {
     pub visibility: u64,
     /// The corrected-depth images (the output on): one per frame slot.
     pub hit_depth: u64,
+    /// The iteration-count images (the output on): one per frame slot.
+    pub iterations: u64,
     /// Replaced resources that frames in flight may still read, freed once every slot
     /// has been recorded again.
     pub retired: u64,
@@ -77,10 +79,10 @@ impl MemoryReport {
             + self.uploads
     }
 
-    /// What follows the frame's size: tile lists, corner grids, visibility and corrected
-    /// depth (every frame slot).
+    /// What follows the frame's size: tile lists, corner grids, visibility, corrected
+    /// depth and iteration counts (every frame slot).
     pub fn frame(&self) -> u64 {
-        self.tile_lists + self.corner_grids + self.visibility + self.hit_depth
+        self.tile_lists + self.corner_grids + self.visibility + self.hit_depth + self.iterations
     }
 }
 
@@ -126,6 +128,7 @@ impl DisplacementPass {
             r.visibility += s.visibility.bytes();
             r.hit_depth += s.hit_depth.bytes();
             r.corner_grids += s.corners.bytes();
+            r.iterations += s.iterations.bytes();
         }
         r.retired = self.retired.bytes();
         r

@@ -68,24 +68,25 @@
 //! |---|---|---|---|
 //! | G-buffer `ray`, `frame` | host | `SHADER_READ_ONLY_OPTIMAL`, writes visible to `COMPUTE_SHADER` / `SHADER_SAMPLED_READ` (the barrier's `dstStageMask` / `dstAccessMask`; add `FRAGMENT_SHADER` for the `frame` when the host records the depth resolve) | unchanged; last access `COMPUTE_SHADER` sampled read |
 //! | G-buffer `depth` | host | as above (depth aspect) | as above |
-//! | hit buffer (`R32G32B32A32_SFLOAT`, `STORAGE`) | host | `GENERAL`, contents discarded: the host's image barrier has `oldLayout = UNDEFINED`, `newLayout = GENERAL`, `srcStageMask`/`srcAccessMask` its last access, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` (the layout transition must be ordered before the pass's writes: a barrier without a destination access is a write-after-write hazard to synchronization validation) | `GENERAL`; every pixel written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), read by `SHADER_STORAGE_READ` (shade) |
+//! | hit uv (`R32G32_SFLOAT`) and hit height (`R32_SFLOAT`), `STORAGE` ([`HitImages`]) | host | `GENERAL`, contents discarded: the host's image barrier on each has `oldLayout = UNDEFINED`, `newLayout = GENERAL`, `srcStageMask`/`srcAccessMask` its last access, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` (the layout transition must be ordered before the pass's writes: a barrier without a destination access is a write-after-write hazard to synchronization validation) | `GENERAL`; every pixel written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), read by `SHADER_STORAGE_READ` (shade) |
 //! | colour (`R8G8B8A8_UNORM`, `STORAGE`; only with [`ShadeTarget`]) | host | `GENERAL` with the host's colour (kept wherever nothing is displaced): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (sRGB-encoded values), every other pixel as it entered |
 //! | motion (`R16G16_SFLOAT` or `R32G32_SFLOAT` as [`MotionSettings::format`], `STORAGE`; only with [`DisplacementPass::set_motion_output`] on) | host | `GENERAL` with the host's motion of every pixel (source `Surface`; any contents for `Camera`): the host's barrier has `srcStageMask`/`srcAccessMask` its last write, `dstStageMask = COMPUTE_SHADER`, `dstAccessMask = SHADER_STORAGE_READ \| SHADER_STORAGE_WRITE` | `GENERAL`; displaced pixels with a hit written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`, every other pixel as it entered |
 //! | height maps, pyramids, cone maps, DIG corner grids, tile lists | pass | (internal) | (internal; read-only for the host) |
 //! | host height map ([`HostHeightMap`], only for [`DisplacementPass::add_host_material`]) | host | `SHADER_READ_ONLY_OPTIMAL`, every mip level, its writes visible to `COMPUTE_SHADER` `SHADER_SAMPLED_READ` whenever a frame or preparation recorded with a material on it executes (see "Height maps the host owns") | unchanged; read only by `COMPUTE_SHADER` `SHADER_SAMPLED_READ` |
 //! | visibility (`R16_SFLOAT`, one per slot; only with [`DisplacementPass::set_shadows`] on and a [`ShadeTarget`]) | pass | (internal: discarded by the pass) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (shadow), last read by `SHADER_STORAGE_READ` (shade); read-only for the host ([`DisplacementPass::visibility`]) |
 //! | corrected depth (`R32_SFLOAT`, one per slot; only with [`DisplacementPass::set_depth_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (hit_depth); the host may read it (after its own barrier from that state) and leave it in any layout |
+//! | iteration counts (`R32_UINT`, one per slot; only with [`DisplacementPass::set_iterations_output`] on) | pass | any layout: the pass discards it, its barrier waits for every earlier access (`ALL_COMMANDS`) | `GENERAL`; written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE` (trace; classify for pixels without displacement: 0) by `record`; `record_shading` leaves it alone; the host may read it (after its own barrier from that state) and leave it in any layout |
 //!
 //! Every host image comes as a [`HostView`] (view, format, size, usage): `record` checks
 //! each against this table and the pass's frame size before it records anything, and
-//! refuses a mismatch with [`Error::InvalidInput`] naming the image (`gbuffer.ray`, `hit`,
+//! refuses a mismatch with [`Error::InvalidInput`] naming the image (`gbuffer.ray`, `hit.uv`,
 //! `color`, `motion`, ...). A view's format is not visible to Vulkan's validation of a
 //! storage write, so a wrong one would otherwise render garbage without a message.
 //!
 //! The pass places every barrier between its own passes: each stage declares what its
 //! dispatches read and write (its shaders' reflected bindings) and one tracker derives
 //! the barriers from each resource's last access (`src/embed/graph.rs`,
-//! [`crate::gpu::track`]); the hit buffer's, being known by its view only, are global
+//! [`crate::gpu::track`]); the hit images', being known by their views only, are global
 //! memory barriers. docs/embedding.md's table of entry and exit states is computed from
 //! the same declarations (a test checks it).
 //!
@@ -293,11 +294,12 @@ pub use crate::passes::motion::{
 };
 pub use crate::passes::shade::COLOR_FORMAT;
 pub use crate::passes::shadow::{ShadowMode, ShadowSettings, VISIBILITY_FORMAT};
-pub use crate::passes::trace::HIT_FORMAT;
+pub use crate::passes::trace::{HIT_HEIGHT_FORMAT, HIT_UV_FORMAT, HitViews, ITERATIONS_FORMAT};
 pub use crate::timing::{TimestampScope, read_timestamps};
 pub use host_map::{HOST_HEIGHT_FORMATS, HeightChannel, HostHeightMap};
 pub use inputs::{
-    FrameInputs, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget, Timestamps,
+    FrameInputs, HitImages, MaterialId, MaterialSettings, PassSettings, RecordedFrame, ShadeTarget,
+    Timestamps,
 };
 pub use memory::{MaterialMemory, MemoryReport};
 
@@ -348,6 +350,8 @@ pub struct DisplacementPass {
     depth: Option<HitDepthPass>,
     /// Whether the corrected depth is requested.
     depth_on: bool,
+    /// Whether the iteration counts are requested.
+    iterations_on: bool,
     /// The motion pass (`None` when off).
     motion: Option<crate::passes::motion::MotionPass>,
     /// The motion output as requested.
@@ -370,6 +374,18 @@ impl DisplacementPass {
     /// [`DisplacementPass::record`] copies it and builds what its method needs). Records
     /// and submits nothing.
     pub fn new(ctx: Arc<Context>, field: &HeightField, settings: PassSettings) -> Result<Self> {
+        Self::with_iterations(ctx, field, settings, false)
+    }
+
+    /// [`DisplacementPass::new`] with the iteration-count output on from the start
+    /// ([`DisplacementPass::set_iterations_output`]), so that the trace pipelines are
+    /// built once, in their variant that writes the counts.
+    pub fn with_iterations(
+        ctx: Arc<Context>,
+        field: &HeightField,
+        settings: PassSettings,
+        iterations: bool,
+    ) -> Result<Self> {
         validate_frame(&ctx, settings.extent, settings.frames_in_flight)?;
         validate_material(&ctx, &settings.material())?;
         let c = &*ctx;
@@ -402,6 +418,7 @@ impl DisplacementPass {
             slots: Vec::new(),
             depth: None,
             depth_on: false,
+            iterations_on: iterations,
             motion: None,
             motion_on: None,
             built_extent: vk::Extent2D::default(),
@@ -496,7 +513,7 @@ impl DisplacementPass {
         self.set_material_settings(self.primary, settings)
     }
 
-    /// Changes the frame size (the host's G-buffer, hit buffer and colour image must
+    /// Changes the frame size (the host's G-buffer, hit images and colour image must
     /// have the new size from the next record on). Frame-sized resources of the old size
     /// (tile lists, DIG grids, visibility, corrected depth) are retired, not destroyed at
     /// once, so this needs no GPU idle. On error the pass is unchanged.
@@ -523,7 +540,7 @@ impl DisplacementPass {
     /// of the table.
     ///
     /// The `shadow` pass runs only in frames recorded with a [`ShadeTarget`] (it
-    /// darkens dispmap's colour; a host shading from the hit buffer itself gets no
+    /// darkens dispmap's colour; a host shading from the hit images itself gets no
     /// visibility). Its light is the frame's `ShadeTarget::light_dir`.
     ///
     /// GPU-use contract: as [`DisplacementPass::set_material_settings`]. On error
@@ -564,6 +581,41 @@ impl DisplacementPass {
     /// Whether the corrected-depth output is on.
     pub fn depth_output(&self) -> bool {
         self.depth.is_some()
+    }
+
+    /// Turns the iteration-count output on (every trace pipeline is rebuilt in its
+    /// variant that also writes each pixel's iteration count, the height-field or pyramid
+    /// fetches its method spent, and the pass owns one [`ITERATIONS_FORMAT`] image per
+    /// frame slot; every later `record` or `record_with_camera` writes it, 0 at pixels
+    /// without displacement) or off (retires them; the default: a host that does not
+    /// profile its methods holds no such image). Read it with
+    /// [`DisplacementPass::iterations`]. Needs no GPU idle. On error (an allocation or
+    /// pipeline failure) the pass is unchanged.
+    pub fn set_iterations_output(&mut self, on: bool) -> Result<()> {
+        self.check_alive()?;
+        let old = self.iterations_on;
+        self.iterations_on = on;
+        if let Err(e) = self.sync() {
+            self.iterations_on = old;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Whether the iteration-count output is on.
+    pub fn iterations_output(&self) -> bool {
+        self.iterations_on
+    }
+
+    /// The iteration counts of `frame_slot` (`R32_UINT`, [`ITERATIONS_FORMAT`]: each
+    /// displaced pixel's height-field or pyramid fetches, 0 at every other pixel);
+    /// `None` when the output is off. After a `record` or `record_with_camera` of that
+    /// slot it is in `GENERAL`, last written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`
+    /// (`record_shading` leaves it alone); usage `STORAGE | TRANSFER_SRC`. The host may
+    /// read it (after its own barrier from that state) and leave it in any layout: the
+    /// next record of the slot discards it.
+    pub fn iterations(&self, frame_slot: u32) -> Option<&Image> {
+        self.slots.get(frame_slot as usize)?.iterations.as_ref()
     }
 
     /// Turns the motion output on with `settings` (builds the `motion` pipeline for the

@@ -32,7 +32,7 @@
 pub(super) use super::entries::{
     Built, Fill, MapEntry, MapKey, MapSource, MaterialEntry, PreparePass, Prepared, Slot,
 };
-use super::{DisplacementPass, HIT_DEPTH_FORMAT, VISIBILITY_FORMAT};
+use super::{DisplacementPass, HIT_DEPTH_FORMAT, ITERATIONS_FORMAT, VISIBILITY_FORMAT};
 use crate::context::Context;
 use crate::error::Result;
 use crate::gpu::owned::{Destroy, Guard};
@@ -97,7 +97,8 @@ struct MapPlan {
 /// What the settings need: a key per resource (module docs).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(super) struct Plan {
-    methods: Vec<(Method, bool)>,
+    /// Each trace pipeline: the method, curved, with iterations.
+    methods: Vec<(Method, bool, bool)>,
     pyramid_pass: bool,
     corner_pass: bool,
     cone_kinds: Vec<ConeKind>,
@@ -110,6 +111,7 @@ pub(super) struct Plan {
     shadow_traces: Vec<ShadowTrace>,
     shadowed_shade: bool,
     depth: bool,
+    iterations: bool,
     motion: Option<vk::Format>,
 }
 
@@ -135,6 +137,7 @@ struct Additions {
     prepared: Vec<(usize, Prepared)>,
     corners: Vec<(usize, Vec<CornerGrid>)>,
     visibility: Option<Vec<Image>>,
+    iterations: Option<Vec<Image>>,
     depth: Option<DepthParts>,
     motion: Option<MotionPass>,
     tiles: Option<Vec<TileLists>>,
@@ -167,6 +170,7 @@ impl Destroy for Additions {
                 g.destroy(ctx);
             }
             self.visibility.destroy(ctx);
+            self.iterations.destroy(ctx);
             self.depth.destroy(ctx);
             self.motion.destroy(ctx);
             self.tiles.destroy(ctx);
@@ -196,6 +200,7 @@ impl DisplacementPass {
             corners: vec![None; self.materials.len()],
             shadowed_shade: self.shadows.is_on(),
             depth: self.depth_on,
+            iterations: self.iterations_on,
             motion: self.motion_on.map(|m| m.format),
             ..Plan::default()
         };
@@ -205,7 +210,11 @@ impl DisplacementPass {
             let needs = s.method.needs();
             push_unique(
                 &mut plan.methods,
-                (s.method, m.curved && s.method.traces_curved()),
+                (
+                    s.method,
+                    m.curved && s.method.traces_curved(),
+                    self.iterations_on,
+                ),
             );
             let map = plan.maps[m.map].get_or_insert_with(MapPlan::default);
             map.chain |= s.params.lod_threshold.is_some();
@@ -247,9 +256,13 @@ impl DisplacementPass {
         let resized = self.built_extent != extent;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let mut add = unsafe { Guard::new(c, Additions::default()) };
-        for &(m, curved) in &plan.methods {
-            if !self.traces.iter().any(|t| t.key() == (m, curved)) {
-                add.traces.push(TracePass::new(c, m, curved)?);
+        for &(m, curved, iterations) in &plan.methods {
+            if !self
+                .traces
+                .iter()
+                .any(|t| t.key() == (m, curved, iterations))
+            {
+                add.traces.push(TracePass::new(c, m, curved, iterations)?);
             }
         }
         if plan.pyramid_pass && self.pyramid_pass.is_none() {
@@ -333,6 +346,18 @@ impl DisplacementPass {
                     c,
                     &format!("embed.visibility{s}"),
                     VISIBILITY_FORMAT,
+                    extent,
+                    1,
+                    vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+                )
+            })?);
+        }
+        if plan.iterations && (resized || self.slots.iter().all(|s| s.iterations.is_none())) {
+            add.iterations = Some(per_slot(c, frames, |s| {
+                Image::new(
+                    c,
+                    &format!("embed.iterations{s}"),
+                    ITERATIONS_FORMAT,
                     extent,
                     1,
                     vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
@@ -486,6 +511,7 @@ impl DisplacementPass {
                         visibility: None,
                         hit_depth: None,
                         corners: Vec::new(),
+                        iterations: None,
                         scopes: Vec::new(),
                     })
                     .collect();
@@ -523,6 +549,17 @@ impl DisplacementPass {
                 .slots
                 .iter_mut()
                 .filter_map(|s| s.visibility.take())
+                .collect();
+            retired.retire(old);
+        }
+        if let Some(i) = add.iterations {
+            retired.retire(swap_per_slot(&mut self.slots, i, |s| &mut s.iterations));
+        }
+        if !plan.iterations {
+            let old: Vec<Image> = self
+                .slots
+                .iter_mut()
+                .filter_map(|s| s.iterations.take())
                 .collect();
             retired.retire(old);
         }

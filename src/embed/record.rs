@@ -51,13 +51,14 @@ impl DisplacementPass {
 
     /// Records the pass into the host's command buffer `cmd`: the uploads (height map,
     /// material maps) and the pyramid build when pending, the DIG corner pass, `trace`
-    /// into `inputs.hit` and, with `inputs.shade`, `[shadow] -> shade`, and with the
+    /// into `inputs.hit` (and, with the iteration output on, the slot's iteration
+    /// counts) and, with `inputs.shade`, `[shadow] -> shade`, and with the
     /// corrected depth on, `hit_depth`; each pass between debug labels and, unless
     /// `timestamps` is [`Timestamps::Off`], timestamps. Returns the passes and their
     /// queries.
     ///
     /// Resources that must not be in use by the GPU: those of `inputs.frame_slot` (its
-    /// corner grid and owned timestamp range, the hit buffer and colour image passed in)
+    /// corner grid and owned timestamp range, the hit images and colour image passed in)
     /// and the pass's retired resources: the slot contract of the module docs guarantees
     /// both. The shared height texture and pyramid may be read by frames in flight.
     ///
@@ -83,7 +84,7 @@ impl DisplacementPass {
 
     /// [`DisplacementPass::record`] with the frame's camera for the corrected depth
     /// ([`DisplacementPass::set_depth_output`]), for a host that has no [`ShadeTarget`]
-    /// (shades from the hit buffer itself). With a `ShadeTarget` its `view_proj` and
+    /// (shades from the hit images itself). With a `ShadeTarget` its `view_proj` and
     /// `camera_pos` are the camera and `camera` is ignored.
     ///
     /// # Safety
@@ -102,13 +103,14 @@ impl DisplacementPass {
     /// Shades hits the host wrote into `inputs.hit` (e.g. exact reference hits) exactly
     /// as a frame shades the method's: pending uploads and builds, then, with
     /// self-shadowing on, `shadow` on those hits (unless `visibility` is given), then
-    /// `shade` into `inputs.shade`'s colour image (required). `visibility`: a light
+    /// `shade` into `inputs.shade`'s colour image (required). Writes no iteration counts.
+    /// `visibility`: a light
     /// visibility to shade with instead of the `shadow` pass's (an `R16_SFLOAT` storage
     /// view of the frame's size, `GENERAL`, visible to compute-shader storage reads;
     /// self-shadowing must be on). Runs no `trace`, corner pass or `hit_depth`.
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`], except that the hit buffer enters with the
+    /// As [`DisplacementPass::record`], except that the hit images enter with the
     /// host's hits: `GENERAL`, its writes visible to `COMPUTE_SHADER`
     /// `SHADER_STORAGE_READ`; the same holds for `visibility`.
     pub unsafe fn record_shading(
@@ -136,7 +138,7 @@ impl DisplacementPass {
         // places the barriers between the stages.
         unsafe {
             self.record_builds(cmd, &mut w, Some(inputs.frame_slot))?;
-            self.record_classify(cmd, &mut w, &mut g, inputs, false, None)?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, false)?;
         }
         let visibility = match visibility {
             Some(v) => Some(v),
@@ -215,14 +217,13 @@ impl DisplacementPass {
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
         let slot = inputs.frame_slot;
         let mut g = self.graph(inputs, Entry::Frame, false);
-        let depth_view = self.hit_depth(slot).map(|i| i.view);
         // SAFETY: this function's contract (the host's images enter as the module docs'
         // table says, the slot's by the slot contract); `begin` reset the writer's
         // queries; the builds leave every map sampled-readable, and the graph places the
         // barriers between the stages after them.
         unsafe {
             self.record_builds(cmd, &mut w, Some(slot))?;
-            self.record_classify(cmd, &mut w, &mut g, inputs, true, depth_view)?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, true)?;
             self.record_corners(cmd, &mut w, &mut g, inputs)?;
             self.record_trace(cmd, &mut w, &mut g, inputs, camera.as_ref())?;
         }
@@ -278,9 +279,18 @@ impl DisplacementPass {
         }
         inputs.gbuffer.check(extent)?;
         let storage = vk::ImageUsageFlags::STORAGE;
-        inputs
-            .hit
-            .check("hit", &[crate::passes::trace::HIT_FORMAT], storage, extent)?;
+        inputs.hit.uv.check(
+            "hit.uv",
+            &[crate::passes::trace::HIT_UV_FORMAT],
+            storage,
+            extent,
+        )?;
+        inputs.hit.height.check(
+            "hit.height",
+            &[crate::passes::trace::HIT_HEIGHT_FORMAT],
+            storage,
+            extent,
+        )?;
         if let Some(shade) = &inputs.shade {
             shade.color.check(
                 "color",
@@ -319,7 +329,7 @@ impl DisplacementPass {
 
     /// The record's frame graph: the host's images as `entry` says (a visibility of the
     /// host's with `host_visibility`), the slot's visibility, corrected depth and corner
-    /// grids discarded.
+    /// grids and iteration counts discarded.
     fn graph(&self, inputs: &FrameInputs, entry: Entry, host_visibility: bool) -> FrameGraph {
         let slot = inputs.frame_slot as usize;
         let s = &self.slots[slot];
@@ -331,6 +341,9 @@ impl DisplacementPass {
         }
         if let Some(d) = &s.hit_depth {
             g.own(Res::HitDepth, d);
+        }
+        if let Some(i) = &s.iterations {
+            g.own(Res::Iterations, i);
         }
         for (i, grid) in s.corners.iter().enumerate() {
             if let Some(grid) = grid {

@@ -101,6 +101,7 @@ pub fn texel_size(format: vk::Format) -> Option<u32> {
         vk::Format::R8_UNORM => 1,
         vk::Format::R16_UNORM | vk::Format::R16_SFLOAT => 2,
         vk::Format::R32_SFLOAT
+        | vk::Format::R32_UINT
         | vk::Format::D32_SFLOAT
         | vk::Format::R16G16_SFLOAT
         | vk::Format::R8G8B8A8_UNORM

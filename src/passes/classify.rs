@@ -9,9 +9,10 @@
 //! A pixel's material is its G-buffer frame's material field (index + 1, 0 = not
 //! displaced; read through `glsl/common/gbuffer.glsl`, packed by `glsl/include/dispmap_gbuffer.glsl`). Pixels of no
 //! live material (no geometry, flat geometry, an index past the table or of a removed
-//! material) are not traced: `classify` writes their hit texel (`NO_HIT_HEIGHT` without
-//! geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry) and, with the corrected depth
-//! on, their corrected depth (the G-buffer's own depth).
+//! material) are not traced: `classify` writes their hit texels (uv `(0, 0)`, height
+//! `NO_HIT_HEIGHT` without geometry, [`NOT_DISPLACED_HEIGHT`] for flat geometry), with the
+//! corrected depth on their corrected depth (the G-buffer's own depth), and with the
+//! iteration output on their iteration count (0).
 //!
 //! Every material's list lives in one buffer per frame slot whose size follows the frame
 //! alone ([`TileLists::bytes_for`]): a tile holds at most 64 distinct materials, so the
@@ -30,10 +31,11 @@
 //! |---|---|---|---|
 //! | `u_depth` | G-buffer `depth` (sampled) | count, mixed | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_frame` | G-buffer `frame` (sampled) | count, mixed | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_hit` | hit buffer (storage, written for pixels without displacement) | count | `GENERAL` |
+//! | `u_hit_uv`, `u_hit_height` | hit images (storage, written for pixels without displacement) | count | `GENERAL` |
 //! | `u_tiles` | the tile buffer (storage buffer, written) | all | |
 //! | `u_args` | the dispatch arguments and counts (storage buffer, read and written) | all | |
-//! | `u_hit_depth` | corrected depth (`DEPTH` variant; storage, written) | count | `GENERAL` |
+//! | `u_hit_depth` | corrected depth (`DEPTH` variants; storage, written) | count | `GENERAL` |
+//! | `u_iterations` | iteration counts (`ITERATIONS` variants; storage, written) | count | `GENERAL` |
 //!
 //! A per-material pass binds the slot's tile buffer at binding [`TILES`] (`u_tiles`) and
 //! finds its material's list in the buffer's header (`glsl/common/tiles.glsl`).
@@ -41,9 +43,10 @@
 use crate::abi::ClassifyParams;
 use crate::context::Context;
 use crate::error::{Error, Result};
+use crate::gpu::Buffer;
 use crate::gpu::owned::{Destroy, Guard};
 use crate::gpu::pipeline::{FetchPipeline, LOCAL_SIZE, storage_view};
-use crate::gpu::{Buffer, ViewRef};
+use crate::passes::trace::HitViews;
 use crate::shaders;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
@@ -251,7 +254,7 @@ pub fn tile_count(extent: vk::Extent2D) -> [u32; 2] {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ClassifyStep {
     /// Counts each material's tiles, lists the tiles of several materials, writes the hit
-    /// texels (and corrected depth) of pixels without displacement (`glsl/classify.comp`).
+    /// texels (and corrected depth and iteration count) of pixels without displacement (`glsl/classify.comp`).
     Count,
     /// Places each list and writes the dispatch arguments (`glsl/classify_offsets.comp`).
     Offsets,
@@ -278,13 +281,17 @@ pub struct ClassifyInputs<'a> {
     pub depth: vk::ImageView,
     /// The host's G-buffer frame (its material field).
     pub frame: vk::ImageView,
-    /// The hit buffer.
-    pub hit: ViewRef,
+    /// The hit images.
+    pub hit: HitViews,
+    /// The frame's size.
+    pub extent: vk::Extent2D,
     /// Whether the hit texels of pixels without displacement are written (not when the
-    /// hit buffer holds the host's hits).
+    /// hit images hold the host's hits).
     pub write_hits: bool,
     /// The corrected depth (`None` when the output is off).
     pub hit_depth: Option<vk::ImageView>,
+    /// The iteration counts (`None` when the output is off).
+    pub iterations: Option<vk::ImageView>,
     /// The slot's lists.
     pub lists: &'a TileLists,
     /// Per table entry: whether it holds a material (the table's length, at most
@@ -293,31 +300,34 @@ pub struct ClassifyInputs<'a> {
 }
 
 /// The classification pipelines (the counting step without and with the corrected
-/// depth, the offsets, the scatter and the mixed tiles' scatter).
+/// depth and the iteration counts, the offsets, the scatter and the mixed tiles'
+/// scatter).
 pub struct ClassifyPass {
-    plain: FetchPipeline,
-    depth: FetchPipeline,
+    /// The counting step's variants, by `depth as usize + 2 * iterations as usize`.
+    count: [FetchPipeline; 4],
     offsets: FetchPipeline,
     scatter: FetchPipeline,
     mixed: FetchPipeline,
 }
 
 impl ClassifyPass {
-    /// The bindings of `step` (of the counting step's variant with (`hit_depth`) or
-    /// without the corrected depth), as its shader declares them (reflected): what its
-    /// dispatch reads and writes.
+    /// The bindings of `step` (of the counting step's variant with or without the
+    /// corrected depth, `hit_depth`, and the iteration counts, `iterations`), as its
+    /// shader declares them (reflected): what its dispatch reads and writes.
     pub fn bindings(
         &self,
         step: ClassifyStep,
         hit_depth: bool,
+        iterations: bool,
     ) -> &'static [crate::shaders::ShaderBinding] {
-        self.pipeline(step, hit_depth).pipeline.bindings
+        self.pipeline(step, hit_depth, iterations).pipeline.bindings
     }
 
-    fn pipeline(&self, step: ClassifyStep, hit_depth: bool) -> &FetchPipeline {
+    fn pipeline(&self, step: ClassifyStep, hit_depth: bool, iterations: bool) -> &FetchPipeline {
         match step {
-            ClassifyStep::Count if hit_depth => &self.depth,
-            ClassifyStep::Count => &self.plain,
+            ClassifyStep::Count => {
+                &self.count[usize::from(hit_depth) + 2 * usize::from(iterations)]
+            }
             ClassifyStep::Offsets => &self.offsets,
             ClassifyStep::Scatter => &self.scatter,
             ClassifyStep::Mixed => &self.mixed,
@@ -330,12 +340,18 @@ impl ClassifyPass {
         let base = [
             ("u_depth", SAMPLED),
             ("u_frame", SAMPLED),
-            ("u_hit", STORAGE),
+            ("u_hit_uv", STORAGE),
+            ("u_hit_height", STORAGE),
             ("u_tiles", BUFFER),
             ("u_args", BUFFER),
         ];
-        let mut with_depth = base.to_vec();
-        with_depth.push(("u_hit_depth", STORAGE));
+        let with = |extra: &[(&'static str, vk::DescriptorType)]| {
+            let mut b = base.to_vec();
+            b.extend_from_slice(extra);
+            b
+        };
+        let depth = ("u_hit_depth", STORAGE);
+        let iterations = ("u_iterations", STORAGE);
         let lists = [("u_tiles", BUFFER), ("u_args", BUFFER)];
         let mixed = [
             ("u_depth", SAMPLED),
@@ -350,17 +366,31 @@ impl ClassifyPass {
             })
         };
         let plain = new("classify", &shaders::CLASSIFY_COMP, &base)?;
-        let depth = new(
+        let with_depth = new(
             "classify[depth]",
             &shaders::CLASSIFY_COMP_DEPTH,
-            &with_depth,
+            &with(&[depth]),
+        )?;
+        let with_iterations = new(
+            "classify[iterations]",
+            &shaders::CLASSIFY_COMP_ITERATIONS,
+            &with(&[iterations]),
+        )?;
+        let with_both = new(
+            "classify[depth,iterations]",
+            &shaders::CLASSIFY_COMP_DEPTH_ITERATIONS,
+            &with(&[depth, iterations]),
         )?;
         let offsets = new("classify_offsets", &shaders::CLASSIFY_OFFSETS_COMP, &lists)?;
         let scatter = new("classify_scatter", &shaders::CLASSIFY_SCATTER_COMP, &lists)?;
         let mixed = new("classify_mixed", &shaders::CLASSIFY_MIXED_COMP, &mixed)?;
         Ok(ClassifyPass {
-            plain: plain.keep(),
-            depth: depth.keep(),
+            count: [
+                plain.keep(),
+                with_depth.keep(),
+                with_iterations.keep(),
+                with_both.keep(),
+            ],
             offsets: offsets.keep(),
             scatter: scatter.keep(),
             mixed: mixed.keep(),
@@ -412,8 +442,8 @@ impl ClassifyPass {
     }
 
     /// Records `step` of the classification (the module docs; `Count` also writes, with
-    /// `write_hits`, the hit texels of pixels without displacement and, with `hit_depth`,
-    /// their corrected depth), after [`ClassifyPass::record_reset`] and the steps before
+    /// `write_hits`, the hit texels of pixels without displacement, with `hit_depth` their
+    /// corrected depth and with `iterations` their iteration count), after [`ClassifyPass::record_reset`] and the steps before
     /// it. Its accesses are its shader's bindings ([`ClassifyPass::bindings`]); the
     /// caller's barriers order them.
     ///
@@ -434,10 +464,14 @@ impl ClassifyPass {
         step: ClassifyStep,
     ) -> Result<()> {
         let lists = inputs.lists;
-        let pipeline = self.pipeline(step, inputs.hit_depth.is_some());
+        let pipeline = self.pipeline(
+            step,
+            inputs.hit_depth.is_some(),
+            inputs.iterations.is_some(),
+        );
         let fetch = |view| pipeline.fetch_view(view);
         let (depth, frame) = (fetch(inputs.depth), fetch(inputs.frame));
-        let hits = storage_view(inputs.hit.view);
+        let (hit_uv, hit_height) = (storage_view(inputs.hit.uv), storage_view(inputs.hit.height));
         let tiles = lists.list();
         let args = [vk::DescriptorBufferInfo {
             buffer: lists.args.raw,
@@ -445,6 +479,7 @@ impl ClassifyPass {
             range: vk::WHOLE_SIZE,
         }];
         let hit_depth = inputs.hit_depth.map(storage_view);
+        let iterations = inputs.iterations.map(storage_view);
         let p = &pipeline.pipeline;
         let mut writes = vec![p.buffer("u_tiles", &tiles)?, p.buffer("u_args", &args)?];
         if matches!(step, ClassifyStep::Count | ClassifyStep::Mixed) {
@@ -452,12 +487,16 @@ impl ClassifyPass {
             writes.push(p.image("u_frame", &frame)?);
         }
         if step == ClassifyStep::Count {
-            writes.push(p.image("u_hit", &hits)?);
+            writes.push(p.image("u_hit_uv", &hit_uv)?);
+            writes.push(p.image("u_hit_height", &hit_height)?);
             if let Some(d) = &hit_depth {
                 writes.push(p.image("u_hit_depth", d)?);
             }
+            if let Some(i) = &iterations {
+                writes.push(p.image("u_iterations", i)?);
+            }
         }
-        let extent = inputs.hit.extent;
+        let extent = inputs.extent;
         let push = ClassifyParams {
             frame_size: [extent.width, extent.height],
             material_count: material_count(inputs),
@@ -511,8 +550,9 @@ impl Destroy for ClassifyPass {
     unsafe fn destroy(&mut self, ctx: &Context) {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
-            self.plain.destroy(ctx);
-            self.depth.destroy(ctx);
+            for p in &mut self.count {
+                p.destroy(ctx);
+            }
             self.offsets.destroy(ctx);
             self.scatter.destroy(ctx);
             self.mixed.destroy(ctx);

@@ -8,12 +8,16 @@
 //!
 //! | attachment | format | contents |
 //! |---|---|---|
-//! | hit | `R32G32B32A32_SFLOAT` ([`crate::passes::trace::HIT_FORMAT`]) | the hit buffer's texel: hit `u`, `v`, height, iterations (cleared to a miss, `NO_HIT_HEIGHT`) |
-//! | frame | `R32G32_UINT` | the G-buffer's (see [`crate::passes::gbuffer`]) |
-//! | depth | `D32_SFLOAT` | the G-buffer's reverse-Z depth |
+//! | location | attachment | format | contents |
+//! |---|---|---|---|
+//! | 0 | hit uv | `R32G32_SFLOAT` ([`crate::passes::trace::HIT_UV_FORMAT`]) | the hit's `u`, `v` (cleared to 0) |
+//! | 1 | frame | `R32G32_UINT` | the G-buffer's (see [`crate::passes::gbuffer`]) |
+//! | 2 | hit height | `R32_SFLOAT` ([`crate::passes::trace::HIT_HEIGHT_FORMAT`]) | the hit's height (cleared to a miss, `NO_HIT_HEIGHT`) |
+//! | 3 | iterations | `R32_UINT` ([`crate::passes::trace::ITERATIONS_FORMAT`]) | the march's iteration count (cleared to 0) |
+//! | | depth | `D32_SFLOAT` | the G-buffer's reverse-Z depth |
 //!
-//! The hit attachment is the hit buffer itself, in `GENERAL` (a colour attachment may be
-//! in `GENERAL`), so the frame's shading reads it as it reads the trace's hits
+//! The hit attachments are the hit images themselves, in `GENERAL` (a colour attachment
+//! may be in `GENERAL`), so the frame's shading reads them as it reads the trace's hits
 //! ([`crate::embed::DisplacementPass::record_shading`]). The G-buffer's `ray` attachment
 //! is not written: nothing after the forward pass reads it.
 //!
@@ -41,10 +45,21 @@ use crate::gpu::{Buffer, HeightTexture, Image};
 use crate::method::{Method, MethodParams};
 use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, GBuffer, PIXEL_RAYS};
 use crate::passes::pixel_ray_buffer::PixelRayBuffer;
-use crate::passes::trace::HIT_FORMAT;
+use crate::passes::trace::{HIT_HEIGHT_FORMAT, HIT_UV_FORMAT, ITERATIONS_FORMAT};
 use crate::shaders;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
+
+/// The images the forward pass writes beside the G-buffer (the module table).
+#[derive(Clone, Copy)]
+pub struct ForwardTargets<'a> {
+    /// The hit uv image.
+    pub uv: &'a Image,
+    /// The hit height image.
+    pub height: &'a Image,
+    /// The iteration counts.
+    pub iterations: &'a Image,
+}
 
 /// The graphics pipeline of one method's forward pass and its parameter buffer.
 pub struct ForwardPass {
@@ -167,7 +182,12 @@ impl ForwardPass {
                 vertex_bindings: &[],
                 vertex_attributes: &[],
                 depth_compare: vk::CompareOp::GREATER,
-                color_formats: &[HIT_FORMAT, FRAME_FORMAT],
+                color_formats: &[
+                    HIT_UV_FORMAT,
+                    FRAME_FORMAT,
+                    HIT_HEIGHT_FORMAT,
+                    ITERATIONS_FORMAT,
+                ],
                 depth_format: DEPTH_FORMAT,
                 name: &format!("{name}.pipeline"),
             },
@@ -207,7 +227,7 @@ impl ForwardPass {
         write_params(&mut self.params, params)
     }
 
-    /// Records the pass: clears the hit, normal, tangent and depth attachments and draws
+    /// Records the pass: clears the hit, frame and depth attachments and draws
     /// the plane or the quad of `params` (the G-buffer pass's draw,
     /// [`crate::passes::gbuffer::GBufferPass::record`]) with the marcher in the fragment
     /// shader; `rays` are the frame's pixel rays
@@ -217,9 +237,9 @@ impl ForwardPass {
     /// # Safety
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
-    /// * When the command buffer executes: `hit` (an [`HIT_FORMAT`] image of the
-    ///   G-buffer's size with `COLOR_ATTACHMENT` usage) is in `GENERAL`, `target`'s normal
-    ///   and tangent in `COLOR_ATTACHMENT_OPTIMAL` and its depth in
+    /// * When the command buffer executes: `hit`'s images (of the module table's formats,
+    ///   the G-buffer's size, with `COLOR_ATTACHMENT` usage) are in `GENERAL`, `target`'s
+    ///   frame in `COLOR_ATTACHMENT_OPTIMAL` and its depth in
     ///   `DEPTH_ATTACHMENT_OPTIMAL`, earlier accesses ordered before the attachment writes
     ///   (the contents are cleared); `height` is in `SHADER_READ_ONLY_OPTIMAL` with its
     ///   writes visible to fragment-shader sampled reads; the GPU is done with the frames
@@ -231,23 +251,26 @@ impl ForwardPass {
         ctx: &Context,
         cmd: vk::CommandBuffer,
         target: &GBuffer,
-        hit: &Image,
+        hit: ForwardTargets,
         height: &HeightTexture,
         (params, rays): (&GBufferParams, &PixelRayParams),
     ) -> Result<()> {
         let extent = target.ray.extent;
         let attachment = crate::gpu::pipeline::cleared_color_attachment;
         let colors = [
-            attachment(
-                hit.view,
-                vk::ImageLayout::GENERAL,
-                [0.0, 0.0, NO_HIT_HEIGHT, 0.0],
-            ),
+            attachment(hit.uv.view, vk::ImageLayout::GENERAL, [0.0; 4]),
             attachment(
                 target.frame.view,
                 vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
                 [0.0; 4],
             ),
+            attachment(
+                hit.height.view,
+                vk::ImageLayout::GENERAL,
+                [NO_HIT_HEIGHT, 0.0, 0.0, 0.0],
+            ),
+            // 0.0's bits are the unsigned 0.
+            attachment(hit.iterations.view, vk::ImageLayout::GENERAL, [0.0; 4]),
         ];
         let depth = crate::gpu::pipeline::cleared_depth_attachment(target.depth.view);
         let rendering = vk::RenderingInfo::default()

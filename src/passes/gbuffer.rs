@@ -178,7 +178,7 @@ pub(crate) const PIXEL_RAYS: &str = "PixelRayBlock";
 /// The GLSL names of the behind variant's reads of the first layer
 /// (`glsl/gbuffer.frag`, `glsl/gbuffer_mesh.frag` with `BEHIND`).
 const FIRST_DEPTH: &str = "u_first_depth";
-const FIRST_HIT: &str = "u_first_hit";
+const FIRST_HIT: &str = "u_first_hit_height";
 
 /// The vertex and fragment shaders of the plane's pipeline (`mesh` false) or the
 /// meshes', the fragment stage's `BEHIND` variant for the behind layer.
@@ -197,7 +197,7 @@ fn layer_shaders(mesh: bool, behind: bool) -> (shaders::Shader, shaders::Shader)
 /// Set 0 of the plane's pipeline (`mesh` false) or the meshes' as the shaders declare it:
 /// the plane's pixel rays (a uniform buffer the pass owns and writes in each recording);
 /// meshes interpolate and bind nothing; the behind variant (`behind`) also reads the
-/// first layer's depth (sampled) and hit buffer (a storage image).
+/// first layer's depth (sampled) and hit height image (a storage image).
 pub(crate) fn raster_set(mesh: bool, behind: bool) -> Result<RasterSet> {
     let (vert, frag) = layer_shaders(mesh, behind);
     let mut declared = Vec::new();
@@ -229,7 +229,7 @@ pub struct GBufferPass {
     mesh: bool,
     two_sided: bool,
     /// The behind layer's variant (`BEHIND` in `glsl/gbuffer*.frag`): set 0 also has the
-    /// first layer's depth and hit buffer.
+    /// first layer's depth and hit height image.
     behind: bool,
     /// The behind variant's nearest sampler of the first layer's depth (null otherwise).
     sampler: vk::Sampler,
@@ -538,13 +538,13 @@ pub unsafe fn record_draws(
 }
 
 /// What the behind layer's draws read of the first layer: its G-buffer depth (sampled,
-/// `SHADER_READ_ONLY_OPTIMAL`) and its hit buffer (a storage image read, `GENERAL`).
+/// `SHADER_READ_ONLY_OPTIMAL`) and its hit height image (a storage image read, `GENERAL`).
 #[derive(Clone, Copy, Debug)]
 pub struct FirstLayer {
     /// The first layer's `D32_SFLOAT` depth view.
     pub depth: vk::ImageView,
-    /// The first layer's hit buffer view (`R32G32B32A32_SFLOAT`).
-    pub hit: vk::ImageView,
+    /// The first layer's hit height view (`R32_SFLOAT`).
+    pub hit_height: vk::ImageView,
 }
 
 /// Records the behind layer ([`GBufferPass::new_behind`], `glsl/include/dispmap_behind.glsl`)
@@ -554,7 +554,7 @@ pub struct FirstLayer {
 ///
 /// # Safety
 /// As [`record_draws`]; in addition, when the command buffer executes, `first.depth` is
-/// in `SHADER_READ_ONLY_OPTIMAL` and `first.hit` in `GENERAL`, their writes visible to
+/// in `SHADER_READ_ONLY_OPTIMAL` and `first.hit_height` in `GENERAL`, their writes visible to
 /// fragment-shader sampled and storage reads, and both stay alive until it has executed.
 pub unsafe fn record_draws_behind(
     ctx: &Context,
@@ -629,7 +629,7 @@ unsafe fn record_layer(
             })
         })
         .collect();
-    let hit_info = first.map(|f| crate::gpu::pipeline::storage_view(f.hit));
+    let hit_info = first.map(|f| crate::gpu::pipeline::storage_view(f.hit_height));
     let writes = draws
         .iter()
         .zip(infos.iter().zip(&depth_infos))

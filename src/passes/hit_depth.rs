@@ -30,8 +30,8 @@ pub const HIT_DEPTH_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
 /// The images the pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct HitDepthInputs {
-    /// The hit buffer (read).
-    pub hit: vk::ImageView,
+    /// The hit images (read).
+    pub hit: crate::passes::trace::HitViews,
     /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The corrected depth (written; the frame's size).
@@ -93,9 +93,9 @@ impl HitDepthPass {
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
     /// * `inputs`' views belong to that device and have the formats and usages of the
-    ///   module's table; the hit buffer and the G-buffer are of `inputs.hit_depth`'s size.
+    ///   module's table; the hit images and the G-buffer are of `inputs.hit_depth`'s size.
     /// * When the command buffer executes, the images are in the layouts of the module's
-    ///   table: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   table: the hit images in `GENERAL`, their writes visible to compute-shader storage
     ///   reads; the G-buffer in `SHADER_READ_ONLY_OPTIMAL`, its writes visible to
     ///   compute-shader sampled reads; the corrected depth in `GENERAL`, earlier accesses
     ///   ordered before compute-shader storage writes (the caller's barriers); the tile

@@ -1,5 +1,5 @@
 //! The pipeline shape `hit_depth` and `motion` share: one indirect dispatch per material
-//! over its tiles ([`crate::passes::classify`]) that reads the hit buffer and the G-buffer
+//! over its tiles ([`crate::passes::classify`]) that reads the hit images and the G-buffer
 //! and writes one storage image of the frame's size.
 //!
 //! Bindings (set 0, push descriptors), mirrored by `glsl/hit_depth.comp` and
@@ -7,7 +7,7 @@
 //!
 //! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
+//! | `u_hit_uv`, `u_hit_height` | hit images (storage, read) | `GENERAL` |
 //! | `u_ray` | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_frame` | G-buffer `frame` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
@@ -20,12 +20,14 @@ use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, storage_view};
 use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::gbuffer::GBufferViews;
+use crate::passes::trace::HitViews;
 use crate::shaders::Shader;
 use ash::vk;
 
 /// What both shapes bind besides their output, by GLSL name (the shaders number them).
-const BINDINGS: [(&str, vk::DescriptorType); 5] = [
-    ("u_hit", vk::DescriptorType::STORAGE_IMAGE),
+const BINDINGS: [(&str, vk::DescriptorType); 6] = [
+    ("u_hit_uv", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_hit_height", vk::DescriptorType::STORAGE_IMAGE),
     ("u_ray", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_depth", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_frame", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
@@ -35,8 +37,8 @@ const BINDINGS: [(&str, vk::DescriptorType); 5] = [
 /// The views one dispatch binds (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct ResolveViews {
-    /// The hit buffer (read).
-    pub hit: vk::ImageView,
+    /// The hit images (read).
+    pub hit: HitViews,
     /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The output (the shader's `u_hit_depth` or `u_motion`).
@@ -94,7 +96,7 @@ impl HitResolvePipeline {
         push: &[u8],
     ) -> Result<()> {
         let ResolveViews { hit, gbuffer, out } = views;
-        let hits = storage_view(hit);
+        let (hit_uv, hit_height) = (storage_view(hit.uv), storage_view(hit.height));
         let fetch = |view| self.pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray.view);
         let depth = fetch(gbuffer.depth.view);
@@ -102,7 +104,8 @@ impl HitResolvePipeline {
         let out = storage_view(out);
         let p = &self.pipeline.pipeline;
         let writes = [
-            p.image("u_hit", &hits)?,
+            p.image("u_hit_uv", &hit_uv)?,
+            p.image("u_hit_height", &hit_height)?,
             p.image("u_ray", &ray)?,
             p.image("u_depth", &depth)?,
             p.image("u_frame", &frame)?,

@@ -56,7 +56,7 @@ pub enum PassName {
     Classify,
     /// The DIG corner pass.
     DigCorners,
-    /// The intersection method, writing the hit buffer.
+    /// The intersection method, writing the hit images.
     Trace,
     /// Self-shadowing: the light visibility of each hit.
     Shadow,

@@ -191,8 +191,8 @@ impl MotionSettings {
 /// The images the pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct MotionInputs {
-    /// The hit buffer (read).
-    pub hit: vk::ImageView,
+    /// The hit images (read).
+    pub hit: crate::passes::trace::HitViews,
     /// The G-buffer (ray, depth and frame are read).
     pub gbuffer: GBufferViews,
     /// The host's motion image (read and written in place).
@@ -272,7 +272,7 @@ impl MotionPass {
     /// * `inputs`' views belong to that device and have the formats and usages of the
     ///   module docs (the motion image of this pass's format); all have the frame's size.
     /// * When the command buffer executes, the images are in the layouts of the module
-    ///   docs: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   docs: the hit images in `GENERAL`, their writes visible to compute-shader storage
     ///   reads; the G-buffer in `SHADER_READ_ONLY_OPTIMAL`, its writes visible to
     ///   compute-shader sampled reads; the motion image in `GENERAL`, its writes visible
     ///   to compute-shader storage reads and writes; the tile list written by a `classify`

@@ -4,7 +4,7 @@
 //!
 //! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
+//! | `u_hit_uv`, `u_hit_height` | hit images (storage, read) | `GENERAL` |
 //! | `u_frame` | G-buffer `frame` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_color` | colour (`R8G8B8A8_UNORM` storage, written, sRGB-encoded values) | `GENERAL` |
@@ -30,6 +30,7 @@ use crate::gpu::pipeline::{FetchPipeline, storage_view};
 use crate::gpu::{HeightTexture, ViewRef};
 use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::gbuffer::GBufferViews;
+use crate::passes::trace::HitViews;
 use crate::shaders;
 use ash::vk;
 
@@ -37,8 +38,9 @@ use ash::vk;
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 
 /// What both variants bind, by GLSL name (`glsl/shade.comp` numbers them).
-const BINDINGS: [(&str, vk::DescriptorType); 8] = [
-    ("u_hit", vk::DescriptorType::STORAGE_IMAGE),
+const BINDINGS: [(&str, vk::DescriptorType); 9] = [
+    ("u_hit_uv", vk::DescriptorType::STORAGE_IMAGE),
+    ("u_hit_height", vk::DescriptorType::STORAGE_IMAGE),
     ("u_frame", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_height", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
     ("u_color", vk::DescriptorType::STORAGE_IMAGE),
@@ -54,8 +56,8 @@ const VISIBILITY: (&str, vk::DescriptorType) = ("u_visibility", vk::DescriptorTy
 /// The images the shade pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct ShadeInputs<'a> {
-    /// The hit buffer (read).
-    pub hit: vk::ImageView,
+    /// The hit images (read).
+    pub hit: HitViews,
     /// The G-buffer (its frame is read).
     pub gbuffer: GBufferViews,
     /// The height field.
@@ -128,10 +130,10 @@ impl ShadePass {
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
     /// * `inputs`' views belong to that device and have the formats and usages of the
-    ///   module's table; the hit buffer, the G-buffer and the visibility are of
+    ///   module's table; the hit images, the G-buffer and the visibility are of
     ///   `inputs.color`'s size.
     /// * When the command buffer executes, the images are in the layouts of the module's
-    ///   table: the hit buffer and the visibility in `GENERAL`, their writes visible to
+    ///   table: the hit images and the visibility in `GENERAL`, their writes visible to
     ///   compute-shader storage reads; the G-buffer, `height` and the material maps in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
     ///   reads; the colour image in `GENERAL`, earlier accesses ordered before
@@ -165,7 +167,7 @@ impl ShadePass {
             }
             (false, _) => None,
         };
-        let hits = storage_view(hit);
+        let (hit_uv, hit_height) = (storage_view(hit.uv), storage_view(hit.height));
         let frame = self.pipeline.fetch_view(gbuffer.frame.view);
         let depth = self.pipeline.fetch_view(gbuffer.depth.view);
         let heights = [height.descriptor()];
@@ -173,7 +175,8 @@ impl ShadePass {
         let [albedo, normal_map] = crate::material::MaterialTextures::descriptors(material, height);
         let p = &self.pipeline.pipeline;
         let mut writes = vec![
-            p.image("u_hit", &hits)?,
+            p.image("u_hit_uv", &hit_uv)?,
+            p.image("u_hit_height", &hit_height)?,
             p.image("u_frame", &frame)?,
             p.image("u_height", &heights)?,
             p.image("u_color", &colors)?,

@@ -46,7 +46,7 @@
 //!
 //! | binding (GLSL name; the shader numbers it) | resource | layout on entry |
 //! |---|---|---|
-//! | `u_hit` | hit buffer (storage, read) | `GENERAL` |
+//! | `u_hit_uv`, `u_hit_height` | hit images (storage, read) | `GENERAL` |
 //! | `u_frame` | G-buffer `frame` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_pyramid` | cell-max pyramid (hard shadows of the pyramid methods only) | `SHADER_READ_ONLY_OPTIMAL` |
@@ -76,6 +76,7 @@ use crate::method::{Method, PyramidKind};
 use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::gbuffer::GBufferViews;
 use crate::passes::pyramid::Pyramid;
+use crate::passes::trace::HitViews;
 use crate::scene::addressing_code;
 use crate::shaders;
 use ash::vk;
@@ -208,8 +209,8 @@ impl ShadowTrace {
 /// The images the shadow pass reads and writes (layouts in the module docs).
 #[derive(Clone, Copy)]
 pub struct ShadowInputs<'a> {
-    /// The hit buffer (read).
-    pub hit: vk::ImageView,
+    /// The hit images (read).
+    pub hit: HitViews,
     /// The G-buffer (its frame is read).
     pub gbuffer: GBufferViews,
     /// The height field.
@@ -241,7 +242,8 @@ impl ShadowPass {
     pub fn new(ctx: &Context, trace: ShadowTrace) -> Result<Self> {
         // What it binds, by GLSL name (`glsl/shadow.comp` numbers them).
         let mut bindings = vec![
-            ("u_hit", STORAGE),
+            ("u_hit_uv", STORAGE),
+            ("u_hit_height", STORAGE),
             ("u_frame", SAMPLED),
             ("u_height", SAMPLED),
             ("u_visibility", STORAGE),
@@ -305,10 +307,10 @@ impl ShadowPass {
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
     /// * `inputs`' views belong to that device and have the formats and usages of the
-    ///   module's table; the hit buffer and the G-buffer are of `inputs.visibility`'s
+    ///   module's table; the hit images and the G-buffer are of `inputs.visibility`'s
     ///   size.
     /// * When the command buffer executes, the images are in the layouts of the module's
-    ///   table: the hit buffer in `GENERAL`, its writes visible to compute-shader storage
+    ///   table: the hit images in `GENERAL`, their writes visible to compute-shader storage
     ///   reads; the G-buffer, `height` and the pyramid in `SHADER_READ_ONLY_OPTIMAL`,
     ///   their writes visible to compute-shader sampled reads; the visibility in
     ///   `GENERAL`, earlier accesses ordered before compute-shader storage writes (the
@@ -341,7 +343,7 @@ impl ShadowPass {
             }
             (ShadowTrace::Sampled, _) => None,
         };
-        let hits = storage_view(hit);
+        let (hit_uv, hit_height) = (storage_view(hit.uv), storage_view(hit.height));
         let frame = self.pipeline.fetch_view(gbuffer.frame.view);
         let heights = [height.descriptor()];
         let pyramids = pyramid.map(|p| [p.descriptor()]);
@@ -349,7 +351,8 @@ impl ShadowPass {
         let depth = self.pipeline.fetch_view(gbuffer.depth.view);
         let pl = &self.pipeline.pipeline;
         let mut writes = vec![
-            pl.image("u_hit", &hits)?,
+            pl.image("u_hit_uv", &hit_uv)?,
+            pl.image("u_hit_height", &hit_height)?,
             pl.image("u_frame", &frame)?,
             pl.image("u_height", &heights)?,
         ];

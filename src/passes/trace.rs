@@ -1,4 +1,4 @@
-//! The `trace` pass: runs one method per pixel and writes the hit buffer.
+//! The `trace` pass: runs one method per pixel and writes the hit images.
 //!
 //! Bindings (set 0, push descriptors), by their GLSL names; `glsl/common/trace.glsl` (and
 //! the includes of the methods that read more) give their numbers, which Rust takes from
@@ -9,7 +9,9 @@
 //! | `u_ray` | G-buffer `ray` (sampled, `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_depth` | G-buffer `depth` (sampled) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_height` | height field (bilinear sampler) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_hit` | hit buffer (`R32G32B32A32_SFLOAT` storage, written) | `GENERAL` |
+//! | `u_hit_uv` | hit uv image (`R32G32_SFLOAT` storage, written) | `GENERAL` |
+//! | `u_hit_height` | hit height image (`R32_SFLOAT` storage, written) | `GENERAL` |
+//! | `u_iterations` | iteration counts (`R32_UINT` storage, written; the `ITERATIONS` variant only) | `GENERAL` |
 //! | `u_pyramid` | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_corners` | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_frame` | G-buffer `frame` (the material; the surface id for the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
@@ -21,15 +23,18 @@
 //! One dispatch traces one material: a workgroup per tile of its list, an invocation per
 //! pixel of the material (others are left alone).
 //!
-//! Each pixel's hit is `(u, v, height, iterations)`; `height < 0` means no hit.
+//! Each pixel's hit is its `(u, v)` in the hit uv image and its height in the hit height
+//! image (`height < 0` means no hit); the pipeline built with iterations
+//! ([`TracePass::new`]) also writes the pixel's iteration count (height-field or pyramid
+//! fetches) into `u_iterations`.
 
 use crate::abi::{TRACE_FLAG_AUTO_LEVEL, TRACE_FLAG_CURVED, TRACE_FLAG_LOD, TraceParams};
 use crate::context::Context;
 use crate::error::Error;
 use crate::error::Result;
+use crate::gpu::HeightTexture;
 use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, storage_view};
-use crate::gpu::{HeightTexture, ViewRef};
 use crate::method::{MaxLevel, Method, MethodParams, Needs};
 use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::cone::ConeMap;
@@ -39,25 +44,74 @@ use crate::passes::pyramid::Pyramid;
 use crate::scene::addressing_code;
 use ash::vk;
 
-/// One texel of the GPU hit buffer (RGBA32F): hit u, hit v, hit height, iteration count.
-/// Height < 0 means no hit.
+/// One pixel's hit as the read-backs assemble it from the hit images: hit u, hit v
+/// (the hit uv image), hit height (the hit height image), iteration count (the iteration
+/// image, as `f32`). Height < 0 means no hit.
 pub type HitTexel = [f32; 4];
 
-/// Format of the hit buffer.
-pub const HIT_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+/// Format of the hit uv image: the hit's `u`, `v`.
+pub const HIT_UV_FORMAT: vk::Format = vk::Format::R32G32_SFLOAT;
+
+/// Format of the hit height image: the hit's height in `[0, 1]`, `< 0` for no hit.
+pub const HIT_HEIGHT_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
+
+/// Format of the iteration counts (the pass's optional output): 32 bits, since a pixel's
+/// count is bounded only by its method's parameters (a level-of-detail blend adds the
+/// bump's to the trace's, and only lavapipe caps a loop at 65535).
+pub const ITERATIONS_FORMAT: vk::Format = vk::Format::R32_UINT;
+
+/// The hit images of one frame, by view (both of the frame's size, `GENERAL`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HitViews {
+    /// The hit uv image ([`HIT_UV_FORMAT`]).
+    pub uv: vk::ImageView,
+    /// The hit height image ([`HIT_HEIGHT_FORMAT`]).
+    pub height: vk::ImageView,
+}
+
+/// Splits `hits` (one texel per pixel) into the bytes of the hit uv and hit height images
+/// (the iteration counts are dropped).
+pub fn split_hits(hits: &[HitTexel]) -> (Vec<u8>, Vec<u8>) {
+    let uv: Vec<[f32; 2]> = hits.iter().map(|t| [t[0], t[1]]).collect();
+    let height: Vec<f32> = hits.iter().map(|t| t[2]).collect();
+    (
+        bytemuck::cast_slice(&uv).to_vec(),
+        bytemuck::cast_slice(&height).to_vec(),
+    )
+}
+
+/// Joins the bytes of the hit uv and hit height images and of the iteration counts
+/// (`None`: counted as 0) into one texel per pixel.
+pub fn join_hits(uv: &[u8], height: &[u8], iterations: Option<&[u8]>) -> Vec<HitTexel> {
+    let uv: &[[f32; 2]] = bytemuck::cast_slice(uv);
+    let height: &[f32] = bytemuck::cast_slice(height);
+    let iterations: Option<&[u32]> = iterations.map(bytemuck::cast_slice);
+    uv.iter()
+        .zip(height)
+        .enumerate()
+        .map(|(i, (uv, h))| {
+            let n = iterations.map_or(0, |it| it[i]);
+            [uv[0], uv[1], *h, n as f32]
+        })
+        .collect()
+}
 
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
 /// The bindings of a method with `needs`, by GLSL name.
-fn bindings(needs: Needs) -> Vec<(&'static str, vk::DescriptorType)> {
+fn bindings(needs: Needs, iterations: bool) -> Vec<(&'static str, vk::DescriptorType)> {
     let mut b = vec![
         ("u_ray", SAMPLED),
         ("u_depth", SAMPLED),
         ("u_height", SAMPLED),
-        ("u_hit", STORAGE),
+        ("u_hit_uv", STORAGE),
+        ("u_hit_height", STORAGE),
         ("u_frame", SAMPLED),
         TILES,
     ];
+    if iterations {
+        b.push(("u_iterations", STORAGE));
+    }
     if needs.pyramid.is_some() {
         b.push(("u_pyramid", SAMPLED));
     }
@@ -77,8 +131,13 @@ pub struct TraceInputs<'a> {
     pub gbuffer: GBufferViews,
     /// The height field.
     pub height: &'a HeightTexture,
-    /// The hit buffer (written; the frame's size).
-    pub hit: ViewRef,
+    /// The hit images (written; the frame's size).
+    pub hit: HitViews,
+    /// The iteration counts (written; the frame's size): given exactly when the pass was
+    /// built with iterations.
+    pub iterations: Option<vk::ImageView>,
+    /// The frame's size.
+    pub extent: vk::Extent2D,
     /// The pyramid, for methods that need one (built, `SHADER_READ_ONLY_OPTIMAL`).
     pub pyramid: Option<&'a Pyramid>,
     /// The DIG corner grid, for `dig` methods (written by this frame's corner pass,
@@ -131,6 +190,7 @@ impl TraceView {
 pub struct TracePass {
     method: Method,
     curved: bool,
+    iterations: bool,
     pipeline: FetchPipeline,
 }
 
@@ -143,19 +203,27 @@ impl TracePass {
     /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`])
     /// when `curved` is set and the method traces curved geometry
     /// ([`Method::traces_curved`]), else the flat variant, compiled without it (the
-    /// shader's `CURVED_VARIANT` specialization constant).
-    pub fn new(ctx: &Context, method: Method, curved: bool) -> Result<Self> {
+    /// shader's `CURVED_VARIANT` specialization constant). With `iterations` it is the
+    /// shader's `ITERATIONS` variant, which also writes each pixel's iteration count
+    /// ([`TraceInputs::iterations`]).
+    pub fn new(ctx: &Context, method: Method, curved: bool, iterations: bool) -> Result<Self> {
         let curved = curved && method.traces_curved();
         let name = format!(
-            "trace[{}{}]",
+            "trace[{}{}{}]",
             method.name(),
-            if curved { ",curved" } else { "" }
+            if curved { ",curved" } else { "" },
+            if iterations { ",iterations" } else { "" }
         );
+        let shader = if iterations {
+            method.iterations_shader()
+        } else {
+            method.shader()
+        };
         let pipeline = FetchPipeline::specialized(
             ctx,
             &name,
-            &method.shader(),
-            &bindings(method.needs()),
+            &shader,
+            &bindings(method.needs(), iterations),
             std::mem::size_of::<TraceParams>() as u32,
             // The flat variant is the shader's default (`CURVED_VARIANT` false).
             if curved {
@@ -167,6 +235,7 @@ impl TracePass {
         Ok(TracePass {
             method,
             curved,
+            iterations,
             pipeline,
         })
     }
@@ -176,9 +245,9 @@ impl TracePass {
         self.method
     }
 
-    /// The method and variant: what a plan keys this pass by.
-    pub fn key(&self) -> (Method, bool) {
-        (self.method, self.curved)
+    /// The method and variant (curved, iterations): what a plan keys this pass by.
+    pub fn key(&self) -> (Method, bool, bool) {
+        (self.method, self.curved, self.iterations)
     }
 
     /// Whether this is the curved variant (it follows [`TraceInputs::curved`]; the flat
@@ -194,12 +263,13 @@ impl TracePass {
     /// * `cmd` is a command buffer of `ctx`'s device in the recording state, outside a
     ///   render pass instance, for a queue of the context's queue family.
     /// * `inputs`' views belong to that device and have the formats and usages of the
-    ///   module's table; `inputs.hit` and the G-buffer are of the frame's size, the
+    ///   module's table; the hit images, the iteration image and the G-buffer are of
+    ///   `inputs.extent`, the
     ///   corner grid (if any) was made for it.
     /// * When the command buffer executes, the images are in the layouts of the module's
     ///   table: the G-buffer, `height`, the pyramid, the corner grid and the cone map in
     ///   `SHADER_READ_ONLY_OPTIMAL`, their writes visible to compute-shader sampled
-    ///   reads; the hit buffer in `GENERAL`, earlier accesses ordered before
+    ///   reads; the hit images (and iteration image) in `GENERAL`, earlier accesses ordered before
     ///   compute-shader storage writes (the caller's barriers); the tile list written by a
     ///   `classify` recorded before in the same command buffer.
     /// * The images behind `inputs` and this pass stay alive until the command buffer has
@@ -216,12 +286,20 @@ impl TracePass {
             gbuffer,
             height,
             hit,
+            iterations,
+            extent,
             pyramid,
             corners,
             cone,
             tiles,
             curved,
         } = inputs;
+        if iterations.is_some() != self.iterations {
+            return Err(Error::invalid(
+                "trace inputs",
+                "the iteration image is given exactly to the pipeline built with iterations",
+            ));
+        }
         let needs = self.method.needs();
         let missing = |what: &str| {
             Error::invalid(
@@ -252,7 +330,8 @@ impl TracePass {
         } else {
             height.descriptor()
         }];
-        let hits = storage_view(hit.view);
+        let (hit_uv, hit_height) = (storage_view(hit.uv), storage_view(hit.height));
+        let counts = iterations.map(storage_view);
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
         let frame = fetch(gbuffer.frame.view);
@@ -261,9 +340,13 @@ impl TracePass {
             pl.image("u_ray", &ray)?,
             pl.image("u_depth", &depth)?,
             pl.image("u_height", &heights)?,
-            pl.image("u_hit", &hits)?,
+            pl.image("u_hit_uv", &hit_uv)?,
+            pl.image("u_hit_height", &hit_height)?,
             pl.image("u_frame", &frame)?,
         ];
+        if let Some(c) = &counts {
+            writes.push(pl.image("u_iterations", c)?);
+        }
         if let Some(p) = &pyramids {
             writes.push(pl.image("u_pyramid", p)?);
         }
@@ -274,7 +357,6 @@ impl TracePass {
         if let Some(c) = &cones {
             writes.push(pl.image("u_cone", c)?);
         }
-        let extent = hit.extent;
         let (max_level, mut flags) = match params.max_level {
             MaxLevel::Fixed(l) => (l, 0),
             MaxLevel::Auto => (0, TRACE_FLAG_AUTO_LEVEL),
@@ -346,8 +428,10 @@ mod tests {
     #[test]
     fn declared_bindings_match_the_shaders() {
         for &m in Method::ALL {
-            check_declared(&m.shader(), &bindings(m.needs()))
+            check_declared(&m.shader(), &bindings(m.needs(), false))
                 .unwrap_or_else(|e| panic!("{}: {e}", m.name()));
+            check_declared(&m.iterations_shader(), &bindings(m.needs(), true))
+                .unwrap_or_else(|e| panic!("{} with iterations: {e}", m.name()));
         }
     }
 
@@ -355,11 +439,11 @@ mod tests {
     #[test]
     fn a_binding_the_shader_lacks_is_refused() {
         let shader = Method::Relief.shader();
-        let mut declared = bindings(Method::Relief.needs());
+        let mut declared = bindings(Method::Relief.needs(), false);
         assert!(check_declared(&shader, &declared).is_ok());
         declared.push(("u_cone", SAMPLED));
         assert!(check_declared(&shader, &declared).is_err());
-        let mut retyped = bindings(Method::Relief.needs());
+        let mut retyped = bindings(Method::Relief.needs(), false);
         retyped[0].1 = STORAGE;
         assert!(check_declared(&shader, &retyped).is_err());
     }

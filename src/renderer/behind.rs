@@ -4,7 +4,7 @@
 //! a fragment only at a pixel whose first-layer trace missed and only behind the first
 //! layer's surface (`glsl/include/dispmap_behind.glsl`), lights that layer's flat
 //! geometry, and records the displacement pass a second time on it: frame slot 1, its own
-//! hit buffer, the same colour image (and motion image). The second trace and shade run
+//! hit images, the same colour image (and motion image). The second trace and shade run
 //! only over the tiles that layer covers. docs/embedding.md, "What a miss shows", is the
 //! same route for a host.
 
@@ -22,8 +22,8 @@ pub(super) const BEHIND_QUERIES: u32 = 2;
 pub(super) struct Behind {
     /// Its G-buffer (the first layer's formats).
     gbuffer: GBuffer,
-    /// Its hit buffer.
-    hit: Image,
+    /// Its hit images.
+    hit: Hits,
     /// The behind variants of the pipelines the objects are drawn with: the tiled
     /// plane's, the meshes', the two-sided meshes' (each only when an object needs it).
     plane: Option<GBufferPass>,
@@ -50,12 +50,13 @@ impl Destroy for Behind {
 /// The resources whose barriers the behind layer's tracker derives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Layer {
-    FirstHit,
+    FirstHitHeight,
     FirstDepth,
     Ray,
     Frame,
     Depth,
-    Hit,
+    HitUv,
+    HitHeight,
     Color,
     Motion,
 }
@@ -96,12 +97,12 @@ impl Behind {
     pub(super) fn images<'c>(
         c: &'c Context,
         extent: vk::Extent2D,
-    ) -> Result<(Guard<'c, GBuffer>, Guard<'c, Image>)> {
+    ) -> Result<(Guard<'c, GBuffer>, Guard<'c, Hits>)> {
         layer_images(c, extent)
     }
 
     /// Swaps in `images`, returning the old ones (to destroy once no frame uses them).
-    pub(super) fn swap_images(&mut self, images: (GBuffer, Image)) -> (GBuffer, Image) {
+    pub(super) fn swap_images(&mut self, images: (GBuffer, Hits)) -> (GBuffer, Hits) {
         (
             std::mem::replace(&mut self.gbuffer, images.0),
             std::mem::replace(&mut self.hit, images.1),
@@ -120,25 +121,18 @@ impl Behind {
     }
 }
 
-/// The layer's G-buffer and hit buffer, guarded until the caller keeps them.
+/// The layer's G-buffer and hit images, guarded until the caller keeps them.
 fn layer_images(
     c: &Context,
     extent: vk::Extent2D,
-) -> Result<(Guard<'_, GBuffer>, Guard<'_, Image>)> {
+) -> Result<(Guard<'_, GBuffer>, Guard<'_, Hits>)> {
     // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
     let gbuffer = unsafe { Guard::new(c, GBuffer::new(c, extent)?) };
     // SAFETY: as above.
     let hit = unsafe {
         Guard::new(
             c,
-            Image::new(
-                c,
-                "behind.hits",
-                HIT_FORMAT,
-                extent,
-                1,
-                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-            )?,
+            Hits::new(c, "behind.hits", extent, vk::ImageUsageFlags::empty())?,
         )
     };
     Ok((gbuffer, hit))
@@ -197,14 +191,19 @@ impl Renderer {
         Ok(())
     }
 
-    /// The last frame's behind-layer hit buffer (`None` without the layer): `NO_HIT_HEIGHT`
-    /// where the layer has no geometry (every pixel whose first-layer trace hit).
+    /// The last frame's behind-layer hits (`None` without the layer): `NO_HIT_HEIGHT`
+    /// where the layer has no geometry (every pixel whose first-layer trace hit); the
+    /// iteration counts are the pass's of its frame slot 1.
     pub fn read_behind_hits(&self) -> Result<Option<Vec<HitTexel>>> {
         let Some(b) = &self.behind else {
             return Ok(None);
         };
-        let bytes = read_image(&self.ctx, &self.shot, &b.hit, Access::COMPUTE_STORAGE_READ)?;
-        Ok(Some(bytemuck::cast_slice::<u8, HitTexel>(&bytes).to_vec()))
+        let iterations = self
+            .pass
+            .iterations(BEHIND_SLOT)
+            .map(|i| (i, Access::COMPUTE_STORAGE_WRITE));
+        self.read_layer_hits(&b.hit, iterations, Access::COMPUTE_STORAGE_READ)
+            .map(Some)
     }
 
     /// Each pixel's material index in the last frame's behind layer (`None` without the
@@ -243,12 +242,12 @@ impl Renderer {
     /// Records the behind layer after the frame's first record, in one timestamp scope
     /// ([`PassName::Behind`]) of the renderer's pool: the layer's raster, its flat
     /// geometry's light, and the pass's second record (slot [`BEHIND_SLOT`], its own hit
-    /// buffer, the same colour and motion images); `None` without the layer.
+    /// images, the same colour and motion images); `None` without the layer.
     ///
     /// # Safety
     /// `cmd` is recording outside a render pass on the context's queue and is submitted
     /// (and waited for) while the renderer lives, after the frame's first record in the
-    /// same command buffer (which left the hit buffer, colour and motion images in the
+    /// same command buffer (which left the hit images, colour and motion images in the
     /// pass's exit states and the G-buffer depth sampled-readable by compute); the
     /// layer's images' previous frame was waited for.
     pub(super) unsafe fn record_behind(
@@ -294,23 +293,24 @@ impl Renderer {
         };
         let images = |key: Layer| -> Target {
             let image = match key {
-                Layer::FirstHit => &self.hit,
+                Layer::FirstHitHeight => &self.hit.height,
                 Layer::FirstDepth => &self.gbuffer.depth,
                 Layer::Ray => &behind.gbuffer.ray,
                 Layer::Frame => &behind.gbuffer.frame,
                 Layer::Depth => &behind.gbuffer.depth,
-                Layer::Hit => &behind.hit,
+                Layer::HitUv => &behind.hit.uv,
+                Layer::HitHeight => &behind.hit.height,
                 Layer::Color => &self.color,
                 Layer::Motion => return Target::Memory,
             };
             Target::Image(image.raw, image.range())
         };
         let mut t = Tracker::new();
-        // The first record's exit states (the pass's module docs): the hit buffer, colour
+        // The first record's exit states (the pass's module docs): the hit height, colour
         // and motion last written by compute-shader storage writes; the G-buffer depth
         // sampled by compute (the renderer's entry barrier made its writes visible there).
         for (key, written) in [
-            (Layer::FirstHit, true),
+            (Layer::FirstHitHeight, true),
             (Layer::Color, true),
             (Layer::Motion, motion.is_some()),
         ] {
@@ -325,7 +325,13 @@ impl Renderer {
             ));
         }
         t.enter(Layer::FirstDepth, Access::COMPUTE_SAMPLED);
-        for key in [Layer::Ray, Layer::Frame, Layer::Depth, Layer::Hit] {
+        for key in [
+            Layer::Ray,
+            Layer::Frame,
+            Layer::Depth,
+            Layer::HitUv,
+            Layer::HitHeight,
+        ] {
             t.enter(key, DISCARD);
         }
         let fragment = vk::PipelineStageFlags2::FRAGMENT_SHADER;
@@ -341,13 +347,13 @@ impl Renderer {
         let inputs = FrameInputs {
             frame_slot: BEHIND_SLOT,
             gbuffer: behind.gbuffer.views(),
-            hit: behind.hit.host_view(),
+            hit: behind.hit.host(),
             shade: Some(*target),
             motion,
         };
         let first = FirstLayer {
             depth: self.gbuffer.depth.view,
-            hit: self.hit.view,
+            hit_height: self.hit.height.view,
         };
         let rays = camera.pixel_ray_params();
         let pass = &mut self.pass;
@@ -365,7 +371,7 @@ impl Renderer {
                     (Layer::Frame, Access::COLOR_ATTACHMENT_WRITE),
                     (Layer::Depth, Access::DEPTH_ATTACHMENT_WRITE),
                     (
-                        Layer::FirstHit,
+                        Layer::FirstHitHeight,
                         Access {
                             stage: fragment,
                             access: vk::AccessFlags2::SHADER_STORAGE_READ,
@@ -407,7 +413,8 @@ impl Renderer {
                 )?;
                 // The pass's entry contract on the layer.
                 t.declare(Layer::Color, Access::COMPUTE_STORAGE_WRITE)?;
-                t.declare(Layer::Hit, Access::COMPUTE_STORAGE_WRITE)?;
+                t.declare(Layer::HitUv, Access::COMPUTE_STORAGE_WRITE)?;
+                t.declare(Layer::HitHeight, Access::COMPUTE_STORAGE_WRITE)?;
                 if inputs.motion.is_some() {
                     t.declare(Layer::Motion, Access::COMPUTE_STORAGE_READ_WRITE)?;
                 }

@@ -76,7 +76,8 @@ impl Renderer {
                     .transpose()?,
             )
         };
-        let mut pass = DisplacementPass::new(
+        // The renderer measures its methods: its frames always write the iteration counts.
+        let mut pass = DisplacementPass::with_iterations(
             ctx.clone(),
             field,
             PassSettings {
@@ -90,6 +91,7 @@ impl Renderer {
                 // (`Renderer::set_behind`), whose record uses the pass's frame slot 1.
                 frames_in_flight: if mesh.is_some() { 2 } else { 1 },
             },
+            true,
         )?;
         let configured = pass
             .set_shadows(settings.shadows)
@@ -259,7 +261,8 @@ impl Renderer {
                         || m.settings.addressing == crate::heightfield::Addressing::Clamp
                 })
             });
-        let mut pass = DisplacementPass::new(
+        // The renderer measures its methods: its frames always write the iteration counts.
+        let mut pass = DisplacementPass::with_iterations(
             ctx.clone(),
             primary.field,
             PassSettings {
@@ -270,6 +273,7 @@ impl Renderer {
                 extent,
                 frames_in_flight: if behind { 2 } else { 1 },
             },
+            true,
         )
         .map_err(of_object(primary_index))?;
         let mut first_material = true;
@@ -336,7 +340,7 @@ struct HostParts<'c> {
     shot: Guard<'c, OneShot>,
     timestamps: Guard<'c, QueryPool>,
     gbuffer: Guard<'c, GBuffer>,
-    hit: Guard<'c, Image>,
+    hit: Guard<'c, Hits>,
     color: Guard<'c, Image>,
     background: Guard<'c, BackgroundPass>,
 }
@@ -399,34 +403,82 @@ impl<'c> HostParts<'c> {
             forward: None,
             rays_frame: None,
             behind: None,
+            forward_frame: false,
         }
     }
 }
 
-/// The images sized by the frame: the G-buffer, the hit image and the colour image, each
+/// The hit images of one layer: the renderer's as a host of the pass
+/// ([`crate::embed::HitImages`]).
+pub(super) struct Hits {
+    /// The hit's `u`, `v` ([`HIT_UV_FORMAT`]).
+    pub uv: Image,
+    /// The hit's height ([`HIT_HEIGHT_FORMAT`]).
+    pub height: Image,
+}
+
+impl Hits {
+    /// Both images of `extent`, named `{name}.uv` and `{name}.height`, with `STORAGE`,
+    /// `TRANSFER_SRC`, `TRANSFER_DST` (the shading of given hits uploads them) and
+    /// `usage`.
+    pub(super) fn new(
+        c: &Context,
+        name: &str,
+        extent: vk::Extent2D,
+        usage: vk::ImageUsageFlags,
+    ) -> Result<Self> {
+        let usage = usage
+            | vk::ImageUsageFlags::STORAGE
+            | vk::ImageUsageFlags::TRANSFER_SRC
+            | vk::ImageUsageFlags::TRANSFER_DST;
+        let image =
+            |part: &str, format| Image::new(c, &format!("{name}.{part}"), format, extent, 1, usage);
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let uv = unsafe { Guard::new(c, image("uv", HIT_UV_FORMAT)?) };
+        let height = image("height", HIT_HEIGHT_FORMAT)?;
+        Ok(Hits {
+            uv: uv.keep(),
+            height,
+        })
+    }
+
+    /// The images as the pass takes them.
+    pub(super) fn host(&self) -> HitImages {
+        HitImages {
+            uv: self.uv.host_view(),
+            height: self.height.host_view(),
+        }
+    }
+}
+
+impl Destroy for Hits {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.uv.destroy(ctx);
+            self.height.destroy(ctx);
+        }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.uv.bytes() + self.height.bytes()
+    }
+}
+
+/// The images sized by the frame: the G-buffer, the hit images and the colour image, each
 /// guarded until the caller keeps it (creation and `resize`).
 pub(super) fn frame_images(
     c: &Context,
     extent: vk::Extent2D,
-) -> Result<(Guard<'_, GBuffer>, Guard<'_, Image>, Guard<'_, Image>)> {
+) -> Result<(Guard<'_, GBuffer>, Guard<'_, Hits>, Guard<'_, Image>)> {
     // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
     let gbuffer = unsafe { Guard::new(c, GBuffer::new(c, extent)?) };
     // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
     let hit = unsafe {
         Guard::new(
             c,
-            Image::new(
-                c,
-                "hits",
-                HIT_FORMAT,
-                extent,
-                1,
-                // COLOR_ATTACHMENT: the forward path writes it from its fragment shader.
-                vk::ImageUsageFlags::STORAGE
-                    | vk::ImageUsageFlags::COLOR_ATTACHMENT
-                    | vk::ImageUsageFlags::TRANSFER_SRC
-                    | vk::ImageUsageFlags::TRANSFER_DST,
-            )?,
+            // COLOR_ATTACHMENT: the forward path writes them from its fragment shader.
+            Hits::new(c, "hits", extent, vk::ImageUsageFlags::COLOR_ATTACHMENT)?,
         )
     };
     // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.

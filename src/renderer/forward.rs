@@ -5,13 +5,14 @@
 //! `classify -> trace -> shade`:
 //!
 //! 1. the G-buffer's `normal`, `tangent` and `depth`: discarded -> attachment layouts;
-//!    the hit buffer: discarded -> `GENERAL` for colour-attachment writes; the `ray`
+//!    the hit images and the forward path's iteration counts: discarded -> `GENERAL` for
+//!    colour-attachment writes; the `ray`
 //!    image: discarded -> `SHADER_READ_ONLY_OPTIMAL` (not written: the pass's views stay
 //!    in their entry layouts); the forward height texture, on the first forward frame:
 //!    visible to fragment-shader sampled reads;
 //! 2. the `forward` pass in the renderer's `gbuffer` scope: the G-buffer and the hits
 //!    from one fragment shader;
-//! 3. the pass's entry barriers (the hit buffer: colour-attachment writes -> compute
+//! 3. the pass's entry barriers (the hit images: colour-attachment writes -> compute
 //!    storage reads), the background, and [`DisplacementPass::record_shading`]:
 //!    `classify -> [shadow] -> shade` on those hits, as the deferred frame shades its
 //!    trace's.
@@ -27,22 +28,36 @@ use crate::context::Context;
 use crate::embed::Timestamps;
 use crate::error::{Error, Result};
 use crate::gpu::HeightTexture;
+use crate::gpu::Image;
 use crate::gpu::owned::Destroy;
 use crate::gpu::sync::Access;
 use crate::gpu::track::{Handle, Tracker};
 use crate::heightfield::HeightField;
 use crate::passes::PassName;
-use crate::passes::forward::ForwardPass;
+use crate::passes::forward::{ForwardPass, ForwardTargets};
+use crate::passes::trace::ITERATIONS_FORMAT;
 use crate::timing::ScopeWriter;
 use ash::vk;
 
 /// The forward path's own resources: the map's texture (an engine owns its textures;
-/// the pass's are internal to it) and one pipeline per method used so far.
+/// the pass's are internal to it), one pipeline per method used so far and the iteration
+/// counts of its frames (the pass's are written by its `trace`, which a forward frame
+/// does not run).
 pub(super) struct Forward {
     height: HeightTexture,
     passes: Vec<ForwardPass>,
     /// Whether a forward frame has made the texture visible to fragment shaders.
     height_visible: bool,
+    /// The last forward frame's iteration counts (made by the first forward frame of
+    /// each frame size).
+    iterations: Option<Image>,
+}
+
+impl Forward {
+    /// The last forward frame's iteration counts and their last access.
+    pub(super) fn iterations(&self) -> Option<(&Image, Access)> {
+        self.iterations.as_ref().map(|i| (i, HIT_ATTACHMENT_WRITE))
+    }
 }
 
 impl Destroy for Forward {
@@ -51,11 +66,13 @@ impl Destroy for Forward {
         unsafe {
             self.height.destroy(ctx);
             self.passes.destroy(ctx);
+            self.iterations.destroy(ctx);
         }
     }
 }
 
-/// The hit buffer written as a colour attachment in `GENERAL` (the forward pass).
+/// The hit images and iteration counts written as colour attachments in `GENERAL` (the
+/// forward pass).
 const HIT_ATTACHMENT_WRITE: Access = Access {
     layout: vk::ImageLayout::GENERAL,
     ..Access::COLOR_ATTACHMENT_WRITE
@@ -108,6 +125,7 @@ impl Renderer {
             height,
             passes: Vec::new(),
             height_visible: false,
+            iterations: None,
         });
         // Every frame of this renderer was waited for: nothing reads the old copy.
         // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
@@ -162,6 +180,26 @@ impl Renderer {
         };
         // Every earlier frame was waited for: nothing reads the parameter buffer.
         forward.passes[index].set_params(&params)?;
+        let extent = self.settings.extent();
+        if forward
+            .iterations
+            .as_ref()
+            .is_none_or(|i| i.extent != extent)
+        {
+            let image = Image::new(
+                ctx,
+                "forward.iterations",
+                ITERATIONS_FORMAT,
+                extent,
+                1,
+                vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?;
+            // SAFETY: every frame of this renderer was waited for: nothing uses the old one.
+            unsafe { forward.iterations.replace(image).destroy(ctx) };
+        }
+        let Some(iterations) = &forward.iterations else {
+            return Err(Error::Internal("no forward iteration image".into()));
+        };
 
         let cmd = self.shot.begin(ctx)?;
         let mut w = ScopeWriter::new(Some(self.timestamps.0), 0, GBUFFER_QUERIES);
@@ -174,8 +212,9 @@ impl Renderer {
         // from the accesses declared below.
         let mut t = Tracker::new();
         let [ray, frame, depth] = g.handles();
-        let (hit, color) = (Handle::image(&self.hit), Handle::image(&self.color));
-        for image in [ray, frame, depth, hit, color] {
+        let (hit_uv, hit_height) = (Handle::image(&self.hit.uv), Handle::image(&self.hit.height));
+        let (counts, color) = (Handle::image(iterations), Handle::image(&self.color));
+        for image in [ray, frame, depth, hit_uv, hit_height, counts, color] {
             t.enter(image, DISCARD);
         }
         let height = Handle::image(&forward.height.image);
@@ -191,17 +230,24 @@ impl Renderer {
         t.declare(depth, Access::DEPTH_ATTACHMENT_WRITE)?;
         // Not written: the pass's views stay in their entry layouts.
         t.declare(ray, Access::COMPUTE_SAMPLED)?;
-        t.declare(hit, HIT_ATTACHMENT_WRITE)?;
+        for image in [hit_uv, hit_height, counts] {
+            t.declare(image, HIT_ATTACHMENT_WRITE)?;
+        }
         t.declare(height, FRAGMENT_SAMPLED)?;
         // SAFETY: `cmd` was begun by `shot.begin` above (outside a render pass, on the
         // context's queue family) and is submitted and waited for below, while the images
-        // live; they entered as the tracker knows; the G-buffer and the hit buffer have
-        // attachment usage (`GBuffer::new`, `frame_images`).
+        // live; they entered as the tracker knows; the G-buffer and the hit images have
+        // attachment usage (`GBuffer::new`, `frame_images`, the iteration image above).
         unsafe { t.record(ctx, cmd)? };
         let pass = &forward.passes[index];
-        let (hit_image, height_texture) = (&self.hit, &forward.height);
+        let targets = ForwardTargets {
+            uv: &self.hit.uv,
+            height: &self.hit.height,
+            iterations,
+        };
+        let height_texture = &forward.height;
         // SAFETY: `cmd` is recording outside a render pass and `w.reset` was recorded
-        // above (the scope's contract). In the body: the hit buffer is in `GENERAL`, the
+        // above (the scope's contract). In the body: the hit images and iteration counts are in `GENERAL`, the
         // frame in `COLOR_ATTACHMENT_OPTIMAL`, the depth in
         // `DEPTH_ATTACHMENT_OPTIMAL` and the height texture visible to fragment-shader
         // reads (the barriers above, or the first forward frame's); the parameter buffer
@@ -213,7 +259,7 @@ impl Renderer {
                     ctx,
                     cmd,
                     g,
-                    hit_image,
+                    targets,
                     height_texture,
                     (&gbuffer_params, &camera.pixel_ray_params()),
                 )
@@ -223,7 +269,8 @@ impl Renderer {
         // the colour written (the background, then `shade`).
         t.declare(frame, Access::COMPUTE_SAMPLED)?;
         t.declare(depth, Access::COMPUTE_SAMPLED)?;
-        t.declare(hit, Access::COMPUTE_STORAGE_READ)?;
+        t.declare(hit_uv, Access::COMPUTE_STORAGE_READ)?;
+        t.declare(hit_height, Access::COMPUTE_STORAGE_READ)?;
         t.declare(color, Access::COMPUTE_STORAGE_WRITE)?;
         // SAFETY: `cmd` is recording outside a render pass (begun above, submitted
         // below); the images are alive and in the states the tracker knows (the
@@ -256,6 +303,7 @@ impl Renderer {
             f.height_visible = true;
         }
         self.rays_frame = None;
+        self.forward_frame = true;
         self.frame_times(&w, &frame)
     }
 }

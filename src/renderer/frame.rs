@@ -21,7 +21,7 @@ impl Renderer {
         // tracker places every barrier from the accesses declared below.
         let mut t = Tracker::new();
         self.gbuffer.enter(&mut t, DISCARD, DISCARD);
-        for image in [&self.hit, &self.color] {
+        for image in [&self.hit.uv, &self.hit.height, &self.color] {
             t.enter(Handle::image(image), DISCARD);
         }
         self.gbuffer.declare(
@@ -66,11 +66,11 @@ impl Renderer {
             })?
         };
 
-        // The pass's entry contract: G-buffer sampled by compute, hit buffer discarded in
+        // The pass's entry contract: G-buffer sampled by compute, hit images discarded in
         // GENERAL, colour in GENERAL with the host's background (below).
         self.gbuffer
             .declare(&mut t, Access::COMPUTE_SAMPLED, Access::COMPUTE_SAMPLED)?;
-        for image in [&self.hit, &self.color] {
+        for image in [&self.hit.uv, &self.hit.height, &self.color] {
             t.declare(Handle::image(image), Access::COMPUTE_STORAGE_WRITE)?;
         }
         // SAFETY: `cmd` is recording outside a render pass (begun above, submitted
@@ -119,6 +119,7 @@ impl Renderer {
             m.previous = Some(current);
         }
         self.rays_frame = Some((self.settings.scene, camera));
+        self.forward_frame = false;
         let mut times = self.frame_times(&w, &frame)?;
         if let Some(b) = behind {
             // SAFETY: the pool is alive and the frame completed (waited for above).
@@ -289,7 +290,7 @@ impl Renderer {
         FrameInputs {
             frame_slot: 0,
             gbuffer: self.gbuffer.views(),
-            hit: self.hit.host_view(),
+            hit: self.hit.host(),
             shade,
             motion: None,
         }

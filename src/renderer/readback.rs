@@ -202,15 +202,36 @@ impl Renderer {
             .unzip())
     }
 
-    /// The last frame's hit buffer.
+    /// The last frame's hits: its hit images and iteration counts, one texel per pixel
+    /// (`u`, `v`, height, iterations).
     pub fn read_hits(&self) -> Result<Vec<HitTexel>> {
-        let bytes = read_image(
-            &self.ctx,
-            &self.shot,
-            &self.hit,
-            Access::COMPUTE_STORAGE_READ,
-        )?;
-        Ok(bytemuck::cast_slice::<u8, HitTexel>(&bytes).to_vec())
+        let iterations = match (&self.forward, self.forward_frame) {
+            (Some(f), true) => f.iterations(),
+            _ => self
+                .pass
+                .iterations(0)
+                .map(|i| (i, Access::COMPUTE_STORAGE_WRITE)),
+        };
+        self.read_layer_hits(&self.hit, iterations, Access::COMPUTE_STORAGE_READ)
+    }
+
+    /// The hits of a layer: `hit` last accessed as `hit_access`, `iterations` (the pass's
+    /// or the forward path's) with its last access.
+    pub(super) fn read_layer_hits(
+        &self,
+        hit: &Hits,
+        iterations: Option<(&Image, Access)>,
+        hit_access: Access,
+    ) -> Result<Vec<HitTexel>> {
+        let read = |image: &Image, access| read_image(&self.ctx, &self.shot, image, access);
+        let uv = read(&hit.uv, hit_access)?;
+        let height = read(&hit.height, hit_access)?;
+        let counts = iterations.map(|(i, access)| read(i, access)).transpose()?;
+        Ok(crate::passes::trace::join_hits(
+            &uv,
+            &height,
+            counts.as_deref(),
+        ))
     }
 
     /// The last frame's colour image (RGBA8, sRGB-encoded).
@@ -224,7 +245,7 @@ impl Renderer {
     }
 
     /// Shades `hits` (one texel per pixel) with the current G-buffer and returns the
-    /// colour. Overwrites the hit buffer. With self-shadowing on, the `shadow` pass runs
+    /// colour. Overwrites the hit images. With self-shadowing on, the `shadow` pass runs
     /// on `hits` first.
     pub fn shade_hits(&mut self, hits: &[HitTexel]) -> Result<Vec<u8>> {
         self.shade_hits_with(hits, None)
@@ -273,13 +294,10 @@ impl Renderer {
             .transpose()?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let mut given = unsafe { Guard::new(ctx, given) };
-        upload_image(
-            ctx,
-            &self.shot,
-            &self.hit,
-            bytemuck::cast_slice(hits),
-            Access::COMPUTE_STORAGE_READ,
-        )?;
+        let (uv, height) = crate::passes::trace::split_hits(hits);
+        for (image, bytes) in [(&self.hit.uv, &uv), (&self.hit.height, &height)] {
+            upload_image(ctx, &self.shot, image, bytes, Access::COMPUTE_STORAGE_READ)?;
+        }
         let (_, target) = self.frame_target();
         let inputs = self.frame_inputs(Some(target));
         let cmd = self.shot.begin(ctx)?;

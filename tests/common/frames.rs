@@ -192,3 +192,97 @@ pub unsafe fn record_gbuffer(
     // SAFETY: as above; the G-buffer was written in the attachment layouts.
     unsafe { t.record(ctx, cmd).unwrap() };
 }
+
+/// A test host's hit images of one frame slot: the hit uv and hit height images the pass
+/// writes (`dispmap::embed::HitImages`).
+pub struct HitPair {
+    /// `HIT_UV_FORMAT`.
+    pub uv: dispmap::gpu::Image,
+    /// `HIT_HEIGHT_FORMAT`.
+    pub height: dispmap::gpu::Image,
+}
+
+impl HitPair {
+    /// Both images of `extent`, named `{name}.uv` / `{name}.height`, with `usage`.
+    pub fn new(
+        ctx: &Context,
+        name: &str,
+        extent: vk::Extent2D,
+        usage: vk::ImageUsageFlags,
+    ) -> Self {
+        use dispmap::embed::{HIT_HEIGHT_FORMAT, HIT_UV_FORMAT};
+        let image = |part: &str, format| {
+            dispmap::gpu::Image::new(ctx, &format!("{name}.{part}"), format, extent, 1, usage)
+                .unwrap()
+        };
+        HitPair {
+            uv: image("uv", HIT_UV_FORMAT),
+            height: image("height", HIT_HEIGHT_FORMAT),
+        }
+    }
+
+    /// The frame size.
+    pub fn extent(&self) -> vk::Extent2D {
+        self.uv.extent
+    }
+
+    /// The images as `FrameInputs::hit`.
+    pub fn host(&self) -> dispmap::embed::HitImages {
+        dispmap::embed::HitImages {
+            uv: self.uv.host_view(),
+            height: self.height.host_view(),
+        }
+    }
+
+    /// Records the pass's entry state of both: contents discarded -> `GENERAL`, ordered
+    /// before compute-shader storage writes.
+    ///
+    /// # Safety
+    /// `cmd` is recording outside a render pass on the context's queue family; every
+    /// earlier access of the images has completed or is ordered by the submission order.
+    pub unsafe fn discard(&self, ctx: &Context, cmd: vk::CommandBuffer) {
+        for image in [&self.uv, &self.height] {
+            // SAFETY: this function's contract.
+            unsafe {
+                dispmap::gpu::sync::transition(
+                    ctx,
+                    cmd,
+                    image,
+                    DISCARD,
+                    Access::COMPUTE_STORAGE_WRITE,
+                )
+            };
+        }
+    }
+
+    /// The hits after a frame (waited for), one texel per pixel: `u`, `v`, height and the
+    /// count of `iterations` (the pass's image of the slot; 0 without one). The images were
+    /// last accessed as `access`, the iteration image written by the pass.
+    pub fn read(
+        &self,
+        ctx: &Context,
+        shot: &dispmap::gpu::OneShot,
+        access: Access,
+        iterations: Option<&dispmap::gpu::Image>,
+    ) -> Vec<[f32; 4]> {
+        use dispmap::gpu::commands::read_image;
+        let uv = read_image(ctx, shot, &self.uv, access).unwrap();
+        let height = read_image(ctx, shot, &self.height, access).unwrap();
+        let counts =
+            iterations.map(|i| read_image(ctx, shot, i, Access::COMPUTE_STORAGE_WRITE).unwrap());
+        dispmap::passes::trace::join_hits(&uv, &height, counts.as_deref())
+    }
+
+    /// Destroys both.
+    ///
+    /// # Safety
+    /// No pending command buffer uses them.
+    pub unsafe fn destroy(&mut self, ctx: &Context) {
+        use dispmap::gpu::owned::Destroy;
+        // SAFETY: this function's contract.
+        unsafe {
+            self.uv.destroy(ctx);
+            self.height.destroy(ctx);
+        }
+    }
+}

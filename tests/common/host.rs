@@ -11,7 +11,8 @@ use ash::vk;
 use dispmap::Context;
 use dispmap::abi::{GBufferParams, PixelRayParams};
 use dispmap::embed::{
-    DEPTH_FORMAT, DisplacementPass, FRAME_FORMAT, FrameInputs, HIT_FORMAT, RAY_FORMAT, Timestamps,
+    DEPTH_FORMAT, DisplacementPass, FRAME_FORMAT, FrameInputs, HIT_HEIGHT_FORMAT, HIT_UV_FORMAT,
+    HitImages, RAY_FORMAT, Timestamps,
 };
 use dispmap::gpu::commands::{read_image, upload_image};
 use dispmap::gpu::owned::Destroy;
@@ -36,8 +37,8 @@ pub struct RayHost {
     gbuffer_pass: Option<GBufferPass>,
     shot: OneShot,
     slots: FrameSlots,
-    /// One hit image per slot.
-    hits: Vec<Image>,
+    /// The hit images (uv, height) of each slot.
+    hits: Vec<[Image; 2]>,
     /// One colour image per slot (`submit_shaded`).
     colors: Vec<Image>,
     /// Where the next record writes its timestamps (`Off` but in `submit_shaded_timed`).
@@ -96,15 +97,17 @@ impl RayHost {
             .collect();
         let hits = (0..slots)
             .map(|s| {
-                Image::new(
-                    c,
-                    &format!("host.hit{s}"),
-                    HIT_FORMAT,
-                    extent,
-                    1,
-                    vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-                )
-                .unwrap()
+                [("uv", HIT_UV_FORMAT), ("height", HIT_HEIGHT_FORMAT)].map(|(part, format)| {
+                    Image::new(
+                        c,
+                        &format!("host.hit{s}.{part}"),
+                        format,
+                        extent,
+                        1,
+                        vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+                    )
+                    .unwrap()
+                })
             })
             .collect();
         let slots = FrameSlots::new(ctx.clone(), slots);
@@ -276,14 +279,19 @@ impl RayHost {
 
     /// The colour image of slot `s` after its last frame (waits for it).
     pub fn colors(&mut self, s: usize) -> Vec<[u8; 4]> {
-        bytemuck::cast_slice::<u8, [u8; 4]>(&self.read_slot(s, false)).to_vec()
+        bytemuck::cast_slice::<u8, [u8; 4]>(&self.read_slot(s)).to_vec()
     }
 
-    /// Slot `s`'s hit (or colour) image after its last frame (waits for it).
-    fn read_slot(&mut self, s: usize, hits: bool) -> Vec<u8> {
+    /// Slot `s`'s colour image after its last frame (waits for it).
+    fn read_slot(&mut self, s: usize) -> Vec<u8> {
         self.slots.wait(s);
-        let image = if hits { &self.hits[s] } else { &self.colors[s] };
-        read_image(&self.ctx, &self.shot, image, Access::COMPUTE_STORAGE_WRITE).unwrap()
+        read_image(
+            &self.ctx,
+            &self.shot,
+            &self.colors[s],
+            Access::COMPUTE_STORAGE_WRITE,
+        )
+        .unwrap()
     }
 
     /// Waits for the frame of slot `s`.
@@ -357,16 +365,21 @@ impl RayHost {
     ) {
         let ctx = self.ctx.clone();
         let cmd = self.slots.begin(s);
-        let hit = &self.hits[s];
-        // SAFETY: `cmd` was begun by `slots.begin` above (outside a render pass, on the
-        // context's queue family) and is submitted below; the hit image lives until the
-        // host is destroyed after `wait_all`; the slot's last frame completed (`begin`
-        // waited), so its contents may be discarded.
-        unsafe { sync::transition(&ctx, cmd, hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
+        let [uv, height] = &self.hits[s];
+        for hit in [uv, height] {
+            // SAFETY: `cmd` was begun by `slots.begin` above (outside a render pass, on the
+            // context's queue family) and is submitted below; the hit images live until the
+            // host is destroyed after `wait_all`; the slot's last frame completed (`begin`
+            // waited), so their contents may be discarded.
+            unsafe { sync::transition(&ctx, cmd, hit, DISCARD, Access::COMPUTE_STORAGE_WRITE) };
+        }
         let inputs = FrameInputs {
             frame_slot: s as u32,
             gbuffer: self.gbuffer.views(),
-            hit: hit.host_view(),
+            hit: HitImages {
+                uv: uv.host_view(),
+                height: height.host_view(),
+            },
             shade,
             motion: motion.map(|(_, m)| m),
         };
@@ -388,9 +401,14 @@ impl RayHost {
         self.slots.submit(s);
     }
 
-    /// The hit buffer of slot `s` after its last frame (waits for it).
+    /// The hits of slot `s` after its last frame (waits for it): `u`, `v`, height and 0
+    /// (the pass's iteration output is off).
     pub fn hits(&mut self, s: usize) -> Vec<[f32; 4]> {
-        bytemuck::cast_slice::<u8, [f32; 4]>(&self.read_slot(s, true)).to_vec()
+        self.slots.wait(s);
+        let [uv, height] = &self.hits[s]
+            .each_ref()
+            .map(|i| read_image(&self.ctx, &self.shot, i, Access::COMPUTE_STORAGE_WRITE).unwrap());
+        dispmap::passes::trace::join_hits(uv, height, None)
     }
 
     /// One frame in slot 0, waited for: its hit buffer.
@@ -403,7 +421,7 @@ impl RayHost {
     pub fn destroy(mut self) {
         self.slots.destroy();
         let ctx = self.ctx.clone();
-        for hit in &mut self.hits {
+        for hit in self.hits.iter_mut().flatten() {
             // SAFETY: `slots.destroy()` waited for every frame.
             unsafe { hit.destroy(&ctx) };
         }

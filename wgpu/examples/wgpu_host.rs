@@ -88,7 +88,7 @@ impl Default for Options {
 pub struct Output {
     /// Device name.
     pub device: String,
-    /// The hit buffer.
+    /// The hits: `u`, `v`, height and 0 (no iteration counts asked for).
     pub hits: Vec<[f32; 4]>,
     /// The depth texture after the merge: the corrected depth at displaced pixels.
     pub depth: Vec<f32>,
@@ -180,7 +180,8 @@ struct Slot {
     ray: Target,
     frame: Target,
     depth: Target,
-    hit: Target,
+    hit_uv: Target,
+    hit_height: Target,
     color: Target,
     readback: Vec<Readback>,
 }
@@ -382,8 +383,8 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
             }
             let resource =
                 [&slot.ray, &slot.frame, &slot.depth].map(|t| (t, wgpu::TextureUses::RESOURCE));
-            let storage =
-                [&slot.hit, &slot.color].map(|t| (t, wgpu::TextureUses::STORAGE_READ_WRITE));
+            let storage = [&slot.hit_uv, &slot.hit_height, &slot.color]
+                .map(|t| (t, wgpu::TextureUses::STORAGE_READ_WRITE));
             draw.transition_resources(
                 std::iter::empty(),
                 resource
@@ -404,7 +405,8 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
                 ray: slot.ray.image(),
                 frame: slot.frame.image(),
                 depth: slot.depth.image(),
-                hit: slot.hit.image(),
+                hit_uv: slot.hit_uv.image(),
+                hit_height: slot.hit_height.image(),
                 shade: Some(WgpuShade {
                     color: slot.color.image(),
                     view_proj: camera.view_proj,
@@ -429,7 +431,8 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
             // 3. Read-back of what the pass wrote.
             let mut copy = device.create_command_encoder(&Default::default());
             let sources = [
-                (&slot.hit, wgpu::TextureAspect::All),
+                (&slot.hit_uv, wgpu::TextureAspect::All),
+                (&slot.hit_height, wgpu::TextureAspect::All),
                 (&slot.depth, wgpu::TextureAspect::DepthOnly),
                 (&slot.color, wgpu::TextureAspect::All),
             ];
@@ -467,12 +470,15 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
             }
         }
         let rb = &slots[last].readback;
-        let hits: Vec<f32> = read(device, &rb[0], o)?;
-        let depth: Vec<f32> = read(device, &rb[1], o)?;
-        let color: Vec<u8> = read(device, &rb[2], o)?;
-        let hits = hits
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2], c[3]])
+        let uv: Vec<f32> = read(device, &rb[0], o)?;
+        let height: Vec<f32> = read(device, &rb[1], o)?;
+        let depth: Vec<f32> = read(device, &rb[2], o)?;
+        let color: Vec<u8> = read(device, &rb[3], o)?;
+        // `u`, `v`, height; the application does not ask for the iteration counts (0).
+        let hits = uv
+            .chunks_exact(2)
+            .zip(&height)
+            .map(|(c, &h)| [c[0], c[1], h, 0.0])
             .collect();
         Ok((hits, depth, color, timings))
     })();
@@ -555,14 +561,16 @@ fn slot(device: &wgpu::Device, o: &Options, s: usize) -> Slot {
         ray: target("ray", F::Rgba32Float, attachment),
         frame: target("frame", F::Rg32Uint, attachment),
         depth: target("depth", F::Depth32Float, attachment | U::COPY_SRC),
-        hit: target("hit", F::Rgba32Float, U::STORAGE_BINDING | U::COPY_SRC),
+        hit_uv: target("hit.uv", F::Rg32Float, U::STORAGE_BINDING | U::COPY_SRC),
+        hit_height: target("hit.height", F::R32Float, U::STORAGE_BINDING | U::COPY_SRC),
         color: target(
             "color",
             F::Rgba8Unorm,
             U::STORAGE_BINDING | U::RENDER_ATTACHMENT | U::COPY_SRC,
         ),
         readback: vec![
-            readback("hit", 16),
+            readback("hit.uv", 8),
+            readback("hit.height", 4),
             readback("depth", 4),
             readback("color", 4),
         ],

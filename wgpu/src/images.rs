@@ -65,7 +65,7 @@ pub fn vk_usage(usage: wgpu::TextureUsages, format: wgpu::TextureFormat) -> vk::
 /// 2D, has more than one mip level, array layer or sample, or a format the pass's images
 /// never have; a texture or view not of the Vulkan backend. The pass itself then checks
 /// the format, usage and size against the image's role (`record`'s error names the
-/// role: `gbuffer.ray`, `hit`, `color`).
+/// role: `gbuffer.ray`, `hit.uv`, `color`).
 ///
 /// The handle is valid while `image.view` is alive.
 pub fn host_view(image: WgpuImage<'_>, role: &str) -> Result<HostView> {

@@ -58,7 +58,7 @@ pub enum Error {
     /// A texture that cannot be one of the pass's images: its label and why.
     #[error("texture {label}: {what}")]
     Texture {
-        /// The texture's label (or the role it was given for, e.g. `hit`).
+        /// The texture's label (or the role it was given for, e.g. `hit.uv`).
         label: String,
         /// What is wrong with it.
         what: String,

@@ -7,7 +7,7 @@ use crate::{Error, Result, Vulkan};
 use dispmap::ash::vk;
 use dispmap::context::Context;
 use dispmap::embed::{
-    DepthCamera, DisplacementPass, FrameInputs, RecordedFrame, ShadeTarget, Timestamps,
+    DepthCamera, DisplacementPass, FrameInputs, HitImages, RecordedFrame, ShadeTarget, Timestamps,
 };
 use dispmap::glam::{Mat4, Vec3};
 use dispmap::gpu::owned::Destroy;
@@ -32,8 +32,8 @@ pub struct WgpuShade<'a> {
 
 /// One frame's wgpu textures (the G-buffer contract of `dispmap::embed`, as wgpu
 /// formats: `ray` `Rgba32Float`, `frame` `Rg32Uint`, `depth`
-/// `Depth32Float`, each with `TEXTURE_BINDING`; `hit` `Rgba32Float` with
-/// `STORAGE_BINDING`).
+/// `Depth32Float`, each with `TEXTURE_BINDING`; `hit_uv` `Rg32Float` and `hit_height`
+/// `R32Float` with `STORAGE_BINDING`).
 #[derive(Clone, Copy, Debug)]
 pub struct WgpuFrame<'a> {
     /// The frame-in-flight slot (`0..frames_in_flight`; the slot contract: the previous
@@ -46,9 +46,11 @@ pub struct WgpuFrame<'a> {
     /// Reverse-Z depth (0 = no geometry); with [`DepthMerge`] also `RENDER_ATTACHMENT`,
     /// and it receives the corrected depth of the displaced pixels.
     pub depth: WgpuImage<'a>,
-    /// The hit buffer the pass writes.
-    pub hit: WgpuImage<'a>,
-    /// Shade into a colour texture (`None`: the host shades from the hit buffer).
+    /// The hit uv image the pass writes (each hit's `u`, `v`).
+    pub hit_uv: WgpuImage<'a>,
+    /// The hit height image the pass writes (each hit's height, -1 for none).
+    pub hit_height: WgpuImage<'a>,
+    /// Shade into a colour texture (`None`: the host shades from the hit images).
     pub shade: Option<WgpuShade<'a>>,
 }
 
@@ -95,17 +97,17 @@ impl DepthMerge {
 /// |---|---|---|
 /// | `ray`, `frame` | `TextureUses::RESOURCE` | `SHADER_READ_ONLY_OPTIMAL` |
 /// | `depth` | `TextureUses::RESOURCE` | `DEPTH_STENCIL_READ_ONLY_OPTIMAL` |
-/// | `hit`, `shade.color` | `TextureUses::STORAGE_READ_WRITE` | `GENERAL` |
+/// | `hit_uv`, `hit_height`, `shade.color` | `TextureUses::STORAGE_READ_WRITE` | `GENERAL` |
 ///
 /// wgpu's own barrier into those states makes the G-buffer's writes visible to every
 /// shader stage (`SHADER_READ` / `SHADER_WRITE` at vertex, fragment and compute), which
 /// covers the pass's entry contract (the colour keeps the host's pixels where nothing is
-/// displaced; the hit buffer is overwritten). Inside, this function moves `depth` from
+/// displaced; the hit images are overwritten). Inside, this function moves `depth` from
 /// `DEPTH_STENCIL_READ_ONLY_OPTIMAL` to `SHADER_READ_ONLY_OPTIMAL` for the pass (dispmap
 /// samples it so), then, with `merge`, to `DEPTH_ATTACHMENT_OPTIMAL` for the merge, and
 /// back to `DEPTH_STENCIL_READ_ONLY_OPTIMAL`, its writes made available to every later
 /// command (`ALL_COMMANDS`). After: the same states as before, with the pass's writes of
-/// `hit` and `color` (compute shader storage writes) and the merged depth: wgpu's next
+/// `hit_uv`, `hit_height` and `color` (compute shader storage writes) and the merged depth: wgpu's next
 /// barrier out of `STORAGE_READ_WRITE` or `RESOURCE` (e.g. a copy, a bind group) orders
 /// them. The pass's own corrected-depth image is left in `SHADER_READ_ONLY_OPTIMAL`
 /// (the next record of the slot discards it).
@@ -140,7 +142,10 @@ pub unsafe fn record(
         depth: host_view(frame.depth, "gbuffer.depth")?,
         extent: ray.extent,
     };
-    let hit = host_view(frame.hit, "hit")?;
+    let hit = HitImages {
+        uv: host_view(frame.hit_uv, "hit.uv")?,
+        height: host_view(frame.hit_height, "hit.height")?,
+    };
     let shade = match &frame.shade {
         Some(s) => Some(ShadeTarget {
             color: host_view(s.color, "color")?,

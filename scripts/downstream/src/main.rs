@@ -21,7 +21,8 @@ use dispmap::abi::{GBufferParams, PixelRayParams};
 use dispmap::ash::vk;
 use dispmap::embed::{
     DEPTH_FORMAT, DepthCamera, DisplacementPass, FRAME_FORMAT, FrameInputs, FrameMotion,
-    HIT_FORMAT, MotionSettings, MotionSource, PassSettings, RAY_FORMAT, Timestamps,
+    HIT_HEIGHT_FORMAT, HIT_UV_FORMAT, HitImages, MotionSettings, MotionSource, PassSettings,
+    RAY_FORMAT, Timestamps,
 };
 use dispmap::gpu::commands::read_image;
 use dispmap::gpu::pipeline::{RasterDesc, frame_area, raster_pipeline, set_frame_viewport};
@@ -61,7 +62,7 @@ const GBUFFER_FRAG: Shader = Shader {
     bindings: &[],
 };
 
-/// The host: its G-buffer pipeline and images, its hit buffer, dispmap's pass, and a
+/// The host: its G-buffer pipeline and images, its hit images, dispmap's pass, and a
 /// command buffer with a fence. One frame slot.
 struct Host {
     ctx: Arc<Context>,
@@ -72,7 +73,8 @@ struct Host {
     /// The floor's pixel rays (dispmap's buffer, written in the command buffer).
     rays: PixelRayBuffer,
     gbuffer: GBuffer,
-    hit: Image,
+    /// The hit uv and hit height images.
+    hit: [Image; 2],
     motion: Image,
     pass: DisplacementPass,
     resolve: DepthResolvePass,
@@ -149,14 +151,20 @@ impl Host {
             },
         )?;
         let gbuffer = GBuffer::new(&ctx, extent)?;
-        let hit = Image::new(
-            &ctx,
-            "downstream.hit",
-            HIT_FORMAT,
-            extent,
-            1,
-            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
-        )?;
+        let hit_image = |name: &str, format| {
+            Image::new(
+                &ctx,
+                name,
+                format,
+                extent,
+                1,
+                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+            )
+        };
+        let hit = [
+            hit_image("downstream.hit.uv", HIT_UV_FORMAT)?,
+            hit_image("downstream.hit.height", HIT_HEIGHT_FORMAT)?,
+        ];
         let motion = Image::new(
             &ctx,
             "downstream.motion",
@@ -180,6 +188,9 @@ impl Host {
             },
         )?;
         pass.set_depth_output(true)?;
+        // The pass's own iteration counts, to compare every channel of the standalone
+        // renderer's hits (which always have them).
+        pass.set_iterations_output(true)?;
         pass.set_motion_output(Some(MotionSettings {
             format: MOTION_FORMAT,
             source: MotionSource::Camera,
@@ -317,19 +328,21 @@ impl Host {
             );
         }
         // The pass's entry (dispmap::embed's table): the G-buffer sampled by compute
-        // shaders, the hit buffer discarded into GENERAL for its storage writes, the
+        // shaders, the hit images discarded into GENERAL for their storage writes, the
         // motion image's clear visible to the pass's storage reads and writes.
         let mut barriers = gbuffer_barriers(
             g,
             (Access::COLOR_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
             (Access::DEPTH_ATTACHMENT_WRITE, Access::COMPUTE_SAMPLED),
         );
-        barriers.push(sync::image_barrier(
-            self.hit.raw,
-            self.hit.range(),
-            Access::UNDEFINED,
-            Access::COMPUTE_STORAGE_WRITE,
-        ));
+        for hit in &self.hit {
+            barriers.push(sync::image_barrier(
+                hit.raw,
+                hit.range(),
+                Access::UNDEFINED,
+                Access::COMPUTE_STORAGE_WRITE,
+            ));
+        }
         barriers.push(sync::image_barrier(
             self.motion.raw,
             self.motion.range(),
@@ -341,7 +354,10 @@ impl Host {
         let inputs = FrameInputs {
             frame_slot: 0,
             gbuffer: g.views(),
-            hit: self.hit.host_view(),
+            hit: HitImages {
+                uv: self.hit[0].host_view(),
+                height: self.hit[1].host_view(),
+            },
             shade: None,
             motion: Some(FrameMotion {
                 image: self.motion.host_view(),
@@ -413,15 +429,17 @@ impl Host {
         unsafe { self.record_frame(cmd, params, rays, camera, previous) }?;
         self.shot.submit_and_wait(&self.ctx)?;
         let (ctx, shot) = (&self.ctx, &self.shot);
-        // The pass leaves the hit buffer and the motion in GENERAL after its storage
-        // writes; the corrected depth was last sampled by the resolve; the merged depth
-        // last written as the resolve's attachment.
-        let hits = f32s::<4>(&read_image(
-            ctx,
-            shot,
-            &self.hit,
-            Access::COMPUTE_STORAGE_WRITE,
-        )?);
+        // The pass leaves the hit images, its iteration counts and the motion in GENERAL
+        // after its storage writes; the corrected depth was last sampled by the resolve;
+        // the merged depth last written as the resolve's attachment.
+        let [uv, height] = &self.hit;
+        let iterations = self.pass.iterations(0).ok_or("the iteration counts are on")?;
+        let read = |image| read_image(ctx, shot, image, Access::COMPUTE_STORAGE_WRITE);
+        let hits = dispmap::passes::trace::join_hits(
+            &read(uv)?,
+            &read(height)?,
+            Some(&read(iterations)?),
+        );
         let depth = self.pass.hit_depth(0).ok_or("the corrected depth is on")?;
         let fragment_sampled = Access {
             stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
@@ -463,7 +481,9 @@ impl Host {
                 .destroy_descriptor_set_layout(self.set_layout, None);
             self.rays.destroy(&self.ctx);
             self.gbuffer.destroy(&self.ctx);
-            self.hit.destroy(&self.ctx);
+            for hit in &mut self.hit {
+                hit.destroy(&self.ctx);
+            }
             self.motion.destroy(&self.ctx);
             self.shot.destroy(&self.ctx);
         }

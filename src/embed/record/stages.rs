@@ -6,11 +6,11 @@ use super::*;
 
 impl DisplacementPass {
     /// The `classify` scope: the slot's tile lists (and, with `write_hits`, the hit
-    /// texels of pixels without displacement; with `hit_depth`, their corrected depth).
+    /// texels of pixels without displacement, with them their corrected depth and
+    /// iteration count when those outputs are on).
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; `g` is this record's graph and `hit_depth` the
-    /// slot's corrected depth's view.
+    /// As [`DisplacementPass::record`]; `g` is this record's graph.
     pub(super) unsafe fn record_classify(
         &self,
         cmd: vk::CommandBuffer,
@@ -18,8 +18,10 @@ impl DisplacementPass {
         g: &mut FrameGraph,
         inputs: &FrameInputs,
         write_hits: bool,
-        hit_depth: Option<vk::ImageView>,
     ) -> Result<()> {
+        let slot = inputs.frame_slot;
+        let hit_depth = self.hit_depth(slot).filter(|_| write_hits).map(|i| i.view);
+        let iterations = self.iterations(slot).filter(|_| write_hits).map(|i| i.view);
         let ctx = self.context()?.clone();
         let ctx = &*ctx;
         let lists = &self.slots[inputs.frame_slot as usize].tiles;
@@ -27,16 +29,19 @@ impl DisplacementPass {
         let classify = ClassifyInputs {
             depth: inputs.gbuffer.depth.view,
             frame: inputs.gbuffer.frame.view,
-            hit: ViewRef {
-                view: inputs.hit.view,
-                extent: self.frame.extent,
-            },
+            hit: inputs.hit.views(),
+            extent: self.frame.extent,
             write_hits,
             hit_depth,
+            iterations,
             lists,
             live: &live,
         };
-        let skip: &[Res] = if write_hits { &[] } else { &[Res::Hit] };
+        let skip: &[Res] = if write_hits {
+            &[]
+        } else {
+            &[Res::HitUv, Res::HitHeight]
+        };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body: the graph's barriers order the reset
         // after the lists' last readers (the slot's previous frame), each step after the
@@ -47,7 +52,9 @@ impl DisplacementPass {
                 g.flush(ctx, cmd, PassName::Classify)?;
                 self.classify.record_reset(ctx, cmd, &classify);
                 for step in ClassifyStep::ALL {
-                    let bindings = self.classify.bindings(step, hit_depth.is_some());
+                    let bindings =
+                        self.classify
+                            .bindings(step, hit_depth.is_some(), iterations.is_some());
                     g.dispatch(bindings, 0, skip)?;
                     if step == ClassifyStep::Mixed {
                         g.declare(Res::Args, super::super::graph::INDIRECT)?;
@@ -121,7 +128,8 @@ impl DisplacementPass {
         }
     }
 
-    /// Each material's method into the hit buffer over its tiles.
+    /// Each material's method into the hit images (and the slot's iteration counts)
+    /// over its tiles.
     ///
     /// # Safety
     /// As [`DisplacementPass::record`]; `g` is this record's graph.
@@ -136,15 +144,17 @@ impl DisplacementPass {
         let ctx = self.context()?.clone();
         let ctx = &*ctx;
         let view = camera.map(|c| crate::passes::trace::TraceView::new(c.view_proj, c.eye));
-        let hit = ViewRef {
-            view: inputs.hit.view,
-            extent: self.frame.extent,
-        };
+        let hit = inputs.hit.views();
         let slot = inputs.frame_slot as usize;
+        let iterations = self.slots[slot].iterations.as_ref().map(|i| i.view);
         let mut live = Vec::new();
         for (tiles, m, map) in self.live(inputs.frame_slot) {
             let method = m.settings.method;
-            let key = (method, m.curved && method.traces_curved());
+            let key = (
+                method,
+                m.curved && method.traces_curved(),
+                iterations.is_some(),
+            );
             let Some(trace) = self.traces.iter().find(|t| t.key() == key) else {
                 return Err(Error::Internal(format!(
                     "no trace pipeline for {}",
@@ -158,7 +168,7 @@ impl DisplacementPass {
         unsafe { g.flush(ctx, cmd, PassName::Trace)? };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the graph's barriers
-        // above made every binding ready (the G-buffer in its entry state, the hit buffer
+        // above made every binding ready (the G-buffer in its entry state, the hit images
         // and tile lists ordered after the classification, the maps sampled-readable, the
         // slot's corner grids sampled-readable after `record_corners`).
         unsafe {
@@ -173,6 +183,8 @@ impl DisplacementPass {
                             gbuffer: inputs.gbuffer,
                             height: &map.texture,
                             hit,
+                            iterations,
+                            extent: self.frame.extent,
                             pyramid: needs.pyramid.and_then(|k| map.pyramid(k)),
                             corners: self.slots[slot].corner_grid(tiles.material as usize),
                             cone: needs.cone.and_then(|k| map.cone(k)),
@@ -257,7 +269,7 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         ShadowInputs {
-                            hit: inputs.hit.view,
+                            hit: inputs.hit.views(),
                             gbuffer: inputs.gbuffer,
                             height: &map.texture,
                             pyramid: map.pyramid(PyramidKind::Cell),
@@ -309,7 +321,7 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         ShadeInputs {
-                            hit: inputs.hit.view,
+                            hit: inputs.hit.views(),
                             gbuffer: inputs.gbuffer,
                             height: &map.texture,
                             material: m.shading.as_ref(),
@@ -375,7 +387,7 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         HitDepthInputs {
-                            hit: inputs.hit.view,
+                            hit: inputs.hit.views(),
                             gbuffer: inputs.gbuffer,
                             hit_depth: image.view_ref(),
                             tiles: *tiles,
@@ -440,7 +452,7 @@ impl DisplacementPass {
                         ctx,
                         cmd,
                         MotionInputs {
-                            hit: inputs.hit.view,
+                            hit: inputs.hit.views(),
                             gbuffer: inputs.gbuffer,
                             motion: frame.image.view,
                             tiles: *tiles,
