@@ -243,7 +243,8 @@ pub(crate) fn print_bench_summary(results: &bench::BenchResults) {
     if let Some(b) = &results.silhouettes {
         for c in &b.scenes {
             println!(
-                "silhouettes, {}: with / without {:.3} ({:.3}-{:.3}; medians {:.3}; bound {}),                  {:.1}% curved, {:.2}% missed",
+                "silhouettes, {}: with / without {:.3} ({:.3}-{:.3}; medians {:.3}; bound {}), \
+                 {:.1}% curved, {:.2}% missed",
                 c.scene,
                 c.ratio.min,
                 c.ratio.lo,

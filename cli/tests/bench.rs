@@ -313,6 +313,8 @@ fn cli_bench_writes_every_output() {
             "32,64",
         ])
         .args(["--size-steps", "8", "--repeat", "1", "--quiet"])
+        // The cost of silhouettes runs in library_sweep_writes_every_output.
+        .args(["--silhouettes", "off"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -735,7 +735,7 @@ mod tests {
     use super::*;
 
     /// What each graphics pass binds (the G-buffer's plane and meshes, every method's
-    /// forward pass, the depth resolve) is exactly what its shaders declare, numbers and
+    /// forward pass, the depth resolve, the behind mask) is exactly what its shaders declare, numbers and
     /// types reflected from the SPIR-V, and every binding is bound by a name.
     #[test]
     fn graphics_passes_bind_what_their_shaders_declare() {
@@ -755,6 +755,7 @@ mod tests {
         }
         assert!(forward >= 2, "relief and pom have forward paths");
         crate::passes::depth_resolve::raster_set().unwrap();
+        crate::passes::behind_mask::raster_set().unwrap();
     }
 
     /// A binding the shaders lack, or one they type differently, is refused.

@@ -266,7 +266,11 @@ pub fn markdown(b: &SilhouetteBench, frame: [u32; 2]) -> String {
             c.scene,
             spread(&c.without),
             spread(&c.with),
-            spread(&c.behind),
+            if c.behind.hi > 0.0 {
+                spread(&c.behind)
+            } else {
+                "none".to_owned()
+            },
             spread(&c.ratio),
             c.median_ratio,
             super::materials::bound_cell(c.median_ratio, SILHOUETTE_BOUND),
