@@ -3,10 +3,10 @@
 //! draws carved outlines and what a miss shows, against the same frame without them.
 //!
 //! * **With**: displaced meshes traced as curved geometry
-//!   ([`Renderer::set_curved`]) and, in the materials scene, the behind layer
-//!   ([`Renderer::set_behind`], on by default for that scene).
-//! * **Without**: tangent-plane tracing and no behind layer (the rocks sphere, one
-//!   geometry, never has one).
+//!   ([`Renderer::set_curved`]) and the behind layer ([`Renderer::set_behind`]; on by
+//!   default for the materials scene, turned on for the rocks sphere as `render --curved`
+//!   does for a mesh drawn alone).
+//! * **Without**: tangent-plane tracing and no behind layer.
 //!
 //! Four renderers at the benchmark's frame size, each timed like the methods sweep (one
 //! untimed warm-up frame, then `R` interleaved passes over `K` frames, frame by frame
@@ -162,6 +162,10 @@ pub fn run(
         without.render()?; // warm-up: pipelines, pyramids
         let (mut with, meshes) = renderer(ctx, name, text, frame)?;
         with.set_curved(true)?;
+        // A curved mesh drawn alone shows itself behind a miss, as `render --curved` draws it.
+        if !meshes.is_empty() && !with.behind() {
+            with.set_behind(true)?;
+        }
         with.render()?;
         let materials = with.read_materials()?;
         let hits = with.read_hits()?;
@@ -245,8 +249,8 @@ pub fn markdown(b: &SilhouetteBench, frame: [u32; 2]) -> String {
         s,
         "\n## The cost of silhouettes\n\n\
          {}x{}, the whole frame (every per-frame pass) of `scenes/rocks_sphere.toml` and \
-         `scenes/materials.toml` with curved tracing and the behind layer (the materials \
-         scene's) against the same frame traced on tangent planes without the behind layer \
+         `scenes/materials.toml` with curved tracing and the behind layer against the \
+         same frame traced on tangent planes without the behind layer \
          (`dispmap_cli::bench::silhouettes`). Minimum over the frames (lowest-highest \
          per-pass minimum), ms; the ratio also from the medians. Curved: share of the \
          pixels of materials traced as curved (displaced meshes of `exact`, `relief` and \
