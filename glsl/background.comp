@@ -34,16 +34,21 @@ void main() {
     if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
         return;
     }
+    // The G-buffer first: the behind layer's is empty at nearly every pixel.
+    bool geometry = texelFetch(u_depth, pixel, 0).r > 0.0;
+#ifdef BEHIND
+    if (!geometry) {
+        return;
+    }
+#endif
+    if (geometry && gbuffer_material(pixel) != NOT_DISPLACED) {
+        return;
+    }
     vec2 ndc = (vec2(pixel) + 0.5) / vec2(pc.frame_size) * 2.0 - 1.0;
     vec4 far_point = pc.inv_view_proj * vec4(ndc, 0.5, 1.0);
     vec3 V = normalize(far_point.xyz / far_point.w - pc.camera_pos.xyz);
-    if (texelFetch(u_depth, pixel, 0).r <= 0.0) {
-#ifndef BEHIND
+    if (!geometry) {
         imageStore(u_color, pixel, vec4(sky_color(V), 1.0));
-#endif
-        return;
-    }
-    if (gbuffer_material(pixel) != NOT_DISPLACED) {
         return;
     }
     vec3 n = gbuffer_normal(pixel);

@@ -31,6 +31,17 @@ layout(location = 1) out uvec2 out_frame;
 const float SURFACE_ID = 1.0;
 
 void main() {
+#ifdef BEHIND
+    // The layer's pixels first: everywhere else the fragment is discarded before the
+    // pixel ray's double-float arithmetic (the depth this shader writes rules out the
+    // early depth test that keeps the meshes' fragments to the behind mask).
+    ivec2 pixel = ivec2(gl_FragCoord.xy);
+    float first_hit_height = imageLoad(u_first_hit_height, pixel).x;
+    float first_depth = texelFetch(u_first_depth, pixel, 0).r;
+    if (!dispmap_behind_missed(first_hit_height, first_depth)) {
+        discard;
+    }
+#endif
     vec3 eye_rel;
     vec2 uv;
     float t;
@@ -41,9 +52,7 @@ void main() {
     // The entry's own depth, not the rasteriser's interpolation (dispmap_plane.glsl).
     gl_FragDepth = dispmap_plane_pixel_depth(pc.view_proj, eye_rel);
 #ifdef BEHIND
-    ivec2 pixel = ivec2(gl_FragCoord.xy);
-    if (!dispmap_behind_keep(imageLoad(u_first_hit_height, pixel).x,
-                             texelFetch(u_first_depth, pixel, 0).r, gl_FragDepth)) {
+    if (!dispmap_behind_keep(first_hit_height, first_depth, gl_FragDepth)) {
         discard;
     }
 #endif

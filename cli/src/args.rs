@@ -118,6 +118,10 @@ pub(crate) struct BenchArgs {
     /// frame displaced): `on` or `off`.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     pub(crate) materials: String,
+    /// The cost of silhouettes (the rocks sphere and materials scenes with curved tracing
+    /// and the behind layer against without): `on` or `off`.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    pub(crate) silhouettes: String,
     /// The forward path: every relief and pom run again with the march in the G-buffer
     /// pass (what engines do), its whole frame beside the deferred frame: `on` or `off`.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]

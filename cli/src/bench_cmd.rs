@@ -22,6 +22,7 @@ pub(crate) fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Resul
         size_steps: args.size_steps,
         shadows: args.shadows,
         materials: args.materials == "on",
+        silhouettes: args.silhouettes == "on",
         forward: args.forward == "on",
         ..bench::BenchConfig::default()
     };
@@ -236,6 +237,22 @@ pub(crate) fn print_bench_summary(results: &bench::BenchResults) {
                 same(Method::Relief),
                 a(Method::Relief),
                 b(Method::Relief)
+            );
+        }
+    }
+    if let Some(b) = &results.silhouettes {
+        for c in &b.scenes {
+            println!(
+                "silhouettes, {}: with / without {:.3} ({:.3}-{:.3}; medians {:.3}; bound {}), \
+                 {:.1}% curved, {:.2}% missed",
+                c.scene,
+                c.ratio.min,
+                c.ratio.lo,
+                c.ratio.hi,
+                c.median_ratio,
+                bench::silhouettes::SILHOUETTE_BOUND,
+                100.0 * c.curved_share,
+                100.0 * c.missed_share,
             );
         }
     }

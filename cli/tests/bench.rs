@@ -202,6 +202,8 @@ fn library_sweep_writes_every_output() {
         "`dig` at equal error",
         "At DIG's equal-error point",
         "| (a) together / sum alone |",
+        "## The cost of silhouettes",
+        "| materials | ",
         &device,
     ] {
         assert!(md.contains(needle), "report.md lacks '{needle}'");
@@ -242,6 +244,19 @@ fn library_sweep_writes_every_output() {
         assert!(t.min.is_finite() && t.min > 0.0 && t.lo <= t.hi, "{t:?}");
     }
     assert!((0.05..0.2).contains(&m.tenth_share), "{}", m.tenth_share);
+    // The cost of silhouettes: both scenes, finite positive times, the curved share of
+    // the rocks sphere (every displaced pixel) and the materials scene's missed pixels.
+    let b = results.silhouettes.as_ref().unwrap();
+    let names: Vec<_> = b.scenes.iter().map(|c| c.scene.as_str()).collect();
+    assert_eq!(names, ["rocks_sphere", "materials"]);
+    for c in &b.scenes {
+        for t in [c.without, c.with, c.ratio] {
+            assert!(t.min.is_finite() && t.min > 0.0 && t.lo <= t.hi, "{c:?}");
+        }
+        assert!(c.curved_share > 0.05 && c.curved_share < 1.0, "{c:?}");
+    }
+    assert!(b.scenes[1].missed_share > 0.0, "{:?}", b.scenes[1]);
+    assert!(b.scenes[1].behind.min > 0.0, "{:?}", b.scenes[1]);
     // One table line per run of the map.
     let run_lines = md
         .lines()
@@ -298,6 +313,8 @@ fn cli_bench_writes_every_output() {
             "32,64",
         ])
         .args(["--size-steps", "8", "--repeat", "1", "--quiet"])
+        // The cost of silhouettes runs in library_sweep_writes_every_output.
+        .args(["--silhouettes", "off"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);

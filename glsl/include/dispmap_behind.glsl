@@ -19,12 +19,20 @@
 // the first layer's own surface drawn again (same triangle, same depth up to rounding).
 #define DISPMAP_BEHIND_MARGIN 1e-5
 
+// Whether the behind layer may cover a pixel: its first-layer trace missed
+// (`first_hit_height`, the hit buffer's z) on geometry (`first_depth`, the first layer's
+// G-buffer depth, reverse-Z, 0 = no geometry). A host may write this into a stencil or
+// depth mask before drawing the layer's objects (docs/embedding.md, "What a miss shows").
+bool dispmap_behind_missed(float first_hit_height, float first_depth) {
+    return first_hit_height == DISPMAP_MISS_HEIGHT && first_depth > 0.0;
+}
+
 // Whether a fragment of the behind layer is kept: `first_hit_height` is the first layer's
 // hit height at the pixel (the hit height image's value), `first_depth` its G-buffer depth
 // (reverse-Z, 0 = no geometry), `depth` the fragment's own depth (reverse-Z: smaller is
 // farther).
 bool dispmap_behind_keep(float first_hit_height, float first_depth, float depth) {
-    return first_hit_height == DISPMAP_MISS_HEIGHT && first_depth > 0.0
+    return dispmap_behind_missed(first_hit_height, first_depth)
         && depth < first_depth * (1.0 - DISPMAP_BEHIND_MARGIN);
 }
 

@@ -534,7 +534,7 @@ pub unsafe fn record_draws(
     rays: &PixelRayParams,
 ) -> Result<()> {
     // SAFETY: this function's # Safety contract.
-    unsafe { record_layer(ctx, cmd, target, draws, rays, None) }
+    unsafe { record_layer(ctx, cmd, target, draws, rays, None, None) }
 }
 
 /// What the behind layer's draws read of the first layer: its G-buffer depth (sampled,
@@ -565,10 +565,30 @@ pub unsafe fn record_draws_behind(
     first: FirstLayer,
 ) -> Result<()> {
     // SAFETY: this function's # Safety contract.
-    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first)) }
+    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first), None) }
 }
 
-/// [`record_draws`] (`first` `None`) or [`record_draws_behind`].
+/// As [`record_draws_behind`], the objects' raster kept to the pixels whose first-layer
+/// trace missed by `mask` ([`crate::passes::behind_mask`]): the same G-buffer, the
+/// objects' fragments elsewhere rejected by the depth test before fragment shading.
+///
+/// # Safety
+/// As [`record_draws_behind`]; `mask` stays alive until the command buffer has executed.
+pub unsafe fn record_draws_behind_masked(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    target: &GBuffer,
+    draws: &[GBufferDraw<'_>],
+    rays: &PixelRayParams,
+    first: FirstLayer,
+    mask: &crate::passes::behind_mask::BehindMaskPass,
+) -> Result<()> {
+    // SAFETY: this function's # Safety contract.
+    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first), Some(mask)) }
+}
+
+/// [`record_draws`] (`first` `None`), [`record_draws_behind`] or (with `mask`)
+/// [`record_draws_behind_masked`].
 ///
 /// # Safety
 /// As those.
@@ -579,7 +599,13 @@ unsafe fn record_layer(
     draws: &[GBufferDraw<'_>],
     rays: &PixelRayParams,
     first: Option<FirstLayer>,
+    mask: Option<&crate::passes::behind_mask::BehindMaskPass>,
 ) -> Result<()> {
+    use crate::passes::behind_mask::{BLOCK_DEPTH, CLEAR_DEPTH};
+    let mask = match (mask, first) {
+        (Some(m), Some(f)) => Some((m, f)),
+        _ => None,
+    };
     let extent = target.ray.extent;
     // Each plane pipeline's pixel-ray buffer, once.
     let mut updated: Vec<*const GBufferPass> = Vec::new();
@@ -658,6 +684,10 @@ unsafe fn record_layer(
     // owns, written above; the binding the shaders' reflection gives).
     unsafe {
         dev.cmd_begin_rendering(cmd, &rendering);
+        if let Some((m, f)) = mask {
+            // The pixels the layer leaves empty, blocked for the objects' depth test.
+            m.record(ctx, cmd, f, BLOCK_DEPTH)?;
+        }
         for (draw, write) in draws.iter().zip(&writes) {
             debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
             debug_assert_eq!(
@@ -691,6 +721,10 @@ unsafe fn record_layer(
                 None => dev.cmd_draw(cmd, draw.params.vertex_count(), 1, 0, 0),
             }
         }
+        if let Some((m, f)) = mask {
+            // Those pixels back to the clear values.
+            m.record(ctx, cmd, f, CLEAR_DEPTH)?;
+        }
         dev.cmd_end_rendering(cmd);
     }
     Ok(())
@@ -701,7 +735,7 @@ mod tests {
     use super::*;
 
     /// What each graphics pass binds (the G-buffer's plane and meshes, every method's
-    /// forward pass, the depth resolve) is exactly what its shaders declare, numbers and
+    /// forward pass, the depth resolve, the behind mask) is exactly what its shaders declare, numbers and
     /// types reflected from the SPIR-V, and every binding is bound by a name.
     #[test]
     fn graphics_passes_bind_what_their_shaders_declare() {
@@ -721,6 +755,7 @@ mod tests {
         }
         assert!(forward >= 2, "relief and pom have forward paths");
         crate::passes::depth_resolve::raster_set().unwrap();
+        crate::passes::behind_mask::raster_set().unwrap();
     }
 
     /// A binding the shaders lack, or one they type differently, is refused.

@@ -11,6 +11,7 @@
 //! [`crate::renderer::Renderer`]) the G-buffer's and the entry barriers.
 
 pub mod background;
+pub mod behind_mask;
 pub mod camera_motion;
 pub mod classify;
 pub mod cone;

@@ -2,7 +2,9 @@
 //! shows (the next surface along its view ray instead of the sky). After the frame's
 //! first record, the renderer rasterises the objects again into a second G-buffer, keeping
 //! a fragment only at a pixel whose first-layer trace missed and only behind the first
-//! layer's surface (`glsl/include/dispmap_behind.glsl`), lights that layer's flat
+//! layer's surface (`glsl/include/dispmap_behind.glsl`; a depth mask of the missed pixels,
+//! [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere before they are
+//! shaded, and the plane's shader tests the pixel first), lights that layer's flat
 //! geometry, and records the displacement pass a second time on it: frame slot 1, its own
 //! hit images, the same colour image (and motion image). The second trace and shade run
 //! only over the tiles that layer covers. docs/embedding.md, "What a miss shows", is the
@@ -31,6 +33,8 @@ pub(super) struct Behind {
     two_sided: Option<GBufferPass>,
     /// The host's light of the layer's flat geometry (the sky is left as it is).
     background: BackgroundPass,
+    /// The mask keeping the layer's raster to the missed pixels.
+    mask: crate::passes::behind_mask::BehindMaskPass,
 }
 
 impl Destroy for Behind {
@@ -43,6 +47,7 @@ impl Destroy for Behind {
             self.mesh.destroy(ctx);
             self.two_sided.destroy(ctx);
             self.background.destroy(ctx);
+            self.mask.destroy(ctx);
         }
     }
 }
@@ -82,14 +87,17 @@ impl Behind {
         let plane = unsafe { Guard::new(c, pipeline(plane, false, false)?) };
         // SAFETY: as above.
         let mesh = unsafe { Guard::new(c, pipeline(mesh, true, false)?) };
-        let two_sided = pipeline(two_sided, true, true)?;
+        // SAFETY: as above.
+        let two_sided = unsafe { Guard::new(c, pipeline(two_sided, true, true)?) };
+        let mask = crate::passes::behind_mask::BehindMaskPass::new(c)?;
         Ok(Behind {
             gbuffer: gbuffer.keep(),
             hit: hit.keep(),
             plane: plane.keep(),
             mesh: mesh.keep(),
-            two_sided,
+            two_sided: two_sided.keep(),
             background: background.keep(),
+            mask,
         })
     }
 
@@ -390,13 +398,16 @@ impl Renderer {
                     t.declare(key, access)?;
                 }
                 t.flush(&ctx, cmd, images)?;
-                crate::passes::gbuffer::record_draws_behind(
+                // Kept to the missed pixels by the mask (the objects' raster elsewhere
+                // rejected by the depth test before fragment shading).
+                crate::passes::gbuffer::record_draws_behind_masked(
                     &ctx,
                     cmd,
                     &behind.gbuffer,
                     &draws,
                     &rays,
                     first,
+                    &behind.mask,
                 )?;
                 // The layer's flat geometry, lit by the host (the background's variant).
                 for key in [Layer::Ray, Layer::Frame, Layer::Depth] {

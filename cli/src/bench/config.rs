@@ -40,6 +40,9 @@ pub struct BenchConfig {
     /// The material-table numbers ([`materials`], `--materials`, default on): six small
     /// renderers over the same `K R` frames.
     pub materials: bool,
+    /// The cost of silhouettes ([`silhouettes`], `--silhouettes`, default on): four
+    /// renderers of the rocks sphere and materials scenes over the same `K R` frames.
+    pub silhouettes: bool,
     /// The forward path (`--forward`, default on): every run of a method with one
     /// ([`Method::forward_shader`]: `relief`, `pom`) is also run forward (module docs).
     pub forward: bool,
@@ -60,6 +63,7 @@ impl Default for BenchConfig {
             scene: protocol_scene(),
             shadows: dispmap::passes::shadow::ShadowMode::Off,
             materials: true,
+            silhouettes: true,
             forward: true,
         }
     }

@@ -58,7 +58,7 @@ pub struct Stat {
 }
 
 impl Stat {
-    fn of(per_pass: &[f64]) -> Stat {
+    pub(crate) fn of(per_pass: &[f64]) -> Stat {
         let lo = per_pass.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = per_pass.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         Stat { min: lo, lo, hi }
@@ -296,7 +296,7 @@ pub const DISJOINT_BOUND: f64 = 1.1;
 pub const TENTH_BOUND: f64 = 0.2;
 
 /// `<= bound`, with `met` or `**missed**` by `value`.
-fn bound_cell(value: f64, bound: f64) -> String {
+pub(crate) fn bound_cell(value: f64, bound: f64) -> String {
     if value <= bound {
         format!("<= {bound} (met)")
     } else {

@@ -76,6 +76,7 @@ pub mod plot;
 pub mod report;
 mod results;
 mod run;
+pub mod silhouettes;
 mod sweep;
 pub mod verdict;
 

@@ -141,6 +141,9 @@ pub fn markdown(results: &BenchResults, command: &str) -> String {
     if let Some(m) = &results.materials {
         s.push_str(&super::materials::markdown(m, c.frame));
     }
+    if let Some(b) = &results.silhouettes {
+        s.push_str(&super::silhouettes::markdown(b, c.frame));
+    }
     let _ = writeln!(
         s,
         "\n## How to read the equal-error tables\n\n\

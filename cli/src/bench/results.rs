@@ -205,6 +205,8 @@ pub struct BenchResults {
     pub wall: Duration,
     /// The material-table numbers, when they ran ([`BenchConfig::materials`]).
     pub materials: Option<materials::MaterialsBench>,
+    /// The cost of silhouettes, when it ran ([`BenchConfig::silhouettes`]).
+    pub silhouettes: Option<super::silhouettes::SilhouetteBench>,
 }
 
 /// `rows` as CSV: a header of [`RunRow`]'s field names, one line per row; empty cells

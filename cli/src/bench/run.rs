@@ -29,6 +29,10 @@ pub const NO_STEPS_WEIGHT: u64 = 100;
 /// Renderers of the material-table numbers ([`materials`]).
 const MATERIALS_RENDERERS: u64 = 6;
 
+/// Renderers of the cost of silhouettes ([`silhouettes`]); the materials scene's count
+/// as several (five objects, three maps).
+const SILHOUETTE_RENDERERS: u64 = 8;
+
 /// Progress weight of one reference frame (CPU intersection).
 pub const REFERENCE_WEIGHT: u64 = 150;
 
@@ -115,6 +119,11 @@ fn total_weight(config: &BenchConfig, maps: usize, size_sweep: bool) -> u64 {
     per_map * maps as u64
         + if config.materials {
             MATERIALS_RENDERERS * run_weight(Some(64), frames_rendered(config))
+        } else {
+            0
+        }
+        + if config.silhouettes {
+            SILHOUETTE_RENDERERS * run_weight(Some(64), frames_rendered(config))
         } else {
             0
         }
@@ -250,9 +259,28 @@ pub fn run(
     } else {
         None
     };
+    let silhouettes = if config.silhouettes {
+        let per_pass = SILHOUETTE_RENDERERS * run_weight(Some(64), frames_rendered(&config))
+            / u64::from(config.repeat);
+        Some(silhouettes::run(
+            ctx,
+            config.frame,
+            config.frames,
+            config.repeat,
+            &mut |r| {
+                tracker.advance(
+                    per_pass,
+                    format!("silhouettes (pass {r}/{})", config.repeat),
+                )
+            },
+        )?)
+    } else {
+        None
+    };
     let info = ctx.info();
     Ok(BenchResults {
         materials,
+        silhouettes,
         maps: maps.iter().map(|m| map_info(&m.name, &m.field)).collect(),
         size_source: size_info,
         device: info.name.clone(),

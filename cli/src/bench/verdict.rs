@@ -460,6 +460,7 @@ mod tests {
             started: SystemTime::UNIX_EPOCH,
             wall: Duration::from_secs(1),
             materials: None,
+            silhouettes: None,
         }
     }
 
