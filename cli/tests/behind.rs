@@ -4,6 +4,7 @@
 //! scene of several objects) those pixels show the rocks floor: the behind layer's
 //! G-buffer has the floor's material there, its trace hits, and the colour is the lit
 //! stone (red above blue), where without the layer it is the sky (blue above red).
+//! The opt-in depth mask of the layer's raster gives the same images bit for bit.
 //! Validation (core + synchronization) on: zero messages, nothing left allocated.
 
 #[path = "../../tests/common/mod.rs"]
@@ -45,7 +46,24 @@ fn the_floor_shows_under_the_cubes_carved_bottom_edge() {
         let behind_materials = renderer.read_behind_materials().unwrap().unwrap();
         let behind_hits = renderer.read_behind_hits().unwrap().unwrap();
         let with = renderer.read_color().unwrap();
+        // The depth mask (opt-in) keeps the layer's raster to the missed pixels and
+        // changes nothing in the images: the same colour and behind hits, bit for bit.
+        assert!(!renderer.behind_mask(), "the mask is opt-in");
+        renderer.set_behind_mask(true).unwrap();
+        renderer.render().unwrap();
+        assert!(renderer.behind_mask());
+        assert_eq!(renderer.read_color().unwrap(), with, "masked colour");
+        assert_eq!(
+            renderer.read_behind_hits().unwrap().unwrap(),
+            behind_hits,
+            "masked behind hits"
+        );
+        renderer.set_behind_mask(false).unwrap();
         renderer.set_behind(false).unwrap();
+        assert!(
+            renderer.set_behind_mask(true).is_err(),
+            "no mask without a behind layer"
+        );
         renderer.render().unwrap();
         assert_eq!(renderer.read_behind_hits().unwrap(), None);
         let without = renderer.read_color().unwrap();

@@ -2,9 +2,10 @@
 //! shows (the next surface along its view ray instead of the sky). After the frame's
 //! first record, the renderer rasterises the objects again into a second G-buffer, keeping
 //! a fragment only at a pixel whose first-layer trace missed and only behind the first
-//! layer's surface (`glsl/include/dispmap_behind.glsl`; a depth mask of the missed pixels,
+//! layer's surface (`glsl/include/dispmap_behind.glsl`; the plane's shader tests the pixel
+//! first; with [`Renderer::set_behind_mask`], a depth mask of the missed pixels,
 //! [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere before they are
-//! shaded, and the plane's shader tests the pixel first), lights that layer's flat
+//! shaded), lights that layer's flat
 //! geometry, and records the displacement pass a second time on it: frame slot 1, its own
 //! hit images, the same colour image (and motion image). The second trace and shade run
 //! only over the tiles that layer covers. docs/embedding.md, "What a miss shows", is the
@@ -33,8 +34,9 @@ pub(super) struct Behind {
     two_sided: Option<GBufferPass>,
     /// The host's light of the layer's flat geometry (the sky is left as it is).
     background: BackgroundPass,
-    /// The mask keeping the layer's raster to the missed pixels.
-    mask: crate::passes::behind_mask::BehindMaskPass,
+    /// The mask keeping the layer's raster to the missed pixels, when asked for
+    /// ([`Renderer::set_behind_mask`]).
+    mask: Option<crate::passes::behind_mask::BehindMaskPass>,
 }
 
 impl Destroy for Behind {
@@ -89,7 +91,6 @@ impl Behind {
         let mesh = unsafe { Guard::new(c, pipeline(mesh, true, false)?) };
         // SAFETY: as above.
         let two_sided = unsafe { Guard::new(c, pipeline(two_sided, true, true)?) };
-        let mask = crate::passes::behind_mask::BehindMaskPass::new(c)?;
         Ok(Behind {
             gbuffer: gbuffer.keep(),
             hit: hit.keep(),
@@ -97,7 +98,7 @@ impl Behind {
             mesh: mesh.keep(),
             two_sided: two_sided.keep(),
             background: background.keep(),
-            mask,
+            mask: None,
         })
     }
 
@@ -194,6 +195,38 @@ impl Renderer {
                 // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
                 unsafe { self.behind.destroy(c) };
             }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Whether the behind layer's raster is masked ([`Renderer::set_behind_mask`]).
+    pub fn behind_mask(&self) -> bool {
+        self.behind.as_ref().is_some_and(|b| b.mask.is_some())
+    }
+
+    /// Keeps the behind layer's raster to the missed pixels with a depth mask
+    /// ([`crate::passes::behind_mask`]: one full-screen triangle before the objects blocks
+    /// every other pixel, one after them clears those pixels again) or draws it unmasked
+    /// (the default), each fragment then discarded by the behind shader after two texel
+    /// reads. The images are the same bit for bit either way. The mask trades two
+    /// full-screen fragment passes for the objects' fragments at the pixels that did not
+    /// miss: measured, it saved nothing on lavapipe (whose raster is bound by geometry) and
+    /// made the layer 2.3x as slow on an NVIDIA H200 (1.41 -> 3.25 ms at 1920x1080, a part
+    /// with little graphics hardware); BENCHMARKS.md has the figures. Refused without a
+    /// behind layer ([`Renderer::set_behind`]).
+    pub fn set_behind_mask(&mut self, on: bool) -> Result<()> {
+        let c = &*self.ctx;
+        let Some(b) = &mut self.behind else {
+            return Err(Error::invalid(
+                "behind mask",
+                "this renderer draws no behind layer (turn it on with set_behind first)",
+            ));
+        };
+        match (on, &b.mask) {
+            (true, None) => b.mask = Some(crate::passes::behind_mask::BehindMaskPass::new(c)?),
+            // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
+            (false, Some(_)) => unsafe { b.mask.destroy(c) },
             _ => {}
         }
         Ok(())
@@ -398,17 +431,27 @@ impl Renderer {
                     t.declare(key, access)?;
                 }
                 t.flush(&ctx, cmd, images)?;
-                // Kept to the missed pixels by the mask (the objects' raster elsewhere
-                // rejected by the depth test before fragment shading).
-                crate::passes::gbuffer::record_draws_behind_masked(
-                    &ctx,
-                    cmd,
-                    &behind.gbuffer,
-                    &draws,
-                    &rays,
-                    first,
-                    &behind.mask,
-                )?;
+                match &behind.mask {
+                    // Kept to the missed pixels by the mask (the objects' raster
+                    // elsewhere rejected by the depth test before fragment shading).
+                    Some(mask) => crate::passes::gbuffer::record_draws_behind_masked(
+                        &ctx,
+                        cmd,
+                        &behind.gbuffer,
+                        &draws,
+                        &rays,
+                        first,
+                        mask,
+                    )?,
+                    None => crate::passes::gbuffer::record_draws_behind(
+                        &ctx,
+                        cmd,
+                        &behind.gbuffer,
+                        &draws,
+                        &rays,
+                        first,
+                    )?,
+                }
                 // The layer's flat geometry, lit by the host (the background's variant).
                 for key in [Layer::Ray, Layer::Frame, Layer::Depth] {
                     t.declare(key, Access::COMPUTE_SAMPLED)?;
