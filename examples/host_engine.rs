@@ -1479,6 +1479,7 @@ impl Engine {
                     ray: slot.ray.host,
                     frame: slot.frame.host,
                     depth: slot.depth.host,
+                    curve: None,
                     extent,
                 },
                 hit: HitImages {
@@ -1634,6 +1635,7 @@ impl Engine {
                         ray: b.ray.host,
                         frame: b.frame.host,
                         depth: b.depth.host,
+                        curve: None,
                         extent,
                     },
                     hit: HitImages {

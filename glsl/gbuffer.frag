@@ -7,7 +7,11 @@
 // as are back faces (viewer below the surface: nothing to displace).
 // BEHIND variant: the behind layer (glsl/include/dispmap_behind.glsl): a fragment is kept
 // only at a pixel whose first-layer trace missed, behind the first layer's surface.
+// CURVE variant: also writes the curve target (location 2) as 0, the plane's curvature,
+// for a frame whose meshes write theirs.
 // dispmap-variant: BEHIND
+// dispmap-variant: CURVE
+// dispmap-variant: BEHIND+CURVE
 #include "gbuffer_params.glsl"
 #include "include/dispmap_plane.glsl"
 #include "include/dispmap_gbuffer.glsl"
@@ -26,11 +30,17 @@ layout(set = 0, binding = 0, std140) uniform PixelRayBlock {
 
 layout(location = 0) out vec4 out_ray;
 layout(location = 1) out uvec2 out_frame;
+#ifdef CURVE
+layout(location = 2) out vec2 out_curve;
+#endif
 
 // The id of the one surface this pass draws (DIG's same-surface test).
 const float SURFACE_ID = 1.0;
 
 void main() {
+#ifdef CURVE
+    out_curve = vec2(0.0);
+#endif
 #ifdef BEHIND
     // The layer's pixels first: everywhere else the fragment is discarded before the
     // pixel ray's double-float arithmetic (the depth this shader writes rules out the

@@ -5,7 +5,11 @@
 // documents the choice): P.x *= sqrt(s_v / s_u), P.y *= sqrt(s_u / s_v).
 // BEHIND variant: the behind layer (glsl/include/dispmap_behind.glsl): a fragment is kept
 // only at a pixel whose first-layer trace missed, behind the first layer's surface.
+// CURVE variant: also writes the curve target (location 2, dispmap_gbuffer_curve), for a
+// frame with materials traced curved.
 // dispmap-variant: BEHIND
+// dispmap-variant: CURVE
+// dispmap-variant: BEHIND+CURVE
 #include "gbuffer_params.glsl"
 #include "include/dispmap_gbuffer.glsl"
 #ifdef BEHIND
@@ -21,6 +25,9 @@ layout(location = 2) in vec3 v_normal;
 layout(location = 3) in vec4 v_tangent;
 layout(location = 4) in float v_stretch;
 layout(location = 5) flat in float v_surface;
+#ifdef CURVE
+layout(location = 6) in float v_scale;
+#endif
 
 // A two-sided mesh (src/mesh.rs Mesh::two_sided, GBufferPass::new_mesh_two_sided): a
 // fragment on the side the mesh's normals point away from is displaced as seen from that
@@ -31,8 +38,16 @@ layout(constant_id = 0) const bool TWO_SIDED = false;
 
 layout(location = 0) out vec4 out_ray;
 layout(location = 1) out uvec2 out_frame;
+#ifdef CURVE
+layout(location = 2) out vec2 out_curve;
+#endif
 
 void main() {
+#ifdef CURVE
+    // Before any discard: derivatives need the whole quad.
+    DispmapCurveInputs curve = dispmap_curve_inputs(v_uv, v_normal, v_scale);
+    out_curve = vec2(0.0);
+#endif
 #ifdef BEHIND
     ivec2 pixel = ivec2(gl_FragCoord.xy);
     if (!dispmap_behind_keep(imageLoad(u_first_hit_height, pixel).x,
@@ -67,4 +82,9 @@ void main() {
     }
     float stretch = clamp(v_stretch, 1.0 / 64.0, 64.0);
     out_ray.zw *= vec2(inversesqrt(stretch), sqrt(stretch));
+#ifdef CURVE
+    if (material_plus_one != 0u) {
+        out_curve = dispmap_gbuffer_curve(s, curve, out_ray.zw);
+    }
+#endif
 }

@@ -59,7 +59,7 @@ pub use buffers::MeshBuffers;
 /// through `1..=MAX_SURFACE_ID`).
 pub const MAX_SURFACE_ID: u32 = 2048;
 
-/// One vertex, as `glsl/gbuffer_mesh.vert` reads it (binding 0, locations 0 to 5).
+/// One vertex, as `glsl/gbuffer_mesh.vert` reads it (binding 0, locations 0 to 6).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vertex {
@@ -75,10 +75,17 @@ pub struct Vertex {
     pub stretch: f32,
     /// Surface id (chart of continuous uvs), `> 0`.
     pub surface: f32,
+    /// The local uv scale `sqrt(s_u s_v)` (world length of one uv unit, the unit of
+    /// `depth_scale`): the area-weighted mean of `sqrt(|dP/du| |dP/dv|)` over the
+    /// triangles at the vertex's position ([`Mesh::with_uv_scales`]; vertices that differ
+    /// only in uv or normal, at seams and edges, share it). Interpolated across a
+    /// triangle it is the depth's scale the curved trace follows (the G-buffer's curve
+    /// output, `dispmap_gbuffer_curve`).
+    pub scale: f32,
 }
 
 /// The attribute formats and offsets of [`Vertex`] (location order).
-pub fn vertex_attributes() -> [vk::VertexInputAttributeDescription; 6] {
+pub fn vertex_attributes() -> [vk::VertexInputAttributeDescription; 7] {
     let attr =
         |location: u32, format: vk::Format, offset: usize| vk::VertexInputAttributeDescription {
             location,
@@ -102,6 +109,7 @@ pub fn vertex_attributes() -> [vk::VertexInputAttributeDescription; 6] {
         attr(3, vk::Format::R32G32_SFLOAT, offset_of!(Vertex, uv)),
         attr(4, vk::Format::R32_SFLOAT, offset_of!(Vertex, stretch)),
         attr(5, vk::Format::R32_SFLOAT, offset_of!(Vertex, surface)),
+        attr(6, vk::Format::R32_SFLOAT, offset_of!(Vertex, scale)),
     ]
 }
 
@@ -146,6 +154,7 @@ fn grid(
                 uv,
                 stretch: dpdu.length() / dpdv.length().max(1e-12),
                 surface: 1.0,
+                scale: 0.0,
             });
         }
     }
@@ -169,6 +178,7 @@ fn grid(
         label: label.into(),
         two_sided: false,
     }
+    .with_uv_scales()
 }
 
 /// Side of the generated cube (centred on the origin; its corners lie on a sphere of
@@ -208,6 +218,7 @@ impl Mesh {
                     uv: [u, v],
                     stretch: 1.0,
                     surface: (face + 1) as f32,
+                    scale: 0.0,
                 });
             }
             indices.extend_from_slice(&[base, base + 1, base + 2, base, base + 2, base + 3]);
@@ -218,6 +229,7 @@ impl Mesh {
             label: "cube".into(),
             two_sided: false,
         }
+        .with_uv_scales()
     }
 
     /// A UV sphere of radius [`SPHERE_RADIUS`]: the map repeats 4 times around (`u`,
@@ -378,6 +390,7 @@ impl Mesh {
                 uv: uvs[k],
                 stretch,
                 surface: 0.0,
+                scale: 0.0,
             });
         }
         // Charts: connected components over shared vertices (union-find).
@@ -408,7 +421,8 @@ impl Mesh {
             indices,
             label: label.into(),
             two_sided: false,
-        })
+        }
+        .with_uv_scales())
     }
 
     /// The unit quad as a mesh: `[0, 1]` in x and z on `y = 0`, facing `+y`, `u` along
@@ -425,6 +439,7 @@ impl Mesh {
                 uv: [u, v],
                 stretch: 1.0,
                 surface: 1.0,
+                scale: 0.0,
             })
             .collect();
         Mesh {
@@ -433,6 +448,7 @@ impl Mesh {
             label: "quad".into(),
             two_sided: false,
         }
+        .with_uv_scales()
     }
 
     /// This mesh moved by `placement` (positions transformed, normals and tangents
@@ -455,6 +471,7 @@ impl Mesh {
                     uv: v.uv,
                     stretch: v.stretch,
                     surface: (id % MAX_SURFACE_ID + 1) as f32,
+                    scale: 0.0,
                 }
             })
             .collect();
@@ -464,6 +481,48 @@ impl Mesh {
             label: self.label.clone(),
             two_sided: self.two_sided,
         }
+        .with_uv_scales()
+    }
+
+    /// This mesh with every vertex's [`Vertex::scale`] computed from its triangles: the
+    /// area-weighted mean of `sqrt(|dP/du| |dP/dv|)` over the triangles at the vertex's
+    /// position (0 where none has a uv area).
+    pub fn with_uv_scales(mut self) -> Mesh {
+        use glam::{DVec2, DVec3};
+        use std::collections::HashMap;
+        let key = |p: &[f32; 3]| p.map(f32::to_bits);
+        let mut sums: HashMap<[u32; 3], (f64, f64)> = HashMap::new();
+        let vertices = &self.vertices;
+        let position = |i: usize| DVec3::from(vertices[i].position.map(f64::from));
+        let uv = |i: usize| DVec2::from(vertices[i].uv.map(f64::from));
+        for tri in self.indices.chunks_exact(3) {
+            let [a, b, c] = [tri[0], tri[1], tri[2]].map(|i| i as usize);
+            let (e1, e2) = (position(b) - position(a), position(c) - position(a));
+            let (d1, d2) = (uv(b) - uv(a), uv(c) - uv(a));
+            let det = d1.x * d2.y - d2.x * d1.y;
+            let area = e1.cross(e2).length() / 2.0;
+            if det == 0.0 || area == 0.0 {
+                continue;
+            }
+            let dpdu = (e1 * d2.y - e2 * d1.y) / det;
+            let dpdv = (e2 * d1.x - e1 * d2.x) / det;
+            let s = (dpdu.length() * dpdv.length()).sqrt();
+            if !s.is_finite() {
+                continue;
+            }
+            for i in [a, b, c] {
+                let e = sums.entry(key(&vertices[i].position)).or_default();
+                e.0 += s * area;
+                e.1 += area;
+            }
+        }
+        for v in &mut self.vertices {
+            v.scale = match sums.get(&key(&v.position)) {
+                Some(&(sum, weight)) if weight > 0.0 => (sum / weight) as f32,
+                _ => 0.0,
+            };
+        }
+        self
     }
 
     /// The largest surface id of the mesh (0 for an empty mesh).
@@ -559,12 +618,41 @@ mod tests {
 
     #[test]
     fn vertex_layout_matches_the_attributes() {
-        assert_eq!(std::mem::size_of::<Vertex>(), 14 * 4);
+        assert_eq!(std::mem::size_of::<Vertex>(), 15 * 4);
         let a = vertex_attributes();
         assert_eq!(
             a.map(|a| a.offset),
-            [0, 12, 24, 40, 48, 52],
+            [0, 12, 24, 40, 48, 52, 56],
             "glsl/gbuffer_mesh.vert reads these offsets"
         );
+    }
+
+    /// The uv scale of a vertex is the area-weighted mean of its triangles' own scales:
+    /// the cube's faces are one unit a uv unit; the sphere's follows its parametrisation,
+    /// `sqrt(|dP/du| |dP/dv|) = R (pi / 2) sqrt(sin(polar angle))`, to within the
+    /// triangles' chords; a placed mesh's scales with the placement.
+    #[test]
+    fn vertex_scales_follow_the_parametrisation() {
+        for v in &Mesh::cube().vertices {
+            assert!((v.scale - CUBE_SIDE).abs() < 1e-6, "{v:?}");
+        }
+        let sphere = Mesh::sphere();
+        let r = SPHERE_RADIUS;
+        for v in &sphere.vertices {
+            let polar = (v.normal[1].clamp(-1.0, 1.0)).acos();
+            let expected = r * std::f32::consts::FRAC_PI_2 * polar.sin().sqrt();
+            let from_pole = polar.min(std::f32::consts::PI - polar);
+            if from_pole > 0.2 {
+                // sqrt(sin) bends fastest near the pole: the band's mean departs from it.
+                let tolerance = if from_pole > 0.5 { 0.03 } else { 0.06 };
+                assert!(
+                    (v.scale / expected - 1.0).abs() < tolerance,
+                    "{v:?}: expected {expected}"
+                );
+            } else {
+                // Near a pole the first ring's triangles average over a band.
+                assert!(v.scale > 0.0 && v.scale < 0.7 * r * std::f32::consts::FRAC_PI_2);
+            }
+        }
     }
 }

@@ -254,12 +254,28 @@ impl Method {
         matches!(self, Method::Exact | Method::DigGuarded | Method::ConeExact)
     }
 
+    /// The method's trace shader in its `CURVED` variant (with `iterations`, its
+    /// `CURVED+ITERATIONS` one): the curved path of `glsl/common/curved.glsl`, which
+    /// reads the G-buffer's curve image; `None` for a method without one.
+    pub fn curved_shader(self, iterations: bool) -> Option<Shader> {
+        Some(match (self, iterations) {
+            (Method::Exact, false) => shaders::TRACE_EXACT_COMP_CURVED,
+            (Method::Exact, true) => shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS,
+            (Method::Relief, false) => shaders::TRACE_RELIEF_COMP_CURVED,
+            (Method::Relief, true) => shaders::TRACE_RELIEF_COMP_CURVED_ITERATIONS,
+            (Method::Pom, false) => shaders::TRACE_POM_COMP_CURVED,
+            (Method::Pom, true) => shaders::TRACE_POM_COMP_CURVED_ITERATIONS,
+            _ => return None,
+        })
+    }
+
     /// Whether the method traces curved macro geometry when the pass is asked to
     /// (`glsl/common/curved.glsl`: each pixel's ray follows the curvature of its base
-    /// surface and misses when it leaves the shell): `exact`, `relief` and `pom`. The
-    /// others trace every pixel's tangent plane.
+    /// surface and misses when it leaves the shell): the methods with a
+    /// [`Method::curved_shader`] (`exact`, `relief` and `pom`). The others trace every
+    /// pixel's tangent plane.
     pub fn traces_curved(self) -> bool {
-        matches!(self, Method::Exact | Method::Relief | Method::Pom)
+        self.curved_shader(false).is_some()
     }
 
     /// Whether the method is in the default method lists: `dispmap bench`'s default

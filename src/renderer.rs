@@ -235,9 +235,10 @@ impl Renderer {
             return Ok(());
         }
         let c = &*self.ctx;
-        let (gbuffer, hit, color) = build::frame_images(c, extent)?;
+        let curve = self.gbuffer.curve.is_some();
+        let (gbuffer, hit, color) = build::frame_images(c, extent, curve)?;
         let behind_images = match &self.behind {
-            Some(_) => Some(behind::Behind::images(c, extent)?),
+            Some(_) => Some(behind::Behind::images(c, extent, curve)?),
             None => None,
         };
         if let Some(m) = &mut self.motion {
@@ -320,8 +321,80 @@ impl Renderer {
             }
             None => vec![self.pass.primary()],
         };
-        for m in materials {
-            self.pass.set_material_curved(m, on)?;
+        if materials.is_empty() {
+            return Ok(());
+        }
+        // The G-buffer gets (or drops) its curve image first, then the materials follow;
+        // a failure of either leaves the renderer as it was.
+        let was = self.gbuffer.curve.is_some();
+        self.set_curve_image(on)?;
+        let mut done = Vec::new();
+        for &m in &materials {
+            let old = self.pass.material_curved(m)?;
+            if let Err(e) = self.pass.set_material_curved(m, on) {
+                for &(m, old) in done.iter().rev() {
+                    let _ = self.pass.set_material_curved(m, old);
+                }
+                let _ = self.set_curve_image(was);
+                return Err(e);
+            }
+            done.push((m, old));
+        }
+        Ok(())
+    }
+
+    /// Gives the G-buffer its curve image (`on`: what curved tracing reads) or takes it
+    /// away, with the pipelines that draw into it (the behind layer's too). On error
+    /// nothing changes.
+    fn set_curve_image(&mut self, on: bool) -> Result<()> {
+        if self.gbuffer.curve.is_some() == on {
+            return Ok(());
+        }
+        let ctx = self.ctx.clone();
+        let c = &*ctx;
+        let extent = self.settings.extent();
+        let gbuffer = if on {
+            GBuffer::new_curved(c, extent)?
+        } else {
+            GBuffer::new(c, extent)?
+        };
+        // SAFETY: no command has used the guarded values yet; they are kept below.
+        let gbuffer = unsafe { Guard::new(c, gbuffer) };
+        let pipeline =
+            |p: &GBufferPass| GBufferPass::new_layer(c, p.is_mesh(), p.is_two_sided(), false, on);
+        // SAFETY: as above.
+        let gbuffer_pass = unsafe { Guard::new(c, pipeline(&self.gbuffer_pass)?) };
+        let (mesh_pass, two_sided_pass) = match &self.objects {
+            Some(o) => (
+                o.mesh_pass.as_ref().map(pipeline).transpose()?,
+                o.two_sided_pass.as_ref().map(pipeline).transpose()?,
+            ),
+            None => (None, None),
+        };
+        // SAFETY: as above.
+        let (mesh_pass, two_sided_pass) =
+            unsafe { (Guard::new(c, mesh_pass), Guard::new(c, two_sided_pass)) };
+        if let Some(b) = &mut self.behind {
+            // SAFETY: every frame of this renderer was waited for (`render` submits and
+            // waits): nothing pending uses the layer.
+            unsafe { b.set_curve(c, extent, on)? };
+        }
+        let mut old_gbuffer = std::mem::replace(&mut self.gbuffer, gbuffer.keep());
+        let mut old_pass = std::mem::replace(&mut self.gbuffer_pass, gbuffer_pass.keep());
+        let (mut old_mesh, mut old_two_sided) = match &mut self.objects {
+            Some(o) => (
+                std::mem::replace(&mut o.mesh_pass, mesh_pass.keep()),
+                std::mem::replace(&mut o.two_sided_pass, two_sided_pass.keep()),
+            ),
+            None => (None, None),
+        };
+        // SAFETY: every frame of this renderer was waited for: nothing pending uses the
+        // old G-buffer and pipelines.
+        unsafe {
+            old_gbuffer.destroy(c);
+            old_pass.destroy(c);
+            old_mesh.destroy(c);
+            old_two_sided.destroy(c);
         }
         Ok(())
     }

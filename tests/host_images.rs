@@ -223,6 +223,28 @@ fn wrong_host_images_are_refused_by_name() {
     assert_eq!(name, "motion.previous");
     pass.set_motion_output(None).unwrap();
 
+    // A material traced curved reads the G-buffer's curve image: a frame without it, or
+    // with one of another format, is refused by its name.
+    let material = pass.primary();
+    pass.set_material_curved(material, true).unwrap();
+    // SAFETY: as above.
+    let mut record = |inputs: &FrameInputs| unsafe {
+        pass.record_with_camera(cmd, inputs, &camera, Timestamps::Off)
+    };
+    let (name, message) = refused(record(&inputs));
+    assert_eq!(name, "gbuffer.curve");
+    assert!(message.contains("curved"), "{message}");
+    let (name, message) = refused(record(&FrameInputs {
+        gbuffer: GBufferViews {
+            curve: Some(half_hit.host_view()),
+            ..views
+        },
+        ..inputs
+    }));
+    assert_eq!(name, "gbuffer.curve");
+    assert!(message.contains("R16G16_SFLOAT"), "{message}");
+    pass.set_material_curved(material, false).unwrap();
+
     // The refusals changed nothing: a valid frame records and runs.
     // SAFETY: `cmd` is recording (above); the G-buffer is discarded into the sampled
     // layout and the hit images into GENERAL for storage writes (barriers below).

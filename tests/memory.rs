@@ -357,7 +357,8 @@ fn destroy_lets_go_of_the_context() {
 /// checks: ray 16 + frame 8 + depth 4 + hit uv 8 + hit height 4 = 40 (the hit images were
 /// one `R32G32B32A32_SFLOAT` buffer with the iteration count: 44; before the packed frame,
 /// 52), as docs/embedding.md states; the iteration counts (4 more) are the pass's, and only
-/// while asked for.
+/// while asked for; the curve image (4 more) only for a frame with a material traced
+/// curved.
 #[test]
 fn the_gbuffer_contract_is_40_bytes_a_pixel() {
     let bytes =
@@ -372,13 +373,18 @@ fn the_gbuffer_contract_is_40_bytes_a_pixel() {
     assert_eq!(bytes(&contract), 40);
     assert_eq!(bytes(&[HIT_UV_FORMAT, HIT_HEIGHT_FORMAT]), 12);
     assert_eq!(bytes(&[ITERATIONS_FORMAT]), 4);
+    assert_eq!(bytes(&[dispmap::passes::gbuffer::CURVE_FORMAT]), 4);
     let doc =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/embedding.md")).unwrap();
-    let stated = "The G-buffer contract alone (ray, frame, depth, hit uv, hit height) is 40 bytes";
-    assert!(
-        doc.replace('\n', " ").contains(stated),
-        "docs/embedding.md does not say: {stated}"
-    );
+    for stated in [
+        "The G-buffer contract alone (ray, frame, depth, hit uv, hit height) is 40 bytes",
+        "44 for a frame with a material traced curved (the curve image)",
+    ] {
+        assert!(
+            doc.replace('\n', " ").contains(stated),
+            "docs/embedding.md does not say: {stated}"
+        );
+    }
 }
 
 /// The pass allocates the iteration counts (one `R32_UINT` image per frame slot) only

@@ -23,6 +23,14 @@
 //! edges) the offsets part and a ray can pass between them: a miss, which is what a carved
 //! edge shows.
 //!
+//! The displaced surface is oriented: its outside is the side the base normal points to,
+//! and a ray from the eye meets a surface from outside, so only hits on the side a piece
+//! faces count. Where the offsets of two faces cross (inside the shell along a cube's
+//! edge) a ray that leaves one face's shell can meet the other face's offset from behind,
+//! inside the solid that face bounds: not a visible surface, so the ray goes on. A
+//! two-sided mesh (`Mesh::two_sided`) is displaced from both sides, as the passes draw
+//! it: its back side is the mirrored surface `q = p + (1 - H(uv)) d n`, facing `-n`.
+//!
 //! # Tessellation and tracing
 //!
 //! Each triangle is cut into `k²` sub-triangles, `k` its longest edge in texels (at least
@@ -31,7 +39,8 @@
 //! kept. A ray tests the triangles whose bound it enters in order of entry, each
 //! triangle's sub-triangles in blocks with boxes of their own, and stops once the nearest
 //! hit lies before the next bound's entry. Ray-triangle tests are Möller-Trumbore in `f64`,
-//! both faces counted.
+//! a hit counted where the sub-triangle faces the ray (its winding oriented by its base
+//! triangle's normals).
 
 use dispmap::glam::{DMat4, DVec2, DVec3};
 use dispmap::heightfield::{Addressing, HeightField};
@@ -105,6 +114,9 @@ impl Tessellation {
 /// The displaced surface of one mesh (see the module docs).
 pub struct DisplacedMesh<'a> {
     triangles: Vec<[Corner; 3]>,
+    /// Each triangle's orientation: +1 where its winding's normal points along its
+    /// corners' normals (its sub-triangles' outside), -1 where against.
+    facing: Vec<f64>,
     bounds: Vec<Aabb>,
     splits: Vec<usize>,
     cache: Vec<OnceLock<Tessellation>>,
@@ -132,7 +144,8 @@ fn height(field: &HeightField, addressing: Addressing, uv: DVec2) -> f64 {
     top * (1.0 - fy) + bottom * fy
 }
 
-/// Möller-Trumbore, both faces: the ray parameter of the hit in `(0, t_max)`.
+/// Möller-Trumbore (either face; the caller picks the side): the ray parameter of the hit
+/// in `(0, t_max)`.
 fn hit_triangle(
     origin: DVec3,
     dir: DVec3,
@@ -222,12 +235,19 @@ impl<'a> DisplacedMesh<'a> {
         let mut triangles = Vec::with_capacity(mesh.indices.len() / 3);
         let mut bounds = Vec::with_capacity(mesh.indices.len() / 3);
         let mut splits = Vec::with_capacity(mesh.indices.len() / 3);
-        for tri in mesh.indices.chunks_exact(3) {
+        let mut facing = Vec::with_capacity(mesh.indices.len() / 3);
+        // A two-sided mesh's back side: the same triangles with their normals reversed.
+        let sides: &[f64] = if mesh.two_sided { &[1.0, -1.0] } else { &[1.0] };
+        for (tri, side) in sides
+            .iter()
+            .flat_map(|&side| mesh.indices.chunks_exact(3).map(move |tri| (tri, side)))
+        {
             let corner = |i: u32| {
                 let v = &mesh.vertices[i as usize];
-                let n = normal_matrix
-                    .transform_vector3(DVec3::from(v.normal.map(f64::from)))
-                    .normalize_or_zero();
+                let n = side
+                    * normal_matrix
+                        .transform_vector3(DVec3::from(v.normal.map(f64::from)))
+                        .normalize_or_zero();
                 Corner {
                     p: positions[i as usize],
                     n,
@@ -251,12 +271,20 @@ impl<'a> DisplacedMesh<'a> {
                 .max(texels(corners[1].uv, corners[2].uv))
                 .max(texels(corners[2].uv, corners[0].uv));
             splits.push((longest.ceil() as usize).clamp(1, MAX_SPLIT));
+            let winding = (corners[1].p - corners[0].p).cross(corners[2].p - corners[0].p);
+            let normals = corners[0].n + corners[1].n + corners[2].n;
+            facing.push(if winding.dot(normals) < 0.0 {
+                -1.0
+            } else {
+                1.0
+            });
             triangles.push(corners);
             bounds.push(bound);
         }
         let cache = (0..triangles.len()).map(|_| OnceLock::new()).collect();
         DisplacedMesh {
             triangles,
+            facing,
             bounds,
             splits,
             cache,
@@ -321,6 +349,10 @@ impl<'a> DisplacedMesh<'a> {
                 break;
             }
             let tess = self.tessellation(t);
+            let facing = self.facing[t];
+            // A hit from outside: the ray against the sub-triangle's oriented normal.
+            let outside =
+                |a: DVec3, b: DVec3, c: DVec3| (b - a).cross(c - a).dot(dir) * facing < 0.0;
             for &(bound, j0, i0) in &tess.blocks {
                 if bound.entry(origin, inv, best).is_none() {
                     continue;
@@ -332,12 +364,16 @@ impl<'a> DisplacedMesh<'a> {
                         let a = tess.vertices[tess.at(i, j)];
                         let b = tess.vertices[tess.at(i + 1, j)];
                         let c = tess.vertices[tess.at(i, j + 1)];
-                        if let Some(h) = hit_triangle(origin, dir, a, b, c, best) {
+                        if outside(a, b, c)
+                            && let Some(h) = hit_triangle(origin, dir, a, b, c, best)
+                        {
                             best = h;
                         }
                         if i + j + 1 < tess.k {
                             let d = tess.vertices[tess.at(i + 1, j + 1)];
-                            if let Some(h) = hit_triangle(origin, dir, b, d, c, best) {
+                            if outside(b, d, c)
+                                && let Some(h) = hit_triangle(origin, dir, b, d, c, best)
+                            {
                                 best = h;
                             }
                         }

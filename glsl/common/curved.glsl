@@ -17,13 +17,14 @@
 // curve_h below traces the osculating circle of the normal section (exact on a sphere),
 // with the ray's foot projected radially and the depth following the local uv scale.
 //
-// k comes from the G-buffer without an extra channel: J from the pixel's right / down
-// neighbours (left / up at the frame's edge) on the same surface and material, whose uv
-// and normal differences give dN/duv by a 2 x 2 solve; V from the pixel's centre ray
-// (pc.view_*: the near-plane point at the frame's centre and its steps per NDC unit,
-// eye-relative, TraceView on the CPU). A pixel without neighbours on both axes, or on a
-// crease (a neighbour's normal more than 60 degrees away: a cube edge, a two-sided rim),
-// or whose normal faces away from its ray, gets k = 0: the flat trace.
+// kappa and the depth's change come from the G-buffer's curve image, which the G-buffer
+// pass writes from the screen derivatives of the triangle's interpolants
+// (dispmap_gbuffer_curve in glsl/include/dispmap_gbuffer.glsl: exact for the interpolated
+// normal and uv scale of the triangle under the pixel, whatever its neighbours are); lat
+// from the pixel's centre ray (pc.view_*: the near-plane point at the frame's centre and
+// its steps per NDC unit, eye-relative, TraceView on the CPU) and its decoded frame. A
+// pixel whose curve is 0 (a flat triangle, the plane, a head-on ray), or whose normal
+// faces away from its ray, traces flat.
 #ifndef DISPMAP_CURVED_GLSL
 #define DISPMAP_CURVED_GLSL
 
@@ -47,173 +48,39 @@ vec3 curve_position(ivec2 q, float depth) {
     return near / depth;
 }
 
-// One pixel of the neighbourhood the curve reads, each fetched and decoded once: its
-// macro position, entry uv and normal, and whether it qualifies as a neighbour (inside
-// the frame, on the same material and surface, its normal within 60 degrees of N).
-struct CurvePx {
-    vec3 p;
-    vec2 uv;
-    vec3 n;
-    bool ok;
-};
-
-CurvePx curve_load(ivec2 q, float surface, vec3 N) {
-    CurvePx x = CurvePx(vec3(0.0), vec2(0.0), N, false);
-    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(pc.frame_size)))) {
-        return x;
-    }
-    float depth = texelFetch(u_depth, q, 0).r;
-    uvec2 bits = gbuffer_frame_bits(q);
-    if (!(depth > 0.0) || gbuffer_frame_material(bits) != pc.material
-        || float(dispmap_frame_surface_id(bits)) != surface) {
-        return x;
-    }
-    x.n = dispmap_frame_normal(bits);
-    x.ok = dot(x.n, N) >= 0.5;
-    x.p = curve_position(q, depth);
-    x.uv = texelFetch(u_ray, q, 0).xy;
-    return x;
-}
-
-// The uv step from uv0 to a neighbour's entry, times `side` (per pixel towards +a).
-vec2 curve_duv(vec2 uv, vec2 uv0, float side) {
-    vec2 d = uv - uv0;
-    if (pc.addressing == ADDRESSING_REPEAT) {
-        d -= round(d);
-    }
-    return side * d;
-}
-
-// The 2 x 2 determinant of the uv steps, or 0 when they are (nearly) parallel.
-float curve_det(vec2 du0, vec2 du1) {
-    float det = du0.x * du1.y - du1.x * du0.y;
-    return abs(det) > 1e-6 * (dot(du0, du0) + dot(du1, du1)) ? det : 0.0;
-}
-
-// The log of the local uv scale S = sqrt(|dp/du| |dp/dv|) (world length of one uv unit)
-// at a pixel (p, uv) from one neighbour along each axis (a on side sa along x, b on side
-// sb along y); false when they do not qualify or their uv steps are parallel.
-bool curve_log_scale(vec3 p, vec2 uv, CurvePx a, float sa, CurvePx b, float sb, out float log_s) {
-    log_s = 0.0;
-    if (!a.ok || !b.ok) {
-        return false;
-    }
-    vec2 du0 = curve_duv(a.uv, uv, sa);
-    vec2 du1 = curve_duv(b.uv, uv, sb);
-    float det = curve_det(du0, du1);
-    if (det == 0.0) {
-        return false;
-    }
-    vec3 dp0 = sa * (a.p - p);
-    vec3 dp1 = sb * (b.p - p);
-    vec3 dpdu = (dp0 * du1.y - dp1 * du0.y) / det;
-    vec3 dpdv = (dp1 * du0.x - dp0 * du1.x) / det;
-    float area = length(dpdu) * length(dpdv);
-    if (!(area > 0.0) || isinf(area)) {
-        return false;
-    }
-    log_s = 0.5 * log(area);
-    return true;
-}
-
 void curve_extent(inout Curve c);
 
-// The curve of `pixel` (see the top of this file). Reads the pixel's 3 x 3 neighbourhood
-// at most (each pixel once): the four on its axes for J, two diagonals for the depth's
-// change.
+// The curve of `pixel` (see the top of this file): its curvature and depth change from
+// the curve image, the ray's slant from its centre ray and frame.
 Curve curve_of(ivec2 pixel, Ray ray) {
     Curve flat_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, false);
+#ifdef CURVED
+    vec2 stored = texelFetch(u_curve, pixel, 0).xy;
     DispmapFrame f = gbuffer_frame(pixel);
     vec3 N = f.normal;
     vec3 T = f.tangent;
     vec3 B = gbuffer_bitangent(f);
-    float surface = f.surface_id;
-    vec3 p = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
-    vec3 V = normalize(p);
+    vec3 V = normalize(curve_position(pixel, texelFetch(u_depth, pixel, 0).r));
     float vz = -dot(V, N);
     if (!(vz > 1e-4)) {
         return flat_curve;
     }
-    // Each axis' neighbour: the +a side first (side s = +1), else the -a side; the
-    // opposite one (o) makes the difference central where it qualifies too.
-    CurvePx xp = curve_load(pixel + ivec2(1, 0), surface, N);
-    CurvePx xm = curve_load(pixel - ivec2(1, 0), surface, N);
-    CurvePx yp = curve_load(pixel + ivec2(0, 1), surface, N);
-    CurvePx ym = curve_load(pixel - ivec2(0, 1), surface, N);
-    if (!(xp.ok || xm.ok) || !(yp.ok || ym.ok)) {
-        return flat_curve;
-    }
-    float s0 = xp.ok ? 1.0 : -1.0;
-    float s1 = yp.ok ? 1.0 : -1.0;
-    CurvePx a0 = xp.ok ? xp : xm;
-    CurvePx o0 = xp.ok ? xm : xp;
-    CurvePx a1 = yp.ok ? yp : ym;
-    CurvePx o1 = yp.ok ? ym : yp;
-    // One-sided steps (the uv scale's), then central differences where both sides
-    // qualify (the quantised normals' rounding halves and the first-order bias of a
-    // one-sided step goes).
-    vec2 e0 = curve_duv(a0.uv, ray.uv0, s0);
-    vec2 e1 = curve_duv(a1.uv, ray.uv0, s1);
-    vec2 du0 = e0;
-    vec2 du1 = e1;
-    vec3 dn0 = s0 * (a0.n - N);
-    vec3 dn1 = s1 * (a1.n - N);
-    if (o0.ok) {
-        du0 = 0.5 * (du0 - curve_duv(o0.uv, ray.uv0, s0));
-        dn0 = 0.5 * (dn0 - s0 * (o0.n - N));
-    }
-    if (o1.ok) {
-        du1 = 0.5 * (du1 - curve_duv(o1.uv, ray.uv0, s1));
-        dn1 = 0.5 * (dn1 - s1 * (o1.n - N));
-    }
-    float det = curve_det(du0, du1);
-    if (det == 0.0) {
-        return flat_curve;
-    }
-    // With M = [du0 du1] (columns) and w = M^-1 P: J P = [dn0 dn1] w, and a gradient's
-    // component along P is its two differences dotted with w.
-    vec2 w = vec2(du1.y * ray.P.x - du1.x * ray.P.y, du0.x * ray.P.y - du0.y * ray.P.x) / det;
-    vec3 dN = dn0 * w.x + dn1 * w.y;
     vec3 lat = (dot(V, T) * T + dot(V, B) * B) / vz;
     float tan2 = dot(lat, lat);
-    float k = 0.5 * dot(lat, dN);
-    // The curvature in units of the depth, kappa D = 2 k / tan^2(theta), kept below 1 (a
-    // radius of curvature above the depth: the offset surface stays a surface).
-    float kappa = tan2 > 1e-12 ? clamp(2.0 * k / tan2, -4.0, 0.99) : 0.0;
-    if (isinf(k) || isnan(k) || isnan(kappa) || k == 0.0) {
+    // kappa D kept below 1 (a radius of curvature above the depth: the offset surface
+    // stays a surface).
+    float kappa = clamp(stored.x, -4.0, 0.99);
+    float k = 0.5 * kappa * tan2;
+    if (isinf(k) || isnan(k) || k == 0.0) {
         return flat_curve;
     }
-    // The depth is depth_scale local uv units (src/mesh.rs): its change along the ray
-    // from the uv scale's at the pixel and at its two neighbours a0, a1 (0 where one is
-    // unknown), each scale from one-sided steps: the pixel's to a0 and a1; a0's back to
-    // the pixel and to a diagonal (+y first), a1's back to the pixel and to a diagonal
-    // (+x first).
-    float g = 0.0;
-    float l, l0, l1;
-    CurvePx d0 = curve_load(pixel + ivec2(int(s0), 1), surface, N);
-    float t0 = 1.0;
-    if (!d0.ok) {
-        d0 = curve_load(pixel + ivec2(int(s0), -1), surface, N);
-        t0 = -1.0;
-    }
-    CurvePx d1 = curve_load(pixel + ivec2(1, int(s1)), surface, N);
-    float t1 = 1.0;
-    if (!d1.ok) {
-        d1 = curve_load(pixel + ivec2(-1, int(s1)), surface, N);
-        t1 = -1.0;
-    }
-    CurvePx c0 = CurvePx(p, ray.uv0, N, true);
-    if (curve_log_scale(p, ray.uv0, a0, s0, a1, s1, l) && curve_log_scale(a0.p, a0.uv, c0, -s0, d0, t0, l0)
-        && curve_log_scale(a1.p, a1.uv, d1, t1, c0, -s1, l1)) {
-        float dd = curve_det(e0, e1);
-        vec2 v = dd == 0.0 ? vec2(0.0)
-            : vec2(e1.y * ray.P.x - e1.x * ray.P.y, e0.x * ray.P.y - e0.y * ray.P.x) / dd;
-        g = s0 * (l0 - l) * v.x + s1 * (l1 - l) * v.y;
-        g = isnan(g) || isinf(g) ? 0.0 : g;
-    }
-    Curve c = Curve(0.5 * kappa * tan2, kappa, kappa * sqrt(tan2), g, 0.0, false);
+    float g = isnan(stored.y) || isinf(stored.y) ? 0.0 : stored.y;
+    Curve c = Curve(k, kappa, kappa * sqrt(tan2), g, 0.0, false);
     curve_extent(c);
     return c;
+#else
+    return flat_curve;
+#endif
 }
 
 // The ray in the plane of its normal section, the base surface there a circle of

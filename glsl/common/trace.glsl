@@ -59,14 +59,23 @@ layout(push_constant) uniform TraceParams {
 // Level of detail (Tatarchuk 2006): pixels whose footprint level reaches lod_threshold
 // take the bump result without tracing; a one-level band below it blends toward it.
 #define TRACE_FLAG_LOD 2u
-// Curved macro geometry (curved.glsl): each pixel's curvature coefficient from its
-// neighbours and its view ray; methods that honour it trace the curved ray.
+// Curved macro geometry (curved.glsl): each pixel's curve from the G-buffer's curve image
+// and its view ray; methods that honour it trace the curved ray.
 #define TRACE_FLAG_CURVED 4u
-// Whether this pipeline holds the curved path at all (a specialization constant: the
-// flat variant, every material not traced as curved, is compiled without it, so its
-// registers and code size are the flat trace's). TRACE_FLAG_CURVED selects it per
+// Whether this pipeline holds the curved path at all: the CURVED variant of the methods
+// that trace curved geometry (exact, relief, pom); every other pipeline, and every
+// material not traced as curved, is compiled without it (its registers and code size are
+// the flat trace's, and it binds no curve image). TRACE_FLAG_CURVED selects it per
 // dispatch within the curved variant (off: no camera this frame).
-layout(constant_id = 0) const bool CURVED_VARIANT = false;
+#ifdef CURVED
+const bool CURVED_VARIANT = true;
+// The G-buffer's curve image (R16G16_SFLOAT, glsl/include/dispmap_gbuffer.glsl's
+// dispmap_gbuffer_curve): the normal curvature along the pixel's ray in units of the
+// depth, and the depth's relative change along it.
+layout(set = 0, binding = 11) uniform sampler2D u_curve;
+#else
+const bool CURVED_VARIANT = false;
+#endif
 
 #include "march.glsl"
 #include "texels.glsl"

@@ -27,6 +27,10 @@
 //           Axis-aligned frames (a plane, a box) decode exactly; any other N or T within
 //           about 1.3e-4 (N) and 3.8e-4 (T) radians.
 //   depth   D32_SFLOAT           reverse-Z, cleared to 0: 0 means no geometry.
+//   curve   R16G16_SFLOAT        only for materials traced curved
+//           (DisplacementPass::set_material_curved), cleared to 0: the surface's normal
+//           curvature along the pixel's ray and the depth's change along it
+//           (dispmap_gbuffer_curve below).
 //
 // depth_scale is the displacement depth in uv (tile) units: with T and B of unit length a
 // tile is one world unit, and the same depth_scale means the same depth in tiles on any
@@ -197,6 +201,61 @@ bool dispmap_gbuffer_encode_material(DispmapSurface s, uint material, out vec4 r
     float handedness = dot(cross(s.normal, s.tangent), s.bitangent) < 0.0 ? -1.0 : 1.0;
     frame = dispmap_frame_pack(s.normal, s.tangent, handedness, material + 1u, s.surface_id);
     return true;
+}
+
+// The screen derivatives the curve output needs (dispmap_gbuffer_curve): `uv` the
+// interpolated uv, `normal` the interpolated vertex normal *before* normalising, `scale`
+// the interpolated local uv scale sqrt(|dP/du| |dP/dv|) of the vertices (src/mesh.rs
+// Vertex::scale; any constant for a surface whose scale does not change). Call it in
+// uniform control flow, before any discard (derivatives of a quad whose invocations left
+// are undefined). The interpolants are affine in the triangle's barycentrics, so their
+// differences within the quad give the triangle's own changes per uv exactly, whatever
+// surrounds the pixel.
+struct DispmapCurveInputs {
+    vec2 dux;
+    vec2 duy;
+    vec3 dnx;
+    vec3 dny;
+    float dsx;
+    float dsy;
+    vec3 normal;
+    float scale;
+};
+
+// (A macro, so that compute shaders may include this file: pass plain variables.)
+#define dispmap_curve_inputs(uv, normal, scale) \
+    DispmapCurveInputs(dFdxFine(uv), dFdyFine(uv), dFdxFine(normal), dFdyFine(normal), \
+        dFdxFine(scale), dFdyFine(scale), normal, scale)
+
+// The curve output of a fragment of a curved mesh (the curve target, read by the trace's
+// curved path, glsl/common/curved.glsl): x = kappa D, the normal curvature of the base
+// surface along the ray's lateral direction times the displacement depth D (positive
+// where the surface bends away from the eye, a convex one), kept in [-4, 0.99]; y = the
+// depth's relative change along the ray's foot per unit of depth descended,
+// d(log scale)/dt (the depth is depth_scale local uv scales). `s` is the fragment as
+// encoded (after dispmap_surface_back_side for a back face), `d` its derivatives
+// (dispmap_curve_inputs), `P` the ray target's zw as written (after any correction of P).
+vec2 dispmap_gbuffer_curve(DispmapSurface s, DispmapCurveInputs d, vec2 P) {
+    float det = d.dux.x * d.duy.y - d.duy.x * d.dux.y;
+    float len = length(d.normal);
+    vec3 V = normalize(s.world_pos - s.camera_pos);
+    float vz = -dot(V, s.normal);
+    if (!(abs(det) > 0.0) || !(len > 0.0) || !(d.scale > 0.0) || !(vz > 0.0)) {
+        return vec2(0.0);
+    }
+    // A quantity's change per unit t along the ray's foot (uv step P per unit t): its
+    // screen differences times w = M^-1 P, M the 2 x 2 matrix of the uv differences.
+    vec2 w = vec2(d.duy.y * P.x - d.duy.x * P.y, d.dux.x * P.y - d.dux.y * P.x) / det;
+    vec3 n = d.normal / len;
+    vec3 dm = d.dnx * w.x + d.dny * w.y;
+    // The change of the normalised normal, reversed with it on a back face.
+    vec3 dN = (dm - n * dot(n, dm)) / len * (dot(n, s.normal) < 0.0 ? -1.0 : 1.0);
+    vec3 lat = (dot(V, s.tangent) * s.tangent + dot(V, s.bitangent) * s.bitangent) / vz;
+    float tan2 = dot(lat, lat);
+    float kappa = tan2 > 1e-12 ? clamp(dot(lat, dN) / tan2, -4.0, 0.99) : 0.0;
+    float g = clamp((d.dsx * w.x + d.dsy * w.y) / d.scale, -1.0e4, 1.0e4);
+    vec2 c = vec2(kappa, g);
+    return any(isnan(c)) ? vec2(0.0) : c;
 }
 
 // Encodes one fragment of material 0 (a pass with one material). Returns false for a back

@@ -16,6 +16,8 @@
 // outlines) by a march in steps of at most one texel with the exact bilinear height,
 // refined by bisection. No hit before the ray leaves the shell: a miss.
 // dispmap-variant: ITERATIONS
+// dispmap-variant: CURVED
+// dispmap-variant: CURVED+ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
 

@@ -15,6 +15,8 @@
 // The march: pom_search in search.glsl (shared with the forward path); on curved meshes
 // (TRACE_FLAG_CURVED) curved_march (curved.glsl) with the same sample count per unit t.
 // dispmap-variant: ITERATIONS
+// dispmap-variant: CURVED
+// dispmap-variant: CURVED+ITERATIONS
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {

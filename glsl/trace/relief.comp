@@ -6,6 +6,8 @@
 // path). On curved meshes (TRACE_FLAG_CURVED) the same march along the curved ray
 // (curved_march in curved.glsl).
 // dispmap-variant: ITERATIONS
+// dispmap-variant: CURVED
+// dispmap-variant: CURVED+ITERATIONS
 #include "trace.glsl"
 
 Hit trace_ray(Ray ray, ivec2 pixel) {

@@ -21,6 +21,8 @@ pub(super) enum Res {
     /// The G-buffer's frame (normal, tangent, material, surface id).
     GFrame,
     Depth,
+    /// The G-buffer's curve image (materials traced curved).
+    Curve,
     /// The host's hit uv image.
     HitUv,
     /// The host's hit height image.
@@ -52,6 +54,7 @@ fn resource(name: &str, material: u32) -> Option<Res> {
         "u_ray" => Res::Ray,
         "u_frame" => Res::GFrame,
         "u_depth" => Res::Depth,
+        "u_curve" => Res::Curve,
         "u_hit_uv" => Res::HitUv,
         "u_hit_height" => Res::HitHeight,
         "u_iterations" => Res::Iterations,
@@ -89,7 +92,7 @@ pub(super) enum Entry {
 
 /// The host's images and the state each enters in (the module docs' entry column): what
 /// the host's barrier made the image's earlier writes visible to, and its layout.
-pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 7] {
+pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 8] {
     let hit = match entry {
         // Discarded by the host's barrier (UNDEFINED -> GENERAL) and ordered before the
         // pass's writes.
@@ -100,6 +103,7 @@ pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 7] {
         (Res::Ray, Access::COMPUTE_SAMPLED),
         (Res::GFrame, Access::COMPUTE_SAMPLED),
         (Res::Depth, Access::COMPUTE_SAMPLED),
+        (Res::Curve, Access::COMPUTE_SAMPLED),
         (Res::HitUv, hit),
         (Res::HitHeight, hit),
         (Res::Color, Access::COMPUTE_STORAGE_WRITE),
@@ -282,13 +286,14 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
     ] {
         g.tracker.enter(res, owned_entry(res));
     }
-    let stages: [(&[ShaderBinding], &[Res]); 10] = [
+    let stages: [(&[ShaderBinding], &[Res]); 11] = [
         (shaders::CLASSIFY_COMP_DEPTH_ITERATIONS.bindings, &[]),
         (shaders::CLASSIFY_OFFSETS_COMP.bindings, &[]),
         (shaders::CLASSIFY_SCATTER_COMP.bindings, &[]),
         (shaders::CLASSIFY_MIXED_COMP.bindings, &[]),
         (shaders::DIG_CORNERS_COMP.bindings, &[]),
         (shaders::TRACE_DIG_COMP_ITERATIONS.bindings, &[]),
+        (shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS.bindings, &[]),
         (shaders::SHADOW_COMP.bindings, &[]),
         (shaders::SHADE_COMP_SHADOWS.bindings, &[]),
         (shaders::HIT_DEPTH_COMP.bindings, &[]),
@@ -338,6 +343,11 @@ pub(super) fn host_exits() -> Result<Vec<(&'static str, Access, Access)>> {
             "gbuffer.depth",
             entry(Entry::Frame, Res::Depth),
             g.exit(Res::Depth),
+        ),
+        (
+            "gbuffer.curve (curved tracing)",
+            entry(Entry::Frame, Res::Curve),
+            g.exit(Res::Curve),
         ),
         (
             "hit uv",
@@ -483,6 +493,13 @@ mod tests {
                 .iter()
                 .map(|m| m.iterations_shader()),
         );
+        for iterations in [false, true] {
+            all.extend(
+                crate::method::Method::ALL
+                    .iter()
+                    .filter_map(|m| m.curved_shader(iterations)),
+            );
+        }
         for s in all {
             for b in s.bindings {
                 assert!(

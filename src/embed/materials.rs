@@ -220,15 +220,17 @@ impl DisplacementPass {
 
     /// Traces the material's pixels as curved macro geometry (`on`) or as their tangent
     /// planes (the default). Curved: each pixel's ray follows the curvature of the base
-    /// surface under it, measured from its neighbours' normals and uvs in the G-buffer,
-    /// and a ray that crosses the shell between the base surface and its inward offset
+    /// surface under it, which the host's G-buffer writes into its curve image
+    /// ([`crate::passes::gbuffer::GBufferViews::curve`], `dispmap_gbuffer_curve` in
+    /// `glsl/include/dispmap_gbuffer.glsl`; a frame without it fails naming
+    /// `gbuffer.curve`), and a ray that crosses the shell between the base surface and its inward offset
     /// without meeting the relief is a miss (no hit: what lies behind shows), so carved
     /// outlines appear on curved meshes (docs/methods.md, "Curved surfaces"). It needs the
     /// frame's camera ([`DisplacementPass::record`] with a [`crate::embed::ShadeTarget`],
     /// or [`DisplacementPass::record_with_camera`]); without one the material is traced
     /// flat. Only methods with [`crate::method::Method::traces_curved`] (`exact`, `relief`,
     /// `pom`) follow it. Turn it on for materials drawn on curved meshes; on a plane it
-    /// changes nothing but costs the neighbour reads. Takes effect from the next record;
+    /// changes nothing but costs the curve image's reads. Takes effect from the next record;
     /// builds the method's curved pipeline variant (the flat one is compiled without the
     /// curved path) and retires the flat one if no material uses it. On error the pass is
     /// unchanged.

@@ -278,6 +278,18 @@ impl DisplacementPass {
             ));
         }
         inputs.gbuffer.check(extent)?;
+        if inputs.gbuffer.curve.is_none()
+            && self
+                .materials
+                .iter()
+                .flatten()
+                .any(|m| m.curved && m.settings.method.traces_curved())
+        {
+            return Err(Error::invalid(
+                "gbuffer.curve",
+                "a material traced curved (set_material_curved) needs the G-buffer's curve image",
+            ));
+        }
         let storage = vk::ImageUsageFlags::STORAGE;
         inputs.hit.uv.check(
             "hit.uv",

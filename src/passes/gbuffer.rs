@@ -6,6 +6,7 @@
 //! | `ray` | `R32G32B32A32_SFLOAT` | entry `uv0` (tile-local for repeat addressing) and parallax vector `P` |
 //! | `frame` | `R32G32_UINT` | world normal `N` (octahedral, 2 x 14 bits), world tangent `T = dP/du` (its angle about `N`, 13 bits), handedness (`B = ±N x T`), material + 1 (11 bits; 0: not displaced), surface id (11 bits): [`frame`] packs and unpacks it, as `glsl/include/dispmap_gbuffer.glsl` does |
 //! | `depth` | `D32_SFLOAT` | reverse-Z depth, cleared to 0: 0 means no geometry |
+//! | `curve` | `R16G16_SFLOAT` | only for frames with materials traced curved: the normal curvature along the pixel's ray in units of the depth and the depth's change along it (`dispmap_gbuffer_curve` in `glsl/include/dispmap_gbuffer.glsl`), cleared to 0 |
 //!
 //! The surface id names a piece of geometry whose UVs are continuous (a chart). DIG
 //! trusts a block's corner interval only when the block's corners and the pixel share
@@ -54,6 +55,8 @@ pub const RAY_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const FRAME_FORMAT: vk::Format = vk::Format::R32G32_UINT;
 /// Format of the depth attachment.
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+/// Format of the optional `curve` attachment (the curved trace's input).
+pub const CURVE_FORMAT: vk::Format = vk::Format::R16G16_SFLOAT;
 
 /// The views of a G-buffer the compute passes read (dispmap's own [`GBuffer`] or a host
 /// engine's images with the same formats and meaning, see the module docs), each with the
@@ -66,6 +69,11 @@ pub struct GBufferViews {
     pub frame: HostView,
     /// Reverse-Z depth, 0 = no geometry ([`DEPTH_FORMAT`], a depth-aspect view).
     pub depth: HostView,
+    /// The curve of each pixel ([`CURVE_FORMAT`], `dispmap_gbuffer_curve`): required by
+    /// the curved trace (a material traced curved,
+    /// [`crate::embed::DisplacementPass::set_material_curved`]), read by nothing else;
+    /// `None` for a frame without one.
+    pub curve: Option<HostView>,
     /// Frame size in pixels (every image's size).
     pub extent: vk::Extent2D,
 }
@@ -79,6 +87,9 @@ impl GBufferViews {
             .check("gbuffer.ray", &[RAY_FORMAT], sampled, extent)?;
         self.frame
             .check("gbuffer.frame", &[FRAME_FORMAT], sampled, extent)?;
+        if let Some(curve) = &self.curve {
+            curve.check("gbuffer.curve", &[CURVE_FORMAT], sampled, extent)?;
+        }
         self.depth
             .check("gbuffer.depth", &[DEPTH_FORMAT], sampled, extent)
     }
@@ -92,27 +103,51 @@ pub struct GBuffer {
     pub frame: Image,
     /// Reverse-Z depth.
     pub depth: Image,
+    /// The curve of each pixel, for a frame with curved tracing ([`GBuffer::new_curved`]).
+    pub curve: Option<Image>,
 }
 
 impl GBuffer {
     /// Creates the three images for a `extent` frame.
     pub fn new(ctx: &Context, extent: vk::Extent2D) -> Result<Self> {
+        Self::build(ctx, extent, false)
+    }
+
+    /// Creates the three images and the curve image (drawn by pipelines built with
+    /// `curve`, [`GBufferPass::new_layer`]) for a `extent` frame.
+    pub fn new_curved(ctx: &Context, extent: vk::Extent2D) -> Result<Self> {
+        Self::build(ctx, extent, true)
+    }
+
+    fn build(ctx: &Context, extent: vk::Extent2D, curve: bool) -> Result<Self> {
+        use crate::gpu::owned::Guard;
         let color = vk::ImageUsageFlags::COLOR_ATTACHMENT
             | vk::ImageUsageFlags::SAMPLED
             | vk::ImageUsageFlags::TRANSFER_SRC;
+        let image = |name: &str, format: vk::Format, usage: vk::ImageUsageFlags| {
+            let image = Image::new(ctx, name, format, extent, 1, usage)?;
+            // SAFETY: no command has used the image; it is kept below or destroyed here.
+            Ok::<_, crate::error::Error>(unsafe { Guard::new(ctx, image) })
+        };
+        let ray = image("gbuffer.ray", RAY_FORMAT, color)?;
+        let frame = image("gbuffer.frame", FRAME_FORMAT, color)?;
+        let curve = if curve {
+            Some(image("gbuffer.curve", CURVE_FORMAT, color)?)
+        } else {
+            None
+        };
+        let depth = image(
+            "gbuffer.depth",
+            DEPTH_FORMAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+                | vk::ImageUsageFlags::SAMPLED
+                | vk::ImageUsageFlags::TRANSFER_SRC,
+        )?;
         Ok(GBuffer {
-            ray: Image::new(ctx, "gbuffer.ray", RAY_FORMAT, extent, 1, color)?,
-            frame: Image::new(ctx, "gbuffer.frame", FRAME_FORMAT, extent, 1, color)?,
-            depth: Image::new(
-                ctx,
-                "gbuffer.depth",
-                DEPTH_FORMAT,
-                extent,
-                1,
-                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
-                    | vk::ImageUsageFlags::SAMPLED
-                    | vk::ImageUsageFlags::TRANSFER_SRC,
-            )?,
+            ray: ray.keep(),
+            frame: frame.keep(),
+            depth: depth.keep(),
+            curve: curve.map(Guard::keep),
         })
     }
 
@@ -122,40 +157,34 @@ impl GBuffer {
             ray: self.ray.host_view(),
             frame: self.frame.host_view(),
             depth: self.depth.host_view(),
+            curve: self.curve.as_ref().map(Image::host_view),
             extent: self.ray.extent,
         }
     }
 
-    /// The colour attachments in binding order.
-    pub fn colors(&self) -> [&Image; 2] {
-        [&self.ray, &self.frame]
-    }
-
-    /// Its images as a tracker's resources: the colour attachments, then the depth.
-    pub fn handles(&self) -> [Handle; 3] {
-        [
-            Handle::image(&self.ray),
-            Handle::image(&self.frame),
-            Handle::image(&self.depth),
-        ]
+    /// The colour attachments in location order (the curve image last, when there is one).
+    pub fn colors(&self) -> Vec<&Image> {
+        let mut c = vec![&self.ray, &self.frame];
+        c.extend(self.curve.as_ref());
+        c
     }
 
     /// Its images enter `t`: the colour attachments in `color`, the depth in `depth`
     /// (e.g. discarded, or a host's state after its last frame).
     pub fn enter(&self, t: &mut Tracker<Handle>, color: Access, depth: Access) {
-        let [ray, frame, d] = self.handles();
-        t.enter(ray, color);
-        t.enter(frame, color);
-        t.enter(d, depth);
+        for image in self.colors() {
+            t.enter(Handle::image(image), color);
+        }
+        t.enter(Handle::image(&self.depth), depth);
     }
 
     /// Declares the colour attachments accessed as `color` and the depth as `depth` (e.g.
     /// attachment writes for the G-buffer pass, compute sampled reads after it).
     pub fn declare(&self, t: &mut Tracker<Handle>, color: Access, depth: Access) -> Result<()> {
-        let [ray, frame, d] = self.handles();
-        t.declare(ray, color)?;
-        t.declare(frame, color)?;
-        t.declare(d, depth)
+        for image in self.colors() {
+            t.declare(Handle::image(image), color)?;
+        }
+        t.declare(Handle::image(&self.depth), depth)
     }
 }
 
@@ -167,6 +196,7 @@ impl Destroy for GBuffer {
             self.ray.destroy(ctx);
             self.frame.destroy(ctx);
             self.depth.destroy(ctx);
+            self.curve.destroy(ctx);
         }
     }
 }
@@ -181,17 +211,26 @@ const FIRST_DEPTH: &str = "u_first_depth";
 const FIRST_HIT: &str = "u_first_hit_height";
 
 /// The vertex and fragment shaders of the plane's pipeline (`mesh` false) or the
-/// meshes', the fragment stage's `BEHIND` variant for the behind layer.
-fn layer_shaders(mesh: bool, behind: bool) -> (shaders::Shader, shaders::Shader) {
-    match (mesh, behind) {
-        (true, false) => (shaders::GBUFFER_MESH_VERT, shaders::GBUFFER_MESH_FRAG),
-        (true, true) => (
-            shaders::GBUFFER_MESH_VERT,
-            shaders::GBUFFER_MESH_FRAG_BEHIND,
-        ),
-        (false, false) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG),
-        (false, true) => (shaders::GBUFFER_VERT, shaders::GBUFFER_FRAG_BEHIND),
-    }
+/// meshes', the fragment stage's `BEHIND` variant for the behind layer, its `CURVE`
+/// variant for a G-buffer with the curve image.
+fn layer_shaders(mesh: bool, behind: bool, curve: bool) -> (shaders::Shader, shaders::Shader) {
+    use shaders::*;
+    let frag = match (mesh, behind, curve) {
+        (true, false, false) => GBUFFER_MESH_FRAG,
+        (true, true, false) => GBUFFER_MESH_FRAG_BEHIND,
+        (true, false, true) => GBUFFER_MESH_FRAG_CURVE,
+        (true, true, true) => GBUFFER_MESH_FRAG_BEHIND_CURVE,
+        (false, false, false) => GBUFFER_FRAG,
+        (false, true, false) => GBUFFER_FRAG_BEHIND,
+        (false, false, true) => GBUFFER_FRAG_CURVE,
+        (false, true, true) => GBUFFER_FRAG_BEHIND_CURVE,
+    };
+    let vert = match (mesh, curve) {
+        (true, false) => GBUFFER_MESH_VERT,
+        (true, true) => GBUFFER_MESH_VERT_CURVE,
+        (false, _) => GBUFFER_VERT,
+    };
+    (vert, frag)
 }
 
 /// Set 0 of the plane's pipeline (`mesh` false) or the meshes' as the shaders declare it:
@@ -199,7 +238,7 @@ fn layer_shaders(mesh: bool, behind: bool) -> (shaders::Shader, shaders::Shader)
 /// meshes interpolate and bind nothing; the behind variant (`behind`) also reads the
 /// first layer's depth (sampled) and hit height image (a storage image).
 pub(crate) fn raster_set(mesh: bool, behind: bool) -> Result<RasterSet> {
-    let (vert, frag) = layer_shaders(mesh, behind);
+    let (vert, frag) = layer_shaders(mesh, behind, false);
     let mut declared = Vec::new();
     if !mesh {
         declared.push((PIXEL_RAYS, vk::DescriptorType::UNIFORM_BUFFER));
@@ -231,6 +270,9 @@ pub struct GBufferPass {
     /// The behind layer's variant (`BEHIND` in `glsl/gbuffer*.frag`): set 0 also has the
     /// first layer's depth and hit height image.
     behind: bool,
+    /// Draws into a G-buffer with the curve image ([`GBuffer::new_curved`]; the
+    /// fragment stage's `CURVE` variant).
+    curve: bool,
     /// The behind variant's nearest sampler of the first layer's depth (null otherwise).
     sampler: vk::Sampler,
 }
@@ -239,13 +281,28 @@ impl GBufferPass {
     /// Builds the pipeline of the plane and the quad (dynamic rendering: no render pass
     /// object; no vertex buffer).
     pub fn new(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, false, false, false)
+        Self::build(ctx, false, false, false, false)
+    }
+
+    /// The pipeline of any kind: the plane's or the meshes' (`mesh`), one-sided or
+    /// two-sided (`two_sided`, meshes only), the first layer's or the behind layer's
+    /// (`behind`), drawing into a G-buffer with the curve image or without (`curve`:
+    /// [`GBuffer::new_curved`], the fragment stage's `CURVE` variant, which writes the
+    /// curvature the curved trace reads).
+    pub fn new_layer(
+        ctx: &Context,
+        mesh: bool,
+        two_sided: bool,
+        behind: bool,
+        curve: bool,
+    ) -> Result<Self> {
+        Self::build(ctx, mesh, two_sided && mesh, behind, curve)
     }
 
     /// Builds the pipeline of meshes (`glsl/gbuffer_mesh.*`): one vertex buffer of
     /// [`crate::mesh::Vertex`] and `u32` indices, drawn by [`GBufferPass::record_mesh`].
     pub fn new_mesh(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, false, false)
+        Self::build(ctx, true, false, false, false)
     }
 
     /// As [`GBufferPass::new_mesh`] for two-sided meshes ([`crate::mesh::Mesh::two_sided`]):
@@ -255,7 +312,7 @@ impl GBufferPass {
     /// `TWO_SIDED` specialization constant set; built only for a frame that draws such a
     /// mesh.
     pub fn new_mesh_two_sided(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, true, false)
+        Self::build(ctx, true, true, false, false)
     }
 
     /// The behind layer's pipeline of the same kind as [`GBufferPass::new`] (`mesh`
@@ -264,7 +321,7 @@ impl GBufferPass {
     /// first-layer trace missed, behind the first layer's surface
     /// (`glsl/include/dispmap_behind.glsl`); drawn by [`record_draws_behind`].
     pub fn new_behind(ctx: &Context, mesh: bool, two_sided: bool) -> Result<Self> {
-        Self::build(ctx, mesh, two_sided && mesh, true)
+        Self::build(ctx, mesh, two_sided && mesh, true, false)
     }
 
     /// Whether this is a behind layer's pipeline ([`GBufferPass::new_behind`]).
@@ -282,17 +339,31 @@ impl GBufferPass {
         self.two_sided
     }
 
-    fn build(ctx: &Context, mesh: bool, two_sided: bool, behind: bool) -> Result<Self> {
+    /// Whether this pipeline draws into a G-buffer with the curve image.
+    pub fn has_curve(&self) -> bool {
+        self.curve
+    }
+
+    fn build(
+        ctx: &Context,
+        mesh: bool,
+        two_sided: bool,
+        behind: bool,
+        curve: bool,
+    ) -> Result<Self> {
         let dev = ctx.device();
-        let name = match (mesh, two_sided, behind) {
-            (false, _, false) => "gbuffer",
-            (true, false, false) => "gbuffer_mesh",
-            (true, true, false) => "gbuffer_mesh_two_sided",
-            (false, _, true) => "gbuffer_behind",
-            (true, false, true) => "gbuffer_mesh_behind",
-            (true, true, true) => "gbuffer_mesh_two_sided_behind",
-        };
-        let (vert, frag) = layer_shaders(mesh, behind);
+        let name = format!(
+            "{}{}{}",
+            match (mesh, two_sided) {
+                (false, _) => "gbuffer",
+                (true, false) => "gbuffer_mesh",
+                (true, true) => "gbuffer_mesh_two_sided",
+            },
+            if behind { "_behind" } else { "" },
+            if curve { "_curve" } else { "" }
+        );
+        let name = name.as_str();
+        let (vert, frag) = layer_shaders(mesh, behind, curve);
         let set = raster_set(mesh, behind)?;
         let has_set = !set.is_empty();
         let (set_layout, rays) = if !has_set {
@@ -326,6 +397,7 @@ impl GBufferPass {
             mesh,
             two_sided,
             behind,
+            curve,
             sampler: vk::Sampler::null(),
         };
         if behind {
@@ -361,8 +433,14 @@ impl GBufferPass {
             input_rate: vk::VertexInputRate::VERTEX,
         }];
         let attributes = crate::mesh::vertex_attributes();
+        // The uv scale (the last attribute) only for the CURVE variant, which reads it.
+        let read = if curve {
+            attributes.len()
+        } else {
+            attributes.len() - 1
+        };
         let (vertex_bindings, vertex_attributes): (&[_], &[_]) = if mesh {
-            (&bindings, &attributes)
+            (&bindings, &attributes[..read])
         } else {
             (&[], &[])
         };
@@ -385,7 +463,7 @@ impl GBufferPass {
                 vertex_bindings,
                 vertex_attributes,
                 depth_compare: vk::CompareOp::GREATER,
-                color_formats: &[RAY_FORMAT, FRAME_FORMAT],
+                color_formats: &[RAY_FORMAT, FRAME_FORMAT, CURVE_FORMAT][..2 + usize::from(curve)],
                 depth_format: DEPTH_FORMAT,
                 name: &format!("{name}.pipeline"),
             },
@@ -607,6 +685,23 @@ unsafe fn record_layer(
         _ => None,
     };
     let extent = target.ray.extent;
+    if let Some(d) = draws
+        .iter()
+        .find(|d| d.pass.curve != target.curve.is_some())
+    {
+        return Err(crate::error::Error::invalid(
+            "G-buffer draws",
+            format!(
+                "a pipeline {} the curve image drawn into a G-buffer {} it",
+                if d.pass.curve { "with" } else { "without" },
+                if target.curve.is_some() {
+                    "with"
+                } else {
+                    "without"
+                }
+            ),
+        ));
+    }
     // Each plane pipeline's pixel-ray buffer, once.
     let mut updated: Vec<*const GBufferPass> = Vec::new();
     for draw in draws {
@@ -695,6 +790,7 @@ unsafe fn record_layer(
                 first.is_some(),
                 "behind pipeline vs layer"
             );
+
             dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
             if !write.is_empty() {
                 ctx.push_descriptor().cmd_push_descriptor_set(

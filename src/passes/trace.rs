@@ -14,6 +14,7 @@
 //! | `u_iterations` | iteration counts (`R32_UINT` storage, written; the `ITERATIONS` variant only) | `GENERAL` |
 //! | `u_pyramid` | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_corners` | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_curve` | G-buffer `curve` (`R16G16_SFLOAT`; the `CURVED` variant only, [`Method::curved_shader`]) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_frame` | G-buffer `frame` (the material; the surface id for the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_cone` | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
@@ -99,7 +100,11 @@ pub fn join_hits(uv: &[u8], height: &[u8], iterations: Option<&[u8]>) -> Vec<Hit
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
 /// The bindings of a method with `needs`, by GLSL name.
-fn bindings(needs: Needs, iterations: bool) -> Vec<(&'static str, vk::DescriptorType)> {
+fn bindings(
+    needs: Needs,
+    iterations: bool,
+    curved: bool,
+) -> Vec<(&'static str, vk::DescriptorType)> {
     let mut b = vec![
         ("u_ray", SAMPLED),
         ("u_depth", SAMPLED),
@@ -111,6 +116,9 @@ fn bindings(needs: Needs, iterations: bool) -> Vec<(&'static str, vk::Descriptor
     ];
     if iterations {
         b.push(("u_iterations", STORAGE));
+    }
+    if curved {
+        b.push(("u_curve", SAMPLED));
     }
     if needs.pyramid.is_some() {
         b.push(("u_pyramid", SAMPLED));
@@ -200,12 +208,11 @@ impl TracePass {
         self.pipeline.pipeline.bindings
     }
 
-    /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`])
-    /// when `curved` is set and the method traces curved geometry
-    /// ([`Method::traces_curved`]), else the flat variant, compiled without it (the
-    /// shader's `CURVED_VARIANT` specialization constant). With `iterations` it is the
-    /// shader's `ITERATIONS` variant, which also writes each pixel's iteration count
-    /// ([`TraceInputs::iterations`]).
+    /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`],
+    /// which reads the G-buffer's curve image) when `curved` is set and the method traces
+    /// curved geometry ([`Method::curved_shader`]), else the flat variant, compiled
+    /// without it. With `iterations` it is the shader's `ITERATIONS` variant, which also
+    /// writes each pixel's iteration count ([`TraceInputs::iterations`]).
     pub fn new(ctx: &Context, method: Method, curved: bool, iterations: bool) -> Result<Self> {
         let curved = curved && method.traces_curved();
         let name = format!(
@@ -214,23 +221,18 @@ impl TracePass {
             if curved { ",curved" } else { "" },
             if iterations { ",iterations" } else { "" }
         );
-        let shader = if iterations {
-            method.iterations_shader()
-        } else {
-            method.shader()
+        let shader = match (method.curved_shader(iterations), curved, iterations) {
+            (Some(s), true, _) => s,
+            (_, _, true) => method.iterations_shader(),
+            (_, _, false) => method.shader(),
         };
         let pipeline = FetchPipeline::specialized(
             ctx,
             &name,
             &shader,
-            &bindings(method.needs(), iterations),
+            &bindings(method.needs(), iterations, curved),
             std::mem::size_of::<TraceParams>() as u32,
-            // The flat variant is the shader's default (`CURVED_VARIANT` false).
-            if curved {
-                &[("CURVED_VARIANT", vk::TRUE)]
-            } else {
-                &[]
-            },
+            &[],
         )?;
         Ok(TracePass {
             method,
@@ -335,6 +337,20 @@ impl TracePass {
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
         let frame = fetch(gbuffer.frame.view);
+        let curve = match (self.curved, gbuffer.curve) {
+            (true, Some(c)) => Some(fetch(c.view)),
+            (true, None) => {
+                return Err(Error::invalid(
+                    "gbuffer.curve",
+                    format!(
+                        "the curved trace of method {} reads the G-buffer's curve image, \
+                         which the frame does not give",
+                        self.method.name()
+                    ),
+                ));
+            }
+            (false, _) => None,
+        };
         let pl = &self.pipeline.pipeline;
         let mut writes = vec![
             pl.image("u_ray", &ray)?,
@@ -346,6 +362,9 @@ impl TracePass {
         ];
         if let Some(c) = &counts {
             writes.push(pl.image("u_iterations", c)?);
+        }
+        if let Some(c) = &curve {
+            writes.push(pl.image("u_curve", c)?);
         }
         if let Some(p) = &pyramids {
             writes.push(pl.image("u_pyramid", p)?);
@@ -428,10 +447,17 @@ mod tests {
     #[test]
     fn declared_bindings_match_the_shaders() {
         for &m in Method::ALL {
-            check_declared(&m.shader(), &bindings(m.needs(), false))
+            check_declared(&m.shader(), &bindings(m.needs(), false, false))
                 .unwrap_or_else(|e| panic!("{}: {e}", m.name()));
-            check_declared(&m.iterations_shader(), &bindings(m.needs(), true))
+            check_declared(&m.iterations_shader(), &bindings(m.needs(), true, false))
                 .unwrap_or_else(|e| panic!("{} with iterations: {e}", m.name()));
+            for iterations in [false, true] {
+                if let Some(s) = m.curved_shader(iterations) {
+                    check_declared(&s, &bindings(m.needs(), iterations, true)).unwrap_or_else(
+                        |e| panic!("{} curved, iterations {iterations}: {e}", m.name()),
+                    );
+                }
+            }
         }
     }
 
@@ -439,11 +465,11 @@ mod tests {
     #[test]
     fn a_binding_the_shader_lacks_is_refused() {
         let shader = Method::Relief.shader();
-        let mut declared = bindings(Method::Relief.needs(), false);
+        let mut declared = bindings(Method::Relief.needs(), false, false);
         assert!(check_declared(&shader, &declared).is_ok());
         declared.push(("u_cone", SAMPLED));
         assert!(check_declared(&shader, &declared).is_err());
-        let mut retyped = bindings(Method::Relief.needs(), false);
+        let mut retyped = bindings(Method::Relief.needs(), false, false);
         retyped[0].1 = STORAGE;
         assert!(check_declared(&shader, &retyped).is_err());
     }

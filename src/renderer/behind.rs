@@ -62,6 +62,8 @@ enum Layer {
     Ray,
     Frame,
     Depth,
+    /// The layer's curve image (a frame with meshes).
+    Curve,
     HitUv,
     HitHeight,
     Color,
@@ -77,12 +79,13 @@ impl Behind {
         plane: bool,
         mesh: bool,
         two_sided: bool,
+        curve: bool,
     ) -> Result<Self> {
-        let (gbuffer, hit) = layer_images(c, extent)?;
+        let (gbuffer, hit) = layer_images(c, extent, curve)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let background = unsafe { Guard::new(c, BackgroundPass::new_behind(c)?) };
         let pipeline = |on: bool, mesh: bool, two_sided: bool| -> Result<Option<GBufferPass>> {
-            on.then(|| GBufferPass::new_behind(c, mesh, two_sided))
+            on.then(|| GBufferPass::new_layer(c, mesh, two_sided, true, curve))
                 .transpose()
         };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
@@ -102,12 +105,59 @@ impl Behind {
         })
     }
 
+    /// Rebuilds the layer's G-buffer of `extent` and its pipelines with or without the
+    /// curve image (`curve`: the first layer's, [`Renderer::set_curved`]); the hit images,
+    /// the background and the mask stay. On error the layer is unchanged.
+    ///
+    /// # Safety
+    /// No pending GPU work uses the layer (the renderer waits for every frame).
+    pub(super) unsafe fn set_curve(
+        &mut self,
+        c: &Context,
+        extent: vk::Extent2D,
+        curve: bool,
+    ) -> Result<()> {
+        let gbuffer = if curve {
+            GBuffer::new_curved(c, extent)?
+        } else {
+            GBuffer::new(c, extent)?
+        };
+        // SAFETY: no command has used the guarded values yet; they are kept below.
+        let gbuffer = unsafe { Guard::new(c, gbuffer) };
+        let pipeline = |old: &Option<GBufferPass>| -> Result<Option<GBufferPass>> {
+            old.as_ref()
+                .map(|p| GBufferPass::new_layer(c, p.is_mesh(), p.is_two_sided(), true, curve))
+                .transpose()
+        };
+        // SAFETY: as above.
+        let plane = unsafe { Guard::new(c, pipeline(&self.plane)?) };
+        // SAFETY: as above.
+        let mesh = unsafe { Guard::new(c, pipeline(&self.mesh)?) };
+        // SAFETY: as above.
+        let two_sided = unsafe { Guard::new(c, pipeline(&self.two_sided)?) };
+        let mut old = (
+            std::mem::replace(&mut self.gbuffer, gbuffer.keep()),
+            std::mem::replace(&mut self.plane, plane.keep()),
+            std::mem::replace(&mut self.mesh, mesh.keep()),
+            std::mem::replace(&mut self.two_sided, two_sided.keep()),
+        );
+        // SAFETY: this function's contract: nothing pending uses the old objects.
+        unsafe {
+            old.0.destroy(c);
+            old.1.destroy(c);
+            old.2.destroy(c);
+            old.3.destroy(c);
+        }
+        Ok(())
+    }
+
     /// New images of `extent` (the caller swaps them in with [`Behind::swap_images`]).
     pub(super) fn images<'c>(
         c: &'c Context,
         extent: vk::Extent2D,
+        curve: bool,
     ) -> Result<(Guard<'c, GBuffer>, Guard<'c, Hits>)> {
-        layer_images(c, extent)
+        layer_images(c, extent, curve)
     }
 
     /// Swaps in `images`, returning the old ones (to destroy once no frame uses them).
@@ -134,9 +184,15 @@ impl Behind {
 fn layer_images(
     c: &Context,
     extent: vk::Extent2D,
+    curve: bool,
 ) -> Result<(Guard<'_, GBuffer>, Guard<'_, Hits>)> {
+    let gbuffer = if curve {
+        GBuffer::new_curved(c, extent)?
+    } else {
+        GBuffer::new(c, extent)?
+    };
     // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
-    let gbuffer = unsafe { Guard::new(c, GBuffer::new(c, extent)?) };
+    let gbuffer = unsafe { Guard::new(c, gbuffer) };
     // SAFETY: as above.
     let hit = unsafe {
         Guard::new(
@@ -189,6 +245,7 @@ impl Renderer {
                     plane,
                     mesh,
                     two_sided,
+                    self.gbuffer.curve.is_some(),
                 )?);
             }
             (false, Some(_)) => {
@@ -339,6 +396,10 @@ impl Renderer {
                 Layer::Ray => &behind.gbuffer.ray,
                 Layer::Frame => &behind.gbuffer.frame,
                 Layer::Depth => &behind.gbuffer.depth,
+                Layer::Curve => match &behind.gbuffer.curve {
+                    Some(c) => c,
+                    None => return Target::Memory,
+                },
                 Layer::HitUv => &behind.hit.uv,
                 Layer::HitHeight => &behind.hit.height,
                 Layer::Color => &self.color,
@@ -366,6 +427,7 @@ impl Renderer {
             ));
         }
         t.enter(Layer::FirstDepth, Access::COMPUTE_SAMPLED);
+        let curve = behind.gbuffer.curve.is_some();
         for key in [
             Layer::Ray,
             Layer::Frame,
@@ -374,6 +436,9 @@ impl Renderer {
             Layer::HitHeight,
         ] {
             t.enter(key, DISCARD);
+        }
+        if curve {
+            t.enter(Layer::Curve, DISCARD);
         }
         let fragment = vk::PipelineStageFlags2::FRAGMENT_SHADER;
         let mut w = ScopeWriter::new(
@@ -430,6 +495,9 @@ impl Renderer {
                 ] {
                     t.declare(key, access)?;
                 }
+                if curve {
+                    t.declare(Layer::Curve, Access::COLOR_ATTACHMENT_WRITE)?;
+                }
                 t.flush(&ctx, cmd, images)?;
                 match &behind.mask {
                     // Kept to the missed pixels by the mask (the objects' raster
@@ -455,6 +523,9 @@ impl Renderer {
                 // The layer's flat geometry, lit by the host (the background's variant).
                 for key in [Layer::Ray, Layer::Frame, Layer::Depth] {
                     t.declare(key, Access::COMPUTE_SAMPLED)?;
+                }
+                if curve {
+                    t.declare(Layer::Curve, Access::COMPUTE_SAMPLED)?;
                 }
                 t.declare(Layer::Color, Access::COMPUTE_STORAGE_WRITE)?;
                 t.flush(&ctx, cmd, images)?;

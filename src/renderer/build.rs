@@ -51,21 +51,21 @@ impl Renderer {
         }
         let extent = settings.extent();
         let c = &**ctx;
-        // Built in order; a failure destroys what the guards hold.
-        let host = HostParts::new(c, extent)?;
+        // Built in order; a failure destroys what the guards hold. The G-buffer gets its
+        // curve image when a material is traced curved (`Renderer::set_curved`).
+        let curve = false;
+        let host = HostParts::new(c, extent, curve)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let gbuffer_pass = unsafe {
             Guard::new(
                 c,
-                if let Some(m) = &mesh {
-                    if m.two_sided {
-                        GBufferPass::new_mesh_two_sided(c)?
-                    } else {
-                        GBufferPass::new_mesh(c)?
-                    }
-                } else {
-                    GBufferPass::new(c)?
-                },
+                GBufferPass::new_layer(
+                    c,
+                    mesh.is_some(),
+                    mesh.as_ref().is_some_and(|m| m.two_sided),
+                    false,
+                    curve,
+                )?,
             )
         };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
@@ -207,9 +207,13 @@ impl Renderer {
         check_eye(&settings, framing, objects, &placed)?;
         let extent = settings.extent();
         let c = &**ctx;
-        let host = HostParts::new(c, extent)?;
+        // The G-buffer gets its curve image, which every pipeline drawing into it then
+        // writes, when a material is traced curved (`Renderer::set_curved`).
+        let curve = false;
+        let host = HostParts::new(c, extent, curve)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
-        let gbuffer_pass = unsafe { Guard::new(c, GBufferPass::new(c)?) };
+        let gbuffer_pass =
+            unsafe { Guard::new(c, GBufferPass::new_layer(c, false, false, false, curve)?) };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let mut drawn = unsafe {
             Guard::new(
@@ -225,10 +229,10 @@ impl Renderer {
         };
         // Only the pipelines the objects need.
         if placed.iter().flatten().any(|m| !m.two_sided) {
-            drawn.mesh_pass = Some(GBufferPass::new_mesh(c)?);
+            drawn.mesh_pass = Some(GBufferPass::new_layer(c, true, false, false, curve)?);
         }
         if placed.iter().flatten().any(|m| m.two_sided) {
-            drawn.two_sided_pass = Some(GBufferPass::new_mesh_two_sided(c)?);
+            drawn.two_sided_pass = Some(GBufferPass::new_layer(c, true, true, false, curve)?);
         }
         for mesh in &placed {
             let buffers = mesh
@@ -347,7 +351,7 @@ struct HostParts<'c> {
 
 impl<'c> HostParts<'c> {
     /// Builds them in order; a failure destroys what was built.
-    fn new(c: &'c Context, extent: vk::Extent2D) -> Result<Self> {
+    fn new(c: &'c Context, extent: vk::Extent2D, curve: bool) -> Result<Self> {
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let shot = unsafe { Guard::new(c, OneShot::new(c, "renderer")?) };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
@@ -361,7 +365,7 @@ impl<'c> HostParts<'c> {
                 )?),
             )
         };
-        let (gbuffer, hit, color) = frame_images(c, extent)?;
+        let (gbuffer, hit, color) = frame_images(c, extent, curve)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let background = unsafe { Guard::new(c, BackgroundPass::new(c)?) };
         Ok(HostParts {
@@ -465,14 +469,21 @@ impl Destroy for Hits {
     }
 }
 
-/// The images sized by the frame: the G-buffer, the hit images and the colour image, each
-/// guarded until the caller keeps it (creation and `resize`).
+/// The images sized by the frame: the G-buffer (with the curve image when `curve`), the
+/// hit images and the colour image, each guarded until the caller keeps it (creation and
+/// `resize`).
 pub(super) fn frame_images(
     c: &Context,
     extent: vk::Extent2D,
+    curve: bool,
 ) -> Result<(Guard<'_, GBuffer>, Guard<'_, Hits>, Guard<'_, Image>)> {
+    let gbuffer = if curve {
+        GBuffer::new_curved(c, extent)?
+    } else {
+        GBuffer::new(c, extent)?
+    };
     // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
-    let gbuffer = unsafe { Guard::new(c, GBuffer::new(c, extent)?) };
+    let gbuffer = unsafe { Guard::new(c, gbuffer) };
     // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
     let hit = unsafe {
         Guard::new(

@@ -211,7 +211,7 @@ impl Renderer {
         // shaders too after the first forward frame); the tracker places every barrier
         // from the accesses declared below.
         let mut t = Tracker::new();
-        let [ray, frame, depth] = g.handles();
+        let [ray, frame, depth] = [&g.ray, &g.frame, &g.depth].map(Handle::image);
         let (hit_uv, hit_height) = (Handle::image(&self.hit.uv), Handle::image(&self.hit.height));
         let (counts, color) = (Handle::image(iterations), Handle::image(&self.color));
         for image in [ray, frame, depth, hit_uv, hit_height, counts, color] {

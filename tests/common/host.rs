@@ -79,6 +79,7 @@ impl RayHost {
                     | vk::ImageUsageFlags::TRANSFER_DST,
             )
             .unwrap(),
+            curve: None,
         };
         let colors = (0..slots)
             .map(|s| {

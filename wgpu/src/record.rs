@@ -140,6 +140,7 @@ pub unsafe fn record(
         ray,
         frame: host_view(frame.frame, "gbuffer.frame")?,
         depth: host_view(frame.depth, "gbuffer.depth")?,
+        curve: None,
         extent: ray.extent,
     };
     let hit = HitImages {

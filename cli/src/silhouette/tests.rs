@@ -146,3 +146,67 @@ fn the_outline_band_counts_disagreement_near_edges_only() {
     let empty = outline_agreement(&[false; 280], &[false; 280], w, h);
     assert_eq!((empty.band, empty.share()), (0, 1.0));
 }
+
+#[test]
+fn the_uv_scales_are_the_meshes_own() {
+    // The reference computes its vertices' uv scales itself; they are the model's
+    // (`Vertex::scale`, which the G-buffer's curve output interpolates).
+    for mesh in [Mesh::cube(), Mesh::sphere(), Mesh::torus()] {
+        let positions: Vec<DVec3> = mesh
+            .vertices
+            .iter()
+            .map(|v| DVec3::from(v.position.map(f64::from)))
+            .collect();
+        for (v, s) in mesh.vertices.iter().zip(uv_scales(&mesh, &positions)) {
+            assert!(
+                (f64::from(v.scale) - s).abs() <= 1e-6 * s.max(1.0),
+                "{}: {v:?} against {s}",
+                mesh.label
+            );
+        }
+    }
+}
+
+#[test]
+fn a_surface_met_from_behind_is_not_a_hit() {
+    // The unit cube with the map at the bottom: each face's offset lies 0.1 inside it. A
+    // ray entering the top face near its front edge and heading down and forward crosses
+    // the front face's offset (z = 0.4) from inside the cube at y = 0.47, within the top
+    // face's shell: that is the back of the front face's relief, not a visible surface; it
+    // leaves through the front face without meeting the top face's offset (y = 0.4).
+    let mesh = Mesh::cube();
+    let bottom = flat(0.0);
+    let surface = DisplacedMesh::new(&mesh, DMat4::IDENTITY, &bottom, Addressing::Clamp, 0.1);
+    let dir = DVec3::new(0.0, -0.3, 1.0).normalize();
+    let entry = DVec3::new(0.0, 0.5, 0.3);
+    assert_eq!(surface.first_hit(entry - dir, dir), None);
+    // The same ray reversed meets the front face's offset from outside.
+    let back = -dir;
+    let t = surface
+        .first_hit(DVec3::new(0.0, 0.44, 0.5) - back, back)
+        .unwrap();
+    let p = DVec3::new(0.0, 0.44, 0.5) - back + back * t;
+    assert!((p.z - 0.4).abs() < 1e-9, "{p}");
+}
+
+#[test]
+fn a_two_sided_mesh_is_displaced_from_both_sides() {
+    // The quad (y = 0, facing +y), map at the bottom, depth 0.1: seen from above its
+    // displaced surface is 0.1 below it; two-sided, seen from below, 0.1 above it.
+    let mut mesh = Mesh::quad();
+    let bottom = flat(0.0);
+    let down = DVec3::new(0.0, -1.0, 0.0);
+    let origin = DVec3::new(0.5, 2.0, 0.5);
+    let one = DisplacedMesh::new(&mesh, DMat4::IDENTITY, &bottom, Addressing::Clamp, 0.1);
+    assert!((one.first_hit(origin, down).unwrap() - 2.1).abs() < 1e-9);
+    let below = DVec3::new(0.5, -2.0, 0.5);
+    assert_eq!(
+        one.first_hit(below, -down),
+        None,
+        "one-sided: the back is not seen"
+    );
+    mesh.two_sided = true;
+    let two = DisplacedMesh::new(&mesh, DMat4::IDENTITY, &bottom, Addressing::Clamp, 0.1);
+    assert!((two.first_hit(origin, down).unwrap() - 2.1).abs() < 1e-9);
+    assert!((two.first_hit(below, -down).unwrap() - 2.1).abs() < 1e-9);
+}
