@@ -29,7 +29,10 @@
 //! edge) a ray that leaves one face's shell can meet the other face's offset from behind,
 //! inside the solid that face bounds: not a visible surface, so the ray goes on. A
 //! two-sided mesh (`Mesh::two_sided`) is displaced from both sides, as the passes draw
-//! it: its back side is the mirrored surface `q = p + (1 - H(uv)) d n`, facing `-n`.
+//! it: its back side is the mirrored surface `q = p + (1 - H(uv)) d n`, facing `-n`,
+//! carved into the wall from the side the eye sees it from, so it counts only for a ray
+//! whose last crossing of the base mesh before it passed from the back side (a ray that
+//! skims past the base outline never meets the back side's relief standing outside it).
 //!
 //! # Tessellation and tracing
 //!
@@ -117,6 +120,9 @@ pub struct DisplacedMesh<'a> {
     /// Each triangle's orientation: +1 where its winding's normal points along its
     /// corners' normals (its sub-triangles' outside), -1 where against.
     facing: Vec<f64>,
+    /// The mesh's own triangles (the first `sides` of `triangles`); the rest, for a
+    /// two-sided mesh, are their back sides.
+    sides: usize,
     bounds: Vec<Aabb>,
     splits: Vec<usize>,
     cache: Vec<OnceLock<Tessellation>>,
@@ -285,6 +291,7 @@ impl<'a> DisplacedMesh<'a> {
         DisplacedMesh {
             triangles,
             facing,
+            sides: mesh.indices.len() / 3,
             bounds,
             splits,
             cache,
@@ -343,6 +350,34 @@ impl<'a> DisplacedMesh<'a> {
             .filter_map(|(t, b)| b.entry(origin, inv, f64::INFINITY).map(|e| (e, t)))
             .collect();
         candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // A two-sided mesh's base crossings along the ray, each with whether it passes
+        // from the side the normals point to (the back sides' rule).
+        let mut crossings: Vec<(f64, bool)> = if self.triangles.len() > self.sides {
+            candidates
+                .iter()
+                .filter(|&&(_, t)| t < self.sides)
+                .filter_map(|&(_, t)| {
+                    let [a, b, c] = &self.triangles[t];
+                    let inward = (b.p - a.p).cross(c.p - a.p).dot(dir) * self.facing[t] < 0.0;
+                    hit_triangle(origin, dir, a.p, b.p, c.p, f64::INFINITY).map(|h| (h, inward))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        // A ray through an edge or a vertex crosses once, whatever the triangles there
+        // report.
+        crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
+        crossings.dedup_by(|b, a| (b.0 - a.0).abs() <= 1e-9 * a.0.abs().max(1.0));
+        // Whether the last crossing before `h` passed from the back side (into the side
+        // the normals point to): where the back side's relief is seen.
+        let behind_base = |h: f64| {
+            crossings
+                .iter()
+                .rev()
+                .find(|c| c.0 < h)
+                .is_some_and(|c| !c.1)
+        };
         let mut best = f64::INFINITY;
         for (entry, t) in candidates {
             if entry >= best {
@@ -353,6 +388,8 @@ impl<'a> DisplacedMesh<'a> {
             // A hit from outside: the ray against the sub-triangle's oriented normal.
             let outside =
                 |a: DVec3, b: DVec3, c: DVec3| (b - a).cross(c - a).dot(dir) * facing < 0.0;
+            let back_side = t >= self.sides;
+            let counts = |h: f64| !back_side || behind_base(h);
             for &(bound, j0, i0) in &tess.blocks {
                 if bound.entry(origin, inv, best).is_none() {
                     continue;
@@ -366,6 +403,7 @@ impl<'a> DisplacedMesh<'a> {
                         let c = tess.vertices[tess.at(i, j + 1)];
                         if outside(a, b, c)
                             && let Some(h) = hit_triangle(origin, dir, a, b, c, best)
+                            && counts(h)
                         {
                             best = h;
                         }
@@ -373,6 +411,7 @@ impl<'a> DisplacedMesh<'a> {
                             let d = tess.vertices[tess.at(i + 1, j + 1)];
                             if outside(b, d, c)
                                 && let Some(h) = hit_triangle(origin, dir, b, d, c, best)
+                                && counts(h)
                             {
                                 best = h;
                             }

@@ -405,6 +405,7 @@ fn frames(gpu: &WgpuDevice, o: &Options) -> Result<Frames> {
                 ray: slot.ray.image(),
                 frame: slot.frame.image(),
                 depth: slot.depth.image(),
+                curve: None,
                 hit_uv: slot.hit_uv.image(),
                 hit_height: slot.hit_height.image(),
                 shade: Some(WgpuShade {

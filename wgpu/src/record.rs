@@ -32,8 +32,9 @@ pub struct WgpuShade<'a> {
 
 /// One frame's wgpu textures (the G-buffer contract of `dispmap::embed`, as wgpu
 /// formats: `ray` `Rgba32Float`, `frame` `Rg32Uint`, `depth`
-/// `Depth32Float`, each with `TEXTURE_BINDING`; `hit_uv` `Rg32Float` and `hit_height`
-/// `R32Float` with `STORAGE_BINDING`).
+/// `Depth32Float`, each with `TEXTURE_BINDING`, and for a frame with a material traced
+/// curved `curve` `Rg16Float`; `hit_uv` `Rg32Float` and `hit_height` `R32Float` with
+/// `STORAGE_BINDING`).
 #[derive(Clone, Copy, Debug)]
 pub struct WgpuFrame<'a> {
     /// The frame-in-flight slot (`0..frames_in_flight`; the slot contract: the previous
@@ -46,6 +47,11 @@ pub struct WgpuFrame<'a> {
     /// Reverse-Z depth (0 = no geometry); with [`DepthMerge`] also `RENDER_ATTACHMENT`,
     /// and it receives the corrected depth of the displaced pixels.
     pub depth: WgpuImage<'a>,
+    /// The curve of each pixel (`Rg16Float`, what `dispmap_gbuffer_curve` in
+    /// `glsl/include/dispmap_gbuffer.glsl` computes; the host's G-buffer shader writes it
+    /// as a third colour output): required while a material is traced curved
+    /// (`DisplacementPass::set_material_curved`), `None` otherwise.
+    pub curve: Option<WgpuImage<'a>>,
     /// The hit uv image the pass writes (each hit's `u`, `v`).
     pub hit_uv: WgpuImage<'a>,
     /// The hit height image the pass writes (each hit's height, -1 for none).
@@ -140,7 +146,10 @@ pub unsafe fn record(
         ray,
         frame: host_view(frame.frame, "gbuffer.frame")?,
         depth: host_view(frame.depth, "gbuffer.depth")?,
-        curve: None,
+        curve: frame
+            .curve
+            .map(|c| host_view(c, "gbuffer.curve"))
+            .transpose()?,
         extent: ray.extent,
     };
     let hit = HitImages {

@@ -209,4 +209,10 @@ fn a_two_sided_mesh_is_displaced_from_both_sides() {
     let two = DisplacedMesh::new(&mesh, DMat4::IDENTITY, &bottom, Addressing::Clamp, 0.1);
     assert!((two.first_hit(origin, down).unwrap() - 2.1).abs() < 1e-9);
     assert!((two.first_hit(below, -down).unwrap() - 2.1).abs() < 1e-9);
+    // A ray from above that passes just beside the quad's edge (outside the base) and
+    // under it turns back up does not meet the back side's relief standing above it: it
+    // never crossed the base.
+    let beside = DVec3::new(1.05, 0.05, 0.5);
+    let slant = DVec3::new(-1.0, 0.02, 0.0).normalize();
+    assert_eq!(two.first_hit(beside, slant), None);
 }
