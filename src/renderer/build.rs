@@ -53,8 +53,7 @@ impl Renderer {
         let c = &**ctx;
         // Built in order; a failure destroys what the guards hold. The G-buffer gets its
         // curve image when a material is traced curved (`Renderer::set_curved`).
-        let curve = false;
-        let host = HostParts::new(c, extent, curve)?;
+        let host = HostParts::new(c, extent)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let gbuffer_pass = unsafe {
             Guard::new(
@@ -64,7 +63,7 @@ impl Renderer {
                     mesh.is_some(),
                     mesh.as_ref().is_some_and(|m| m.two_sided),
                     false,
-                    curve,
+                    false,
                 )?,
             )
         };
@@ -209,11 +208,9 @@ impl Renderer {
         let c = &**ctx;
         // The G-buffer gets its curve image, which every pipeline drawing into it then
         // writes, when a material is traced curved (`Renderer::set_curved`).
-        let curve = false;
-        let host = HostParts::new(c, extent, curve)?;
+        let host = HostParts::new(c, extent)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
-        let gbuffer_pass =
-            unsafe { Guard::new(c, GBufferPass::new_layer(c, false, false, false, curve)?) };
+        let gbuffer_pass = unsafe { Guard::new(c, GBufferPass::new(c)?) };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let mut drawn = unsafe {
             Guard::new(
@@ -229,10 +226,10 @@ impl Renderer {
         };
         // Only the pipelines the objects need.
         if placed.iter().flatten().any(|m| !m.two_sided) {
-            drawn.mesh_pass = Some(GBufferPass::new_layer(c, true, false, false, curve)?);
+            drawn.mesh_pass = Some(GBufferPass::new_mesh(c)?);
         }
         if placed.iter().flatten().any(|m| m.two_sided) {
-            drawn.two_sided_pass = Some(GBufferPass::new_layer(c, true, true, false, curve)?);
+            drawn.two_sided_pass = Some(GBufferPass::new_mesh_two_sided(c)?);
         }
         for mesh in &placed {
             let buffers = mesh
@@ -351,7 +348,7 @@ struct HostParts<'c> {
 
 impl<'c> HostParts<'c> {
     /// Builds them in order; a failure destroys what was built.
-    fn new(c: &'c Context, extent: vk::Extent2D, curve: bool) -> Result<Self> {
+    fn new(c: &'c Context, extent: vk::Extent2D) -> Result<Self> {
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let shot = unsafe { Guard::new(c, OneShot::new(c, "renderer")?) };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
@@ -365,7 +362,7 @@ impl<'c> HostParts<'c> {
                 )?),
             )
         };
-        let (gbuffer, hit, color) = frame_images(c, extent, curve)?;
+        let (gbuffer, hit, color) = frame_images(c, extent, false)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let background = unsafe { Guard::new(c, BackgroundPass::new(c)?) };
         Ok(HostParts {
