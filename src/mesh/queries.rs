@@ -93,7 +93,7 @@ impl Mesh {
             |(lo, hi), p| (lo.min(*p), hi.max(*p)),
         );
         let extent = (hi - lo).max_element();
-        if !(extent > 0.0) {
+        if extent <= 0.0 {
             return true;
         }
         let tolerance = 1e-6 * extent;
@@ -107,7 +107,7 @@ impl Mesh {
             let mut n = (pb - pa).cross(pc - pa);
             let length = n.length();
             // Degenerate (a pole's collapsed corner): no plane.
-            if !(length > 1e-12 * extent * extent) {
+            if length <= 1e-12 * extent * extent {
                 return true;
             }
             n /= length;
