@@ -178,8 +178,18 @@ pub struct Renderer {
     /// forward frame does not): what [`Renderer::reference_rays`] forms the centre rays
     /// of, even after a later `set_scene`.
     rays_frame: Option<(Scene, crate::scene::FrameCamera)>,
-    /// The behind layer ([`Renderer::set_behind`]), while on.
+    /// The behind layer ([`Renderer::set_behind`]), while on and drawn.
     behind: Option<behind::Behind>,
+    /// The behind layer is on but drawn empty: the frame's one object is a convex
+    /// one-sided mesh (`convex_alone`), behind whose misses nothing can show,
+    /// so no layer is allocated or recorded (its hits read as misses).
+    behind_empty: bool,
+    /// The frame's one geometry is a one-sided mesh that is convex
+    /// ([`crate::mesh::Mesh::is_convex`], decided once when the renderer is built).
+    convex_alone: bool,
+    /// Whether a convex mesh alone draws its behind layer empty
+    /// ([`Renderer::set_behind_convex_skip`], on by default).
+    convex_skip: bool,
     /// Whether the last frame was a forward frame ([`Renderer::render_forward`]): its
     /// iteration counts are the forward path's, not the pass's.
     forward_frame: bool,

@@ -36,4 +36,17 @@ bool dispmap_behind_keep(float first_hit_height, float first_depth, float depth)
         && depth < first_depth * (1.0 - DISPMAP_BEHIND_MARGIN);
 }
 
+// Whether a fragment's triangle faces the eye: its own plane (from the screen derivatives
+// of `eye_rel`, the fragment's position relative to the eye), oriented by `normal`, its
+// interpolated normal. Call it in uniform control flow (before any discard). The layer
+// draws a one-sided mesh's fragment only where this holds: near an outline the mesh's far
+// side, whose interpolated normals still face the eye, lies behind the missed pixels, but
+// it is where a missed ray leaves a convex shell, not a surface it meets (the first layer
+// keeps such fragments hidden behind the near side; the layer must not draw them).
+bool dispmap_behind_faces_eye(vec3 eye_rel, vec3 normal) {
+    vec3 face = cross(dFdx(eye_rel), dFdy(eye_rel));
+    face = dot(face, normal) < 0.0 ? -face : face;
+    return dot(face, eye_rel) <= 0.0;
+}
+
 #endif

@@ -206,7 +206,15 @@ fn layer_images(
 impl Renderer {
     /// Whether frames draw the behind layer (see [`Renderer::set_behind`]).
     pub fn behind(&self) -> bool {
-        self.behind.is_some()
+        self.behind.is_some() || self.behind_empty
+    }
+
+    /// Whether the behind layer is on but drawn empty: the frame's one object is a
+    /// one-sided convex mesh (the generated cube or sphere), behind whose misses nothing
+    /// can show, so frames neither allocate nor record the layer
+    /// ([`Renderer::set_behind_convex_skip`]).
+    pub fn behind_empty(&self) -> bool {
+        self.behind_empty
     }
 
     /// Turns the behind layer on or off: with it, a pixel whose displaced ray misses (a
@@ -216,20 +224,24 @@ impl Renderer {
     /// sky. A renderer of several objects ([`Renderer::with_objects`]) draws it from the
     /// start when an object can miss (a displaced mesh or a clamp-addressed object); a
     /// mesh drawn alone ([`Renderer::with_assets`]) can have it (a non-convex mesh shows
-    /// itself behind a curved miss) but starts without it; the tiled plane and the quad
-    /// alone have nothing behind them. Turning it on is refused for a renderer not built
-    /// with it (its pass has one frame slot).
+    /// itself behind a curved miss) but starts without it; for a one-sided convex mesh
+    /// alone the layer is on but empty ([`Renderer::behind_empty`]: nothing of a convex
+    /// mesh lies behind its own surface); the tiled plane and the quad alone have nothing
+    /// behind them. Turning it on is refused for a renderer not built with it (its pass
+    /// has one frame slot).
     pub fn set_behind(&mut self, on: bool) -> Result<()> {
         let c = &*self.ctx;
-        match (on, &self.behind) {
+        if on && !self.behind() && self.pass.settings().frames_in_flight <= BEHIND_SLOT {
+            return Err(Error::invalid(
+                "behind",
+                "this renderer was built without a behind layer (the tiled plane or the \
+                 quad alone, or objects that cannot miss)",
+            ));
+        }
+        let empty = on && self.objects.is_none() && self.convex_alone && self.convex_skip;
+        self.behind_empty = empty;
+        match (on && !empty, &self.behind) {
             (true, None) => {
-                if self.pass.settings().frames_in_flight <= BEHIND_SLOT {
-                    return Err(Error::invalid(
-                        "behind",
-                        "this renderer was built without a behind layer (the tiled plane or \
-                         the quad alone, or objects that cannot miss)",
-                    ));
-                }
                 let (plane, mesh, two_sided) = match (&self.objects, &self.mesh) {
                     (Some(o), _) => (
                         o.meshes.iter().any(Option::is_none),
@@ -257,6 +269,19 @@ impl Renderer {
         Ok(())
     }
 
+    /// Whether a one-sided convex mesh drawn alone has its behind layer drawn empty (`on`,
+    /// the default: [`Renderer::behind_empty`]) or drawn as any mesh's, every object
+    /// rasterised again and traced where it lies behind a miss (`off`: the same images
+    /// bit for bit, at the layer's cost; for measuring and testing the skip). Takes effect
+    /// at once when the layer is on.
+    pub fn set_behind_convex_skip(&mut self, on: bool) -> Result<()> {
+        self.convex_skip = on;
+        if self.behind() {
+            self.set_behind(true)?;
+        }
+        Ok(())
+    }
+
     /// Whether the behind layer's raster is masked ([`Renderer::set_behind_mask`]).
     pub fn behind_mask(&self) -> bool {
         self.behind.as_ref().is_some_and(|b| b.mask.is_some())
@@ -271,13 +296,14 @@ impl Renderer {
     /// miss: measured, it saved nothing on lavapipe (whose raster is bound by geometry) and
     /// made the layer 2.3x as slow on an NVIDIA H200 (1.41 -> 3.25 ms at 1920x1080, a part
     /// with little graphics hardware); BENCHMARKS.md has the figures. Refused without a
-    /// behind layer ([`Renderer::set_behind`]).
+    /// drawn behind layer ([`Renderer::set_behind`]; an empty one has no raster to mask).
     pub fn set_behind_mask(&mut self, on: bool) -> Result<()> {
         let c = &*self.ctx;
         let Some(b) = &mut self.behind else {
             return Err(Error::invalid(
                 "behind mask",
-                "this renderer draws no behind layer (turn it on with set_behind first)",
+                "this renderer draws no behind layer (turn it on with set_behind first; a \
+                 convex mesh alone draws it empty)",
             ));
         };
         match (on, &b.mask) {
@@ -290,9 +316,15 @@ impl Renderer {
     }
 
     /// The last frame's behind-layer hits (`None` without the layer): `NO_HIT_HEIGHT`
-    /// where the layer has no geometry (every pixel whose first-layer trace hit); the
-    /// iteration counts are the pass's of its frame slot 1.
+    /// where the layer has no geometry (every pixel whose first-layer trace hit, every
+    /// pixel of an empty layer); the iteration counts are the pass's of its frame slot 1
+    /// (0 in an empty layer).
     pub fn read_behind_hits(&self) -> Result<Option<Vec<HitTexel>>> {
+        if self.behind_empty {
+            let e = self.settings.extent();
+            let none = [0.0, 0.0, crate::abi::NO_HIT_HEIGHT, 0.0];
+            return Ok(Some(vec![none; (e.width * e.height) as usize]));
+        }
         let Some(b) = &self.behind else {
             return Ok(None);
         };
@@ -308,6 +340,10 @@ impl Renderer {
     /// layer; inside, `None` where it has no geometry or flat geometry), as
     /// [`Renderer::read_materials`] reads the first layer's.
     pub fn read_behind_materials(&self) -> Result<Option<Vec<Option<u32>>>> {
+        if self.behind_empty {
+            let e = self.settings.extent();
+            return Ok(Some(vec![None; (e.width * e.height) as usize]));
+        }
         let Some(b) = &self.behind else {
             return Ok(None);
         };

@@ -38,6 +38,9 @@ impl Renderer {
             }
             _ => None,
         };
+        // A one-sided convex mesh alone never shows itself behind a miss: its behind layer
+        // is drawn empty (`Renderer::set_behind`).
+        let convex = mesh.as_ref().is_some_and(|m| !m.two_sided && m.is_convex());
         let max = ctx.info().max_image_dimension_2d;
         if field.width() > max || field.height() > max {
             return Err(Error::invalid(
@@ -100,7 +103,9 @@ impl Renderer {
             unsafe { pass.destroy() };
             return Err(e);
         }
-        Ok(host.keep(ctx, settings, gbuffer_pass.keep(), mesh.keep(), None, pass))
+        let mut renderer = host.keep(ctx, settings, gbuffer_pass.keep(), mesh.keep(), None, pass);
+        renderer.convex_alone = convex;
+        Ok(renderer)
     }
 
     /// A renderer of several objects in one G-buffer: each object drawn with its own
@@ -404,6 +409,9 @@ impl<'c> HostParts<'c> {
             forward: None,
             rays_frame: None,
             behind: None,
+            behind_empty: false,
+            convex_alone: false,
+            convex_skip: true,
             forward_frame: false,
         }
     }

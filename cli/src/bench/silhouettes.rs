@@ -5,7 +5,8 @@
 //! * **With**: displaced meshes traced as curved geometry
 //!   ([`Renderer::set_curved`]) and the behind layer ([`Renderer::set_behind`]; on by
 //!   default for the materials scene, turned on for the rocks sphere as `render --curved`
-//!   does for a mesh drawn alone).
+//!   does for a mesh drawn alone, where it is empty: a convex mesh alone shows nothing
+//!   behind its misses, [`Renderer::behind_empty`]).
 //! * **Without**: tangent-plane tracing and no behind layer.
 //!
 //! Four renderers at the benchmark's frame size, each timed like the methods sweep (one
@@ -57,6 +58,9 @@ pub struct SceneCost {
     pub median_ratio: f64,
     /// The behind layer's own time in the frame with silhouettes (0 without one), ms.
     pub behind: Stat,
+    /// Whether the frame with silhouettes has the behind layer on but empty (a convex
+    /// mesh alone: nothing drawn, nothing timed).
+    pub behind_empty: bool,
     /// Share of the frame's pixels of materials traced as curved.
     pub curved_share: f64,
     /// Share of the frame's pixels whose displaced ray missed (re-rasterised by the
@@ -179,7 +183,11 @@ pub fn run(
             .zip(&hits)
             .filter(|(m, h)| m.is_some() && h[2] == NO_HIT_HEIGHT)
             .count();
-        shares.push((curved as f64 / pixels, missed as f64 / pixels));
+        shares.push((
+            curved as f64 / pixels,
+            missed as f64 / pixels,
+            with.behind_empty(),
+        ));
         renderers.push(without);
         renderers.push(with);
     }
@@ -213,29 +221,32 @@ pub fn run(
         .iter()
         .zip(times.chunks(2))
         .zip(&shares)
-        .map(|(((name, _), pair), &(curved_share, missed_share))| {
-            let (without, with) = (&pair[0], &pair[1]);
-            let per_pass: Vec<f64> = with
-                .frame
-                .iter()
-                .zip(&without.frame)
-                .map(|(w, o)| w / o)
-                .collect();
-            let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
-            SceneCost {
-                scene: (*name).to_owned(),
-                without: Stat::of(&without.frame),
-                with: Stat::of(&with.frame),
-                ratio: Stat {
-                    min: min(&with.frame) / min(&without.frame),
-                    ..Stat::of(&per_pass)
-                },
-                median_ratio: median(&with.all_frame) / median(&without.all_frame),
-                behind: Stat::of(&with.behind),
-                curved_share,
-                missed_share,
-            }
-        })
+        .map(
+            |(((name, _), pair), &(curved_share, missed_share, behind_empty))| {
+                let (without, with) = (&pair[0], &pair[1]);
+                let per_pass: Vec<f64> = with
+                    .frame
+                    .iter()
+                    .zip(&without.frame)
+                    .map(|(w, o)| w / o)
+                    .collect();
+                let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+                SceneCost {
+                    scene: (*name).to_owned(),
+                    without: Stat::of(&without.frame),
+                    with: Stat::of(&with.frame),
+                    ratio: Stat {
+                        min: min(&with.frame) / min(&without.frame),
+                        ..Stat::of(&per_pass)
+                    },
+                    median_ratio: median(&with.all_frame) / median(&without.all_frame),
+                    behind: Stat::of(&with.behind),
+                    behind_empty,
+                    curved_share,
+                    missed_share,
+                }
+            },
+        )
         .collect();
     Ok(SilhouetteBench { scenes })
 }
@@ -255,7 +266,8 @@ pub fn markdown(b: &SilhouetteBench, frame: [u32; 2]) -> String {
          per-pass minimum), ms; the ratio also from the medians. Curved: share of the \
          pixels of materials traced as curved (displaced meshes of `exact`, `relief` and \
          `pom`: each pays the curved setup, a flat face skips the curved march); missed: \
-         share whose displaced ray missed (what the behind layer re-rasterises).\n",
+         share whose displaced ray missed (what the behind layer re-rasterises; a convex \
+         mesh alone has it empty: nothing of it lies behind its own misses).\n",
         frame[0], frame[1]
     );
     let _ = writeln!(
@@ -270,7 +282,9 @@ pub fn markdown(b: &SilhouetteBench, frame: [u32; 2]) -> String {
             c.scene,
             spread(&c.without),
             spread(&c.with),
-            if c.behind.hi > 0.0 {
+            if c.behind_empty {
+                "empty (convex)".to_owned()
+            } else if c.behind.hi > 0.0 {
                 spread(&c.behind)
             } else {
                 "none".to_owned()
