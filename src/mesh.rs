@@ -178,6 +178,7 @@ fn grid(
         label: label.into(),
         two_sided: false,
     }
+    .with_front_winding()
     .with_uv_scales()
 }
 
@@ -229,6 +230,7 @@ impl Mesh {
             label: "cube".into(),
             two_sided: false,
         }
+        .with_front_winding()
         .with_uv_scales()
     }
 
@@ -422,6 +424,7 @@ impl Mesh {
             label: label.into(),
             two_sided: false,
         }
+        .with_front_winding()
         .with_uv_scales())
     }
 
@@ -448,6 +451,7 @@ impl Mesh {
             label: "quad".into(),
             two_sided: false,
         }
+        .with_front_winding()
         .with_uv_scales()
     }
 
@@ -481,7 +485,28 @@ impl Mesh {
             label: self.label.clone(),
             two_sided: self.two_sided,
         }
+        .with_front_winding()
         .with_uv_scales()
+    }
+
+    /// This mesh with every triangle wound counter-clockwise seen from the side its
+    /// vertices' normals point to (two of its indices swapped where not): the G-buffer
+    /// culls a one-sided mesh's triangles wound the other way round, those turned away
+    /// from the eye.
+    pub fn with_front_winding(mut self) -> Mesh {
+        for tri in self.indices.chunks_exact_mut(3) {
+            let v = |i: u32| self.vertices[i as usize];
+            let p = |i: u32| Vec3::from(v(i).position);
+            let normals: Vec3 = tri.iter().map(|&i| Vec3::from(v(i).normal)).sum();
+            if (p(tri[1]) - p(tri[0]))
+                .cross(p(tri[2]) - p(tri[0]))
+                .dot(normals)
+                < 0.0
+            {
+                tri.swap(1, 2);
+            }
+        }
+        self
     }
 
     /// This mesh with every vertex's [`Vertex::scale`] computed from its triangles: the
@@ -625,6 +650,36 @@ mod tests {
             [0, 12, 24, 40, 48, 52, 56],
             "glsl/gbuffer_mesh.vert reads these offsets"
         );
+    }
+
+    /// Every triangle is wound counter-clockwise seen from where its vertices' normals
+    /// point (the G-buffer culls the others on one-sided meshes): the generated meshes,
+    /// and a loaded one whose file winds a triangle the other way.
+    #[test]
+    fn triangles_wind_towards_their_normals() {
+        let winding_ok = |m: &Mesh| {
+            m.indices.chunks_exact(3).all(|tri| {
+                let v = |i: u32| m.vertices[i as usize];
+                let p = |i: u32| Vec3::from(v(i).position);
+                let n: Vec3 = tri.iter().map(|&i| Vec3::from(v(i).normal)).sum();
+                (p(tri[1]) - p(tri[0])).cross(p(tri[2]) - p(tri[0])).dot(n) >= 0.0
+            })
+        };
+        for m in [Mesh::cube(), Mesh::sphere(), Mesh::torus(), Mesh::quad()] {
+            assert!(winding_ok(&m), "{}", m.label);
+        }
+        // A square in y = 0 with normals +y, its second triangle wound clockwise.
+        let positions = vec![
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ];
+        let up = vec![Some(Vec3::Y); 4];
+        let uvs = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let mesh =
+            Mesh::from_triangles("square", positions, up, uvs, vec![0, 2, 1, 0, 2, 3]).unwrap();
+        assert!(winding_ok(&mesh), "{:?}", mesh.indices);
     }
 
     /// The uv scale of a vertex is the area-weighted mean of its triangles' own scales:

@@ -548,7 +548,7 @@ pub fn storage_view(view: vk::ImageView) -> [vk::DescriptorImageInfo; 1] {
 }
 
 /// What differs between dispmap's raster pipelines (dynamic rendering, triangle lists,
-/// no culling, one viewport and scissor set at record time, no blending).
+/// one viewport and scissor set at record time, no blending).
 pub struct RasterDesc<'a> {
     /// Vertex stage.
     pub vert: &'a Shader,
@@ -566,6 +566,10 @@ pub struct RasterDesc<'a> {
     pub color_formats: &'a [vk::Format],
     /// Depth attachment format.
     pub depth_format: vk::Format,
+    /// Cull the triangles whose winding faces away from the eye: front faces wind
+    /// counter-clockwise in the framebuffer, as dispmap's meshes seen from where their
+    /// normals point ([`crate::mesh::Mesh::with_front_winding`]). Off: no culling.
+    pub cull_back_faces: bool,
     /// Debug name of the pipeline.
     pub name: &'a str,
 }
@@ -620,7 +624,11 @@ pub fn raster_pipeline_specialized(
         .scissor_count(1);
     let raster = vk::PipelineRasterizationStateCreateInfo::default()
         .polygon_mode(vk::PolygonMode::FILL)
-        .cull_mode(vk::CullModeFlags::NONE)
+        .cull_mode(if desc.cull_back_faces {
+            vk::CullModeFlags::BACK
+        } else {
+            vk::CullModeFlags::NONE
+        })
         .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
         .line_width(1.0);
     let multisample = vk::PipelineMultisampleStateCreateInfo::default()

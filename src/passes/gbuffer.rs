@@ -465,6 +465,9 @@ impl GBufferPass {
                 depth_compare: vk::CompareOp::GREATER,
                 color_formats: &[RAY_FORMAT, FRAME_FORMAT, CURVE_FORMAT][..2 + usize::from(curve)],
                 depth_format: DEPTH_FORMAT,
+                // A one-sided mesh's faces turned away are discarded by the fragment shader
+                // anyway: culled before they are shaded.
+                cull_back_faces: mesh && !two_sided,
                 name: &format!("{name}.pipeline"),
             },
             two_sided.then_some(&spec),
