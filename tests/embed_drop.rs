@@ -77,12 +77,36 @@ fn dropping_without_destroy_warns_in_debug_builds_and_destroy_then_drop_is_silen
     };
     drop_warnings();
 
-    // destroy, then drop: nothing logged.
+    // destroy, then drop: nothing logged. A second destroy frees nothing twice (every
+    // handle was nulled or taken by the first; a second vkDestroy of one would be a
+    // validation error below).
     let mut pass = DisplacementPass::new(ctx.clone(), &rocks, settings).unwrap();
     // SAFETY: nothing was recorded with the pass.
     unsafe { pass.destroy() };
+    // SAFETY: as above; the pass holds nothing any more.
+    unsafe { pass.destroy() };
     drop(pass);
     assert_eq!(drop_warnings(), Vec::<String>::new());
+
+    // The same for the G-buffer, the pipelines and a trace pass of the standalone parts.
+    {
+        use dispmap::gpu::owned::Destroy;
+        use dispmap::passes::gbuffer::{GBuffer, GBufferPass};
+        use dispmap::passes::trace::TracePass;
+        let extent = settings.extent;
+        let mut gbuffer = GBuffer::new_curved(&ctx, extent).unwrap();
+        let mut mesh = GBufferPass::new_layer(&ctx, true, false, true, true).unwrap();
+        let mut trace = TracePass::new(&ctx, Method::Exact, true, true).unwrap();
+        // SAFETY: nothing recorded with them; the second call finds nothing to free.
+        unsafe {
+            gbuffer.destroy(&ctx);
+            gbuffer.destroy(&ctx);
+            mesh.destroy(&ctx);
+            mesh.destroy(&ctx);
+            trace.destroy(&ctx);
+            trace.destroy(&ctx);
+        }
+    }
 
     // drop without destroy: one warning in debug builds (none in release builds, where
     // the check is compiled out).

@@ -278,7 +278,6 @@ impl BoxPipeline {
                 depth_compare: vk::CompareOp::GREATER,
                 color_formats: &[COLOR_FORMAT],
                 depth_format: DEPTH_FORMAT,
-                cull_back_faces: false,
                 name: "test.box.pipeline",
             },
         )

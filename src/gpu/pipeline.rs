@@ -548,7 +548,8 @@ pub fn storage_view(view: vk::ImageView) -> [vk::DescriptorImageInfo; 1] {
 }
 
 /// What differs between dispmap's raster pipelines (dynamic rendering, triangle lists,
-/// one viewport and scissor set at record time, no blending).
+/// one viewport and scissor set at record time, no blending; no culling unless built by
+/// [`raster_pipeline_culled`]).
 pub struct RasterDesc<'a> {
     /// Vertex stage.
     pub vert: &'a Shader,
@@ -566,10 +567,6 @@ pub struct RasterDesc<'a> {
     pub color_formats: &'a [vk::Format],
     /// Depth attachment format.
     pub depth_format: vk::Format,
-    /// Cull the triangles whose winding faces away from the eye: front faces wind
-    /// counter-clockwise in the framebuffer, as dispmap's meshes seen from where their
-    /// normals point ([`crate::mesh::Mesh::with_front_winding`]). Off: no culling.
-    pub cull_back_faces: bool,
     /// Debug name of the pipeline.
     pub name: &'a str,
 }
@@ -586,6 +583,19 @@ pub fn raster_pipeline_specialized(
     ctx: &Context,
     desc: &RasterDesc,
     frag_specialization: Option<&vk::SpecializationInfo>,
+) -> Result<vk::Pipeline> {
+    raster_pipeline_culled(ctx, desc, frag_specialization, false)
+}
+
+/// As [`raster_pipeline_specialized`]; with `cull_back_faces` the rasteriser culls the
+/// triangles whose winding faces away from the eye: front faces wind counter-clockwise in
+/// the framebuffer, as dispmap's meshes seen from where their normals point
+/// ([`crate::mesh::Mesh::with_front_winding`]).
+pub fn raster_pipeline_culled(
+    ctx: &Context,
+    desc: &RasterDesc,
+    frag_specialization: Option<&vk::SpecializationInfo>,
+    cull_back_faces: bool,
 ) -> Result<vk::Pipeline> {
     let dev = ctx.device();
     let vert = desc.vert.module(ctx)?;
@@ -624,7 +634,7 @@ pub fn raster_pipeline_specialized(
         .scissor_count(1);
     let raster = vk::PipelineRasterizationStateCreateInfo::default()
         .polygon_mode(vk::PolygonMode::FILL)
-        .cull_mode(if desc.cull_back_faces {
+        .cull_mode(if cull_back_faces {
             vk::CullModeFlags::BACK
         } else {
             vk::CullModeFlags::NONE

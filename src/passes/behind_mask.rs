@@ -109,7 +109,6 @@ impl BehindMaskPass {
                 depth_compare: vk::CompareOp::ALWAYS,
                 color_formats: &[RAY_FORMAT, FRAME_FORMAT],
                 depth_format: DEPTH_FORMAT,
-                cull_back_faces: false,
                 name: "behind_mask.pipeline",
             },
         )?;

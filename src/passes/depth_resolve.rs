@@ -103,7 +103,6 @@ impl DepthResolvePass {
                 depth_compare: vk::CompareOp::ALWAYS,
                 color_formats: &[],
                 depth_format: DEPTH_FORMAT,
-                cull_back_faces: false,
                 name: "depth_resolve.pipeline",
             },
         )?;

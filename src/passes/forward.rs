@@ -189,7 +189,6 @@ impl ForwardPass {
                     ITERATIONS_FORMAT,
                 ],
                 depth_format: DEPTH_FORMAT,
-                cull_back_faces: false,
                 name: &format!("{name}.pipeline"),
             },
         );

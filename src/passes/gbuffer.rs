@@ -32,7 +32,7 @@ use crate::abi::{GBufferParams, PixelRayParams};
 use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::owned::Destroy;
-use crate::gpu::pipeline::{RasterDesc, RasterSet, raster_pipeline_specialized};
+use crate::gpu::pipeline::{RasterDesc, RasterSet, raster_pipeline_culled};
 use crate::gpu::sync::Access;
 use crate::gpu::track::{Handle, Tracker};
 use crate::gpu::{HostView, Image};
@@ -162,9 +162,16 @@ impl GBuffer {
         }
     }
 
-    /// The colour attachments in location order (the curve image last, when there is one).
-    pub fn colors(&self) -> Vec<&Image> {
-        let mut c = vec![&self.ray, &self.frame];
+    /// The contract's colour attachments in location order (ray, frame; the curve image,
+    /// when there is one, is the third: [`GBuffer::attachments`]).
+    pub fn colors(&self) -> [&Image; 2] {
+        [&self.ray, &self.frame]
+    }
+
+    /// Every colour attachment in location order: [`GBuffer::colors`], then the curve
+    /// image when there is one.
+    pub fn attachments(&self) -> Vec<&Image> {
+        let mut c = self.colors().to_vec();
         c.extend(self.curve.as_ref());
         c
     }
@@ -172,7 +179,7 @@ impl GBuffer {
     /// Its images enter `t`: the colour attachments in `color`, the depth in `depth`
     /// (e.g. discarded, or a host's state after its last frame).
     pub fn enter(&self, t: &mut Tracker<Handle>, color: Access, depth: Access) {
-        for image in self.colors() {
+        for image in self.attachments() {
             t.enter(Handle::image(image), color);
         }
         t.enter(Handle::image(&self.depth), depth);
@@ -181,7 +188,7 @@ impl GBuffer {
     /// Declares the colour attachments accessed as `color` and the depth as `depth` (e.g.
     /// attachment writes for the G-buffer pass, compute sampled reads after it).
     pub fn declare(&self, t: &mut Tracker<Handle>, color: Access, depth: Access) -> Result<()> {
-        for image in self.colors() {
+        for image in self.attachments() {
             t.declare(Handle::image(image), color)?;
         }
         t.declare(Handle::image(&self.depth), depth)
@@ -454,7 +461,7 @@ impl GBufferPass {
         let spec = vk::SpecializationInfo::default()
             .map_entries(&entries)
             .data(&two_sided_value);
-        let pipeline = match raster_pipeline_specialized(
+        let pipeline = match raster_pipeline_culled(
             ctx,
             &RasterDesc {
                 vert: &vert,
@@ -465,12 +472,12 @@ impl GBufferPass {
                 depth_compare: vk::CompareOp::GREATER,
                 color_formats: &[RAY_FORMAT, FRAME_FORMAT, CURVE_FORMAT][..2 + usize::from(curve)],
                 depth_format: DEPTH_FORMAT,
-                // A one-sided mesh's faces turned away are discarded by the fragment shader
-                // anyway: culled before they are shaded.
-                cull_back_faces: mesh && !two_sided,
                 name: &format!("{name}.pipeline"),
             },
             two_sided.then_some(&spec),
+            // A one-sided mesh's faces turned away are discarded by the fragment shader
+            // anyway: culled before they are shaded.
+            mesh && !two_sided,
         ) {
             Ok(p) => p,
             Err(e) => {
@@ -718,7 +725,7 @@ unsafe fn record_layer(
         }
     }
     let color_attachments: Vec<_> = target
-        .colors()
+        .attachments()
         .iter()
         .map(|image| {
             crate::gpu::pipeline::cleared_color_attachment(
