@@ -313,7 +313,9 @@ impl Renderer {
     /// Traces the displaced meshes as curved geometry (`on`) or as their tangent planes
     /// (the default): [`DisplacementPass::set_material_curved`] on the material of every
     /// displaced mesh object (a single-geometry scene's when it is a mesh). The tiled
-    /// plane and the quad are never curved.
+    /// plane and the quad are never curved. On, the G-buffer gets its curve image (4
+    /// bytes a pixel, the layers' pipelines rebuilt with their `CURVE` variants), whatever
+    /// the methods, so a later method change that traces curved finds it; off, it goes.
     pub fn set_curved(&mut self, on: bool) -> Result<()> {
         let materials: Vec<MaterialId> = match &self.objects {
             Some(o) => o
