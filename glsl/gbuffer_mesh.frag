@@ -50,12 +50,11 @@ void main() {
 #endif
 #ifdef BEHIND
     ivec2 pixel = ivec2(gl_FragCoord.xy);
-    // A one-sided mesh's triangle that faces away from the eye is its far side seen from
-    // inside (glsl/include/dispmap_behind.glsl).
-    bool faces_eye = dispmap_behind_faces_eye(v_eye_rel, v_normal);
-    if ((!TWO_SIDED && !faces_eye)
-        || !dispmap_behind_keep(imageLoad(u_first_hit_height, pixel).x,
-                                texelFetch(u_first_depth, pixel, 0).r, gl_FragCoord.z)) {
+    // A one-sided mesh's triangles that face away from the eye (its far side seen from
+    // inside, glsl/include/dispmap_behind.glsl's dispmap_behind_faces_eye) never get here:
+    // the rasteriser culls them (GBufferPass, Mesh::with_front_winding).
+    if (!dispmap_behind_keep(imageLoad(u_first_hit_height, pixel).x,
+                             texelFetch(u_first_depth, pixel, 0).r, gl_FragCoord.z)) {
         discard;
     }
 #endif

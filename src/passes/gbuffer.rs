@@ -288,28 +288,13 @@ impl GBufferPass {
     /// Builds the pipeline of the plane and the quad (dynamic rendering: no render pass
     /// object; no vertex buffer).
     pub fn new(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, false, false, false, false)
-    }
-
-    /// The pipeline of any kind: the plane's or the meshes' (`mesh`), one-sided or
-    /// two-sided (`two_sided`, meshes only), the first layer's or the behind layer's
-    /// (`behind`), drawing into a G-buffer with the curve image or without (`curve`:
-    /// [`GBuffer::new_curved`], the fragment stage's `CURVE` variant, which writes the
-    /// curvature the curved trace reads).
-    pub fn new_layer(
-        ctx: &Context,
-        mesh: bool,
-        two_sided: bool,
-        behind: bool,
-        curve: bool,
-    ) -> Result<Self> {
-        Self::build(ctx, mesh, two_sided && mesh, behind, curve)
+        Self::new_layer(ctx, false, false, false, false)
     }
 
     /// Builds the pipeline of meshes (`glsl/gbuffer_mesh.*`): one vertex buffer of
     /// [`crate::mesh::Vertex`] and `u32` indices, drawn by [`GBufferPass::record_mesh`].
     pub fn new_mesh(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, false, false, false)
+        Self::new_layer(ctx, true, false, false, false)
     }
 
     /// As [`GBufferPass::new_mesh`] for two-sided meshes ([`crate::mesh::Mesh::two_sided`]):
@@ -319,7 +304,7 @@ impl GBufferPass {
     /// `TWO_SIDED` specialization constant set; built only for a frame that draws such a
     /// mesh.
     pub fn new_mesh_two_sided(ctx: &Context) -> Result<Self> {
-        Self::build(ctx, true, true, false, false)
+        Self::new_layer(ctx, true, true, false, false)
     }
 
     /// The behind layer's pipeline of the same kind as [`GBufferPass::new`] (`mesh`
@@ -328,7 +313,7 @@ impl GBufferPass {
     /// first-layer trace missed, behind the first layer's surface
     /// (`glsl/include/dispmap_behind.glsl`); drawn by [`record_draws_behind`].
     pub fn new_behind(ctx: &Context, mesh: bool, two_sided: bool) -> Result<Self> {
-        Self::build(ctx, mesh, two_sided && mesh, true, false)
+        Self::new_layer(ctx, mesh, two_sided, true, false)
     }
 
     /// Whether this is a behind layer's pipeline ([`GBufferPass::new_behind`]).
@@ -346,18 +331,19 @@ impl GBufferPass {
         self.two_sided
     }
 
-    /// Whether this pipeline draws into a G-buffer with the curve image.
-    pub fn has_curve(&self) -> bool {
-        self.curve
-    }
-
-    fn build(
+    /// The pipeline of any kind: the plane's or the meshes' (`mesh`), one-sided or
+    /// two-sided (`two_sided`, meshes only), the first layer's or the behind layer's
+    /// (`behind`), drawing into a G-buffer with the curve image or without (`curve`:
+    /// [`GBuffer::new_curved`], the fragment stage's `CURVE` variant, which writes the
+    /// curvature the curved trace reads).
+    pub fn new_layer(
         ctx: &Context,
         mesh: bool,
         two_sided: bool,
         behind: bool,
         curve: bool,
     ) -> Result<Self> {
+        let two_sided = two_sided && mesh;
         let dev = ctx.device();
         let name = format!(
             "{}{}{}",
