@@ -624,6 +624,149 @@ impl Engine {
         }
     }
 
+    /// One layer's pipelines, the floor's and the cube's: the engine's vertex shaders (the
+    /// floor's without vertex input, the cube's from its vertex buffer) with the fragment
+    /// shader `frag_spv`, dynamic rendering into the G-buffer's ray and frame targets and
+    /// depth, under `layout`; named `<prefix>.floor_pipeline` and `<prefix>.cube_pipeline`.
+    /// The shader modules live only while the pipelines are created.
+    fn create_layer_pipelines(
+        &self,
+        frag_spv: &[u8],
+        layout: vk::PipelineLayout,
+        prefix: &str,
+    ) -> Result<(vk::Pipeline, vk::Pipeline)> {
+        let dev = &self.device;
+        let mut modules = Vec::new();
+        let result = (|| {
+            for (bytes, what) in [
+                (VERT_SPV, "vert"),
+                (FLOOR_VERT_SPV, "floor.vert"),
+                (frag_spv, "frag"),
+            ] {
+                let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes))?;
+                // SAFETY: valid SPIR-V words from the build script; destroyed below.
+                let m = unsafe {
+                    dev.create_shader_module(
+                        &vk::ShaderModuleCreateInfo::default().code(&words),
+                        None,
+                    )?
+                };
+                self.name(m, &format!("{prefix}.{what}"));
+                modules.push(m);
+            }
+            let (vert, floor_vert, frag) = (modules[0], modules[1], modules[2]);
+            self.layer_pipelines(vert, floor_vert, frag, layout, prefix)
+        })();
+        for m in modules {
+            // SAFETY: a pipeline keeps what it needs of its modules; none is used again.
+            unsafe { dev.destroy_shader_module(m, None) };
+        }
+        result
+    }
+
+    /// [`Engine::create_layer_pipelines`] from its shader modules.
+    fn layer_pipelines(
+        &self,
+        vert: vk::ShaderModule,
+        floor_vert: vk::ShaderModule,
+        frag: vk::ShaderModule,
+        layout: vk::PipelineLayout,
+        prefix: &str,
+    ) -> Result<(vk::Pipeline, vk::Pipeline)> {
+        let dev = &self.device;
+        let stages = |vert: vk::ShaderModule| {
+            [
+                vk::PipelineShaderStageCreateInfo::default()
+                    .stage(vk::ShaderStageFlags::VERTEX)
+                    .module(vert)
+                    .name(c"main"),
+                vk::PipelineShaderStageCreateInfo::default()
+                    .stage(vk::ShaderStageFlags::FRAGMENT)
+                    .module(frag)
+                    .name(c"main"),
+            ]
+        };
+        let (floor_stages, cube_stages) = (stages(floor_vert), stages(vert));
+        let bindings = [vk::VertexInputBindingDescription::default()
+            .binding(0)
+            .stride((VERTEX_FLOATS * 4) as u32)
+            .input_rate(vk::VertexInputRate::VERTEX)];
+        let attribute = |location: u32, format: vk::Format, float_offset: u32| {
+            vk::VertexInputAttributeDescription::default()
+                .location(location)
+                .binding(0)
+                .format(format)
+                .offset(float_offset * 4)
+        };
+        let attributes = [
+            attribute(0, vk::Format::R32G32B32_SFLOAT, 0),
+            attribute(1, vk::Format::R32G32_SFLOAT, 3),
+            attribute(2, vk::Format::R32G32B32A32_SFLOAT, 5),
+            attribute(3, vk::Format::R32G32B32_SFLOAT, 9),
+            attribute(4, vk::Format::R32G32B32_SFLOAT, 12),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+            .vertex_binding_descriptions(&bindings)
+            .vertex_attribute_descriptions(&attributes);
+        let no_vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default()
+            .viewport_count(1)
+            .scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(true)
+            .depth_write_enable(true)
+            .depth_compare_op(vk::CompareOp::GREATER);
+        let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
+            .color_write_mask(vk::ColorComponentFlags::RGBA); 2];
+        let blend =
+            vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let color_formats = [embed::RAY_FORMAT, embed::FRAME_FORMAT];
+        let mut floor_rendering = vk::PipelineRenderingCreateInfo::default()
+            .color_attachment_formats(&color_formats)
+            .depth_attachment_format(embed::DEPTH_FORMAT);
+        let mut cube_rendering = floor_rendering;
+        let info = |stages, vertex_input| {
+            vk::GraphicsPipelineCreateInfo::default()
+                .stages(stages)
+                .vertex_input_state(vertex_input)
+                .input_assembly_state(&input_assembly)
+                .viewport_state(&viewport)
+                .rasterization_state(&raster)
+                .multisample_state(&multisample)
+                .depth_stencil_state(&depth)
+                .color_blend_state(&blend)
+                .dynamic_state(&dynamic)
+                .layout(layout)
+        };
+        let infos = [
+            info(&floor_stages, &no_vertex_input).push_next(&mut floor_rendering),
+            info(&cube_stages, &vertex_input).push_next(&mut cube_rendering),
+        ];
+        // SAFETY: valid create infos; the modules are destroyed below whatever the result.
+        let pipelines =
+            unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &infos, None) };
+        let pipelines = pipelines.map_err(|(created, e)| {
+            for p in created {
+                // SAFETY: created above and never used.
+                unsafe { dev.destroy_pipeline(p, None) };
+            }
+            e
+        })?;
+        self.name(pipelines[0], &format!("{prefix}.floor_pipeline"));
+        self.name(pipelines[1], &format!("{prefix}.cube_pipeline"));
+        Ok((pipelines[0], pipelines[1]))
+    }
+
     /// # Safety
     /// The device is alive; called once from `create`.
     unsafe fn create_resources(&mut self, o: &Options) -> Result<()> {
@@ -647,18 +790,6 @@ impl Engine {
 
             // Pipelines: the engine's own shaders, dynamic rendering; the floor without
             // vertex input, the cube from a vertex buffer, one layout and fragment shader.
-            let module = |bytes: &[u8], name: &str| -> Result<vk::ShaderModule> {
-                let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes))?;
-                let m = dev.create_shader_module(
-                    &vk::ShaderModuleCreateInfo::default().code(&words),
-                    None,
-                )?;
-                self.name(m, name);
-                Ok(m)
-            };
-            let vert = module(VERT_SPV, "engine.gbuffer.vert")?;
-            let floor_vert = module(FLOOR_VERT_SPV, "engine.gbuffer.floor.vert")?;
-            let frag = module(FRAG_SPV, "engine.gbuffer.frag")?;
             let ranges = [vk::PushConstantRange::default()
                 .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)
                 .size(std::mem::size_of::<EngineParams>() as u32)];
@@ -740,99 +871,8 @@ impl Engine {
                 None,
             )?;
             self.name(self.layout, "engine.gbuffer.layout");
-            let stages = |vert: vk::ShaderModule| {
-                [
-                    vk::PipelineShaderStageCreateInfo::default()
-                        .stage(vk::ShaderStageFlags::VERTEX)
-                        .module(vert)
-                        .name(c"main"),
-                    vk::PipelineShaderStageCreateInfo::default()
-                        .stage(vk::ShaderStageFlags::FRAGMENT)
-                        .module(frag)
-                        .name(c"main"),
-                ]
-            };
-            let (floor_stages, cube_stages) = (stages(floor_vert), stages(vert));
-            let bindings = [vk::VertexInputBindingDescription::default()
-                .binding(0)
-                .stride((VERTEX_FLOATS * 4) as u32)
-                .input_rate(vk::VertexInputRate::VERTEX)];
-            let attribute = |location: u32, format: vk::Format, float_offset: u32| {
-                vk::VertexInputAttributeDescription::default()
-                    .location(location)
-                    .binding(0)
-                    .format(format)
-                    .offset(float_offset * 4)
-            };
-            let attributes = [
-                attribute(0, vk::Format::R32G32B32_SFLOAT, 0),
-                attribute(1, vk::Format::R32G32_SFLOAT, 3),
-                attribute(2, vk::Format::R32G32B32A32_SFLOAT, 5),
-                attribute(3, vk::Format::R32G32B32_SFLOAT, 9),
-                attribute(4, vk::Format::R32G32B32_SFLOAT, 12),
-            ];
-            let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
-                .vertex_binding_descriptions(&bindings)
-                .vertex_attribute_descriptions(&attributes);
-            let no_vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
-            let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
-                .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-            let viewport = vk::PipelineViewportStateCreateInfo::default()
-                .viewport_count(1)
-                .scissor_count(1);
-            let raster = vk::PipelineRasterizationStateCreateInfo::default()
-                .polygon_mode(vk::PolygonMode::FILL)
-                .cull_mode(vk::CullModeFlags::NONE)
-                .line_width(1.0);
-            let multisample = vk::PipelineMultisampleStateCreateInfo::default()
-                .rasterization_samples(vk::SampleCountFlags::TYPE_1);
-            let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-                .depth_test_enable(true)
-                .depth_write_enable(true)
-                .depth_compare_op(vk::CompareOp::GREATER);
-            let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
-                .color_write_mask(vk::ColorComponentFlags::RGBA);
-                2];
-            let blend =
-                vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
-            let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-            let dynamic =
-                vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-            let color_formats = [embed::RAY_FORMAT, embed::FRAME_FORMAT];
-            let mut floor_rendering = vk::PipelineRenderingCreateInfo::default()
-                .color_attachment_formats(&color_formats)
-                .depth_attachment_format(embed::DEPTH_FORMAT);
-            let mut cube_rendering = floor_rendering;
-            let info = |stages, vertex_input| {
-                vk::GraphicsPipelineCreateInfo::default()
-                    .stages(stages)
-                    .vertex_input_state(vertex_input)
-                    .input_assembly_state(&input_assembly)
-                    .viewport_state(&viewport)
-                    .rasterization_state(&raster)
-                    .multisample_state(&multisample)
-                    .depth_stencil_state(&depth)
-                    .color_blend_state(&blend)
-                    .dynamic_state(&dynamic)
-                    .layout(self.layout)
-            };
-            let infos = [
-                info(&floor_stages, &no_vertex_input).push_next(&mut floor_rendering),
-                info(&cube_stages, &vertex_input).push_next(&mut cube_rendering),
-            ];
-            let pipelines = dev.create_graphics_pipelines(vk::PipelineCache::null(), &infos, None);
-            dev.destroy_shader_module(vert, None);
-            dev.destroy_shader_module(floor_vert, None);
-            dev.destroy_shader_module(frag, None);
-            let pipelines = pipelines.map_err(|(created, e)| {
-                for p in created {
-                    dev.destroy_pipeline(p, None);
-                }
-                e
-            })?;
-            (self.floor_pipeline, self.cube_pipeline) = (pipelines[0], pipelines[1]);
-            self.name(self.floor_pipeline, "engine.gbuffer.floor_pipeline");
-            self.name(self.cube_pipeline, "engine.gbuffer.cube_pipeline");
+            (self.floor_pipeline, self.cube_pipeline) =
+                self.create_layer_pipelines(FRAG_SPV, self.layout, "engine.gbuffer")?;
 
             // The behind layer's pipelines: the same draws with the fragment shader's
             // BEHIND variant, whose set 0 adds the first layer's depth and hit height.
@@ -871,65 +911,8 @@ impl Engine {
                     None,
                 )?;
                 self.name(self.sampler, "engine.behind.sampler");
-                let module = |bytes: &[u8]| -> Result<vk::ShaderModule> {
-                    let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes))?;
-                    Ok(dev.create_shader_module(
-                        &vk::ShaderModuleCreateInfo::default().code(&words),
-                        None,
-                    )?)
-                };
-                let vert = module(VERT_SPV)?;
-                let floor_vert = module(FLOOR_VERT_SPV)?;
-                let frag = module(FRAG_BEHIND_SPV)?;
-                let stages = |vert: vk::ShaderModule| {
-                    [
-                        vk::PipelineShaderStageCreateInfo::default()
-                            .stage(vk::ShaderStageFlags::VERTEX)
-                            .module(vert)
-                            .name(c"main"),
-                        vk::PipelineShaderStageCreateInfo::default()
-                            .stage(vk::ShaderStageFlags::FRAGMENT)
-                            .module(frag)
-                            .name(c"main"),
-                    ]
-                };
-                let (floor_stages, cube_stages) = (stages(floor_vert), stages(vert));
-                let mut floor_rendering = vk::PipelineRenderingCreateInfo::default()
-                    .color_attachment_formats(&color_formats)
-                    .depth_attachment_format(embed::DEPTH_FORMAT);
-                let mut cube_rendering = floor_rendering;
-                let info = |stages, vertex_input| {
-                    vk::GraphicsPipelineCreateInfo::default()
-                        .stages(stages)
-                        .vertex_input_state(vertex_input)
-                        .input_assembly_state(&input_assembly)
-                        .viewport_state(&viewport)
-                        .rasterization_state(&raster)
-                        .multisample_state(&multisample)
-                        .depth_stencil_state(&depth)
-                        .color_blend_state(&blend)
-                        .dynamic_state(&dynamic)
-                        .layout(self.behind_layout)
-                };
-                let infos = [
-                    info(&floor_stages, &no_vertex_input).push_next(&mut floor_rendering),
-                    info(&cube_stages, &vertex_input).push_next(&mut cube_rendering),
-                ];
-                let pipelines =
-                    dev.create_graphics_pipelines(vk::PipelineCache::null(), &infos, None);
-                dev.destroy_shader_module(vert, None);
-                dev.destroy_shader_module(floor_vert, None);
-                dev.destroy_shader_module(frag, None);
-                let pipelines = pipelines.map_err(|(created, e)| {
-                    for p in created {
-                        dev.destroy_pipeline(p, None);
-                    }
-                    e
-                })?;
-                (self.behind_floor_pipeline, self.behind_cube_pipeline) =
-                    (pipelines[0], pipelines[1]);
-                self.name(self.behind_floor_pipeline, "engine.behind.floor_pipeline");
-                self.name(self.behind_cube_pipeline, "engine.behind.cube_pipeline");
+                (self.behind_floor_pipeline, self.behind_cube_pipeline) = self
+                    .create_layer_pipelines(FRAG_BEHIND_SPV, self.behind_layout, "engine.behind")?;
             }
 
             // The cube's vertices (the floor has none).
