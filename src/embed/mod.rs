@@ -658,6 +658,25 @@ impl DisplacementPass {
         self.slots.get(frame_slot as usize)?.hit_depth.as_ref()
     }
 
+    /// The tiles of each live material in `frame_slot`'s lists, as the slot's last
+    /// `classify` wrote them (the lists' buffers stay written until the slot is recorded
+    /// again): for a pass over the displaced pixels of a recorded frame (the standalone
+    /// renderer's missed tiles, `crate::passes::behind_tiles`). After a record the tile
+    /// buffer and the arguments were last written by `COMPUTE_SHADER`
+    /// `SHADER_STORAGE_WRITE`.
+    pub(crate) fn live_tiles(
+        &self,
+        frame_slot: u32,
+    ) -> Vec<crate::passes::classify::MaterialTiles> {
+        if (frame_slot as usize) >= self.slots.len() {
+            return Vec::new();
+        }
+        self.live(frame_slot)
+            .into_iter()
+            .map(|(t, _, _)| t)
+            .collect()
+    }
+
     /// The light visibility of `frame_slot` (`R16_SFLOAT`, 1 = lit; written by the
     /// `shadow` pass of frames with a [`ShadeTarget`] for displaced pixels); `None` when
     /// self-shadowing is off. After such a record it is in `GENERAL`, last read by
