@@ -54,11 +54,15 @@ void main() {
         uint t = u_tiles.tiles[u_tiles.tiles[2u * pc.material] + index];
         tile = uvec2(t & 0xFFFFu, t >> 16);
         ivec2 pixel = ivec2(tile * LOCAL_SIZE + gl_LocalInvocationID.xy);
+        // The hit height first: the depth only where the trace missed (few pixels).
         if (all(lessThan(uvec2(pixel), pc.frame_size))) {
-            float depth = texelFetch(u_first_depth, pixel, 0).r;
-            if (dispmap_behind_missed(imageLoad(u_first_hit_height, pixel).x, depth)) {
-                atomicOr(s_missed, 1u);
-                atomicMax(s_depth, floatBitsToUint(depth));
+            float height = imageLoad(u_first_hit_height, pixel).x;
+            if (height == DISPMAP_MISS_HEIGHT) {
+                float depth = texelFetch(u_first_depth, pixel, 0).r;
+                if (dispmap_behind_missed(height, depth)) {
+                    atomicOr(s_missed, 1u);
+                    atomicMax(s_depth, floatBitsToUint(depth));
+                }
             }
         }
     }

@@ -179,11 +179,6 @@ impl BehindTiles {
         self.extent == extent && self.draws == draws
     }
 
-    /// The buffer (every section).
-    pub fn buffer(&self) -> &Buffer {
-        &self.buffer
-    }
-
     fn section(&self, offset: u64, range: u64) -> [vk::DescriptorBufferInfo; 1] {
         [vk::DescriptorBufferInfo {
             buffer: self.buffer.raw,

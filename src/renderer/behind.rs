@@ -1,15 +1,18 @@
 //! The behind layer of a frame of several objects: what a pixel whose displaced ray missed
 //! shows (the next surface along its view ray instead of the sky). After the frame's
-//! first record, the renderer rasterises the objects again into a second G-buffer, keeping
-//! a fragment only at a pixel whose first-layer trace missed and only behind the first
-//! layer's surface (`glsl/include/dispmap_behind.glsl`; the plane's shader tests the pixel
-//! first; with [`Renderer::set_behind_mask`], a depth mask of the missed pixels,
-//! [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere before they are
-//! shaded), lights that layer's flat
-//! geometry, and records the displacement pass a second time on it: frame slot 1, its own
-//! hit images, the same colour image (and motion image). The second trace and shade run
-//! only over the tiles that layer covers. docs/embedding.md, "What a miss shows", is the
-//! same route for a host.
+//! first record, the renderer marks the 8x8 tiles holding a missed pixel and culls the
+//! layer's draws to them ([`crate::passes::behind_tiles`], on the GPU: each mesh drawn
+//! as its clusters, [`super::behind_draws`], a cluster only where its screen rectangle
+//! meets a missed tile in front of it), rasterises the kept clusters into a second
+//! G-buffer, keeping a fragment only at a pixel whose first-layer trace missed and only
+//! behind the first layer's surface (`glsl/include/dispmap_behind.glsl`; the plane's
+//! shader tests the pixel first; with [`Renderer::set_behind_mask`], a depth mask of the
+//! missed pixels, [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere
+//! before they are shaded), lights that layer's flat geometry in the missed tiles, and
+//! records the displacement pass a second time on it: frame slot 1, its own hit images
+//! (cleared to no hit, then classified over the missed tiles only), the same colour image
+//! (and motion image). The second trace and shade run only over the tiles that layer
+//! covers. docs/embedding.md, "What a miss shows", is the same route for a host.
 
 use super::behind_draws::{Cluster, coarsen, mesh_sources, whole_frame};
 use super::*;
