@@ -91,7 +91,7 @@ pub(super) fn tile_rect(
     max: Vec3,
     extent: vk::Extent2D,
 ) -> ([u32; 4], f32) {
-    if !(min.is_finite() && max.is_finite()) {
+    if !min.is_finite() || !max.is_finite() {
         return (NO_RECT, 0.0);
     }
     let mut depth = f32::INFINITY;
@@ -104,7 +104,7 @@ pub(super) fn tile_rect(
             if corner & 4 == 0 { min.z } else { max.z },
         );
         let c: Vec4 = view_proj * (p - eye).extend(1.0);
-        if !(c.w > 1e-6) || !c.is_finite() {
+        if !c.is_finite() || c.w <= 1e-6 {
             return (whole_frame(extent), 0.0);
         }
         depth = depth.min(c.z / c.w);
@@ -118,7 +118,7 @@ pub(super) fn tile_rect(
         [lo[0] - MARGIN, lo[1] - MARGIN],
         [hi[0] + MARGIN, hi[1] + MARGIN],
     );
-    if !(hi[0] >= 0.0 && hi[1] >= 0.0 && lo[0] < w && lo[1] < h) {
+    if hi[0] < 0.0 || hi[1] < 0.0 || lo[0] >= w || lo[1] >= h {
         return (NO_RECT, 0.0);
     }
     let [tx, ty] = crate::passes::classify::tile_count(extent);
