@@ -368,11 +368,12 @@ impl Renderer {
     /// ([`crate::passes::behind_mask`]: one full-screen triangle before the objects blocks
     /// every other pixel, one after them clears those pixels again) or draws it unmasked
     /// (the default), each fragment then discarded by the behind shader after two texel
-    /// reads. The images are the same bit for bit either way. The mask trades two
-    /// full-screen fragment passes for the objects' fragments at the pixels that did not
-    /// miss: measured, it saved nothing on lavapipe (whose raster is bound by geometry) and
-    /// made the layer 2.3x as slow on an NVIDIA H200 (1.41 -> 3.25 ms at 1920x1080, a part
-    /// with little graphics hardware); BENCHMARKS.md has the figures. Refused without a
+    /// reads. The images are the same bit for bit either way (the draws culled to the
+    /// missed tiles either way). The mask trades two full-screen fragment passes for the
+    /// objects' fragments at the pixels that did not miss: measured with every draw whole
+    /// (before the culling), it saved nothing on lavapipe (whose raster was bound by
+    /// geometry) and made the layer 2.3x as slow on an NVIDIA H200 (1.41 -> 3.25 ms at
+    /// 1920x1080, a part with little graphics hardware); BENCHMARKS.md has the figures. Refused without a
     /// drawn behind layer ([`Renderer::set_behind`]; an empty one has no raster to mask).
     pub fn set_behind_mask(&mut self, on: bool) -> Result<()> {
         let c = &*self.ctx;
