@@ -5,7 +5,9 @@
 // displaced) the Lambert and Blinn-Phong light of shade.comp on their G-buffer normal with
 // a grey albedo. Displaced pixels are not written (the pass's `shade` writes them).
 // BEHIND variant (the behind layer's G-buffer, glsl/include/dispmap_behind.glsl): pixels
-// without geometry keep their colour (the first layer's), only flat geometry is lit.
+// without geometry keep their colour (the first layer's), only flat geometry is lit, and
+// only the tiles of the list of missed tiles (glsl/behind_cull.comp) are run: one
+// workgroup per listed tile (an indirect dispatch), the layer has no geometry elsewhere.
 // dispmap-variant: BEHIND
 #include "frame.glsl"
 #include "sky.glsl"
@@ -16,6 +18,13 @@ layout(set = 0, binding = 0) uniform sampler2D u_depth;
 layout(set = 0, binding = 1) uniform usampler2D u_frame;
 #include "tiles.glsl"
 layout(set = 0, binding = 3, rgba8) uniform writeonly image2D u_color;
+#ifdef BEHIND
+// The missed tiles (glsl/behind_cull.comp): a dispatch, the count, then the tiles.
+layout(set = 0, binding = 4, std430) readonly buffer BehindTiles {
+    uvec4 header;
+    uint tiles[];
+} u_behind_tiles;
+#endif
 
 layout(push_constant) uniform ShadeParams {
     mat4 inv_view_proj;  // clip -> world
@@ -30,7 +39,16 @@ layout(push_constant) uniform ShadeParams {
 } pc;
 
 void main() {
+#ifdef BEHIND
+    uint index = gl_WorkGroupID.y * MAX_TILE_ROW + gl_WorkGroupID.x;
+    if (index >= u_behind_tiles.header.w) {
+        return;
+    }
+    uint t = u_behind_tiles.tiles[index];
+    ivec2 pixel = ivec2(t & 0xFFFFu, t >> 16) * LOCAL_SIZE + ivec2(gl_LocalInvocationID.xy);
+#else
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+#endif
     if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
         return;
     }

@@ -12,9 +12,17 @@
 // DEPTH variant (corrected depth on) they also get their corrected depth: the G-buffer's
 // own depth (0 without geometry), the depth of a surface that is not displaced; with the
 // ITERATIONS variant (the iteration output on) an iteration count of 0.
+// LISTED variants (a record over listed tiles only: the standalone renderer's behind
+// layer, src/renderer/behind.rs): one workgroup per tile of u_listed (the behind layer's
+// missed tiles, glsl/behind_cull.comp), an indirect dispatch; the caller gave every other
+// tile's pixels their texels and the tile summaries TILE_EMPTY.
 // dispmap-variant: DEPTH
 // dispmap-variant: ITERATIONS
 // dispmap-variant: DEPTH+ITERATIONS
+// dispmap-variant: LISTED
+// dispmap-variant: LISTED+DEPTH
+// dispmap-variant: LISTED+ITERATIONS
+// dispmap-variant: LISTED+DEPTH+ITERATIONS
 #include "frame.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
@@ -41,6 +49,13 @@ layout(set = 0, binding = 5, r32f) uniform writeonly image2D u_hit_depth;
 #ifdef ITERATIONS
 layout(set = 0, binding = 7, r32ui) uniform writeonly uimage2D u_iterations;
 #endif
+#ifdef LISTED
+// The tiles to classify: a dispatch, the count, then the tiles packed x | y << 16.
+layout(set = 0, binding = 8, std430) readonly buffer Listed {
+    uvec4 header;
+    uint tiles[];
+} u_listed;
+#endif
 
 CLASSIFY_PARAMS
 
@@ -55,6 +70,20 @@ shared uint s_first;
 
 void main() {
     uint lane = gl_LocalInvocationIndex;
+#ifdef LISTED
+    uint listed = gl_WorkGroupID.y * MAX_TILE_ROW + gl_WorkGroupID.x;
+    if (listed >= u_listed.header.w) {
+        return;
+    }
+    uint packed = u_listed.tiles[listed];
+    uvec2 tile = uvec2(packed & 0xFFFFu, packed >> 16);
+    ivec2 pixel = ivec2(tile * LOCAL_SIZE + gl_LocalInvocationID.xy);
+    uint index = tile.y * ((pc.frame_size.x + LOCAL_SIZE - 1u) / LOCAL_SIZE) + tile.x;
+#else
+    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+    uint index = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uvec2 tile = gl_WorkGroupID.xy;
+#endif
     if (lane < MASK_WORDS) {
         s_mask[lane] = 0u;
     }
@@ -62,7 +91,6 @@ void main() {
         s_n = 0u;
     }
     barrier();
-    ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
     if (all(lessThan(uvec2(pixel), pc.frame_size))) {
         float depth = texelFetch(u_depth, pixel, 0).r;
         uint m = depth > 0.0 ? gbuffer_material(pixel) : NOT_DISPLACED;
@@ -101,11 +129,10 @@ void main() {
     barrier();
     if (lane == 0u) {
         uint n = s_n;
-        uint index = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
         u_tiles.tiles[TILE_HEADER_WORDS + index] = n == 0u ? TILE_EMPTY : (n == 1u ? s_first : TILE_MIXED);
         if (n > 1u) {
             uint i = atomicAdd(u_args.args[ARGS_MIXED + ARGS_COUNT], 1u);
-            u_tiles.tiles[TILE_HEADER_WORDS + pc.tile_count + i] = gl_WorkGroupID.x | (gl_WorkGroupID.y << 16);
+            u_tiles.tiles[TILE_HEADER_WORDS + pc.tile_count + i] = tile.x | (tile.y << 16);
         }
     }
 }

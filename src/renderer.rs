@@ -21,6 +21,7 @@
 //! waits for each frame, so what the pass retires is destroyed by the next frame.
 
 mod behind;
+mod behind_draws;
 mod build;
 mod forward;
 mod frame;
@@ -162,6 +163,8 @@ pub struct Renderer {
     background: BackgroundPass,
     /// The macro geometry's vertex and index buffers (meshes only).
     mesh: Option<MeshBuffers>,
+    /// That mesh's clusters, which the behind layer culls ([`behind_draws`]).
+    mesh_clusters: Vec<behind_draws::Cluster>,
     /// A frame of several objects ([`Renderer::with_objects`]); `None`: the one geometry
     /// of the settings.
     objects: Option<Objects>,

@@ -36,6 +36,9 @@ bool dispmap_behind_keep(float first_hit_height, float first_depth, float depth)
         && depth < first_depth * (1.0 - DISPMAP_BEHIND_MARGIN);
 }
 
+// (A compute shader, which has no derivatives, defines DISPMAP_BEHIND_NO_DERIVATIVES
+// before including this file to leave the next function out.)
+#ifndef DISPMAP_BEHIND_NO_DERIVATIVES
 // Whether a fragment's triangle faces the eye: its own plane (from the screen derivatives
 // of `eye_rel`, the fragment's position relative to the eye), oriented by `normal`, its
 // interpolated normal. Call it in uniform control flow (before any discard). The layer
@@ -48,5 +51,6 @@ bool dispmap_behind_faces_eye(vec3 eye_rel, vec3 normal) {
     face = dot(face, normal) < 0.0 ? -face : face;
     return dot(face, eye_rel) <= 0.0;
 }
+#endif
 
 #endif

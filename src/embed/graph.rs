@@ -43,6 +43,10 @@ pub(super) enum Res {
     Tiles,
     /// The slot's per-material dispatch arguments of the lists.
     Args,
+    /// The host's list of tiles a listed record classifies (the standalone renderer's
+    /// behind layer), written and made visible to compute reads and indirect reads by
+    /// the host.
+    Listed,
     /// What frames only read: height textures, pyramids, cone maps, albedo and normal
     /// maps (filled and left sampled-readable by the builds before the stages).
     Maps,
@@ -65,6 +69,7 @@ fn resource(name: &str, material: u32) -> Option<Res> {
         "u_corners" => Res::Corners(material),
         "u_tiles" => Res::Tiles,
         "u_args" => Res::Args,
+        "u_listed" => Res::Listed,
         "u_height" | "u_pyramid" | "u_cone" | "u_albedo" | "u_normal_map" => Res::Maps,
         _ => return None,
     })
@@ -110,6 +115,20 @@ pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 8] {
         (Res::Motion, Access::COMPUTE_STORAGE_READ_WRITE),
     ]
 }
+
+/// A list of tiles the host gives a listed record: its writes visible to compute-shader
+/// storage reads and indirect reads.
+pub(super) const LISTED_ENTRY: Access = Access {
+    stage: vk::PipelineStageFlags2::from_raw(
+        vk::PipelineStageFlags2::DRAW_INDIRECT.as_raw()
+            | vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw(),
+    ),
+    access: vk::AccessFlags2::from_raw(
+        vk::AccessFlags2::INDIRECT_COMMAND_READ.as_raw()
+            | vk::AccessFlags2::SHADER_STORAGE_READ.as_raw(),
+    ),
+    layout: vk::ImageLayout::UNDEFINED,
+};
 
 /// A visibility the host gives `record_shading`: its writes visible to storage reads.
 pub(super) const HOST_VISIBILITY: Access = Access::COMPUTE_STORAGE_READ;

@@ -612,7 +612,7 @@ impl DisplacementPass {
     /// displaced pixel's height-field or pyramid fetches, 0 at every other pixel);
     /// `None` when the output is off. After a `record` or `record_with_camera` of that
     /// slot it is in `GENERAL`, last written by `COMPUTE_SHADER` `SHADER_STORAGE_WRITE`
-    /// (`record_shading` leaves it alone); usage `STORAGE | TRANSFER_SRC`. The host may
+    /// (`record_shading` leaves it alone); usage `STORAGE | TRANSFER_SRC | TRANSFER_DST`. The host may
     /// read it (after its own barrier from that state) and leave it in any layout: the
     /// next record of the slot discards it.
     pub fn iterations(&self, frame_slot: u32) -> Option<&Image> {
@@ -649,13 +649,32 @@ impl DisplacementPass {
     /// displaced pixel's hit, 0 without one, and the G-buffer's own depth for every other
     /// pixel; [`crate::passes::hit_depth`]); `None` when the output is off. After a record
     /// of that slot it is in `GENERAL`, last written by `COMPUTE_SHADER`
-    /// `SHADER_STORAGE_WRITE`; usage `STORAGE | SAMPLED | TRANSFER_SRC`. The host may read
+    /// `SHADER_STORAGE_WRITE`; usage `STORAGE | SAMPLED | TRANSFER_SRC | TRANSFER_DST`. The host may read
     /// it in the same frame (after its own barrier from that state) and leave it in any
     /// layout: the next record of the slot discards it. To merge it into the host's
     /// `D32_SFLOAT` attachment, record [`crate::passes::depth_resolve::DepthResolvePass`]
     /// (module docs: "Corrected depth").
     pub fn hit_depth(&self, frame_slot: u32) -> Option<&Image> {
         self.slots.get(frame_slot as usize)?.hit_depth.as_ref()
+    }
+
+    /// The tiles of each live material in `frame_slot`'s lists, as the slot's last
+    /// `classify` wrote them (the lists' buffers stay written until the slot is recorded
+    /// again): for a pass over the displaced pixels of a recorded frame (the standalone
+    /// renderer's missed tiles, `crate::passes::behind_tiles`). After a record the tile
+    /// buffer and the arguments were last written by `COMPUTE_SHADER`
+    /// `SHADER_STORAGE_WRITE`.
+    pub(crate) fn live_tiles(
+        &self,
+        frame_slot: u32,
+    ) -> Vec<crate::passes::classify::MaterialTiles> {
+        if (frame_slot as usize) >= self.slots.len() {
+            return Vec::new();
+        }
+        self.live(frame_slot)
+            .into_iter()
+            .map(|(t, _, _)| t)
+            .collect()
     }
 
     /// The light visibility of `frame_slot` (`R16_SFLOAT`, 1 = lit; written by the

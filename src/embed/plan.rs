@@ -360,7 +360,9 @@ impl DisplacementPass {
                     ITERATIONS_FORMAT,
                     extent,
                     1,
-                    vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+                    vk::ImageUsageFlags::STORAGE
+                        | vk::ImageUsageFlags::TRANSFER_SRC
+                        | vk::ImageUsageFlags::TRANSFER_DST,
                 )
             })?);
         }
@@ -376,7 +378,8 @@ impl DisplacementPass {
                     1,
                     vk::ImageUsageFlags::STORAGE
                         | vk::ImageUsageFlags::SAMPLED
-                        | vk::ImageUsageFlags::TRANSFER_SRC,
+                        | vk::ImageUsageFlags::TRANSFER_SRC
+                        | vk::ImageUsageFlags::TRANSFER_DST,
                 )
             })?;
             add.depth = Some(DepthParts {

@@ -79,7 +79,36 @@ impl DisplacementPass {
         timestamps: Timestamps,
     ) -> Result<RecordedFrame> {
         // SAFETY: this function's contract.
-        unsafe { self.record_frame(cmd, inputs, None, timestamps) }
+        unsafe { self.record_frame(cmd, inputs, None, timestamps, None) }
+    }
+
+    /// [`DisplacementPass::record`] of a frame whose geometry lies only in `listed` tiles
+    /// (the standalone renderer's behind layer: its missed tiles): `classify` runs over
+    /// those tiles only; every other tile's pixels keep the hit texels the host gave them
+    /// (it clears the hit images to no hit first), and the slot's iteration counts and
+    /// corrected depth are cleared to 0 there.
+    ///
+    /// # Safety
+    /// As [`DisplacementPass::record`]; in addition the G-buffer has no geometry outside
+    /// the listed tiles, the hit images hold `(0, 0)` and `NO_HIT_HEIGHT` there, and the
+    /// list and its dispatch were written and made visible to compute-shader storage
+    /// reads and indirect reads by the host, and stay alive until the frame completes.
+    pub(crate) unsafe fn record_listed(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        inputs: &FrameInputs,
+        listed: crate::passes::classify::ListedTiles,
+        timestamps: Timestamps,
+    ) -> Result<RecordedFrame> {
+        let ctx = self.context()?.clone();
+        let slot = inputs.frame_slot;
+        let (depth, iterations) = (
+            self.hit_depth(slot).is_some(),
+            self.iterations(slot).is_some(),
+        );
+        self.classify.prepare_listed(&ctx, depth, iterations)?;
+        // SAFETY: this function's contract.
+        unsafe { self.record_frame(cmd, inputs, None, timestamps, Some(listed)) }
     }
 
     /// [`DisplacementPass::record`] with the frame's camera for the corrected depth
@@ -97,7 +126,7 @@ impl DisplacementPass {
         timestamps: Timestamps,
     ) -> Result<RecordedFrame> {
         // SAFETY: this function's contract.
-        unsafe { self.record_frame(cmd, inputs, Some(*camera), timestamps) }
+        unsafe { self.record_frame(cmd, inputs, Some(*camera), timestamps, None) }
     }
 
     /// Shades hits the host wrote into `inputs.hit` (e.g. exact reference hits) exactly
@@ -138,7 +167,7 @@ impl DisplacementPass {
         // places the barriers between the stages.
         unsafe {
             self.record_builds(cmd, &mut w, Some(inputs.frame_slot))?;
-            self.record_classify(cmd, &mut w, &mut g, inputs, false)?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, false, None)?;
         }
         let visibility = match visibility {
             Some(v) => Some(v),
@@ -158,6 +187,7 @@ impl DisplacementPass {
         inputs: &FrameInputs,
         camera: Option<DepthCamera>,
         timestamps: Timestamps,
+        listed: Option<crate::passes::classify::ListedTiles>,
     ) -> Result<RecordedFrame> {
         let camera = match &inputs.shade {
             Some(t) => Some(DepthCamera {
@@ -217,13 +247,16 @@ impl DisplacementPass {
         let mut w = unsafe { self.begin(cmd, inputs, timestamps)? };
         let slot = inputs.frame_slot;
         let mut g = self.graph(inputs, Entry::Frame, false);
+        if listed.is_some() {
+            g.enter_host(Res::Listed, super::graph::LISTED_ENTRY);
+        }
         // SAFETY: this function's contract (the host's images enter as the module docs'
-        // table says, the slot's by the slot contract); `begin` reset the writer's
-        // queries; the builds leave every map sampled-readable, and the graph places the
-        // barriers between the stages after them.
+        // table says, the slot's by the slot contract, a list as `record_listed` says);
+        // `begin` reset the writer's queries; the builds leave every map sampled-readable,
+        // and the graph places the barriers between the stages after them.
         unsafe {
             self.record_builds(cmd, &mut w, Some(slot))?;
-            self.record_classify(cmd, &mut w, &mut g, inputs, true)?;
+            self.record_classify(cmd, &mut w, &mut g, inputs, true, listed.as_ref())?;
             self.record_corners(cmd, &mut w, &mut g, inputs)?;
             self.record_trace(cmd, &mut w, &mut g, inputs, camera.as_ref())?;
         }
@@ -380,7 +413,7 @@ impl DisplacementPass {
     }
 
     /// The live materials: `(tiles, entry, map)` for each, by index.
-    fn live(&self, slot: u32) -> Vec<(MaterialTiles, &MaterialEntry, &MapEntry)> {
+    pub(super) fn live(&self, slot: u32) -> Vec<(MaterialTiles, &MaterialEntry, &MapEntry)> {
         let lists = &self.slots[slot as usize].tiles;
         self.materials
             .iter()

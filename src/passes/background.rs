@@ -35,7 +35,8 @@ impl BackgroundPass {
 
     /// Builds the behind layer's variant (`glsl/background.comp`'s `BEHIND`): it lights
     /// the flat geometry of the behind layer's G-buffer and leaves pixels without
-    /// geometry as they are (the first layer's colour), instead of drawing the sky there.
+    /// geometry as they are (the first layer's colour), instead of drawing the sky there,
+    /// over the missed tiles only ([`BackgroundPass::record_tiles`]).
     pub fn new_behind(ctx: &Context) -> Result<Self> {
         Self::build(ctx, true)
     }
@@ -46,16 +47,20 @@ impl BackgroundPass {
         } else {
             ("background", &shaders::BACKGROUND_COMP)
         };
+        let mut bindings = vec![
+            ("u_depth", SAMPLED),
+            ("u_frame", SAMPLED),
+            ("u_color", STORAGE),
+        ];
+        if behind {
+            bindings.push(("u_behind_tiles", vk::DescriptorType::STORAGE_BUFFER));
+        }
         Ok(BackgroundPass {
             pipeline: FetchPipeline::new(
                 ctx,
                 name,
                 shader,
-                &[
-                    ("u_depth", SAMPLED),
-                    ("u_frame", SAMPLED),
-                    ("u_color", STORAGE),
-                ],
+                &bindings,
                 std::mem::size_of::<ShadeParams>() as u32,
             )?,
         })
@@ -101,6 +106,43 @@ impl BackgroundPass {
                 color.extent.height,
             )
         };
+        Ok(())
+    }
+}
+
+impl BackgroundPass {
+    /// Records the behind variant ([`BackgroundPass::new_behind`]) over the missed tiles
+    /// of `tiles` ([`crate::passes::behind_tiles`]): one workgroup per listed tile, an
+    /// indirect dispatch.
+    ///
+    /// # Safety
+    /// As [`BackgroundPass::record`]; in addition the list and its dispatch were written
+    /// before and made visible to compute-shader storage reads and indirect reads (the
+    /// caller's barrier), and the buffer stays alive until the command buffer has executed.
+    pub(crate) unsafe fn record_tiles(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        gbuffer: GBufferViews,
+        color: ViewRef,
+        params: &ShadeParams,
+        tiles: &crate::passes::behind_tiles::BehindTiles,
+    ) -> Result<()> {
+        let fetch = |view| self.pipeline.fetch_view(view);
+        let (depth, frame) = (fetch(gbuffer.depth.view), fetch(gbuffer.frame.view));
+        let out = storage_view(color.view);
+        let list = tiles.list();
+        let p = &self.pipeline.pipeline;
+        let writes = [
+            p.image("u_depth", &depth)?,
+            p.image("u_frame", &frame)?,
+            p.image("u_color", &out)?,
+            p.buffer("u_behind_tiles", &list)?,
+        ];
+        let (args, offset) = tiles.list_dispatch();
+        // SAFETY: this function's # Safety contract, as in `record`; the buffer holds the
+        // list's dispatch at `offset` and has INDIRECT_BUFFER usage.
+        unsafe { p.dispatch_indirect(ctx, cmd, &writes, bytemuck::bytes_of(params), args, offset) };
         Ok(())
     }
 }

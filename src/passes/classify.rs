@@ -103,7 +103,7 @@ impl TileLists {
             ctx,
             &format!("{name}.tiles"),
             tile_buffer_bytes(extent),
-            vk::BufferUsageFlags::STORAGE_BUFFER,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuOnly,
         )?;
         let args = Buffer::new(
@@ -305,6 +305,8 @@ pub struct ClassifyInputs<'a> {
 pub struct ClassifyPass {
     /// The counting step's variants, by `depth as usize + 2 * iterations as usize`.
     count: [FetchPipeline; 4],
+    /// Their `LISTED` variants, built on first use ([`ClassifyPass::prepare_listed`]).
+    listed: [Option<FetchPipeline>; 4],
     offsets: FetchPipeline,
     scatter: FetchPipeline,
     mixed: FetchPipeline,
@@ -323,6 +325,21 @@ impl ClassifyPass {
         self.pipeline(step, hit_depth, iterations).pipeline.bindings
     }
 
+    /// As [`ClassifyPass::bindings`], of the `LISTED` counting step when `listed`
+    /// (built by [`ClassifyPass::prepare_listed`]).
+    pub(crate) fn bindings_of(
+        &self,
+        step: ClassifyStep,
+        hit_depth: bool,
+        iterations: bool,
+        listed: bool,
+    ) -> Result<&'static [crate::shaders::ShaderBinding]> {
+        Ok(self
+            .pipeline_of(step, hit_depth, iterations, listed)?
+            .pipeline
+            .bindings)
+    }
+
     fn pipeline(&self, step: ClassifyStep, hit_depth: bool, iterations: bool) -> &FetchPipeline {
         match step {
             ClassifyStep::Count => {
@@ -332,6 +349,68 @@ impl ClassifyPass {
             ClassifyStep::Scatter => &self.scatter,
             ClassifyStep::Mixed => &self.mixed,
         }
+    }
+
+    fn pipeline_of(
+        &self,
+        step: ClassifyStep,
+        hit_depth: bool,
+        iterations: bool,
+        listed: bool,
+    ) -> Result<&FetchPipeline> {
+        if !(listed && step == ClassifyStep::Count) {
+            return Ok(self.pipeline(step, hit_depth, iterations));
+        }
+        self.listed[usize::from(hit_depth) + 2 * usize::from(iterations)]
+            .as_ref()
+            .ok_or_else(|| Error::Internal("the listed classify was not prepared".into()))
+    }
+
+    /// Builds the `LISTED` counting step (a classification of listed tiles only,
+    /// [`ListedTiles`]) with or without the corrected depth and the iteration counts, once.
+    pub(crate) fn prepare_listed(
+        &mut self,
+        ctx: &Context,
+        hit_depth: bool,
+        iterations: bool,
+    ) -> Result<()> {
+        let i = usize::from(hit_depth) + 2 * usize::from(iterations);
+        if self.listed[i].is_some() {
+            return Ok(());
+        }
+        let (name, shader) = match (hit_depth, iterations) {
+            (false, false) => ("classify[listed]", &shaders::CLASSIFY_COMP_LISTED),
+            (true, false) => (
+                "classify[listed,depth]",
+                &shaders::CLASSIFY_COMP_LISTED_DEPTH,
+            ),
+            (false, true) => (
+                "classify[listed,iterations]",
+                &shaders::CLASSIFY_COMP_LISTED_ITERATIONS,
+            ),
+            (true, true) => (
+                "classify[listed,depth,iterations]",
+                &shaders::CLASSIFY_COMP_LISTED_DEPTH_ITERATIONS,
+            ),
+        };
+        let mut bindings = vec![
+            ("u_depth", SAMPLED),
+            ("u_frame", SAMPLED),
+            ("u_hit_uv", STORAGE),
+            ("u_hit_height", STORAGE),
+            ("u_tiles", BUFFER),
+            ("u_args", BUFFER),
+            (LISTED, BUFFER),
+        ];
+        if hit_depth {
+            bindings.push(("u_hit_depth", STORAGE));
+        }
+        if iterations {
+            bindings.push(("u_iterations", STORAGE));
+        }
+        let size = std::mem::size_of::<ClassifyParams>() as u32;
+        self.listed[i] = Some(FetchPipeline::new(ctx, name, shader, &bindings, size)?);
+        Ok(())
     }
 
     /// Builds the pipelines.
@@ -391,6 +470,7 @@ impl ClassifyPass {
                 with_iterations.keep(),
                 with_both.keep(),
             ],
+            listed: [None, None, None, None],
             offsets: offsets.keep(),
             scatter: scatter.keep(),
             mixed: mixed.keep(),
@@ -463,12 +543,60 @@ impl ClassifyPass {
         inputs: &ClassifyInputs,
         step: ClassifyStep,
     ) -> Result<()> {
+        // SAFETY: this function's contract.
+        unsafe { self.record_step(ctx, cmd, inputs, step, None) }
+    }
+
+    /// Records the frame start of a classification of `listed` tiles only, after
+    /// [`ClassifyPass::record_reset`]: every tile's summary `TILE_EMPTY` (a transfer fill
+    /// of the tile buffer, which the `LISTED` counting step then overwrites for the listed
+    /// tiles). The pixels of the other tiles get no hit texels (nor corrected depth or
+    /// iteration count): the caller gives them theirs.
+    ///
+    /// # Safety
+    /// As [`ClassifyPass::record_reset`], for the tile buffer too.
+    pub(crate) unsafe fn record_listed_reset(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: &ClassifyInputs,
+    ) {
         let lists = inputs.lists;
-        let pipeline = self.pipeline(
+        // SAFETY: this function's contract; the summaries lie inside the live
+        // TRANSFER_DST buffer (after the header), a multiple of 4 bytes.
+        unsafe {
+            ctx.device().cmd_fill_buffer(
+                cmd,
+                lists.tiles.raw,
+                4 * HEADER_WORDS,
+                4 * u64::from(lists.tile_count.max(1)),
+                u32::MAX,
+            )
+        };
+    }
+
+    /// [`ClassifyPass::record`], the counting step over `listed` tiles only (after
+    /// [`ClassifyPass::record_listed_reset`] and [`ClassifyPass::prepare_listed`]).
+    ///
+    /// # Safety
+    /// As [`ClassifyPass::record`]; the list and its dispatch were written before and are
+    /// visible to compute-shader storage reads and indirect reads, and stay alive until
+    /// the command buffer has executed.
+    pub(crate) unsafe fn record_step(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: &ClassifyInputs,
+        step: ClassifyStep,
+        listed: Option<&ListedTiles>,
+    ) -> Result<()> {
+        let lists = inputs.lists;
+        let pipeline = self.pipeline_of(
             step,
             inputs.hit_depth.is_some(),
             inputs.iterations.is_some(),
-        );
+            listed.is_some(),
+        )?;
         let fetch = |view| pipeline.fetch_view(view);
         let (depth, frame) = (fetch(inputs.depth), fetch(inputs.frame));
         let (hit_uv, hit_height) = (storage_view(inputs.hit.uv), storage_view(inputs.hit.height));
@@ -496,6 +624,12 @@ impl ClassifyPass {
                 writes.push(p.image("u_iterations", i)?);
             }
         }
+        let listed_info = listed.map(|l| [l.list]);
+        if step == ClassifyStep::Count
+            && let Some(info) = &listed_info
+        {
+            writes.push(p.buffer(LISTED, info)?);
+        }
         let extent = inputs.extent;
         let push = ClassifyParams {
             frame_size: [extent.width, extent.height],
@@ -521,9 +655,10 @@ impl ClassifyPass {
         // INDIRECT_BUFFER usage and the mixed list's command at its offset.
         unsafe {
             match step {
-                ClassifyStep::Count => {
-                    p.dispatch(ctx, cmd, &writes, push, extent.width, extent.height)
-                }
+                ClassifyStep::Count => match listed {
+                    Some(l) => p.dispatch_indirect(ctx, cmd, &writes, push, l.dispatch, l.offset),
+                    None => p.dispatch(ctx, cmd, &writes, push, extent.width, extent.height),
+                },
                 ClassifyStep::Offsets => p.dispatch(ctx, cmd, &writes, push, 1, 1),
                 ClassifyStep::Scatter => p.dispatch(ctx, cmd, &writes, push, tx, ty),
                 ClassifyStep::Mixed => p.dispatch_indirect(
@@ -540,6 +675,23 @@ impl ClassifyPass {
     }
 }
 
+/// The GLSL name of the `LISTED` counting step's tile list.
+const LISTED: &str = "u_listed";
+
+/// The tiles a classification runs over when not the whole frame
+/// ([`ClassifyPass::record_step`]): a buffer range holding a `VkDispatchIndirectCommand`
+/// (one workgroup per listed tile, in rows of 65,535), the count, then the tiles packed
+/// `x | y << 16` (`u_listed` in `glsl/classify.comp`), and where its dispatch is.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ListedTiles {
+    /// The list.
+    pub list: vk::DescriptorBufferInfo,
+    /// The buffer holding its dispatch (`INDIRECT_BUFFER` usage) ...
+    pub dispatch: vk::Buffer,
+    /// ... at this offset.
+    pub offset: u64,
+}
+
 /// The table entries classified: `inputs.live`'s length, at most [`MAX_MATERIALS`].
 fn material_count(inputs: &ClassifyInputs) -> u32 {
     (inputs.live.len() as u32).min(MAX_MATERIALS)
@@ -551,6 +703,9 @@ impl Destroy for ClassifyPass {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             for p in &mut self.count {
+                p.destroy(ctx);
+            }
+            for p in &mut self.listed {
                 p.destroy(ctx);
             }
             self.offsets.destroy(ctx);

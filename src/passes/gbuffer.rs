@@ -608,7 +608,7 @@ pub unsafe fn record_draws(
     rays: &PixelRayParams,
 ) -> Result<()> {
     // SAFETY: this function's # Safety contract.
-    unsafe { record_layer(ctx, cmd, target, draws, rays, None, None) }
+    unsafe { record_layer(ctx, cmd, target, draws, rays, None, None, None) }
 }
 
 /// What the behind layer's draws read of the first layer: its G-buffer depth (sampled,
@@ -639,7 +639,7 @@ pub unsafe fn record_draws_behind(
     first: FirstLayer,
 ) -> Result<()> {
     // SAFETY: this function's # Safety contract.
-    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first), None) }
+    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first), None, None) }
 }
 
 /// As [`record_draws_behind`], the objects' raster kept to the pixels whose first-layer
@@ -658,14 +658,71 @@ pub unsafe fn record_draws_behind_masked(
     mask: &crate::passes::behind_mask::BehindMaskPass,
 ) -> Result<()> {
     // SAFETY: this function's # Safety contract.
-    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first), Some(mask)) }
+    unsafe { record_layer(ctx, cmd, target, draws, rays, Some(first), Some(mask), None) }
+}
+
+/// The indirect commands a culled behind layer draws with
+/// ([`crate::passes::behind_tiles`]): per draw of the layer, in order, the range
+/// `(first, count)` of its commands, command `c` at `offset + c * stride` of `buffer` (a
+/// `VkDrawIndexedIndirectCommand` for a mesh, a `VkDrawIndirectCommand` for the plane).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct IndirectDraws<'a> {
+    /// The buffer of the commands (`INDIRECT_BUFFER` usage).
+    pub buffer: vk::Buffer,
+    /// The offset of command 0.
+    pub offset: u64,
+    /// The bytes between commands.
+    pub stride: u64,
+    /// Per draw, its commands.
+    pub ranges: &'a [(u32, u32)],
+}
+
+/// As [`record_draws_behind`] (with `mask`, [`record_draws_behind_masked`]), each draw
+/// recorded as its range of indirect commands in `indirect` (the same triangles in the
+/// same order, split into pieces; a piece whose command has no vertices draws nothing).
+///
+/// # Safety
+/// As [`record_draws_behind`] (and `_masked`); the commands were written before and made
+/// visible to indirect reads (the caller's barrier), their first index (or vertex) and
+/// count inside each draw's own, and `indirect.buffer` stays alive until the command
+/// buffer has executed.
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn record_draws_behind_culled(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    target: &GBuffer,
+    draws: &[GBufferDraw<'_>],
+    rays: &PixelRayParams,
+    first: FirstLayer,
+    mask: Option<&crate::passes::behind_mask::BehindMaskPass>,
+    indirect: IndirectDraws<'_>,
+) -> Result<()> {
+    if indirect.ranges.len() != draws.len() {
+        return Err(crate::error::Error::Internal(
+            "one range of indirect commands per behind draw".into(),
+        ));
+    }
+    // SAFETY: this function's # Safety contract.
+    unsafe {
+        record_layer(
+            ctx,
+            cmd,
+            target,
+            draws,
+            rays,
+            Some(first),
+            mask,
+            Some(indirect),
+        )
+    }
 }
 
 /// [`record_draws`] (`first` `None`), [`record_draws_behind`] or (with `mask`)
-/// [`record_draws_behind_masked`].
+/// [`record_draws_behind_masked`]; with `indirect`, [`record_draws_behind_culled`].
 ///
 /// # Safety
 /// As those.
+#[allow(clippy::too_many_arguments)]
 unsafe fn record_layer(
     ctx: &Context,
     cmd: vk::CommandBuffer,
@@ -674,6 +731,7 @@ unsafe fn record_layer(
     rays: &PixelRayParams,
     first: Option<FirstLayer>,
     mask: Option<&crate::passes::behind_mask::BehindMaskPass>,
+    indirect: Option<IndirectDraws<'_>>,
 ) -> Result<()> {
     use crate::passes::behind_mask::{BLOCK_DEPTH, CLEAR_DEPTH};
     let mask = match (mask, first) {
@@ -779,7 +837,7 @@ unsafe fn record_layer(
             // The pixels the layer leaves empty, blocked for the objects' depth test.
             m.record(ctx, cmd, f, BLOCK_DEPTH)?;
         }
-        for (draw, write) in draws.iter().zip(&writes) {
+        for (d, (draw, write)) in draws.iter().zip(&writes).enumerate() {
             debug_assert_eq!(draw.pass.mesh, draw.mesh.is_some(), "pipeline vs mesh");
             debug_assert_eq!(
                 draw.pass.behind,
@@ -804,13 +862,25 @@ unsafe fn record_layer(
                 0,
                 bytemuck::bytes_of(&draw.params),
             );
-            match draw.mesh {
-                Some(m) => {
-                    dev.cmd_bind_vertex_buffers(cmd, 0, &[m.vertices.raw], &[0]);
-                    dev.cmd_bind_index_buffer(cmd, m.indices.raw, 0, vk::IndexType::UINT32);
-                    dev.cmd_draw_indexed(cmd, m.index_count, 1, 0, 0, 0);
+            if let Some(m) = draw.mesh {
+                dev.cmd_bind_vertex_buffers(cmd, 0, &[m.vertices.raw], &[0]);
+                dev.cmd_bind_index_buffer(cmd, m.indices.raw, 0, vk::IndexType::UINT32);
+            }
+            match (draw.mesh, &indirect) {
+                (Some(m), None) => dev.cmd_draw_indexed(cmd, m.index_count, 1, 0, 0, 0),
+                (None, None) => dev.cmd_draw(cmd, draw.params.vertex_count(), 1, 0, 0),
+                (mesh, Some(i)) => {
+                    // The draw's pieces, each one command (no multi-draw needed).
+                    let (start, count) = i.ranges[d];
+                    for c in start..start + count {
+                        let at = i.offset + u64::from(c) * i.stride;
+                        if mesh.is_some() {
+                            dev.cmd_draw_indexed_indirect(cmd, i.buffer, at, 1, i.stride as u32);
+                        } else {
+                            dev.cmd_draw_indirect(cmd, i.buffer, at, 1, i.stride as u32);
+                        }
+                    }
                 }
-                None => dev.cmd_draw(cmd, draw.params.vertex_count(), 1, 0, 0),
             }
         }
         if let Some((m, f)) = mask {

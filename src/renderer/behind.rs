@@ -1,19 +1,50 @@
 //! The behind layer of a frame of several objects: what a pixel whose displaced ray missed
 //! shows (the next surface along its view ray instead of the sky). After the frame's
-//! first record, the renderer rasterises the objects again into a second G-buffer, keeping
-//! a fragment only at a pixel whose first-layer trace missed and only behind the first
-//! layer's surface (`glsl/include/dispmap_behind.glsl`; the plane's shader tests the pixel
-//! first; with [`Renderer::set_behind_mask`], a depth mask of the missed pixels,
-//! [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere before they are
-//! shaded), lights that layer's flat
-//! geometry, and records the displacement pass a second time on it: frame slot 1, its own
-//! hit images, the same colour image (and motion image). The second trace and shade run
-//! only over the tiles that layer covers. docs/embedding.md, "What a miss shows", is the
-//! same route for a host.
+//! first record, the renderer marks the 8x8 tiles holding a missed pixel and culls the
+//! layer's draws to them ([`crate::passes::behind_tiles`], on the GPU: each mesh drawn
+//! as its clusters, [`super::behind_draws`], a cluster only where its screen rectangle
+//! meets a missed tile in front of it), rasterises the kept clusters into a second
+//! G-buffer, keeping a fragment only at a pixel whose first-layer trace missed and only
+//! behind the first layer's surface (`glsl/include/dispmap_behind.glsl`; the plane's
+//! shader tests the pixel first; with [`Renderer::set_behind_mask`], a depth mask of the
+//! missed pixels, [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere
+//! before they are shaded), lights that layer's flat geometry in the missed tiles, and
+//! records the displacement pass a second time on it: frame slot 1, its own hit images
+//! (cleared to no hit, then classified over the missed tiles only), the same colour image
+//! (and motion image). The second trace and shade run only over the tiles that layer
+//! covers. docs/embedding.md, "What a miss shows", is the same route for a host.
 
+use super::behind_draws::{Cluster, coarsen, mesh_sources, whole_frame};
 use super::*;
 use crate::gpu::track::{Target, Tracker};
-use crate::passes::gbuffer::FirstLayer;
+use crate::passes::behind_tiles::{BehindTiles, DRAW_STRIDE, DrawSource, MAX_DRAWS};
+use crate::passes::gbuffer::{FirstLayer, IndirectDraws};
+
+/// The behind layer's buffer accesses ([`BehindTiles`], the first layer's tile lists).
+const BUFFER_WRITE: Access = Access {
+    layout: vk::ImageLayout::UNDEFINED,
+    ..Access::BUFFER_TRANSFER_WRITE
+};
+const COMPUTE_BUFFER_READ_WRITE: Access = Access {
+    layout: vk::ImageLayout::UNDEFINED,
+    ..Access::COMPUTE_STORAGE_READ_WRITE
+};
+const COMPUTE_BUFFER_WRITTEN: Access = Access {
+    layout: vk::ImageLayout::UNDEFINED,
+    ..Access::COMPUTE_STORAGE_WRITE
+};
+/// Read by compute shaders and as indirect commands (dispatches and draws).
+const INDIRECT_READ: Access = Access {
+    stage: vk::PipelineStageFlags2::from_raw(
+        vk::PipelineStageFlags2::DRAW_INDIRECT.as_raw()
+            | vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw(),
+    ),
+    access: vk::AccessFlags2::from_raw(
+        vk::AccessFlags2::INDIRECT_COMMAND_READ.as_raw()
+            | vk::AccessFlags2::SHADER_STORAGE_READ.as_raw(),
+    ),
+    layout: vk::ImageLayout::UNDEFINED,
+};
 
 /// The frame slot of the pass the behind layer is recorded with (the first layer's is 0).
 pub(super) const BEHIND_SLOT: u32 = 1;
@@ -37,6 +68,12 @@ pub(super) struct Behind {
     /// The mask keeping the layer's raster to the missed pixels, when asked for
     /// ([`Renderer::set_behind_mask`]).
     mask: Option<crate::passes::behind_mask::BehindMaskPass>,
+    /// Per draw of the layer (the objects' order) its clusters (`None`: the tiled plane,
+    /// one piece), at most [`MAX_DRAWS`] pieces in all.
+    clusters: Vec<Option<Vec<Cluster>>>,
+    /// The missed tiles and the pieces' commands (built by the first record, and again
+    /// for a new frame size).
+    tiles: Option<BehindTiles>,
 }
 
 impl Destroy for Behind {
@@ -50,6 +87,7 @@ impl Destroy for Behind {
             self.two_sided.destroy(ctx);
             self.background.destroy(ctx);
             self.mask.destroy(ctx);
+            self.tiles.destroy(ctx);
         }
     }
 }
@@ -68,11 +106,17 @@ enum Layer {
     HitHeight,
     Color,
     Motion,
+    /// The missed tiles' buffer.
+    Tiles,
+    /// The first layer's tile lists and their arguments.
+    FirstTiles,
 }
 
 impl Behind {
     /// The layer's images for `extent` and the pipelines of `objects`' kinds: the tiled
     /// plane (`plane`), one-sided and two-sided meshes.
+    /// `clusters`: per object its mesh's clusters (`None`: the tiled plane).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         c: &Context,
         extent: vk::Extent2D,
@@ -80,6 +124,7 @@ impl Behind {
         mesh: bool,
         two_sided: bool,
         curve: bool,
+        clusters: Vec<Option<Vec<Cluster>>>,
     ) -> Result<Self> {
         let (gbuffer, hit) = layer_images(c, extent, curve)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
@@ -102,6 +147,8 @@ impl Behind {
             two_sided: two_sided.keep(),
             background: background.keep(),
             mask: None,
+            clusters: within_draws(clusters),
+            tiles: None,
         })
     }
 
@@ -180,6 +227,26 @@ impl Behind {
     }
 }
 
+/// `clusters` merged (consecutive ones of a mesh) until all the draws' pieces number at
+/// most [`MAX_DRAWS`].
+fn within_draws(clusters: Vec<Option<Vec<Cluster>>>) -> Vec<Option<Vec<Cluster>>> {
+    let pieces = |c: &[Option<Vec<Cluster>>]| -> usize {
+        c.iter()
+            .map(|c| c.as_ref().map_or(1, |c| c.len().max(1)))
+            .sum()
+    };
+    let mut factor = 1;
+    let mut out = clusters.clone();
+    while pieces(&out) > MAX_DRAWS as usize {
+        factor *= 2;
+        out = clusters
+            .iter()
+            .map(|c| c.as_ref().map(|c| coarsen(c, factor)))
+            .collect();
+    }
+    out
+}
+
 /// The layer's G-buffer and hit images, guarded until the caller keeps them.
 fn layer_images(
     c: &Context,
@@ -197,7 +264,7 @@ fn layer_images(
     let hit = unsafe {
         Guard::new(
             c,
-            Hits::new(c, "behind.hits", extent, vk::ImageUsageFlags::empty())?,
+            Hits::new(c, "behind.hits", extent, vk::ImageUsageFlags::TRANSFER_DST)?,
         )
     };
     Ok((gbuffer, hit))
@@ -251,6 +318,15 @@ impl Renderer {
                     (None, Some(m)) => (false, !m.two_sided, m.two_sided),
                     (None, None) => (false, false, false),
                 };
+                let clusters = match &self.objects {
+                    Some(o) => o
+                        .meshes
+                        .iter()
+                        .zip(&o.clusters)
+                        .map(|(m, c)| m.as_ref().map(|_| c.clone()))
+                        .collect(),
+                    None => vec![Some(self.mesh_clusters.clone())],
+                };
                 self.behind = Some(Behind::new(
                     c,
                     self.settings.extent(),
@@ -258,6 +334,7 @@ impl Renderer {
                     mesh,
                     two_sided,
                     self.gbuffer.curve.is_some(),
+                    clusters,
                 )?);
             }
             (false, Some(_)) => {
@@ -291,11 +368,12 @@ impl Renderer {
     /// ([`crate::passes::behind_mask`]: one full-screen triangle before the objects blocks
     /// every other pixel, one after them clears those pixels again) or draws it unmasked
     /// (the default), each fragment then discarded by the behind shader after two texel
-    /// reads. The images are the same bit for bit either way. The mask trades two
-    /// full-screen fragment passes for the objects' fragments at the pixels that did not
-    /// miss: measured, it saved nothing on lavapipe (whose raster is bound by geometry) and
-    /// made the layer 2.3x as slow on an NVIDIA H200 (1.41 -> 3.25 ms at 1920x1080, a part
-    /// with little graphics hardware); BENCHMARKS.md has the figures. Refused without a
+    /// reads. The images are the same bit for bit either way (the draws culled to the
+    /// missed tiles either way). The mask trades two full-screen fragment passes for the
+    /// objects' fragments at the pixels that did not miss: measured with every draw whole
+    /// (before the culling), it saved nothing on lavapipe (whose raster was bound by
+    /// geometry) and made the layer 2.3x as slow on an NVIDIA H200 (1.41 -> 3.25 ms at
+    /// 1920x1080, a part with little graphics hardware); BENCHMARKS.md has the figures. Refused without a
     /// drawn behind layer ([`Renderer::set_behind`]; an empty one has no raster to mask).
     pub fn set_behind_mask(&mut self, on: bool) -> Result<()> {
         let c = &*self.ctx;
@@ -395,6 +473,67 @@ impl Renderer {
             return Ok(None);
         };
         let ctx = self.ctx.clone();
+        let extent = self.settings.extent();
+        // Each draw's pieces this frame: a mesh's clusters, each with its screen rectangle;
+        // the tiled plane whole.
+        let params: Vec<crate::abi::GBufferParams> = match (&self.objects, &self.mesh) {
+            (Some(_), _) => self
+                .object_draws(camera)?
+                .unwrap_or_default()
+                .iter()
+                .map(|d| d.params)
+                .collect(),
+            (None, Some(_)) => vec![self.settings.scene.gbuffer_params(camera)],
+            (None, None) => return Ok(None),
+        };
+        if params.len() != behind.clusters.len() {
+            return Err(Error::Internal(
+                "the behind layer's clusters do not match its draws".into(),
+            ));
+        }
+        let mut sources = Vec::new();
+        let mut ranges = Vec::new();
+        for (p, clusters) in params.iter().zip(&behind.clusters) {
+            let start = sources.len() as u32;
+            match clusters {
+                Some(c) => sources.extend(mesh_sources(
+                    c,
+                    p.view_proj,
+                    p.camera_pos.truncate(),
+                    extent,
+                )),
+                None => sources.push(DrawSource {
+                    rect: whole_frame(extent),
+                    count: p.vertex_count(),
+                    first: 0,
+                    depth: 0.0,
+                }),
+            }
+            ranges.push((start, sources.len() as u32 - start));
+        }
+        let pieces = sources.len() as u32;
+        if !behind
+            .tiles
+            .as_ref()
+            .is_some_and(|t| t.fits(extent, pieces))
+        {
+            let tiles = BehindTiles::new(&ctx, extent, pieces)?;
+            if let Some(b) = &mut self.behind
+                && let Some(mut old) = b.tiles.replace(tiles)
+            {
+                // SAFETY: this function's contract: the layer's previous frame was waited
+                // for, the last user of the old buffer.
+                unsafe { old.destroy(&ctx) };
+            }
+        }
+        let Some(behind) = &self.behind else {
+            return Ok(None);
+        };
+        let Some(tiles) = &behind.tiles else {
+            return Err(Error::Internal("no behind tiles".into()));
+        };
+        // The first layer's live materials' tiles (slot 0's lists, just written).
+        let first_tiles = self.pass.live_tiles(0);
         // The first layer's draws (their push constants), each drawn again with the behind
         // variant of its pipeline.
         // A mesh drawn alone: its one draw.
@@ -439,7 +578,7 @@ impl Renderer {
                 Layer::HitUv => &behind.hit.uv,
                 Layer::HitHeight => &behind.hit.height,
                 Layer::Color => &self.color,
-                Layer::Motion => return Target::Memory,
+                Layer::Motion | Layer::Tiles | Layer::FirstTiles => return Target::Memory,
             };
             Target::Image(image.raw, image.range())
         };
@@ -463,6 +602,10 @@ impl Renderer {
             ));
         }
         t.enter(Layer::FirstDepth, Access::COMPUTE_SAMPLED);
+        // The lists, last written by the first record's classify; the missed tiles' buffer
+        // last read by the layer's previous frame (waited for).
+        t.enter(Layer::FirstTiles, COMPUTE_BUFFER_WRITTEN);
+        t.enter(Layer::Tiles, DISCARD);
         let curve = behind.gbuffer.curve.is_some();
         for key in [
             Layer::Ray,
@@ -508,6 +651,39 @@ impl Renderer {
         // completed (every frame is waited for).
         unsafe {
             w.scope(&ctx, cmd, PassName::Behind, |cmd| -> Result<()> {
+                // The missed tiles, then each piece's command and the tiles' list; the
+                // layer's hits cleared to no hit (the pass writes the missed tiles' only).
+                t.declare(Layer::Tiles, BUFFER_WRITE)?;
+                t.declare(Layer::HitUv, Access::TRANSFER_WRITE)?;
+                t.declare(Layer::HitHeight, Access::TRANSFER_WRITE)?;
+                t.flush(&ctx, cmd, images)?;
+                tiles.record_reset(&ctx, cmd, &sources)?;
+                for (image, value) in [
+                    (&behind.hit.uv, 0.0),
+                    (&behind.hit.height, crate::abi::NO_HIT_HEIGHT),
+                ] {
+                    ctx.device().cmd_clear_color_image(
+                        cmd,
+                        image.raw,
+                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                        &vk::ClearColorValue {
+                            float32: [value, 0.0, 0.0, 0.0],
+                        },
+                        &[image.range()],
+                    );
+                }
+                t.declare(Layer::Tiles, COMPUTE_BUFFER_READ_WRITE)?;
+                t.declare(Layer::FirstTiles, INDIRECT_READ)?;
+                t.declare(Layer::FirstHitHeight, Access::COMPUTE_STORAGE_READ)?;
+                t.declare(Layer::FirstDepth, Access::COMPUTE_SAMPLED)?;
+                t.flush(&ctx, cmd, images)?;
+                tiles.record_misses(&ctx, cmd, first, &first_tiles)?;
+                for step in [0, 1] {
+                    t.declare(Layer::Tiles, COMPUTE_BUFFER_READ_WRITE)?;
+                    t.flush(&ctx, cmd, images)?;
+                    tiles.record_cull(&ctx, cmd, step)?;
+                }
+                t.declare(Layer::Tiles, INDIRECT_READ)?;
                 for (key, access) in [
                     (Layer::Ray, Access::COLOR_ATTACHMENT_WRITE),
                     (Layer::Frame, Access::COLOR_ATTACHMENT_WRITE),
@@ -535,27 +711,25 @@ impl Renderer {
                     t.declare(Layer::Curve, Access::COLOR_ATTACHMENT_WRITE)?;
                 }
                 t.flush(&ctx, cmd, images)?;
-                match &behind.mask {
-                    // Kept to the missed pixels by the mask (the objects' raster
-                    // elsewhere rejected by the depth test before fragment shading).
-                    Some(mask) => crate::passes::gbuffer::record_draws_behind_masked(
-                        &ctx,
-                        cmd,
-                        &behind.gbuffer,
-                        &draws,
-                        &rays,
-                        first,
-                        mask,
-                    )?,
-                    None => crate::passes::gbuffer::record_draws_behind(
-                        &ctx,
-                        cmd,
-                        &behind.gbuffer,
-                        &draws,
-                        &rays,
-                        first,
-                    )?,
-                }
+                // Each draw as its pieces, those off the missed tiles with no vertices;
+                // with the mask, the objects' raster elsewhere rejected by the depth test
+                // before fragment shading.
+                let (buffer, offset) = tiles.draw(0);
+                crate::passes::gbuffer::record_draws_behind_culled(
+                    &ctx,
+                    cmd,
+                    &behind.gbuffer,
+                    &draws,
+                    &rays,
+                    first,
+                    behind.mask.as_ref(),
+                    IndirectDraws {
+                        buffer,
+                        offset,
+                        stride: DRAW_STRIDE,
+                        ranges: &ranges,
+                    },
+                )?;
                 // The layer's flat geometry, lit by the host (the background's variant).
                 for key in [Layer::Ray, Layer::Frame, Layer::Depth] {
                     t.declare(key, Access::COMPUTE_SAMPLED)?;
@@ -565,12 +739,13 @@ impl Renderer {
                 }
                 t.declare(Layer::Color, Access::COMPUTE_STORAGE_WRITE)?;
                 t.flush(&ctx, cmd, images)?;
-                behind.background.record(
+                behind.background.record_tiles(
                     &ctx,
                     cmd,
                     behind.gbuffer.views(),
                     self.color.view_ref(),
                     &params,
+                    tiles,
                 )?;
                 // The pass's entry contract on the layer.
                 t.declare(Layer::Color, Access::COMPUTE_STORAGE_WRITE)?;
@@ -580,7 +755,20 @@ impl Renderer {
                     t.declare(Layer::Motion, Access::COMPUTE_STORAGE_READ_WRITE)?;
                 }
                 t.flush(&ctx, cmd, images)?;
-                pass.record(cmd, &inputs, Timestamps::Off)?;
+                // Classified over the missed tiles only (the layer has no geometry
+                // elsewhere, its hits cleared above).
+                let list = tiles.list();
+                let (dispatch, offset) = tiles.list_dispatch();
+                pass.record_listed(
+                    cmd,
+                    &inputs,
+                    crate::passes::classify::ListedTiles {
+                        list: list[0],
+                        dispatch,
+                        offset,
+                    },
+                    Timestamps::Off,
+                )?;
                 Ok(())
             })?
         };

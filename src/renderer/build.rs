@@ -70,6 +70,10 @@ impl Renderer {
                 )?,
             )
         };
+        let clusters = mesh
+            .as_ref()
+            .map(|m| super::behind_draws::clusters(m))
+            .unwrap_or_default();
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let mesh = unsafe {
             Guard::new(
@@ -105,6 +109,7 @@ impl Renderer {
         }
         let mut renderer = host.keep(ctx, settings, gbuffer_pass.keep(), mesh.keep(), None, pass);
         renderer.convex_alone = convex;
+        renderer.mesh_clusters = clusters;
         Ok(renderer)
     }
 
@@ -224,6 +229,7 @@ impl Renderer {
                     mesh_pass: None,
                     two_sided_pass: None,
                     meshes: Vec::new(),
+                    clusters: Vec::new(),
                     materials: Vec::new(),
                     framing: None,
                 },
@@ -242,6 +248,11 @@ impl Renderer {
                 .map(|m| MeshBuffers::upload(c, &host.shot, m))
                 .transpose()?;
             drawn.meshes.push(buffers);
+            drawn.clusters.push(
+                mesh.as_ref()
+                    .map(super::behind_draws::clusters)
+                    .unwrap_or_default(),
+            );
         }
         drawn.framing = framing;
         // A material's refusal (its loop budget, its maps) names its object.
@@ -401,6 +412,7 @@ impl<'c> HostParts<'c> {
             gbuffer_pass,
             background: self.background.keep(),
             mesh,
+            mesh_clusters: Vec::new(),
             objects,
             pass,
             depth_written: false,

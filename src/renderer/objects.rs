@@ -44,6 +44,9 @@ pub(super) struct Objects {
     /// Per object: its vertex buffers (`None`: the tiled plane, drawn by the plane
     /// pipeline) ...
     pub(super) meshes: Vec<Option<MeshBuffers>>,
+    /// ... its clusters, which the behind layer culls (empty for the tiled plane:
+    /// `super::behind_draws`) ...
+    pub(super) clusters: Vec<Vec<super::behind_draws::Cluster>>,
     /// ... and its material (`None`: flat).
     pub(super) materials: Vec<Option<MaterialId>>,
     /// The camera's target and orbit distance (`None`: the tiled plane's camera, when a

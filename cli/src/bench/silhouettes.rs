@@ -17,7 +17,8 @@
 //! per-pass minima, and the ratio is also given from the medians over every frame.
 //! Beside each ratio: the share of the frame's pixels of materials traced as curved (the
 //! displaced meshes of methods with a curved path) and the share whose displaced ray
-//! missed (the pixels the behind layer re-rasterises).
+//! missed (the pixels the behind layer shows something behind; its work is kept to the
+//! 8x8 tiles holding them).
 
 use super::materials::Stat;
 use crate::scene_file::SceneFile;
@@ -63,8 +64,8 @@ pub struct SceneCost {
     pub behind_empty: bool,
     /// Share of the frame's pixels of materials traced as curved.
     pub curved_share: f64,
-    /// Share of the frame's pixels whose displaced ray missed (re-rasterised by the
-    /// behind layer where the scene has one).
+    /// Share of the frame's pixels whose displaced ray missed (filled by the behind
+    /// layer where the scene has one).
     pub missed_share: f64,
 }
 
@@ -266,8 +267,9 @@ pub fn markdown(b: &SilhouetteBench, frame: [u32; 2]) -> String {
          per-pass minimum), ms; the ratio also from the medians. Curved: share of the \
          pixels of materials traced as curved (displaced meshes of `exact`, `relief` and \
          `pom`: each pays the curved setup, a flat face skips the curved march); missed: \
-         share whose displaced ray missed (what the behind layer re-rasterises; a convex \
-         mesh alone has it empty: nothing of it lies behind its own misses).\n",
+         share whose displaced ray missed (what the behind layer fills; its draws, light and \
+         classify are kept to the 8x8 tiles holding them; a convex mesh alone has it \
+         empty: nothing of it lies behind its own misses).\n",
         frame[0], frame[1]
     );
     let _ = writeln!(

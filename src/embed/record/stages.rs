@@ -18,10 +18,13 @@ impl DisplacementPass {
         g: &mut FrameGraph,
         inputs: &FrameInputs,
         write_hits: bool,
+        listed: Option<&crate::passes::classify::ListedTiles>,
     ) -> Result<()> {
         let slot = inputs.frame_slot;
-        let hit_depth = self.hit_depth(slot).filter(|_| write_hits).map(|i| i.view);
-        let iterations = self.iterations(slot).filter(|_| write_hits).map(|i| i.view);
+        let hit_depth_image = self.hit_depth(slot).filter(|_| write_hits);
+        let iterations_image = self.iterations(slot).filter(|_| write_hits);
+        let hit_depth = hit_depth_image.map(|i| i.view);
+        let iterations = iterations_image.map(|i| i.view);
         let ctx = self.context()?.clone();
         let ctx = &*ctx;
         let lists = &self.slots[inputs.frame_slot as usize].tiles;
@@ -43,24 +46,58 @@ impl DisplacementPass {
             &[Res::HitUv, Res::HitHeight]
         };
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
-        // queries reset by `begin`). In the body: the graph's barriers order the reset
-        // after the lists' last readers (the slot's previous frame), each step after the
-        // reset, the steps before it and the earlier accesses of its images.
+        // queries reset by `begin`; a list as `record_listed` says). In the body: the
+        // graph's barriers order the reset (and a listed record's clears, of the slot's
+        // images with TRANSFER_DST usage) after the lists' and images' last users (the
+        // slot's previous frame), each step after the reset, the steps before it and the
+        // earlier accesses of its images.
         unsafe {
             w.scope(ctx, cmd, PassName::Classify, |cmd| {
                 g.declare(Res::Args, super::super::graph::ARGS_RESET)?;
+                // A listed record: the summaries reset, the slot's iteration counts and
+                // corrected depth cleared (the listed tiles' are written below).
+                let clears: Vec<(Res, &crate::gpu::Image)> = [
+                    (Res::Iterations, iterations_image),
+                    (Res::HitDepth, hit_depth_image),
+                ]
+                .into_iter()
+                .filter_map(|(r, i)| Some((r, i?)))
+                .filter(|_| listed.is_some())
+                .collect();
+                if listed.is_some() {
+                    g.declare(Res::Tiles, super::super::graph::ARGS_RESET)?;
+                }
+                for (res, _) in &clears {
+                    g.declare(*res, crate::gpu::sync::Access::TRANSFER_WRITE)?;
+                }
                 g.flush(ctx, cmd, PassName::Classify)?;
                 self.classify.record_reset(ctx, cmd, &classify);
+                if listed.is_some() {
+                    self.classify.record_listed_reset(ctx, cmd, &classify);
+                }
+                for (_, image) in &clears {
+                    ctx.device().cmd_clear_color_image(
+                        cmd,
+                        image.raw,
+                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                        &vk::ClearColorValue::default(),
+                        &[image.range()],
+                    );
+                }
                 for step in ClassifyStep::ALL {
-                    let bindings =
-                        self.classify
-                            .bindings(step, hit_depth.is_some(), iterations.is_some());
+                    let bindings = self.classify.bindings_of(
+                        step,
+                        hit_depth.is_some(),
+                        iterations.is_some(),
+                        listed.is_some(),
+                    )?;
                     g.dispatch(bindings, 0, skip)?;
                     if step == ClassifyStep::Mixed {
                         g.declare(Res::Args, super::super::graph::INDIRECT)?;
                     }
                     g.flush(ctx, cmd, PassName::Classify)?;
-                    self.classify.record(ctx, cmd, &classify, step)?;
+                    self.classify
+                        .record_step(ctx, cmd, &classify, step, listed)?;
                 }
                 Ok(())
             })
