@@ -36,7 +36,7 @@ struct Curve {
     float a;      // kappa D tan(theta), theta the ray's angle from the normal
     float g;      // the depth's relative change along the ray's foot, per unit of t
     float t_end;  // where the ray reaches the offset surface, or leaves the shell
-    float f_end;  // its foot (curve_foot(t_end))
+    float f_end;  // its foot (curve_foot(t_end)), where the marchers' steps end
     bool bottom;  // whether t_end is on the offset surface (then a hit is certain)
 };
 Curve g_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, false);
@@ -138,11 +138,11 @@ float curve_t_bottom_circle(Curve c) {
 // The ray by its foot: with f the foot's distance along P in units of t (uv = uv0 + f P)
 // the foot's angle at the circle's centre is psi = a f, and with the half angle's
 // q = (cos(psi / 2), sin(psi / 2) / a) (finite as a -> 0, where it is (1, f / 2)) the
-// ray's point is closed and rational in q: S = sin(psi) / a = 2 q.y q.x, C = cos(psi) =
-// 1 - 2 a^2 q.y^2, D = C + kappa S (the base circle's radius over the point's), t = S / D
-// and delta = (S - 4 k q.y^2) / D (the same curve as curve_delta and curve_foot, no
+// ray's point is closed and rational in q: S = sin(psi) / a = 2 q.s q.c, C = cos(psi) =
+// 1 - 2 a^2 q.s^2, D = C + kappa S (the base circle's radius over the point's), t = S / D
+// and delta = (S - 4 k q.s^2) / D (the same curve as curve_delta and curve_foot, no
 // cancellation as kappa -> 0, where it is f - k f^2 + ...). So
-//     h(f) = 1 - num / den,   num = S - 4 k q.y^2,   den = D max(1 + g f, 1/16),
+//     h(f) = 1 - num / den,   num = S - 4 k q.s^2,   den = D max(1 + g f, 1/16),
 // with den > 0 on every point of the ray (the radii are positive), and a step of df turns
 // q by a fixed rotation: a march uniform in the foot (uniform in uv, as a height-map
 // march wants) needs no transcendental and no division per step.
@@ -201,7 +201,9 @@ const int CURVE_EXTENT_ITERATIONS = 16;
 // or else where the ray comes back out through the base surface (delta = 0 again: t = 2 /
 // (kappa + 2 k), whose foot is twice the foot of the circle ray's lowest point, the
 // middle of its chord). Whether the ray reaches the offset: h at that lowest point (a
-// concave ray has none: h where it is below the offset circle, doubling t up to 8 times).
+// concave ray has none: h where it is below the offset circle, doubling t up to 8 times;
+// one that is still above the offset there never leaves the shell, and its foot's span
+// ends at that last point).
 // The root, in the foot f: with den h = den - num = G(f), whose derivative is closed in
 // q (dS/df = C, dC/df = -a^2 S, d(4 k q.s^2)/df = 2 k S), Newton's method from the circle's
 // closed form (exact when the depth does not change, g = 0: no step), kept in the bracket
@@ -221,7 +223,7 @@ void curve_extent(inout Curve c) {
     }
     if (nd.x < nd.y) {
         c.t_end = t_top;
-        c.f_end = qa > 0.0 ? 2.0 * f_hi : t_top;
+        c.f_end = qa > 0.0 ? 2.0 * f_hi : f_hi;
         c.bottom = false;
         return;
     }
