@@ -36,9 +36,10 @@ struct Curve {
     float a;      // kappa D tan(theta), theta the ray's angle from the normal
     float g;      // the depth's relative change along the ray's foot, per unit of t
     float t_end;  // where the ray reaches the offset surface, or leaves the shell
+    float f_end;  // its foot (curve_foot(t_end)), where the marchers' steps end
     bool bottom;  // whether t_end is on the offset surface (then a hit is certain)
 };
-Curve g_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, false);
+Curve g_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, false);
 
 // The eye-relative position of pixel q's macro surface point (infinite reverse-Z: the
 // near-plane point of its centre ray over its depth).
@@ -53,7 +54,7 @@ void curve_extent(inout Curve c);
 // The curve of `pixel` (see the top of this file): its curvature and depth change from
 // the curve image, the ray's slant from its centre ray and frame.
 Curve curve_of(ivec2 pixel, Ray ray) {
-    Curve flat_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, false);
+    Curve flat_curve = Curve(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, false);
 #ifdef CURVED
     vec2 stored = texelFetch(u_curve, pixel, 0).xy;
     DispmapFrame f = gbuffer_frame(pixel);
@@ -75,7 +76,7 @@ Curve curve_of(ivec2 pixel, Ray ray) {
         return flat_curve;
     }
     float g = isnan(stored.y) || isinf(stored.y) ? 0.0 : stored.y;
-    Curve c = Curve(k, kappa, kappa * sqrt(tan2), g, 0.0, false);
+    Curve c = Curve(k, kappa, kappa * sqrt(tan2), g, 0.0, 0.0, false);
     curve_extent(c);
     return c;
 #else
@@ -134,134 +135,226 @@ float curve_t_bottom_circle(Curve c) {
     return d >= 0.0 ? qc / (1.0 + sqrt(d)) : -1.0;
 }
 
+// The ray by its foot: with f the foot's distance along P in units of t (uv = uv0 + f P)
+// the foot's angle at the circle's centre is psi = a f, and with the half angle's
+// q = (cos(psi / 2), sin(psi / 2) / a) (finite as a -> 0, where it is (1, f / 2)) the
+// ray's point is closed and rational in q: S = sin(psi) / a = 2 q.s q.c, C = cos(psi) =
+// 1 - 2 a^2 q.s^2, D = C + kappa S (the base circle's radius over the point's), t = S / D
+// and delta = (S - 4 k q.s^2) / D (the same curve as curve_delta and curve_foot, no
+// cancellation as kappa -> 0, where it is f - k f^2 + ...). So
+//     h(f) = 1 - num / den,   num = S - 4 k q.s^2,   den = D max(1 + g f, 1/16),
+// with den > 0 on every point of the ray (the radii are positive), and a step of df turns
+// q by a fixed rotation: a march uniform in the foot (uniform in uv, as a height-map
+// march wants) needs no transcendental and no division per step.
+struct CurveAngle {
+    float c;  // cos(a f / 2)
+    float s;  // sin(a f / 2) / a
+};
+
+CurveAngle curve_angle(Curve c, float f) {
+    float half_angle = 0.5 * c.a * f;
+    return CurveAngle(cos(half_angle), abs(c.a) > 1e-6 ? sin(half_angle) / c.a : 0.5 * f);
+}
+
+// q turned by the step r (r = curve_angle(c, df): q becomes the angle of f + df); a2 = a^2.
+CurveAngle curve_turn(CurveAngle q, CurveAngle r, float a2) {
+    return CurveAngle(q.c * r.c - a2 * (q.s * r.s), q.s * r.c + q.c * r.s);
+}
+
+// The half of the step r (the angle of df / 2 from that of df).
+CurveAngle curve_halve(CurveAngle r) {
+    float c = sqrt(0.5 + 0.5 * r.c);
+    return CurveAngle(c, r.s / (2.0 * c));
+}
+
+// (num, den) of h at the foot f whose angle is q (h = 1 - num / den, den > 0).
+vec2 curve_fraction(Curve c, CurveAngle q, float f) {
+    float s2 = q.s * q.s;
+    float S = 2.0 * q.s * q.c;
+    float D = 1.0 - 2.0 * (c.a * c.a) * s2 + c.kappa * S;
+    return vec2(S - 4.0 * c.k * s2, D * max(1.0 + c.g * f, 0.0625));
+}
+
+float curve_h_foot(Curve c, CurveAngle q, float f) {
+    vec2 nd = curve_fraction(c, q, f);
+    return 1.0 - nd.x / nd.y;
+}
+
+// The foot of the ray's point at t and its angle q, from the point's direction seen from
+// the circle's centre (x, y) = (1 - kappa t, a t) rho: q by the half-angle formulas (the
+// angle stays below pi / 2 where this is used), f = curve_foot(c, t) (one atan).
+float curve_foot_angle(Curve c, float t, out CurveAngle q) {
+    float x = 1.0 - c.kappa * t;
+    float rho = length(vec2(x, c.a * t));
+    float half_cos = sqrt(0.5 + 0.5 * x / rho);
+    q = CurveAngle(half_cos, t / (2.0 * rho * half_cos));
+    return curve_foot(c, t);
+}
+
 // The bottom's tolerance: t_end is the first t where h <= 0, found to within 1e-6 of the
-// depth in h (or to 1e-6 of t_end in t), at most CURVE_EXTENT_ITERATIONS evaluations.
+// depth in h (or to 1e-6 of f_end in the foot), at most CURVE_EXTENT_ITERATIONS Newton
+// steps.
 const float CURVE_EXTENT_TOL = 1e-6;
 const int CURVE_EXTENT_ITERATIONS = 16;
 
-// Sets c.t_end and c.bottom: the first t where h reaches 0 (the offset surface), or else
-// where the ray comes back out through the base surface (delta = 0 again: t = 2 /
-// (kappa + 2 k)). The root: the circle's closed form (exact when the depth does not
-// change, g = 0), then regula falsi with the Illinois modification in the bracket from
-// the circle ray's lowest point.
+// Sets c.t_end, c.f_end and c.bottom: the first t where h reaches 0 (the offset surface),
+// or else where the ray comes back out through the base surface (delta = 0 again: t = 2 /
+// (kappa + 2 k), whose foot is twice the foot of the circle ray's lowest point, the
+// middle of its chord). Whether the ray reaches the offset: h at that lowest point (a
+// concave ray has none: h where it is below the offset circle, doubling t up to 8 times;
+// one that is still above the offset there never leaves the shell, and its foot's span
+// ends at that last point).
+// The root, in the foot f: with den h = den - num = G(f), whose derivative is closed in
+// q (dS/df = C, dC/df = -a^2 S, d(4 k q.s^2)/df = 2 k S), Newton's method from the circle's
+// closed form (exact when the depth does not change, g = 0: no step), kept in the bracket
+// (a step that leaves it bisects).
 void curve_extent(inout Curve c) {
     float qa = c.kappa + 2.0 * c.k;
     float t_top = qa > 0.0 ? 2.0 / qa : 3.0e38;
     // The lowest point of the circle ray (the middle of its chord through the base).
     float t_hi = qa > 0.0 ? 0.5 * t_top : max(curve_t_bottom_circle(c), 1.0);
-    float h_hi = curve_h(c, t_hi);
-    for (int i = 0; i < 8 && qa <= 0.0 && h_hi > 0.0; ++i) {
+    CurveAngle q_hi;
+    float f_hi = curve_foot_angle(c, t_hi, q_hi);
+    vec2 nd = curve_fraction(c, q_hi, f_hi);
+    for (int i = 0; i < 8 && qa <= 0.0 && nd.x < nd.y; ++i) {
         t_hi *= 2.0;
-        h_hi = curve_h(c, t_hi);
+        f_hi = curve_foot_angle(c, t_hi, q_hi);
+        nd = curve_fraction(c, q_hi, f_hi);
     }
-    if (h_hi > 0.0) {
+    if (nd.x < nd.y) {
         c.t_end = t_top;
+        c.f_end = qa > 0.0 ? 2.0 * f_hi : f_hi;
         c.bottom = false;
         return;
     }
-    float t_lo = 0.0;
-    float h_lo = 1.0;
+    float f_lo = 0.0;
+    float f = f_hi;
+    CurveAngle q = q_hi;
     float t_c = curve_t_bottom_circle(c);
-    if (t_c > t_lo && t_c < t_hi) {
-        float h = curve_h(c, t_c);
-        if (h > 0.0) {
-            t_lo = t_c;
-            h_lo = h;
-        } else {
-            t_hi = t_c;
-            h_hi = h;
-        }
+    if (t_c > 0.0 && t_c < t_hi) {
+        f = curve_foot_angle(c, t_c, q);
     }
-    float f_lo = h_lo;
-    float f_hi = h_hi;
-    int kept = 0;
-    for (int i = 0; i < CURVE_EXTENT_ITERATIONS && h_hi < -CURVE_EXTENT_TOL
-         && t_hi - t_lo > CURVE_EXTENT_TOL * t_hi; ++i) {
-        float t = clamp((t_lo * f_hi - t_hi * f_lo) / (f_hi - f_lo), t_lo, t_hi);
-        float h = curve_h(c, t);
-        if (h > 0.0) {
-            t_lo = t;
-            h_lo = h;
-            f_lo = h;
-            f_hi = kept == 1 ? 0.5 * f_hi : f_hi;
-            kept = 1;
-        } else {
-            t_hi = t;
-            h_hi = h;
-            f_hi = h;
-            f_lo = kept == -1 ? 0.5 * f_lo : f_lo;
-            kept = -1;
+    float a2 = c.a * c.a;
+    for (int i = 0; i < CURVE_EXTENT_ITERATIONS; ++i) {
+        nd = curve_fraction(c, q, f);
+        float G = nd.y - nd.x;
+        if (abs(G) <= CURVE_EXTENT_TOL * nd.y) {
+            break;
         }
+        if (G > 0.0) {
+            f_lo = f;
+        } else {
+            f_hi = f;
+        }
+        if (f_hi - f_lo <= CURVE_EXTENT_TOL * f_hi) {
+            break;
+        }
+        float S = 2.0 * q.s * q.c;
+        float C = 1.0 - 2.0 * a2 * q.s * q.s;
+        float D = C + c.kappa * S;
+        float m = 1.0 + c.g * f;
+        float dG = (c.kappa * C - a2 * S) * max(m, 0.0625) + (m > 0.0625 ? D * c.g : 0.0)
+                   - (C - 2.0 * c.k * S);
+        float f_next = f - G / dG;
+        f = f_next > f_lo && f_next < f_hi ? f_next : 0.5 * (f_lo + f_hi);
+        q = curve_angle(c, f);
     }
-    c.t_end = t_hi;
+    float S = 2.0 * q.s * q.c;
+    c.t_end = S / (1.0 - 2.0 * a2 * q.s * q.s + c.kappa * S);
+    c.f_end = f;
     c.bottom = true;
 }
 
-// The curved marchers (relief, pom): `steps` equal steps in t per unit of t over the ray's
-// span in the shell (to the offset surface, or back out through the base surface), at
-// least `steps`; the crossing refined by `refine_steps` bisections in t (relief) or by the
-// line through the last two samples (pom). A ray that leaves the shell, or a clamp ray the
-// decal, without meeting the surface is a miss.
+// The marchers' rotation recurrence is re-anchored on the exact angle every
+// CURVE_ANCHOR_STEPS steps: its f32 drift (a few ulps a step) stays near 2e-5 of the
+// angle's sine, far below a step.
+const uint CURVE_ANCHOR_STEPS = 64u;
+
+// The curved marchers (relief, pom): `steps` samples per unit of t over the ray's span in
+// the shell (to the offset surface, or back out through the base surface; at least
+// `steps`), spaced equally in the foot (in uv, as a height-map march wants), each
+// sample's height compared without a division (s >= h is (1 - s) den <= num); the crossing refined by `refine_steps` bisections of the foot
+// (relief) or by the line through the last two samples (pom). A ray that leaves the
+// shell, or a clamp ray the decal, without meeting the surface is a miss.
 Hit curved_march(Ray ray, Curve c, uint steps, uint refine_steps, bool pom) {
-    float t_end = c.t_end;
-    uint n = uint(min(ceil(float(max(steps, 1u)) * max(t_end, 1.0)), 4096.0));
-    float dt = t_end / float(n);
-    uint iterations = 0u;
-    float t_prev = 0.0;
-    float above_prev = 0.0;
-    float t = 0.0;
-    float h = 1.0;
-    float s = 0.0;
-    bool crossed = false;
-    // The march finds the crossing and stops; the refinement runs after the loop (not
-    // inside it), so a SIMD CPU device (lavapipe) runs it once per group of lanes.
+    uint n = uint(min(ceil(float(max(steps, 1u)) * max(c.t_end, 1.0)), 4096.0));
+    float df = c.f_end / float(n);
+    float a2 = c.a * c.a;
+    CurveAngle turn = curve_angle(c, df);
+    CurveAngle q = CurveAngle(1.0, 0.0);
+    // Carried for pom only (the last two samples' heights and the previous fraction).
+    vec2 nd_prev = vec2(0.0, 1.0);
+    float s_prev = 0.0;
+    float s_last = 0.0;
+    // The march finds the crossing and stops, carrying only the sample's index and angle;
+    // the refinement runs after the loop (not inside it), so a SIMD CPU device (lavapipe)
+    // runs it once per group of lanes.
     uint i = 0u;
     for (; i <= n; ++i) {
-        t = i == n ? t_end : float(i) * dt;
-        vec2 uv;
-        h = curve_point(c, ray, t, uv);
+        float f = float(i) * df;
+        if (i % CURVE_ANCHOR_STEPS == 0u && i != 0u) {
+            q = curve_angle(c, f);
+        }
+        vec2 uv = ray.uv0 + f * ray.P;
         if (leaves_domain(uv)) {
             break;
         }
-        h = (i == n && c.bottom) ? 0.0 : h;
-        iterations += 1u;
-        s = height_at(uv);
-        if (s >= h) {
-            crossed = true;
+        vec2 nd = curve_fraction(c, q, f);
+        float s = height_at(uv);
+        if (pom) {
+            s_prev = s_last;
+            s_last = s;
+        }
+        if ((1.0 - s) * nd.y <= nd.x || (i == n && c.bottom)) {
             break;
         }
-        t_prev = t;
-        above_prev = h - s;
+        if (pom) {
+            nd_prev = nd;
+        }
+        q = curve_turn(q, turn, a2);
     }
-    if (!crossed) {
-        return miss(ray, iterations);
+    // Past the end, or off the decal: a miss (every sample before it a fetch).
+    float f = float(i) * df;
+    if (i > n || leaves_domain(ray.uv0 + f * ray.P)) {
+        return miss(ray, i);
     }
+    uint iterations = i + 1u;
     if (i == 0u) {
         return Hit(ray.uv0, 1.0, iterations);
     }
-    float t_hit;
+    float f_prev = f - df;
+    float f_hit;
+    CurveAngle q_hit;
     if (pom) {
-        float w = above_prev / (above_prev + (s - h));
-        t_hit = mix(t_prev, t, w);
+        vec2 nd = curve_fraction(c, q, f);
+        float h = (i == n && c.bottom) ? 0.0 : 1.0 - nd.x / nd.y;
+        float above_prev = 1.0 - nd_prev.x / nd_prev.y - s_prev;
+        float w = above_prev / (above_prev + (s_last - h));
+        f_hit = mix(f_prev, f, w);
+        q_hit = curve_angle(c, f_hit);
     } else {
-        float t_above = t_prev;
-        float t_below = t;
+        // Bisection of [f_prev, f]: the middle is the upper end of the part above the
+        // surface turned by half the interval, whose angle halves each time.
+        float width = df;
+        CurveAngle half_turn = turn;
+        CurveAngle q_above = curve_angle(c, f_prev);
+        float f_above = f_prev;
         for (uint j = 0u; j < refine_steps; ++j) {
-            float t_mid = 0.5 * (t_above + t_below);
+            width *= 0.5;
+            half_turn = curve_halve(half_turn);
+            float f_mid = f_above + width;
+            CurveAngle q_mid = curve_turn(q_above, half_turn, a2);
             iterations += 1u;
-            vec2 uv_mid;
-            float h_mid = curve_point(c, ray, t_mid, uv_mid);
-            if (height_at(uv_mid) >= h_mid) {
-                t_below = t_mid;
-            } else {
-                t_above = t_mid;
+            vec2 nd_mid = curve_fraction(c, q_mid, f_mid);
+            if (!((1.0 - height_at(ray.uv0 + f_mid * ray.P)) * nd_mid.y <= nd_mid.x)) {
+                f_above = f_mid;
+                q_above = q_mid;
             }
         }
-        t_hit = 0.5 * (t_above + t_below);
+        f_hit = f_above + 0.5 * width;
+        q_hit = curve_turn(q_above, curve_halve(half_turn), a2);
     }
-    vec2 uv_hit;
-    float h_hit = curve_point(c, ray, t_hit, uv_hit);
-    return Hit(uv_hit, h_hit, iterations);
+    return Hit(ray.uv0 + f_hit * ray.P, curve_h_foot(c, q_hit, f_hit), iterations);
 }
 
 #endif
