@@ -118,17 +118,7 @@ pub(super) fn host_entry(entry: Entry) -> [(Res, Access); 8] {
 
 /// A list of tiles the host gives a listed record: its writes visible to compute-shader
 /// storage reads and indirect reads.
-pub(super) const LISTED_ENTRY: Access = Access {
-    stage: vk::PipelineStageFlags2::from_raw(
-        vk::PipelineStageFlags2::DRAW_INDIRECT.as_raw()
-            | vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw(),
-    ),
-    access: vk::AccessFlags2::from_raw(
-        vk::AccessFlags2::INDIRECT_COMMAND_READ.as_raw()
-            | vk::AccessFlags2::SHADER_STORAGE_READ.as_raw(),
-    ),
-    layout: vk::ImageLayout::UNDEFINED,
-};
+pub(super) const LISTED_ENTRY: Access = Access::INDIRECT_READ;
 
 /// A visibility the host gives `record_shading`: its writes visible to storage reads.
 pub(super) const HOST_VISIBILITY: Access = Access::COMPUTE_STORAGE_READ;

@@ -52,6 +52,19 @@ impl Access {
         access: vk::AccessFlags2::SHADER_STORAGE_WRITE,
         layout: vk::ImageLayout::GENERAL,
     };
+    /// A buffer read by compute shaders and as indirect commands (dispatches and draws):
+    /// a list of tiles and the commands written from it.
+    pub const INDIRECT_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::from_raw(
+            vk::PipelineStageFlags2::DRAW_INDIRECT.as_raw()
+                | vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw(),
+        ),
+        access: vk::AccessFlags2::from_raw(
+            vk::AccessFlags2::INDIRECT_COMMAND_READ.as_raw()
+                | vk::AccessFlags2::SHADER_STORAGE_READ.as_raw(),
+        ),
+        layout: vk::ImageLayout::UNDEFINED,
+    };
     /// Read as a storage image by compute shaders.
     pub const COMPUTE_STORAGE_READ: Access = Access {
         stage: vk::PipelineStageFlags2::COMPUTE_SHADER,

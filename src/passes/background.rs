@@ -36,7 +36,7 @@ impl BackgroundPass {
     /// Builds the behind layer's variant (`glsl/background.comp`'s `BEHIND`): it lights
     /// the flat geometry of the behind layer's G-buffer and leaves pixels without
     /// geometry as they are (the first layer's colour), instead of drawing the sky there,
-    /// over the missed tiles only ([`BackgroundPass::record_tiles`]).
+    /// over the missed tiles only (`BackgroundPass::record_tiles`, crate-internal).
     pub fn new_behind(ctx: &Context) -> Result<Self> {
         Self::build(ctx, true)
     }

@@ -33,18 +33,6 @@ const COMPUTE_BUFFER_WRITTEN: Access = Access {
     layout: vk::ImageLayout::UNDEFINED,
     ..Access::COMPUTE_STORAGE_WRITE
 };
-/// Read by compute shaders and as indirect commands (dispatches and draws).
-const INDIRECT_READ: Access = Access {
-    stage: vk::PipelineStageFlags2::from_raw(
-        vk::PipelineStageFlags2::DRAW_INDIRECT.as_raw()
-            | vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw(),
-    ),
-    access: vk::AccessFlags2::from_raw(
-        vk::AccessFlags2::INDIRECT_COMMAND_READ.as_raw()
-            | vk::AccessFlags2::SHADER_STORAGE_READ.as_raw(),
-    ),
-    layout: vk::ImageLayout::UNDEFINED,
-};
 
 /// The frame slot of the pass the behind layer is recorded with (the first layer's is 0).
 pub(super) const BEHIND_SLOT: u32 = 1;
@@ -673,7 +661,7 @@ impl Renderer {
                     );
                 }
                 t.declare(Layer::Tiles, COMPUTE_BUFFER_READ_WRITE)?;
-                t.declare(Layer::FirstTiles, INDIRECT_READ)?;
+                t.declare(Layer::FirstTiles, Access::INDIRECT_READ)?;
                 t.declare(Layer::FirstHitHeight, Access::COMPUTE_STORAGE_READ)?;
                 t.declare(Layer::FirstDepth, Access::COMPUTE_SAMPLED)?;
                 t.flush(&ctx, cmd, images)?;
@@ -683,7 +671,7 @@ impl Renderer {
                     t.flush(&ctx, cmd, images)?;
                     tiles.record_cull(&ctx, cmd, step)?;
                 }
-                t.declare(Layer::Tiles, INDIRECT_READ)?;
+                t.declare(Layer::Tiles, Access::INDIRECT_READ)?;
                 for (key, access) in [
                     (Layer::Ray, Access::COLOR_ATTACHMENT_WRITE),
                     (Layer::Frame, Access::COLOR_ATTACHMENT_WRITE),
