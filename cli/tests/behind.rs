@@ -59,7 +59,34 @@ fn the_floor_shows_under_the_cubes_carved_bottom_edge() {
             "masked behind hits"
         );
         renderer.set_behind_mask(false).unwrap();
+        // The second record classified over the whole frame instead of the missed tiles
+        // (a GPU's default; a CPU driver's is the list), or the other way round: the same
+        // colour and behind hits, bit for bit.
+        let listed = renderer.behind_listed();
+        assert!(
+            listed,
+            "a CPU driver classifies the behind layer over its missed tiles"
+        );
+        renderer.set_behind_listed(!listed).unwrap();
+        renderer.render().unwrap();
+        assert_eq!(
+            renderer.read_color().unwrap(),
+            with,
+            "colour, listed {}",
+            !listed
+        );
+        assert_eq!(
+            renderer.read_behind_hits().unwrap().unwrap(),
+            behind_hits,
+            "behind hits, listed {}",
+            !listed
+        );
+        renderer.set_behind_listed(listed).unwrap();
         renderer.set_behind(false).unwrap();
+        assert!(
+            renderer.set_behind_listed(true).is_err(),
+            "no listed record without a behind layer"
+        );
         assert!(
             renderer.set_behind_mask(true).is_err(),
             "no mask without a behind layer"

@@ -62,6 +62,9 @@ pub(super) struct Behind {
     /// The missed tiles and the pieces' commands (built by the first record, and again
     /// for a new frame size).
     tiles: Option<BehindTiles>,
+    /// Whether the layer's second record is classified over the missed tiles only (its
+    /// hit images cleared first) or over the whole frame ([`Renderer::set_behind_listed`]).
+    listed: bool,
 }
 
 impl Destroy for Behind {
@@ -135,6 +138,7 @@ impl Behind {
             two_sided: two_sided.keep(),
             background: background.keep(),
             mask: None,
+            listed: c.info().device_type == format!("{:?}", vk::PhysicalDeviceType::CPU),
             clusters: within_draws(clusters),
             tiles: None,
         })
@@ -344,6 +348,32 @@ impl Renderer {
         if self.behind() {
             self.set_behind(true)?;
         }
+        Ok(())
+    }
+
+    /// Whether the behind layer's second record is classified over its missed tiles only
+    /// ([`Renderer::set_behind_listed`]; `false` without a drawn layer).
+    pub fn behind_listed(&self) -> bool {
+        self.behind.as_ref().is_some_and(|b| b.listed)
+    }
+
+    /// Classifies the behind layer's second record over the missed tiles only, its hit
+    /// images cleared to no hit first (`on`), or over the whole frame as the first
+    /// layer's is (`off`). The images are the same bit for bit either way; the cost is
+    /// not. The default follows the device: on for a CPU driver, where a full-frame
+    /// `classify` is milliseconds (lavapipe at 640x360: the layer 3.6 against about 7 ms),
+    /// off for a GPU, where it is tens of microseconds and the two transfer clears of the
+    /// hit images are not (an NVIDIA H100 at 1920x1080: 0.47 ms; BENCHMARKS.md, run N).
+    /// Refused without a drawn behind layer ([`Renderer::set_behind`]).
+    pub fn set_behind_listed(&mut self, on: bool) -> Result<()> {
+        let Some(b) = &mut self.behind else {
+            return Err(Error::invalid(
+                "behind listed",
+                "this renderer draws no behind layer (turn it on with set_behind first; a \
+                 convex mesh alone draws it empty)",
+            ));
+        };
+        b.listed = on;
         Ok(())
     }
 
@@ -639,17 +669,23 @@ impl Renderer {
         // completed (every frame is waited for).
         unsafe {
             w.scope(&ctx, cmd, PassName::Behind, |cmd| -> Result<()> {
-                // The missed tiles, then each piece's command and the tiles' list; the
-                // layer's hits cleared to no hit (the pass writes the missed tiles' only).
+                // The missed tiles, then each piece's command and the tiles' list; listed,
+                // the layer's hits cleared to no hit (the pass writes the missed tiles' only).
+                let listed = behind.listed;
                 t.declare(Layer::Tiles, BUFFER_WRITE)?;
-                t.declare(Layer::HitUv, Access::TRANSFER_WRITE)?;
-                t.declare(Layer::HitHeight, Access::TRANSFER_WRITE)?;
+                if listed {
+                    t.declare(Layer::HitUv, Access::TRANSFER_WRITE)?;
+                    t.declare(Layer::HitHeight, Access::TRANSFER_WRITE)?;
+                }
                 t.flush(&ctx, cmd, images)?;
                 tiles.record_reset(&ctx, cmd, &sources)?;
                 for (image, value) in [
                     (&behind.hit.uv, 0.0),
                     (&behind.hit.height, crate::abi::NO_HIT_HEIGHT),
-                ] {
+                ]
+                .into_iter()
+                .filter(|_| listed)
+                {
                     ctx.device().cmd_clear_color_image(
                         cmd,
                         image.raw,
@@ -743,20 +779,25 @@ impl Renderer {
                     t.declare(Layer::Motion, Access::COMPUTE_STORAGE_READ_WRITE)?;
                 }
                 t.flush(&ctx, cmd, images)?;
-                // Classified over the missed tiles only (the layer has no geometry
-                // elsewhere, its hits cleared above).
-                let list = tiles.list();
-                let (dispatch, offset) = tiles.list_dispatch();
-                pass.record_listed(
-                    cmd,
-                    &inputs,
-                    crate::passes::classify::ListedTiles {
-                        list: list[0],
-                        dispatch,
-                        offset,
-                    },
-                    Timestamps::Off,
-                )?;
+                if listed {
+                    // Classified over the missed tiles only (the layer has no geometry
+                    // elsewhere, its hits cleared above).
+                    let list = tiles.list();
+                    let (dispatch, offset) = tiles.list_dispatch();
+                    pass.record_listed(
+                        cmd,
+                        &inputs,
+                        crate::passes::classify::ListedTiles {
+                            list: list[0],
+                            dispatch,
+                            offset,
+                        },
+                        Timestamps::Off,
+                    )?;
+                } else {
+                    // Classified over the whole frame (every pixel's hit written).
+                    pass.record(cmd, &inputs, Timestamps::Off)?;
+                }
                 Ok(())
             })?
         };
