@@ -278,6 +278,15 @@ impl Method {
         self.curved_shader(false).is_some()
     }
 
+    /// Whether the method's curved trace walks the mesh's own triangles where it is given
+    /// them (`glsl/common/walk.glsl`, [`crate::embed::DisplacementPass::set_curved_meshes`]):
+    /// `exact`, whose curved trace is then exact against the displaced mesh (each sample's
+    /// foot solved on its triangle). `relief` and `pom` keep the per-pixel circle model,
+    /// which costs a few multiply-adds a sample where the walk costs a solve.
+    pub fn walks_meshes(self) -> bool {
+        self == Method::Exact
+    }
+
     /// Whether the method is in the default method lists: `dispmap bench`'s default
     /// `--methods` and map-size sweep, and the `demo`'s table. Every method stays
     /// available by name. `cone-exact` is out: it has `exact`'s accuracy at 1.2x to 3.7x

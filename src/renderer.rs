@@ -193,6 +193,10 @@ pub struct Renderer {
     /// Whether a convex mesh alone draws its behind layer empty
     /// ([`Renderer::set_behind_convex_skip`], on by default).
     convex_skip: bool,
+    /// The displaced meshes in world space, which the curved `exact` trace walks
+    /// ([`crate::embed::DisplacementPass::set_curved_meshes`], given when curved tracing
+    /// is first turned on).
+    curved_meshes: Vec<crate::mesh::Mesh>,
     /// Whether the last frame was a forward frame ([`Renderer::render_forward`]): its
     /// iteration counts are the forward path's, not the pass's.
     forward_frame: bool,
@@ -341,6 +345,10 @@ impl Renderer {
         }
         // The G-buffer gets (or drops) its curve image first, then the materials follow;
         // a failure of either leaves the renderer as it was.
+        if on && self.pass.curved_mesh_triangles() == 0 && !self.curved_meshes.is_empty() {
+            let meshes: Vec<&crate::mesh::Mesh> = self.curved_meshes.iter().collect();
+            self.pass.set_curved_meshes(&meshes)?;
+        }
         let was = self.gbuffer.curve.is_some();
         self.set_curve_image(on)?;
         let mut done = Vec::new();

@@ -45,7 +45,8 @@ layout(push_constant) uniform TraceParams {
     float lod_threshold;// TRACE_FLAG_LOD: the mip level from which pixels take bump mapping
     uint material;      // the material this dispatch traces (its tiles: binding 15)
     // TRACE_FLAG_CURVED: the pixel's centre ray, eye-relative (curved.glsl): the point of
-    // the near plane at the frame's centre and its steps per NDC unit along x and y (w: 0).
+    // the near plane at the frame's centre and its steps per NDC unit along x and y; their
+    // w: the eye's world position x, y, z (the mesh walk, walk.glsl).
     vec4 view_origin;
     vec4 view_dx;
     vec4 view_dy;

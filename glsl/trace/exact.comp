@@ -20,6 +20,9 @@
 // dispmap-variant: CURVED+ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
+#ifdef CURVED
+#include "walk.glsl"
+#endif
 
 // A chord's largest height error, as a fraction of the depth (1 / 1024: a quarter of an
 // 8-bit height step).
@@ -116,6 +119,18 @@ Hit curved_exact(Ray ray, Curve c) {
 }
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
+#ifdef CURVED
+    // On a walked mesh (src/mesh/walk.rs) the ray follows the mesh's own triangles; the
+    // circle model below is the path of pixels on no walked triangle.
+    if ((pc.flags & TRACE_FLAG_CURVED) != 0u) {
+        vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
+        vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
+        Hit walked;
+        if (walk_trace(ray, entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel), walked)) {
+            return walked;
+        }
+    }
+#endif
     if (CURVED_VARIANT && g_curve.k != 0.0) {
         return curved_exact(ray, g_curve);
     }

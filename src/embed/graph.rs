@@ -50,6 +50,9 @@ pub(super) enum Res {
     /// What frames only read: height textures, pyramids, cone maps, albedo and normal
     /// maps (filled and left sampled-readable by the builds before the stages).
     Maps,
+    /// The mesh walk buffer (`DisplacementPass::set_curved_meshes`): written through
+    /// its mapping before the submission that first reads it, then only read.
+    Walk,
 }
 
 /// The resource the binding `name` of a shader is, for a dispatch of `material`.
@@ -71,6 +74,7 @@ fn resource(name: &str, material: u32) -> Option<Res> {
         "u_args" => Res::Args,
         "u_listed" => Res::Listed,
         "u_height" | "u_pyramid" | "u_cone" | "u_albedo" | "u_normal_map" => Res::Maps,
+        "u_walk" => Res::Walk,
         _ => return None,
     })
 }
@@ -140,6 +144,13 @@ pub(super) fn owned_entry(res: Res) -> Access {
             stage: vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER,
             ..Access::UNDEFINED
         },
+        // Host-written before any submission (made visible by the submission itself),
+        // then only read by compute shaders.
+        Res::Walk => Access {
+            stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
+            access: vk::AccessFlags2::SHADER_STORAGE_READ,
+            layout: vk::ImageLayout::UNDEFINED,
+        },
         _ => Access::COMPUTE_SAMPLED,
     }
 }
@@ -180,7 +191,7 @@ impl FrameGraph {
                 tracker.enter(res, access);
             }
         }
-        for res in [Res::Maps, Res::Tiles, Res::Args] {
+        for res in [Res::Maps, Res::Walk, Res::Tiles, Res::Args] {
             tracker.enter(res, owned_entry(res));
         }
         FrameGraph {

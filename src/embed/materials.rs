@@ -257,6 +257,30 @@ impl DisplacementPass {
         Ok(self.entry(id)?.curved)
     }
 
+    /// Gives the curved trace the meshes the frame draws, in world space as its G-buffer
+    /// draws them (`meshes`; none: the default). A method with
+    /// [`crate::method::Method::walks_meshes`] (`exact`) then follows a curved pixel's ray
+    /// through the shell of the mesh's own triangles (`glsl/common/walk.glsl`: each
+    /// sample's foot solved on its triangle, neighbours across edges matched by position),
+    /// which is exact against the displaced mesh; a pixel on none of them (or every
+    /// pixel, with no meshes) keeps the per-pixel circle model of the curve image. The
+    /// meshes are copied into one buffer (31 words a triangle and a start grid); moved
+    /// meshes need another call. Takes effect from the next record; the old buffer is
+    /// retired. Needs no GPU idle. On error the pass is unchanged.
+    pub fn set_curved_meshes(&mut self, meshes: &[&crate::mesh::Mesh]) -> Result<()> {
+        self.check_alive()?;
+        let walk = crate::mesh::walk::WalkMeshes::new(self.context()?, meshes)?;
+        let old = std::mem::replace(&mut self.walk, walk);
+        self.retired.retire(old);
+        Ok(())
+    }
+
+    /// How many triangles the curved trace walks ([`DisplacementPass::set_curved_meshes`];
+    /// 0: none).
+    pub fn curved_mesh_triangles(&self) -> u32 {
+        self.walk.triangles
+    }
+
     /// The table index of a live material's handle.
     pub(super) fn entry_index(&self, id: MaterialId) -> Result<usize> {
         self.check_alive()?;

@@ -366,6 +366,9 @@ pub struct DisplacementPass {
     prepared_mark: Option<usize>,
     /// Self-shadowing as set by [`DisplacementPass::set_shadows`].
     shadows: ShadowSettings,
+    /// The meshes the curved `exact` trace walks
+    /// ([`DisplacementPass::set_curved_meshes`]; empty by default).
+    walk: crate::mesh::walk::WalkMeshes,
 }
 
 impl DisplacementPass {
@@ -394,6 +397,8 @@ impl DisplacementPass {
         let shade = unsafe { Guard::new(c, ShadePass::new(c)?) };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let classify = unsafe { Guard::new(c, ClassifyPass::new(c)?) };
+        // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
+        let walk = unsafe { Guard::new(c, crate::mesh::walk::WalkMeshes::new(c, &[])?) };
         let mut pass = DisplacementPass {
             frame: FrameSettings {
                 extent: settings.extent,
@@ -427,6 +432,7 @@ impl DisplacementPass {
             retired: RetireQueue::new(settings.frames_in_flight),
             prepared_mark: None,
             shadows: ShadowSettings::default(),
+            walk: walk.keep(),
             ctx: Some(ctx),
         };
         match pass.add_material(field, settings.material()) {
@@ -760,6 +766,7 @@ impl DisplacementPass {
             self.classify.destroy(ctx);
             self.shade.destroy(ctx);
             self.traces.destroy(ctx);
+            self.walk.destroy(ctx);
         }
         if let Some(pool) = self.query_pool.take() {
             // SAFETY: this function's contract: no pending use.

@@ -15,6 +15,7 @@
 //! | `u_pyramid` | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_corners` | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_curve` | G-buffer `curve` (`R16G16_SFLOAT`; the `CURVED` variant only, [`Method::curved_shader`]) | `SHADER_READ_ONLY_OPTIMAL` |
+//! | `u_walk` | the mesh walk buffer ([`crate::mesh::walk::WalkMeshes`]; the `CURVED` variant of a method with [`Method::walks_meshes`]) | host-written before the first submission that reads it |
 //! | `u_frame` | G-buffer `frame` (the material; the surface id for the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_cone` | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
@@ -36,7 +37,7 @@ use crate::error::Result;
 use crate::gpu::HeightTexture;
 use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{FetchPipeline, storage_view};
-use crate::method::{MaxLevel, Method, MethodParams, Needs};
+use crate::method::{MaxLevel, Method, MethodParams};
 use crate::passes::classify::{MaterialTiles, TILES};
 use crate::passes::cone::ConeMap;
 use crate::passes::dig::CornerGrid;
@@ -99,12 +100,13 @@ pub fn join_hits(uv: &[u8], height: &[u8], iterations: Option<&[u8]>) -> Vec<Hit
 
 const SAMPLED: vk::DescriptorType = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
 const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_IMAGE;
-/// The bindings of a method with `needs`, by GLSL name.
+/// The bindings of `method`'s pipeline (its `needs`; `curved`: its curved variant), by GLSL name.
 fn bindings(
-    needs: Needs,
+    method: Method,
     iterations: bool,
     curved: bool,
 ) -> Vec<(&'static str, vk::DescriptorType)> {
+    let needs = method.needs();
     let mut b = vec![
         ("u_ray", SAMPLED),
         ("u_depth", SAMPLED),
@@ -119,6 +121,9 @@ fn bindings(
     }
     if curved {
         b.push(("u_curve", SAMPLED));
+        if method.walks_meshes() {
+            b.push(("u_walk", vk::DescriptorType::STORAGE_BUFFER));
+        }
     }
     if needs.pyramid.is_some() {
         b.push(("u_pyramid", SAMPLED));
@@ -158,6 +163,10 @@ pub struct TraceInputs<'a> {
     /// Trace curved macro geometry with these pixel rays (`None`: every pixel's base
     /// surface is its tangent plane). Only methods with [`Method::traces_curved`] use it.
     pub curved: Option<TraceView>,
+    /// The walk buffer of the meshes the curved trace of a method with
+    /// [`Method::walks_meshes`] follows ([`crate::mesh::walk::WalkMeshes`]); needed by
+    /// that trace's curved variant, ignored elsewhere.
+    pub walk: Option<vk::Buffer>,
 }
 
 /// A frame's pixel rays for curved tracing (`glsl/common/curved.glsl`): the eye-relative
@@ -172,6 +181,8 @@ pub struct TraceView {
     pub dx: glam::Vec3,
     /// Its change per NDC unit along y.
     pub dy: glam::Vec3,
+    /// The eye's world position (the mesh walk's world-space triangles).
+    pub eye: glam::Vec3,
 }
 
 impl TraceView {
@@ -190,6 +201,7 @@ impl TraceView {
             origin: origin.as_vec3(),
             dx: (at(1.0, 0.0) - origin).as_vec3(),
             dy: (at(0.0, 1.0) - origin).as_vec3(),
+            eye,
         }
     }
 }
@@ -230,7 +242,7 @@ impl TracePass {
             ctx,
             &name,
             &shader,
-            &bindings(method.needs(), iterations, curved),
+            &bindings(method, iterations, curved),
             std::mem::size_of::<TraceParams>() as u32,
             &[],
         )?;
@@ -295,6 +307,7 @@ impl TracePass {
             cone,
             tiles,
             curved,
+            walk,
         } = inputs;
         if iterations.is_some() != self.iterations {
             return Err(Error::invalid(
@@ -366,6 +379,19 @@ impl TracePass {
         if let Some(c) = &curve {
             writes.push(pl.image("u_curve", c)?);
         }
+        let walks = self.curved && self.method.walks_meshes();
+        let walk_info = match (walks, walk) {
+            (true, Some(buffer)) => Some([vk::DescriptorBufferInfo {
+                buffer,
+                offset: 0,
+                range: vk::WHOLE_SIZE,
+            }]),
+            (true, None) => return Err(missing("the mesh walk buffer")),
+            (false, _) => None,
+        };
+        if let Some(w) = &walk_info {
+            writes.push(pl.buffer("u_walk", w)?);
+        }
         if let Some(p) = &pyramids {
             writes.push(pl.image("u_pyramid", p)?);
         }
@@ -387,7 +413,8 @@ impl TracePass {
         if curved.is_some() {
             flags |= TRACE_FLAG_CURVED;
         }
-        let view = |v: glam::Vec3| v.extend(0.0).to_array();
+        // w: the eye's world position, x, y and z (the mesh walk).
+        let view = |v: glam::Vec3, w: f32| v.extend(w).to_array();
         let push = TraceParams {
             frame_size: [extent.width, extent.height],
             map_size: height.size(),
@@ -405,9 +432,9 @@ impl TracePass {
             depth_scale,
             lod_threshold: params.lod_threshold.unwrap_or(0.0),
             material: tiles.material,
-            view_origin: curved.map_or([0.0; 4], |c| view(c.origin)),
-            view_dx: curved.map_or([0.0; 4], |c| view(c.dx)),
-            view_dy: curved.map_or([0.0; 4], |c| view(c.dy)),
+            view_origin: curved.map_or([0.0; 4], |c| view(c.origin, c.eye.x)),
+            view_dx: curved.map_or([0.0; 4], |c| view(c.dx, c.eye.y)),
+            view_dy: curved.map_or([0.0; 4], |c| view(c.dy, c.eye.z)),
         };
         // SAFETY: this function's # Safety contract: `cmd` is recording outside a render
         // pass; the writes match `bindings(needs)` (the pipeline's set 0: the pyramid and
@@ -447,15 +474,15 @@ mod tests {
     #[test]
     fn declared_bindings_match_the_shaders() {
         for &m in Method::ALL {
-            check_declared(&m.shader(), &bindings(m.needs(), false, false))
+            check_declared(&m.shader(), &bindings(m, false, false))
                 .unwrap_or_else(|e| panic!("{}: {e}", m.name()));
-            check_declared(&m.iterations_shader(), &bindings(m.needs(), true, false))
+            check_declared(&m.iterations_shader(), &bindings(m, true, false))
                 .unwrap_or_else(|e| panic!("{} with iterations: {e}", m.name()));
             for iterations in [false, true] {
                 if let Some(s) = m.curved_shader(iterations) {
-                    check_declared(&s, &bindings(m.needs(), iterations, true)).unwrap_or_else(
-                        |e| panic!("{} curved, iterations {iterations}: {e}", m.name()),
-                    );
+                    check_declared(&s, &bindings(m, iterations, true)).unwrap_or_else(|e| {
+                        panic!("{} curved, iterations {iterations}: {e}", m.name())
+                    });
                 }
             }
         }
@@ -465,11 +492,11 @@ mod tests {
     #[test]
     fn a_binding_the_shader_lacks_is_refused() {
         let shader = Method::Relief.shader();
-        let mut declared = bindings(Method::Relief.needs(), false, false);
+        let mut declared = bindings(Method::Relief, false, false);
         assert!(check_declared(&shader, &declared).is_ok());
         declared.push(("u_cone", SAMPLED));
         assert!(check_declared(&shader, &declared).is_err());
-        let mut retyped = bindings(Method::Relief.needs(), false, false);
+        let mut retyped = bindings(Method::Relief, false, false);
         retyped[0].1 = STORAGE;
         assert!(check_declared(&shader, &retyped).is_err());
     }

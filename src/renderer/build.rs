@@ -75,13 +75,17 @@ impl Renderer {
             .map(|m| super::behind_draws::clusters(m))
             .unwrap_or_default();
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
-        let mesh = unsafe {
+        let mesh_buffers = unsafe {
             Guard::new(
                 c,
-                mesh.map(|m| MeshBuffers::upload(c, &host.shot, &m))
+                mesh.as_ref()
+                    .map(|m| MeshBuffers::upload(c, &host.shot, m))
                     .transpose()?,
             )
         };
+        // What the curved `exact` trace walks, once curved tracing is on.
+        let walked = mesh.map(std::borrow::Cow::into_owned);
+        let mesh = mesh_buffers;
         // The renderer measures its methods: its frames always write the iteration counts.
         let mut pass = DisplacementPass::with_iterations(
             ctx.clone(),
@@ -110,6 +114,7 @@ impl Renderer {
         let mut renderer = host.keep(ctx, settings, gbuffer_pass.keep(), mesh.keep(), None, pass);
         renderer.convex_alone = convex;
         renderer.mesh_clusters = clusters;
+        renderer.curved_meshes = walked.into_iter().collect();
         Ok(renderer)
     }
 
@@ -343,6 +348,14 @@ impl Renderer {
             Some(drawn.keep()),
             pass,
         );
+        // What the curved `exact` trace walks, once curved tracing is on: the displaced
+        // objects' meshes.
+        renderer.curved_meshes = placed
+            .iter()
+            .zip(objects)
+            .filter(|(_, o)| o.material.is_some())
+            .filter_map(|(m, _)| m.clone())
+            .collect();
         if behind {
             renderer.set_behind(true)?;
         }
@@ -425,6 +438,7 @@ impl<'c> HostParts<'c> {
             convex_alone: false,
             convex_skip: true,
             forward_frame: false,
+            curved_meshes: Vec::new(),
         }
     }
 }

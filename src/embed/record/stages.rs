@@ -227,6 +227,7 @@ impl DisplacementPass {
                             cone: needs.cone.and_then(|k| map.cone(k)),
                             tiles: *tiles,
                             curved: view.filter(|_| m.curved),
+                            walk: Some(self.walk.buffer.raw),
                         },
                         &s.params,
                         s.depth_scale,

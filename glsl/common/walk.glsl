@@ -1,0 +1,350 @@
+// The mesh walk: `exact`'s curved trace on the mesh's own triangles (the CURVED variant of
+// glsl/trace/exact.comp; src/mesh/walk.rs builds the buffer, docs/methods.md "Curved
+// surfaces" explains the model). Included by exact.comp after trace.glsl.
+//
+// The displaced surface of a mesh is, at barycentric b of a triangle, the base point
+// p(b) = sum b_i p_i moved inwards along the interpolated normal N(b) = sum b_i n_i by
+// (1 - H(uv(b))) of the depth d(b) = depth_scale sum b_i s_i (s_i the vertices' local uv
+// scale): the surface cli/src/silhouette.rs tessellates and traces in f64. Every point X
+// of a triangle's shell is X = p(b) - tau N(b) for one (b, tau), its foot b (where a
+// normal of the base surface passes through X) and its depth fraction t = tau |N(b)| /
+// d(b). The walk follows the pixel's straight view ray through these shells: at each
+// sample it solves for (b, tau) by Newton's method from the previous sample (the map
+// from (b1, b2, tau) to X is quadratic; from a nearby start two iterations reach f32
+// precision), and where b leaves the triangle it steps to the neighbour across that edge
+// (the buffer's adjacency, matched by position, so a ray crosses uv seams and a cube's
+// edges). The ray is inside the relief where H(uv(b)) >= 1 - t; the samples are at most
+// one texel of uv apart (and at most an eighth of the depth), and the first crossing is
+// refined by bisection. The ray misses where it leaves the shell: back out through the
+// base surface (t < 0) or over a boundary edge of an open mesh.
+//
+// Exact against that model up to the one-texel sampling (a bump narrower than a texel's
+// bilinear cell can fit between two samples of a ray that grazes it) and f32; the
+// tangent-plane circle model (curved.glsl) stays the path of pixels that are on none of
+// the buffer's triangles (a host that gave no meshes: an empty buffer).
+#ifndef DISPMAP_WALK_GLSL
+#define DISPMAP_WALK_GLSL
+
+// The walk buffer (src/mesh/walk.rs, words): a header, the triangles, the start grid.
+//   0..3  the grid's lower corner (f32 bits), 3: cells per unit length (f32 bits)
+//   4..6  the grid's cells along x, y, z; 7: the triangle count (0: no walk)
+//   8     the first word of the triangles; 9: of the cells' offsets; 10: of the lists
+// A triangle is WALK_TRIANGLE_WORDS words: per corner (p.xyz, s, n.xyz, uv.xy), then its
+// neighbours across the edges opposite corners 0, 1 and 2 (WALK_NONE: a boundary edge)
+// and its surface id.
+layout(set = 0, binding = 12, std430) readonly buffer Walk {
+    uint words[];
+} u_walk;
+
+const uint WALK_TRIANGLE_WORDS = 31u;
+const uint WALK_CORNER_WORDS = 9u;
+const uint WALK_NONE = 0xffffffffu;
+// Newton iterations per sample from the previous sample's solution; on entering a
+// triangle (from its centre).
+const int WALK_NEWTON = 2;
+const int WALK_NEWTON_ENTER = 5;
+// Hops between neighbours to locate one point.
+const int WALK_MAX_HOPS = 12;
+// Samples along a ray at most; bisections of its crossing.
+const float WALK_MAX_STEPS = 16384.0;
+const int WALK_BISECTIONS = 16;
+// A barycentric this far below 0 is outside the triangle.
+const float WALK_INSIDE = -1e-5;
+
+float walk_f(uint i) {
+    return uintBitsToFloat(u_walk.words[i]);
+}
+
+vec3 walk_v3(uint i) {
+    return vec3(walk_f(i), walk_f(i + 1u), walk_f(i + 2u));
+}
+
+// One triangle, in the form the solve uses: corner 0 and the edges from it.
+struct WalkTri {
+    vec3 p0, e1, e2;   // base points
+    vec3 n0, f1, f2;   // vertex normals (the side's: negated for a back side)
+    vec3 s;            // s0, s1 - s0, s2 - s0: the local uv scales
+    vec2 uv0, du1, du2;
+    uvec3 adj;
+};
+
+WalkTri walk_tri(uint t, float side) {
+    uint base = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
+    vec3 p[3];
+    vec3 n[3];
+    vec2 uv[3];
+    float s[3];
+    for (uint c = 0u; c < 3u; ++c) {
+        uint w = base + c * WALK_CORNER_WORDS;
+        p[c] = walk_v3(w);
+        s[c] = walk_f(w + 3u);
+        n[c] = side * walk_v3(w + 4u);
+        uv[c] = vec2(walk_f(w + 7u), walk_f(w + 8u));
+    }
+    uint a = base + 3u * WALK_CORNER_WORDS;
+    return WalkTri(p[0], p[1] - p[0], p[2] - p[0], n[0], n[1] - n[0], n[2] - n[0],
+                   vec3(s[0], s[1] - s[0], s[2] - s[0]), uv[0], uv[1] - uv[0], uv[2] - uv[0],
+                   uvec3(u_walk.words[a], u_walk.words[a + 1u], u_walk.words[a + 2u]));
+}
+
+vec3 walk_normal(WalkTri T, vec2 b) {
+    return T.n0 + b.x * T.f1 + b.y * T.f2;
+}
+
+vec2 walk_uv(WalkTri T, vec2 b) {
+    return T.uv0 + b.x * T.du1 + b.y * T.du2;
+}
+
+// The depth fraction t of the point (b, tau): tau |N(b)| over d(b).
+float walk_t(WalkTri T, vec3 q) {
+    float d = pc.depth_scale * (T.s.x + q.x * T.s.y + q.y * T.s.z);
+    return q.z * length(walk_normal(T, q.xy)) / max(d, 1e-30);
+}
+
+// The Jacobian's columns of X(b1, b2, tau) = p(b) - tau N(b) at q.
+void walk_jacobian(WalkTri T, vec3 q, out vec3 c1, out vec3 c2, out vec3 c3) {
+    c1 = T.e1 - q.z * T.f1;
+    c2 = T.e2 - q.z * T.f2;
+    c3 = -walk_normal(T, q.xy);
+}
+
+// Newton's method for X = p(b) - tau N(b) from q, `n` iterations (Cramer's rule).
+vec3 walk_solve(WalkTri T, vec3 X, vec3 q, int n) {
+    for (int i = 0; i < n; ++i) {
+        vec3 c1, c2, c3;
+        walk_jacobian(T, q, c1, c2, c3);
+        vec3 r = X - (T.p0 + q.x * T.e1 + q.y * T.e2 + c3 * q.z);
+        vec3 c23 = cross(c2, c3);
+        float det = dot(c1, c23);
+        if (!(abs(det) > 0.0)) {
+            break;
+        }
+        q += vec3(dot(r, c23), dot(c1, cross(r, c3)), dot(c1, cross(c2, r))) / det;
+    }
+    return q;
+}
+
+// The change of q per unit of the ray's parameter along direction R.
+vec3 walk_rate(WalkTri T, vec3 q, vec3 R) {
+    vec3 c1, c2, c3;
+    walk_jacobian(T, q, c1, c2, c3);
+    vec3 c23 = cross(c2, c3);
+    float det = dot(c1, c23);
+    if (!(abs(det) > 0.0)) {
+        return vec3(0.0);
+    }
+    return vec3(dot(R, c23), dot(c1, cross(R, c3)), dot(c1, cross(c2, R))) / det;
+}
+
+// Where the walk is: its triangle (index and data), the point's (b1, b2, tau), and the
+// integer uv shift gathered crossing seams (so that uv stays continuous along the ray).
+struct WalkAt {
+    uint tri;
+    WalkTri T;
+    vec3 q;
+    vec2 shift;
+};
+
+// The uv of a located point, continuous along the ray from the pixel's `uv0` (`start`:
+// the triangle's uv at the pixel's entry): its barycentrics clamped into the triangle, so
+// that a point located within WALK_INSIDE of an edge reads the edge's uv, not a uv a hair
+// past a clamp-addressed decal's edge.
+vec2 walk_at_uv(WalkAt at, vec2 uv0, vec2 start) {
+    vec2 b = max(at.q.xy, vec2(0.0));
+    b /= max(b.x + b.y, 1.0);
+    return uv0 + walk_uv(at.T, b) + at.shift - start;
+}
+
+// Locates X starting from `at`: true with `at` on the triangle whose prism holds X's foot;
+// false where the foot leaves the mesh over a boundary edge (or the hops run out).
+bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
+    vec3 q = walk_solve(at.T, X, at.q, newton);
+    for (int hop = 0; hop < WALK_MAX_HOPS; ++hop) {
+        float b0 = 1.0 - q.x - q.y;
+        float m = min(b0, min(q.x, q.y));
+        if (m >= WALK_INSIDE) {
+            at.q = q;
+            return true;
+        }
+        uint edge = m == b0 ? 0u : (m == q.x ? 1u : 2u);
+        uint next = at.T.adj[edge];
+        if (next == WALK_NONE) {
+            return false;
+        }
+        vec2 uv_here = walk_uv(at.T, q.xy);
+        WalkTri N = walk_tri(next, side);
+        vec3 qn = walk_solve(N, X, vec3(1.0 / 3.0, 1.0 / 3.0, q.z), WALK_NEWTON_ENTER);
+        // Across a seam the two triangles' uvs at the point differ by whole tiles.
+        at.shift += round(uv_here - walk_uv(N, qn.xy));
+        at.tri = next;
+        at.T = N;
+        q = qn;
+    }
+    return false;
+}
+
+// The start: the triangle of the surface `surface` whose base holds the point X (world),
+// from the grid's cell of X. False when no triangle is near enough (not a walked mesh).
+bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
+    at = WalkAt(0u, walk_tri(0u, side), vec3(0.0), vec2(0.0));
+    vec3 lo = walk_v3(0u);
+    float inv_cell = walk_f(3u);
+    uvec3 dims = uvec3(u_walk.words[4], u_walk.words[5], u_walk.words[6]);
+    vec3 c = floor((X - lo) * inv_cell);
+    if (any(lessThan(c, vec3(0.0))) || any(greaterThanEqual(c, vec3(dims)))) {
+        return false;
+    }
+    uvec3 cell = uvec3(c);
+    uint index = (cell.z * dims.y + cell.y) * dims.x + cell.x;
+    uint offsets = u_walk.words[9];
+    uint lists = u_walk.words[10];
+    uint first = u_walk.words[offsets + index];
+    uint last = u_walk.words[offsets + index + 1u];
+    float best = 1e30;
+    // A base point off the triangle's plane by more than this (in cells) is not on it.
+    float tolerance = 1e-2 / inv_cell;
+    for (uint k = first; k < last; ++k) {
+        uint t = u_walk.words[lists + k];
+        WalkTri T = walk_tri(t, side);
+        vec3 n = cross(T.e1, T.e2);
+        float area2 = dot(n, n);
+        if (!(area2 > 0.0)) {
+            continue;
+        }
+        vec3 r = X - T.p0;
+        float dist = abs(dot(r, n)) * inversesqrt(area2);
+        vec2 b = vec2(dot(cross(r, T.e2), n), dot(cross(T.e1, r), n)) / area2;
+        float outside = max(0.0, -min(1.0 - b.x - b.y, min(b.x, b.y)));
+        float score = dist + outside / inv_cell;
+        uint surface_word = u_walk.words[u_walk.words[8] + t * WALK_TRIANGLE_WORDS + 30u];
+        if (float(surface_word) != surface) {
+            score += 1.0 / inv_cell;
+        }
+        if (score < best) {
+            best = score;
+            at = WalkAt(t, T, vec3(b, 0.0), vec2(0.0));
+        }
+    }
+    return best <= tolerance;
+}
+
+// The curved trace of `ray` (the pixel's tangent-space ray: uv0 and P) on the walked mesh,
+// from the pixel's eye-relative entry point `entry`: true with the hit or miss in `hit`,
+// false where the pixel is on no walked triangle (the caller takes the circle model).
+bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
+                out Hit hit) {
+    hit = miss(ray, 0u);
+    if (u_walk.words[7] == 0u) {
+        return false;
+    }
+    vec3 X0 = entry + eye;
+    vec3 R = normalize(entry);
+    WalkAt at;
+    // The side: a two-sided mesh's back side is displaced the other way (its G-buffer
+    // normal is the mesh's reversed).
+    if (!walk_start(X0, surface, 1.0, at)) {
+        return false;
+    }
+    float side = dot(frame_normal, walk_normal(at.T, at.q.xy)) < 0.0 ? -1.0 : 1.0;
+    if (side < 0.0) {
+        at.T = walk_tri(at.tri, side);
+    }
+    // The ray goes into the shell from its start on the base.
+    if (!(dot(R, walk_normal(at.T, at.q.xy)) < 0.0)) {
+        return false;
+    }
+    vec2 map = vec2(pc.map_size);
+    vec2 uv_start = walk_uv(at.T, at.q.xy);
+    // The walk starts on the triangle's own base point under the entry.
+    X0 = at.T.p0 + at.q.x * at.T.e1 + at.q.y * at.T.e2;
+    uint iterations = 1u;
+    if (height_exact(ray.uv0) >= 1.0) {
+        hit = Hit(ray.uv0, 1.0, iterations);
+        return true;
+    }
+    WalkAt prev = at;
+    float s_prev = 0.0;
+    float s = 0.0;
+    bool crossed = false;
+    for (float i = 0.0; i < WALK_MAX_STEPS; i += 1.0) {
+        // The step: at most one texel of uv and an eighth of the depth.
+        vec3 rate = walk_rate(at.T, at.q, R);
+        vec2 duv = (rate.x * at.T.du1 + rate.y * at.T.du2) * map;
+        float uv_rate = max(abs(duv.x), abs(duv.y));
+        float d = pc.depth_scale * (at.T.s.x + at.q.x * at.T.s.y + at.q.y * at.T.s.z);
+        float t_rate = abs(rate.z) * length(walk_normal(at.T, at.q.xy)) / max(d, 1e-30);
+        float ds = 1.0 / max(max(uv_rate, 8.0 * t_rate), 1e-30);
+        prev = at;
+        s_prev = s;
+        s += ds;
+        bool inside = walk_locate(at, X0 + s * R, side, WALK_NEWTON);
+        iterations += 1u;
+        if (!inside || walk_t(at.T, at.q) < 0.0) {
+            // The sample left the shell (over a boundary edge, into a neighbour's shell
+            // from outside, or back through the base): the ray may still have met the
+            // relief before it left, so the last point inside is tested.
+            WalkAt last = prev;
+            float s_in = s_prev;
+            float s_out = s;
+            for (int k = 0; k < WALK_BISECTIONS; ++k) {
+                float s_mid = 0.5 * (s_in + s_out);
+                WalkAt mid = last;
+                iterations += 1u;
+                if (walk_locate(mid, X0 + s_mid * R, side, WALK_NEWTON) && walk_t(mid.T, mid.q) >= 0.0) {
+                    s_in = s_mid;
+                    last = mid;
+                } else {
+                    s_out = s_mid;
+                }
+            }
+            vec2 uv = walk_at_uv(last, ray.uv0, uv_start);
+            if (s_in > s_prev && !leaves_domain(uv) && height_exact(uv) >= 1.0 - walk_t(last.T, last.q)) {
+                at = last;
+                s = s_in;
+                crossed = true;
+            }
+            break;
+        }
+        float t = walk_t(at.T, at.q);
+        vec2 uv = walk_at_uv(at, ray.uv0, uv_start);
+        if (leaves_domain(uv)) {
+            break;
+        }
+        if (height_exact(uv) >= 1.0 - t) {
+            crossed = true;
+            break;
+        }
+    }
+    if (!crossed) {
+        hit.iterations = iterations;
+        return true;
+    }
+    // Bisection between the last sample above the surface and the first below.
+    WalkAt below = at;
+    float s_above = s_prev;
+    float s_below = s;
+    for (int k = 0; k < WALK_BISECTIONS; ++k) {
+        float s_mid = 0.5 * (s_above + s_below);
+        WalkAt mid = prev;
+        if (!walk_locate(mid, X0 + s_mid * R, side, WALK_NEWTON)) {
+            s_above = s_mid;
+            continue;
+        }
+        iterations += 1u;
+        float t = walk_t(mid.T, mid.q);
+        vec2 uv = walk_at_uv(mid, ray.uv0, uv_start);
+        if (height_exact(uv) >= 1.0 - t) {
+            s_below = s_mid;
+            below = mid;
+        } else {
+            s_above = s_mid;
+            prev = mid;
+        }
+    }
+    float t_hit = clamp(walk_t(below.T, below.q), 0.0, 1.0);
+    vec2 uv_hit = walk_at_uv(below, ray.uv0, uv_start);
+    hit = Hit(uv_hit, 1.0 - t_hit, iterations);
+    return true;
+}
+
+#endif
