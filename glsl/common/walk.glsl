@@ -136,6 +136,17 @@ vec3 walk_rate(WalkTri T, vec3 q, vec3 R) {
     return vec3(dot(R, c23), dot(c1, cross(R, c3)), dot(c1, cross(c2, R))) / det;
 }
 
+// The change of the depth fraction t (walk_t) per unit of the ray's parameter, from q's
+// (`rate`: walk_rate).
+float walk_t_rate(WalkTri T, vec3 q, vec3 rate) {
+    vec3 N = walk_normal(T, q.xy);
+    float n = length(N);
+    float dn = dot(N, rate.x * T.f1 + rate.y * T.f2) / max(n, 1e-30);
+    float d = max(pc.depth_scale * (T.s.x + q.x * T.s.y + q.y * T.s.z), 1e-30);
+    float dd = pc.depth_scale * (rate.x * T.s.y + rate.y * T.s.z);
+    return (rate.z * n + q.z * dn) / d - q.z * n * dd / (d * d);
+}
+
 // Where the walk is: its triangle (index and data), the point's (b1, b2, tau), and the
 // integer uv shift gathered crossing seams (so that uv stays continuous along the ray).
 struct WalkAt {
@@ -145,14 +156,15 @@ struct WalkAt {
     vec2 shift;
 };
 
-// The uv of a located point, continuous along the ray from the pixel's `uv0` (`start`:
-// the triangle's uv at the pixel's entry): its barycentrics clamped into the triangle, so
-// that a point located within WALK_INSIDE of an edge reads the edge's uv, not a uv a hair
-// past a clamp-addressed decal's edge.
-vec2 walk_at_uv(WalkAt at, vec2 uv0, vec2 start) {
+// The uv of a located point: its triangle's uv at its barycentrics clamped into the
+// triangle (a point located within WALK_INSIDE of an edge reads the edge's uv, not a uv a
+// hair past a clamp-addressed decal's edge), moved by whole tiles (`tiles`: those of the
+// seams the walk crossed and the pixel's uv0 reduction) so that it stays continuous
+// along the ray from the pixel's uv0.
+vec2 walk_at_uv(WalkAt at, vec2 tiles) {
     vec2 b = max(at.q.xy, vec2(0.0));
     b /= max(b.x + b.y, 1.0);
-    return uv0 + walk_uv(at.T, b) + at.shift - start;
+    return walk_uv(at.T, b) + at.shift + tiles;
 }
 
 // Locates X starting from `at`: true with `at` on the triangle whose prism holds X's foot;
@@ -254,7 +266,8 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
         return false;
     }
     vec2 map = vec2(pc.map_size);
-    vec2 uv_start = walk_uv(at.T, at.q.xy);
+    // The G-buffer's uv0 is the entry's uv reduced to [0, 1) (repeat addressing).
+    vec2 tiles = round(ray.uv0 - walk_uv(at.T, at.q.xy));
     // The walk starts on the triangle's own base point under the entry.
     X0 = at.T.p0 + at.q.x * at.T.e1 + at.q.y * at.T.e2;
     uint iterations = 1u;
@@ -271,18 +284,18 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
         vec3 rate = walk_rate(at.T, at.q, R);
         vec2 duv = (rate.x * at.T.du1 + rate.y * at.T.du2) * map;
         float uv_rate = max(abs(duv.x), abs(duv.y));
-        float d = pc.depth_scale * (at.T.s.x + at.q.x * at.T.s.y + at.q.y * at.T.s.z);
-        float t_rate = abs(rate.z) * length(walk_normal(at.T, at.q.xy)) / max(d, 1e-30);
-        float ds = 1.0 / max(max(uv_rate, 8.0 * t_rate), 1e-30);
+        float t_rate = walk_t_rate(at.T, at.q, rate);
+        float ds = 1.0 / max(max(uv_rate, 8.0 * abs(t_rate)), 1e-30);
         prev = at;
         s_prev = s;
         s += ds;
         bool inside = walk_locate(at, X0 + s * R, side, WALK_NEWTON);
         iterations += 1u;
-        if (!inside || walk_t(at.T, at.q) < 0.0) {
+        bool exits = !inside || walk_t(at.T, at.q) < 0.0;
+        if (exits) {
             // The sample left the shell (over a boundary edge, into a neighbour's shell
-            // from outside, or back through the base): the ray may still have met the
-            // relief before it left, so the last point inside is tested.
+            // from outside, or back through the base): the last point inside is found,
+            // and the ray is tested up to it.
             WalkAt last = prev;
             float s_in = s_prev;
             float s_out = s;
@@ -297,21 +310,52 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
                     s_out = s_mid;
                 }
             }
-            vec2 uv = walk_at_uv(last, ray.uv0, uv_start);
-            if (s_in > s_prev && !leaves_domain(uv) && height_exact(uv) >= 1.0 - walk_t(last.T, last.q)) {
-                at = last;
-                s = s_in;
-                crossed = true;
+            at = last;
+            s = s_in;
+        }
+        // Where the ray turns back towards the base between the two samples (t'
+        // changes sign: near outlines), its deepest point is found by bisection on the
+        // sign of t' and tested: a ray that only touches the relief there is not
+        // stepped over.
+        if (t_rate > 0.0 && s > s_prev) {
+            vec3 rate_end = walk_rate(at.T, at.q, R);
+            if (!(walk_t_rate(at.T, at.q, rate_end) > 0.0)) {
+                WalkAt lo = prev;
+                float s_lo = s_prev;
+                float s_hi = s;
+                for (int k = 0; k < WALK_BISECTIONS; ++k) {
+                    float s_mid = 0.5 * (s_lo + s_hi);
+                    WalkAt mid = lo;
+                    iterations += 1u;
+                    if (walk_locate(mid, X0 + s_mid * R, side, WALK_NEWTON)
+                        && walk_t_rate(mid.T, mid.q, walk_rate(mid.T, mid.q, R)) > 0.0) {
+                        s_lo = s_mid;
+                        lo = mid;
+                    } else {
+                        s_hi = s_mid;
+                    }
+                }
+                vec2 uv = walk_at_uv(lo, tiles);
+                if (s_lo > s_prev && !leaves_domain(uv) && height_exact(uv) >= 1.0 - walk_t(lo.T, lo.q)) {
+                    at = lo;
+                    s = s_lo;
+                    crossed = true;
+                    break;
+                }
             }
+        }
+        if (s <= s_prev) {
             break;
         }
-        float t = walk_t(at.T, at.q);
-        vec2 uv = walk_at_uv(at, ray.uv0, uv_start);
+        vec2 uv = walk_at_uv(at, tiles);
         if (leaves_domain(uv)) {
             break;
         }
-        if (height_exact(uv) >= 1.0 - t) {
+        if (height_exact(uv) >= 1.0 - walk_t(at.T, at.q)) {
             crossed = true;
+            break;
+        }
+        if (exits) {
             break;
         }
     }
@@ -332,7 +376,7 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
         }
         iterations += 1u;
         float t = walk_t(mid.T, mid.q);
-        vec2 uv = walk_at_uv(mid, ray.uv0, uv_start);
+        vec2 uv = walk_at_uv(mid, tiles);
         if (height_exact(uv) >= 1.0 - t) {
             s_below = s_mid;
             below = mid;
@@ -342,7 +386,7 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
         }
     }
     float t_hit = clamp(walk_t(below.T, below.q), 0.0, 1.0);
-    vec2 uv_hit = walk_at_uv(below, ray.uv0, uv_start);
+    vec2 uv_hit = walk_at_uv(below, tiles);
     hit = Hit(uv_hit, 1.0 - t_hit, iterations);
     return true;
 }
