@@ -28,15 +28,17 @@
 // The walk buffer (src/mesh/walk.rs, words): a header, the triangles, the start grid.
 //   0..3  the grid's lower corner (f32 bits), 3: cells per unit length (f32 bits)
 //   4..6  the grid's cells along x, y, z; 7: the triangle count (0: no walk)
-//   8     the first word of the triangles; 9: of the cells' offsets; 10: of the lists
+//   8     the first word of the triangles; 9: of the cells' offsets; 10: of the cells'
+//         lists; 11: of the overlap lists
 // A triangle is WALK_TRIANGLE_WORDS words: per corner (p.xyz, s, n.xyz, uv.xy), then its
-// neighbours across the edges opposite corners 0, 1 and 2 (WALK_NONE: a boundary edge)
-// and its surface id.
+// neighbours across the edges opposite corners 0, 1 and 2 (WALK_NONE: a boundary edge),
+// its surface id, and the first and count of the triangles whose shells overlap its own
+// (sharing a corner's position where the normals part: a cube's edges and corners).
 layout(set = 0, binding = 12, std430) readonly buffer Walk {
     uint words[];
 } u_walk;
 
-const uint WALK_TRIANGLE_WORDS = 31u;
+const uint WALK_TRIANGLE_WORDS = 33u;
 const uint WALK_CORNER_WORDS = 9u;
 const uint WALK_NONE = 0xffffffffu;
 // Newton iterations per sample from the previous sample's solution; on entering a
@@ -66,6 +68,7 @@ struct WalkTri {
     vec3 s;            // s0, s1 - s0, s2 - s0: the local uv scales
     vec2 uv0, du1, du2;
     uvec3 adj;
+    uvec2 overlaps;    // first (in the overlap list), count
 };
 
 WalkTri walk_tri(uint t, float side) {
@@ -84,7 +87,8 @@ WalkTri walk_tri(uint t, float side) {
     uint a = base + 3u * WALK_CORNER_WORDS;
     return WalkTri(p[0], p[1] - p[0], p[2] - p[0], n[0], n[1] - n[0], n[2] - n[0],
                    vec3(s[0], s[1] - s[0], s[2] - s[0]), uv[0], uv[1] - uv[0], uv[2] - uv[0],
-                   uvec3(u_walk.words[a], u_walk.words[a + 1u], u_walk.words[a + 2u]));
+                   uvec3(u_walk.words[a], u_walk.words[a + 1u], u_walk.words[a + 2u]),
+                   uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]));
 }
 
 vec3 walk_normal(WalkTri T, vec2 b) {
@@ -186,13 +190,80 @@ bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
         vec2 uv_here = walk_uv(at.T, q.xy);
         WalkTri N = walk_tri(next, side);
         vec3 qn = walk_solve(N, X, vec3(1.0 / 3.0, 1.0 / 3.0, q.z), WALK_NEWTON_ENTER);
-        // Across a seam the two triangles' uvs at the point differ by whole tiles.
-        at.shift += round(uv_here - walk_uv(N, qn.xy));
+        // Across a seam the two triangles' uvs at the point differ by whole tiles, which a
+        // repeating map keeps continuous (a clamped map's uvs are the triangles' own).
+        if (pc.addressing == ADDRESSING_REPEAT) {
+            at.shift += round(uv_here - walk_uv(N, qn.xy));
+        }
         at.tri = next;
         at.T = N;
         q = qn;
     }
     return false;
+}
+
+// Whether a point of the neighbour N (solved: q) is in its shell and inside its relief.
+bool walk_in_relief(WalkTri N, vec3 q, vec2 tiles) {
+    float t = walk_t(N, q);
+    if (!(min(1.0 - q.x - q.y, min(q.x, q.y)) >= WALK_INSIDE && t >= 0.0)) {
+        return false;
+    }
+    vec2 b = max(q.xy, vec2(0.0));
+    b /= max(b.x + b.y, 1.0);
+    vec2 uv = walk_uv(N, b) + tiles;
+    return !leaves_domain(uv) && height_exact(uv) >= 1.0 - t;
+}
+
+// Where the shells of two triangles overlap (inside the solid along a crease, where their
+// normals part), the ray can meet the other's relief while it walks this one's shell: the
+// surface is every piece's, as the reference's. Tests the triangles overlapping `at`'s
+// for a crossing into their relief between the ray parameters sa (the point of `at`) and
+// sb: true with the first such crossing, refined by bisection, in `hit`.
+bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, vec2 tiles,
+                   inout uint iterations, out Hit hit) {
+    hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
+    float s_first = sb;
+    uint list = u_walk.words[11] + at.T.overlaps.x;
+    for (uint k = 0u; k < at.T.overlaps.y; ++k) {
+        WalkTri N = walk_tri(u_walk.words[list + k], side);
+        vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
+        iterations += 1u;
+        // The other chart's uv, moved by the whole tiles between the two at the point.
+        vec2 tiles_n = pc.addressing == ADDRESSING_REPEAT
+            ? tiles + at.shift + round(walk_uv(at.T, at.q.xy) - walk_uv(N, qa.xy))
+            : vec2(0.0);
+        // A crossing of its surface: from a point in its shell above its relief (not an
+        // entry through the side of its shell, or from below its offset surface).
+        float ta = walk_t(N, qa);
+        if (!(min(1.0 - qa.x - qa.y, min(qa.x, qa.y)) >= WALK_INSIDE && ta >= 0.0 && ta <= 1.0)
+            || walk_in_relief(N, qa, tiles_n)) {
+            continue;
+        }
+        vec3 qb = walk_solve(N, X0 + s_first * R, qa, WALK_NEWTON_ENTER);
+        iterations += 1u;
+        if (!walk_in_relief(N, qb, tiles_n)) {
+            continue;
+        }
+        float lo = sa;
+        float hi = s_first;
+        for (int j = 0; j < WALK_BISECTIONS; ++j) {
+            float mid = 0.5 * (lo + hi);
+            vec3 qm = walk_solve(N, X0 + mid * R, qb, WALK_NEWTON);
+            iterations += 1u;
+            if (walk_in_relief(N, qm, tiles_n)) {
+                hi = mid;
+                qb = qm;
+            } else {
+                lo = mid;
+            }
+        }
+        s_first = hi;
+        vec2 b = max(qb.xy, vec2(0.0));
+        b /= max(b.x + b.y, 1.0);
+        hit = Hit(walk_uv(N, b) + tiles_n, 1.0 - clamp(walk_t(N, qb), 0.0, 1.0), 0u);
+    }
+    hit.iterations = iterations;
+    return hit.h >= 0.0;
 }
 
 // The start: the triangle of the surface `surface` whose base holds the point X (world),
@@ -267,7 +338,7 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     }
     vec2 map = vec2(pc.map_size);
     // The G-buffer's uv0 is the entry's uv reduced to [0, 1) (repeat addressing).
-    vec2 tiles = round(ray.uv0 - walk_uv(at.T, at.q.xy));
+    vec2 tiles = pc.addressing == ADDRESSING_REPEAT ? round(ray.uv0 - walk_uv(at.T, at.q.xy)) : vec2(0.0);
     // The walk starts on the triangle's own base point under the entry.
     X0 = at.T.p0 + at.q.x * at.T.e1 + at.q.y * at.T.e2;
     uint iterations = 1u;
@@ -312,6 +383,12 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
             }
             at = last;
             s = s_in;
+        }
+        Hit overlap;
+        if (at.T.overlaps.y + prev.T.overlaps.y > 0u
+            && walk_overlaps(prev, X0, R, s_prev, s, side, tiles, iterations, overlap)) {
+            hit = overlap;
+            return true;
         }
         // Where the ray turns back towards the base between the two samples (t'
         // changes sign: near outlines), its deepest point is found by bisection on the

@@ -19,8 +19,9 @@ use gpu_allocator::MemoryLocation;
 use std::collections::HashMap;
 
 /// Words of a triangle in the buffer (`WALK_TRIANGLE_WORDS` in `walk.glsl`): per corner
-/// its position, local uv scale, normal and uv (9), its three neighbours, its surface id.
-const TRIANGLE_WORDS: usize = 31;
+/// its position, local uv scale, normal and uv (9), its three neighbours, its surface id,
+/// and the first and count of its overlapping triangles in the overlap list.
+const TRIANGLE_WORDS: usize = 33;
 /// A triangle with no neighbour across an edge (`WALK_NONE`).
 const NONE: u32 = u32::MAX;
 /// Words of the header (see `walk.glsl`).
@@ -33,6 +34,7 @@ const MAX_CELLS: usize = 64;
 /// then takes its per-pixel circle model everywhere.
 pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
     let mut triangles: Vec<[u32; TRIANGLE_WORDS]> = Vec::new();
+    let mut overlaps: Vec<Vec<u32>> = Vec::new();
     let mut bounds: Vec<(Vec3, Vec3)> = Vec::new();
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for mesh in meshes {
@@ -71,6 +73,27 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
                 edges.entry((a.min(b), a.max(b))).or_default().push((t, e));
             }
         }
+        // The triangles whose shells overlap this one's: those sharing a corner's position
+        // where the two normals part (across a crease, a cube's edges and corners).
+        let mut at_vertex: HashMap<u32, Vec<(usize, u32)>> = HashMap::new();
+        for (t, tri) in kept.iter().enumerate() {
+            for &i in tri {
+                at_vertex.entry(ids[i as usize]).or_default().push((t, i));
+            }
+        }
+        let normal = |i: u32| Vec3::from(mesh.vertices[i as usize].normal);
+        for (t, tri) in kept.iter().enumerate() {
+            let mut list: Vec<u32> = Vec::new();
+            for &i in tri {
+                for &(o, j) in &at_vertex[&ids[i as usize]] {
+                    let index = (first + o) as u32;
+                    if o != t && (normal(i) - normal(j)).length() > 1e-4 && !list.contains(&index) {
+                        list.push(index);
+                    }
+                }
+            }
+            overlaps.push(list);
+        }
         for (t, tri) in kept.iter().enumerate() {
             let mut words = [0u32; TRIANGLE_WORDS];
             let mut lo_t = Vec3::splat(f32::INFINITY);
@@ -102,10 +125,7 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
                 );
                 let shared = &edges[&(a.min(b), a.max(b))];
                 words[27 + e] = match shared.as_slice() {
-                    [x, y] => {
-                        let other = if x.0 == t { y.0 } else { x.0 };
-                        (first + other) as u32
-                    }
+                    [x, y] => (first + if x.0 == t { y.0 } else { x.0 }) as u32,
                     _ => NONE,
                 };
             }
@@ -146,9 +166,16 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
             }
         }
     }
+    let mut offset = 0u32;
+    for (words, list) in triangles.iter_mut().zip(&overlaps) {
+        words[31] = offset;
+        words[32] = list.len() as u32;
+        offset += list.len() as u32;
+    }
     let tri_base = HEADER_WORDS;
     let cell_base = tri_base + triangles.len() * TRIANGLE_WORDS;
     let list_base = cell_base + lists.len() + 1;
+    let overlap_base = list_base + lists.iter().map(Vec::len).sum::<usize>();
     let mut words = header(
         lo,
         1.0 / cell,
@@ -158,6 +185,7 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
     );
     words[9] = cell_base as u32;
     words[10] = list_base as u32;
+    words[11] = overlap_base as u32;
     words.extend(triangles.iter().flatten());
     let mut offset = 0u32;
     for list in &lists {
@@ -166,6 +194,7 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
     }
     words.push(offset);
     words.extend(lists.iter().flatten());
+    words.extend(overlaps.iter().flatten());
     words
 }
 
@@ -271,6 +300,7 @@ mod tests {
             let words = walk_words(&[&mesh]);
             let n = words[7] as usize;
             assert!(n > 0, "{}", mesh.label);
+            let overlapping: usize = (0..n).map(|t| tri_words(&words, t)[32] as usize).sum();
             for t in 0..n {
                 let w = tri_words(&words, t);
                 for e in 0..3 {
