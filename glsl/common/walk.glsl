@@ -50,6 +50,11 @@ const int WALK_MAX_HOPS = 12;
 // Samples along a ray at most; bisections of its crossing.
 const float WALK_MAX_STEPS = 16384.0;
 const int WALK_BISECTIONS = 16;
+// Halvings of a chord at most; its largest distance from the walked path at its middle,
+// in texels of uv and as a fraction of the depth.
+const int WALK_CHORD_HALVINGS = 10;
+const float WALK_CHORD_TEXELS = 1.0 / 16.0;
+const float WALK_CHORD_DEPTH = 1.0 / 1024.0;
 // A barycentric this far below 0 is outside the triangle.
 const float WALK_INSIDE = -1e-5;
 
@@ -266,6 +271,75 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
     return hit.h >= 0.0;
 }
 
+// The first parameter u in [0, 1] of the chord from qa to qb (a triangle's (b1, b2, t),
+// taken as linear along the chord: exact on a flat triangle) where the point is inside
+// the triangle's shell (every barycentric >= 0, 0 <= t <= 1): clipped to [u0, u1], empty
+// when u0 > u1.
+vec2 walk_clip(vec3 qa, vec3 qb) {
+    vec4 a = vec4(1.0 - qa.x - qa.y, qa.x, qa.y, qa.z);
+    vec4 d = vec4(1.0 - qb.x - qb.y, qb.x, qb.y, qb.z) - a;
+    vec2 u = vec2(0.0, 1.0);
+    for (int i = 0; i < 4; ++i) {
+        // a + u d >= 0
+        if (d[i] > 0.0) {
+            u.x = max(u.x, -a[i] / d[i]);
+        } else if (d[i] < 0.0) {
+            u.y = min(u.y, -a[i] / d[i]);
+        } else if (a[i] < 0.0) {
+            u.y = -1.0;
+        }
+    }
+    // t <= 1
+    if (d.w > 0.0) {
+        u.y = min(u.y, (1.0 - a.w) / d.w);
+    } else if (a.w > 1.0) {
+        u.y = -1.0;
+    }
+    return u;
+}
+
+// walk_overlaps for a chord from A (`at`, ray parameter sa) to sb, each overlapping
+// triangle's part of the chord (clipped to its shell, taken as straight in its uv and
+// depth) intersected exactly by the pyramid: the first crossing into an overlapping
+// triangle's relief through its surface (not at the clipped start, where the chord enters
+// its shell through a side or starts inside its relief), as the chord's fraction `u_hit`.
+bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, vec2 tiles,
+                         inout uint iterations, inout float u_hit, out Hit hit) {
+    hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
+    int top = pyramid_levels() - 1;
+    uint list = u_walk.words[11] + at.T.overlaps.x;
+    for (uint k = 0u; k < at.T.overlaps.y; ++k) {
+        WalkTri N = walk_tri(u_walk.words[list + k], side);
+        vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
+        vec3 qb = walk_solve(N, X0 + sb * R, qa, WALK_NEWTON_ENTER);
+        iterations += 2u;
+        vec3 ta = vec3(qa.xy, walk_t(N, qa));
+        vec3 tb = vec3(qb.xy, walk_t(N, qb));
+        vec2 u = walk_clip(ta, tb);
+        if (!(u.x < u.y) || !(tb.z > ta.z) || u.x >= u_hit) {
+            continue;
+        }
+        vec2 tiles_n = pc.addressing == ADDRESSING_REPEAT
+            ? tiles + at.shift + round(walk_uv(at.T, at.q.xy) - walk_uv(N, qa.xy))
+            : vec2(0.0);
+        vec3 q0 = mix(ta, tb, u.x);
+        vec3 q1 = mix(ta, tb, u.y);
+        vec2 uv0 = walk_uv(N, q0.xy) + tiles_n;
+        vec2 uv1 = walk_uv(N, q1.xy) + tiles_n;
+        vec2 dir = (uv1 - uv0) / (q1.z - q0.z);
+        float sh = pyramid_segment_hit(Ray(uv0 - q0.z * dir, dir), q0.z, q1.z, top, iterations);
+        if (!(sh > q0.z + 1e-6)) {
+            continue;
+        }
+        float uh = mix(u.x, u.y, (sh - q0.z) / (q1.z - q0.z));
+        if (uh < u_hit) {
+            u_hit = uh;
+            hit = Hit(uv0 + (sh - q0.z) * dir, 1.0 - sh, 0u);
+        }
+    }
+    return hit.h >= 0.0;
+}
+
 // The start: the triangle of the surface `surface` whose base holds the point X (world),
 // from the grid's cell of X. False when no triangle is near enough (not a walked mesh).
 bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
@@ -350,8 +424,73 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     float s_prev = 0.0;
     float s = 0.0;
     bool crossed = false;
+    int top = pyramid_levels() - 1;
+    float chord_ds = 1e30;
     for (float i = 0.0; i < WALK_MAX_STEPS; i += 1.0) {
-        // The step: at most one texel of uv and an eighth of the depth.
+        // Descending, the path is followed in chords: each as long as its middle stays
+        // within WALK_CHORD_TEXELS and WALK_CHORD_DEPTH of the walked path (a flat
+        // triangle's path is straight: one chord to the offset surface), intersected
+        // exactly by the pyramid as a straight tangent-space ray.
+        {
+            vec3 rate = walk_rate(at.T, at.q, R);
+            float t_rate = walk_t_rate(at.T, at.q, rate);
+            float t_a = walk_t(at.T, at.q);
+            vec2 duv = (rate.x * at.T.du1 + rate.y * at.T.du2) * map;
+            float texel_ds = 1.0 / max(max(abs(duv.x), abs(duv.y)), 1e-30);
+            float cds = t_rate > 0.0 && t_a < 1.0 ? min(2.0 * chord_ds, (1.0 - t_a) / t_rate * 1.0625) : 0.0;
+            vec2 uv_a = walk_at_uv(at, tiles);
+            bool accepted = false;
+            WalkAt B = at;
+            float t_b = 0.0;
+            vec2 uv_b = uv_a;
+            for (int k = 0; k < WALK_CHORD_HALVINGS && cds > texel_ds; ++k) {
+                WalkAt M = at;
+                B = at;
+                iterations += 2u;
+                if (walk_locate(M, X0 + (s + 0.5 * cds) * R, side, WALK_NEWTON_ENTER)
+                    && walk_locate(B, X0 + (s + cds) * R, side, WALK_NEWTON_ENTER)) {
+                    float t_m = walk_t(M.T, M.q);
+                    t_b = walk_t(B.T, B.q);
+                    vec2 uv_m = walk_at_uv(M, tiles);
+                    uv_b = walk_at_uv(B, tiles);
+                    if (t_m > t_a && t_b > t_m
+                        && length((uv_m - 0.5 * (uv_a + uv_b)) * map) <= WALK_CHORD_TEXELS
+                        && abs(t_m - 0.5 * (t_a + t_b)) <= WALK_CHORD_DEPTH) {
+                        accepted = true;
+                        break;
+                    }
+                }
+                cds *= 0.5;
+            }
+            if (accepted) {
+                float t_end = min(t_b, 1.0);
+                vec2 dir = (uv_b - uv_a) / (t_b - t_a);
+                float sh = pyramid_segment_hit(Ray(uv_a - t_a * dir, dir), t_a, t_end, top, iterations);
+                float u_hit = sh >= 0.0 ? (sh - t_a) / (t_b - t_a) : 2.0;
+                Hit overlap;
+                if (at.T.overlaps.y > 0u
+                    && walk_overlaps_chord(at, X0, R, s, s + cds, side, tiles, iterations, u_hit, overlap)) {
+                    overlap.iterations = iterations;
+                    hit = overlap;
+                    return true;
+                }
+                if (sh >= 0.0) {
+                    hit = Hit(uv_a + (sh - t_a) * dir, 1.0 - sh, iterations);
+                    return true;
+                }
+                if (t_b >= 1.0 || leaves_domain(uv_b)) {
+                    // Only a clamp-addressed chord that left the decal gets past the offset.
+                    hit.iterations = iterations;
+                    return true;
+                }
+                chord_ds = cds;
+                at = B;
+                s += cds;
+                continue;
+            }
+        }
+        // Else (climbing back, a turning point, an exit, or a chord shorter than a texel)
+        // the path is sampled: steps of at most one texel of uv and an eighth of the depth.
         vec3 rate = walk_rate(at.T, at.q, R);
         vec2 duv = (rate.x * at.T.du1 + rate.y * at.T.du2) * map;
         float uv_rate = max(abs(duv.x), abs(duv.y));
