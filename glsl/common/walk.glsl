@@ -96,6 +96,14 @@ WalkTri walk_tri(uint t, float side) {
                    uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]));
 }
 
+// Triangle t's corner positions (what the start and the overlap tests need first).
+void walk_corners(uint t, out vec3 p0, out vec3 p1, out vec3 p2) {
+    uint base = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
+    p0 = walk_v3(base);
+    p1 = walk_v3(base + WALK_CORNER_WORDS);
+    p2 = walk_v3(base + 2u * WALK_CORNER_WORDS);
+}
+
 vec3 walk_normal(WalkTri T, vec2 b) {
     return T.n0 + b.x * T.f1 + b.y * T.f2;
 }
@@ -108,6 +116,12 @@ vec2 walk_uv(WalkTri T, vec2 b) {
 float walk_t(WalkTri T, vec3 q) {
     float d = pc.depth_scale * (T.s.x + q.x * T.s.y + q.y * T.s.z);
     return q.z * length(walk_normal(T, q.xy)) / max(d, 1e-30);
+}
+
+// A bound of the depth near T (its corners' largest, twice: the overlapping triangles
+// share a corner, where the local uv scales are one).
+float walk_depth_bound(WalkTri T) {
+    return 2.0 * pc.depth_scale * max(T.s.x, max(T.s.x + T.s.y, T.s.x + T.s.z));
 }
 
 // The Jacobian's columns of X(b1, b2, tau) = p(b) - tau N(b) at q.
@@ -128,7 +142,12 @@ vec3 walk_solve(WalkTri T, vec3 X, vec3 q, int n) {
         if (!(abs(det) > 0.0)) {
             break;
         }
-        q += vec3(dot(r, c23), dot(c1, cross(r, c3)), dot(c1, cross(c2, r))) / det;
+        vec3 dq = vec3(dot(r, c23), dot(c1, cross(r, c3)), dot(c1, cross(c2, r))) / det;
+        q += dq;
+        // Converged (a flat triangle's map is affine: one iteration).
+        if (!(dot(dq, dq) > 1e-14)) {
+            break;
+        }
     }
     return q;
 }
@@ -207,6 +226,20 @@ bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
     return false;
 }
 
+// Whether the segment from Xa to Xb can meet triangle t's shell: false when both ends lie
+// on one side of the slab from its base plane to twice the depth `depth` inwards (the
+// shell of a curved triangle bulges past its plane by less than a depth where the normals
+// part by less than a radian), from the corner positions alone.
+bool walk_near(uint t, vec3 Xa, vec3 Xb, float side, float depth) {
+    vec3 p0, p1, p2;
+    walk_corners(t, p0, p1, p2);
+    vec3 n = cross(p1 - p0, p2 - p0);
+    uint base = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
+    n *= sign(dot(n, side * walk_v3(base + 4u))) * inversesqrt(max(dot(n, n), 1e-37));
+    vec2 d = vec2(dot(Xa - p0, n), dot(Xb - p0, n));
+    return !(min(d.x, d.y) > depth || max(d.x, d.y) < -2.0 * depth);
+}
+
 // Whether a point of the neighbour N (solved: q) is in its shell and inside its relief.
 bool walk_in_relief(WalkTri N, vec3 q, vec2 tiles) {
     float t = walk_t(N, q);
@@ -229,8 +262,13 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
     hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
     float s_first = sb;
     uint list = u_walk.words[11] + at.T.overlaps.x;
+    float depth = walk_depth_bound(at.T);
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
-        WalkTri N = walk_tri(u_walk.words[list + k], side);
+        uint t = u_walk.words[list + k];
+        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side, depth)) {
+            continue;
+        }
+        WalkTri N = walk_tri(t, side);
         vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
         iterations += 1u;
         // The other chart's uv, moved by the whole tiles between the two at the point.
@@ -306,10 +344,15 @@ vec2 walk_clip(vec3 qa, vec3 qb) {
 bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, vec2 tiles,
                          inout uint iterations, inout float u_hit, out Hit hit) {
     hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
+    float depth = walk_depth_bound(at.T);
     int top = pyramid_levels() - 1;
     uint list = u_walk.words[11] + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
-        WalkTri N = walk_tri(u_walk.words[list + k], side);
+        uint t = u_walk.words[list + k];
+        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side, depth)) {
+            continue;
+        }
+        WalkTri N = walk_tri(t, side);
         vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
         vec3 qb = walk_solve(N, X0 + sb * R, qa, WALK_NEWTON_ENTER);
         iterations += 2u;
@@ -343,7 +386,9 @@ bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float s
 // The start: the triangle of the surface `surface` whose base holds the point X (world),
 // from the grid's cell of X. False when no triangle is near enough (not a walked mesh).
 bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
-    at = WalkAt(0u, walk_tri(0u, side), vec3(0.0), vec2(0.0));
+    at = WalkAt(0u, WalkTri(vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0),
+                            vec3(0.0), vec2(0.0), vec2(0.0), vec2(0.0), uvec3(0u), uvec2(0u)),
+                vec3(0.0), vec2(0.0));
     vec3 lo = walk_v3(0u);
     float inv_cell = walk_f(3u);
     uvec3 dims = uvec3(u_walk.words[4], u_walk.words[5], u_walk.words[6]);
@@ -360,17 +405,22 @@ bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
     float best = 1e30;
     // A base point off the triangle's plane by more than this (in cells) is not on it.
     float tolerance = 1e-2 / inv_cell;
+    uint chosen = 0u;
+    vec2 chosen_b = vec2(0.0);
     for (uint k = first; k < last; ++k) {
         uint t = u_walk.words[lists + k];
-        WalkTri T = walk_tri(t, side);
-        vec3 n = cross(T.e1, T.e2);
+        vec3 p0, p1, p2;
+        walk_corners(t, p0, p1, p2);
+        vec3 e1 = p1 - p0;
+        vec3 e2 = p2 - p0;
+        vec3 n = cross(e1, e2);
         float area2 = dot(n, n);
         if (!(area2 > 0.0)) {
             continue;
         }
-        vec3 r = X - T.p0;
+        vec3 r = X - p0;
         float dist = abs(dot(r, n)) * inversesqrt(area2);
-        vec2 b = vec2(dot(cross(r, T.e2), n), dot(cross(T.e1, r), n)) / area2;
+        vec2 b = vec2(dot(cross(r, e2), n), dot(cross(e1, r), n)) / area2;
         float outside = max(0.0, -min(1.0 - b.x - b.y, min(b.x, b.y)));
         float score = dist + outside / inv_cell;
         uint surface_word = u_walk.words[u_walk.words[8] + t * WALK_TRIANGLE_WORDS + 30u];
@@ -379,9 +429,11 @@ bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
         }
         if (score < best) {
             best = score;
-            at = WalkAt(t, T, vec3(b, 0.0), vec2(0.0));
+            chosen = t;
+            chosen_b = b;
         }
     }
+    at = WalkAt(chosen, walk_tri(chosen, side), vec3(chosen_b, 0.0), vec2(0.0));
     return best <= tolerance;
 }
 
