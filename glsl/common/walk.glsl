@@ -32,13 +32,18 @@
 //         lists; 11: of the overlap lists
 // A triangle is WALK_TRIANGLE_WORDS words: per corner (p.xyz, s, n.xyz, uv.xy), then its
 // neighbours across the edges opposite corners 0, 1 and 2 (WALK_NONE: a boundary edge),
-// its surface id, and the first and count of the triangles whose shells overlap its own
-// (sharing a corner's position where the normals part: a cube's edges and corners).
+// its surface id, the first and count of the triangles whose shells overlap its own
+// (sharing a corner's position where the normals part: a cube's edges and corners), and
+// its flatness bits.
 layout(set = 0, binding = 12, std430) readonly buffer Walk {
     uint words[];
 } u_walk;
 
-const uint WALK_TRIANGLE_WORDS = 33u;
+const uint WALK_TRIANGLE_WORDS = 34u;
+// The flatness bits (src/mesh/walk.rs): the triangle is flat; the neighbour across edge e
+// continues it flat (bit 1 << e).
+const uint WALK_FLAT = 1u;
+const uint WALK_FLAT_EDGE = 2u;
 const uint WALK_CORNER_WORDS = 9u;
 const uint WALK_NONE = 0xffffffffu;
 // Newton iterations per sample from the previous sample's solution; on entering a
@@ -74,6 +79,7 @@ struct WalkTri {
     vec2 uv0, du1, du2;
     uvec3 adj;
     uvec2 overlaps;    // first (in the overlap list), count
+    uint flags;        // WALK_FLAT, WALK_FLAT_EDGE << e
 };
 
 WalkTri walk_tri(uint t, float side) {
@@ -93,7 +99,7 @@ WalkTri walk_tri(uint t, float side) {
     return WalkTri(p[0], p[1] - p[0], p[2] - p[0], n[0], n[1] - n[0], n[2] - n[0],
                    vec3(s[0], s[1] - s[0], s[2] - s[0]), uv[0], uv[1] - uv[0], uv[2] - uv[0],
                    uvec3(u_walk.words[a], u_walk.words[a + 1u], u_walk.words[a + 2u]),
-                   uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]));
+                   uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]), u_walk.words[a + 6u]);
 }
 
 // Triangle t's corner positions (what the start and the overlap tests need first).
@@ -116,12 +122,6 @@ vec2 walk_uv(WalkTri T, vec2 b) {
 float walk_t(WalkTri T, vec3 q) {
     float d = pc.depth_scale * (T.s.x + q.x * T.s.y + q.y * T.s.z);
     return q.z * length(walk_normal(T, q.xy)) / max(d, 1e-30);
-}
-
-// A bound of the depth near T (its corners' largest, twice: the overlapping triangles
-// share a corner, where the local uv scales are one).
-float walk_depth_bound(WalkTri T) {
-    return 2.0 * pc.depth_scale * max(T.s.x, max(T.s.x + T.s.y, T.s.x + T.s.z));
 }
 
 // The Jacobian's columns of X(b1, b2, tau) = p(b) - tau N(b) at q.
@@ -227,17 +227,30 @@ bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
 }
 
 // Whether the segment from Xa to Xb can meet triangle t's shell: false when both ends lie
-// on one side of the slab from its base plane to twice the depth `depth` inwards (the
-// shell of a curved triangle bulges past its plane by less than a depth where the normals
-// part by less than a radian), from the corner positions alone.
-bool walk_near(uint t, vec3 Xa, vec3 Xb, float side, float depth) {
+// on one side of the slab from its base plane to its deepest offset (every point of a
+// shell whose vertex normals are within a right angle of its plane's normal lies in it;
+// an eighth of the depth is kept to each side), from its corners alone.
+bool walk_near(uint t, vec3 Xa, vec3 Xb, float side) {
     vec3 p0, p1, p2;
     walk_corners(t, p0, p1, p2);
     vec3 n = cross(p1 - p0, p2 - p0);
     uint base = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
     n *= sign(dot(n, side * walk_v3(base + 4u))) * inversesqrt(max(dot(n, n), 1e-37));
+    float depth = pc.depth_scale * max(walk_f(base + 3u),
+        max(walk_f(base + WALK_CORNER_WORDS + 3u), walk_f(base + 2u * WALK_CORNER_WORDS + 3u)));
     vec2 d = vec2(dot(Xa - p0, n), dot(Xb - p0, n));
-    return !(min(d.x, d.y) > depth || max(d.x, d.y) < -2.0 * depth);
+    return !(min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth);
+}
+
+// The hit at ray parameter s met in an overlapping triangle's relief, written in `at`'s
+// triangle's frame (its foot and depth there, the triangle extended past its edges): the
+// hit's uv and height then give the hit's position in the pixel's tangent frame, which
+// the corrected depth and the motion vectors rebuild from them (`hit_depth`), while the
+// other triangle's chart is another uv map.
+Hit walk_hit_in(WalkAt at, vec3 X, vec2 tiles, uint iterations) {
+    vec3 q = walk_solve(at.T, X, at.q, WALK_NEWTON_ENTER);
+    return Hit(walk_uv(at.T, q.xy) + at.shift + tiles, 1.0 - clamp(walk_t(at.T, q), 0.0, 1.0),
+               iterations);
 }
 
 // Whether a point of the neighbour N (solved: q) is in its shell and inside its relief.
@@ -262,10 +275,9 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
     hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
     float s_first = sb;
     uint list = u_walk.words[11] + at.T.overlaps.x;
-    float depth = walk_depth_bound(at.T);
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
         uint t = u_walk.words[list + k];
-        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side, depth)) {
+        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side)) {
             continue;
         }
         WalkTri N = walk_tri(t, side);
@@ -301,12 +313,13 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
             }
         }
         s_first = hi;
-        vec2 b = max(qb.xy, vec2(0.0));
-        b /= max(b.x + b.y, 1.0);
-        hit = Hit(walk_uv(N, b) + tiles_n, 1.0 - clamp(walk_t(N, qb), 0.0, 1.0), 0u);
+        hit.h = 0.0;
     }
-    hit.iterations = iterations;
-    return hit.h >= 0.0;
+    if (hit.h >= 0.0) {
+        hit = walk_hit_in(at, X0 + s_first * R, tiles, iterations);
+        return true;
+    }
+    return false;
 }
 
 // The first parameter u in [0, 1] of the chord from qa to qb (a triangle's (b1, b2, t),
@@ -344,12 +357,11 @@ vec2 walk_clip(vec3 qa, vec3 qb) {
 bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, vec2 tiles,
                          inout uint iterations, inout float u_hit, out Hit hit) {
     hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
-    float depth = walk_depth_bound(at.T);
     int top = pyramid_levels() - 1;
     uint list = u_walk.words[11] + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
         uint t = u_walk.words[list + k];
-        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side, depth)) {
+        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side)) {
             continue;
         }
         WalkTri N = walk_tri(t, side);
@@ -377,17 +389,21 @@ bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float s
         float uh = mix(u.x, u.y, (sh - q0.z) / (q1.z - q0.z));
         if (uh < u_hit) {
             u_hit = uh;
-            hit = Hit(uv0 + (sh - q0.z) * dir, 1.0 - sh, 0u);
+            hit.h = 0.0;
         }
     }
-    return hit.h >= 0.0;
+    if (hit.h >= 0.0) {
+        hit = walk_hit_in(at, X0 + mix(sa, sb, u_hit) * R, tiles, iterations);
+        return true;
+    }
+    return false;
 }
 
 // The start: the triangle of the surface `surface` whose base holds the point X (world),
 // from the grid's cell of X. False when no triangle is near enough (not a walked mesh).
 bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
     at = WalkAt(0u, WalkTri(vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0),
-                            vec3(0.0), vec2(0.0), vec2(0.0), vec2(0.0), uvec3(0u), uvec2(0u)),
+                            vec3(0.0), vec2(0.0), vec2(0.0), vec2(0.0), uvec3(0u), uvec2(0u), 0u),
                 vec3(0.0), vec2(0.0));
     vec3 lo = walk_v3(0u);
     float inv_cell = walk_f(3u);
@@ -437,6 +453,49 @@ bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
     return best <= tolerance;
 }
 
+// Whether the straight path from `at` (a flat triangle's base point X0) down to its offset
+// surface stays in the triangle or in the neighbour that continues it flat, and no
+// overlapping shell comes near it.
+bool walk_flat_inside(WalkAt at, vec3 X0, vec3 R, float side) {
+    vec3 n = normalize(at.T.n0);
+    float cos_in = -dot(R, n);
+    if (!(cos_in > 1e-3)) {
+        return false;
+    }
+    float depth = pc.depth_scale * at.T.s.x;
+    vec3 X1 = X0 + (depth / cos_in) * R;
+    vec3 q = walk_solve(at.T, X1, at.q, 1);
+    float b0 = 1.0 - q.x - q.y;
+    float m = min(b0, min(q.x, q.y));
+    if (m < 0.0) {
+        uint edge = m == b0 ? 0u : (m == q.x ? 1u : 2u);
+        if ((at.T.flags & (WALK_FLAT_EDGE << edge)) == 0u) {
+            return false;
+        }
+        // The path crosses that edge once (both triangles are convex): the neighbour
+        // holds its end.
+        WalkTri N = walk_tri(at.T.adj[edge], side);
+        vec3 qn = walk_solve(N, X1, vec3(1.0 / 3.0, 1.0 / 3.0, q.z), 1);
+        if (min(1.0 - qn.x - qn.y, min(qn.x, qn.y)) < 0.0) {
+            return false;
+        }
+        // The neighbour's own overlapping shells too.
+        uint list_n = u_walk.words[11] + N.overlaps.x;
+        for (uint k = 0u; k < N.overlaps.y; ++k) {
+            if (walk_near(u_walk.words[list_n + k], X0, X1, side)) {
+                return false;
+            }
+        }
+    }
+    uint list = u_walk.words[11] + at.T.overlaps.x;
+    for (uint k = 0u; k < at.T.overlaps.y; ++k) {
+        if (walk_near(u_walk.words[list + k], X0, X1, side)) {
+            return false;
+        }
+    }
+    return true;
+}
+
 // The curved trace of `ray` (the pixel's tangent-space ray: uv0 and P) on the walked mesh,
 // from the pixel's eye-relative entry point `entry`: true with the hit or miss in `hit`,
 // false where the pixel is on no walked triangle (the caller takes the circle model).
@@ -470,6 +529,14 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     uint iterations = 1u;
     if (height_exact(ray.uv0) >= 1.0) {
         hit = Hit(ray.uv0, 1.0, iterations);
+        return true;
+    }
+    // A flat triangle whose straight path to the offset surface stays in it (or in the
+    // neighbour that continues it flat) and passes no overlapping shell: the walk is the
+    // tangent-space ray itself, which the pyramid intersects exactly (the flat trace).
+    if ((at.T.flags & WALK_FLAT) != 0u && walk_flat_inside(at, X0, R, side)) {
+        float t = pyramid_first_hit(ray, 0.0, 1.0, iterations);
+        hit = t < 0.0 ? miss(ray, iterations) : hit_at_t(ray, t, iterations);
         return true;
     }
     WalkAt prev = at;
@@ -540,6 +607,10 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
                 s += cds;
                 continue;
             }
+            // No chord here (the path turns, leaves the shell or bends within two
+            // texels): the next try starts short, so that sampling past such a place
+            // does not pay a full set of halvings at every sample.
+            chord_ds = texel_ds;
         }
         // Else (climbing back, a turning point, an exit, or a chord shorter than a texel)
         // the path is sampled: steps of at most one texel of uv and an eighth of the depth.

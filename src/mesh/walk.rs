@@ -20,8 +20,16 @@ use std::collections::HashMap;
 
 /// Words of a triangle in the buffer (`WALK_TRIANGLE_WORDS` in `walk.glsl`): per corner
 /// its position, local uv scale, normal and uv (9), its three neighbours, its surface id,
-/// and the first and count of its overlapping triangles in the overlap list.
-const TRIANGLE_WORDS: usize = 33;
+/// the first and count of its overlapping triangles in the overlap list, and its flatness
+/// bits ([`FLAT`], [`FLAT_EDGE`]).
+const TRIANGLE_WORDS: usize = 34;
+/// A flatness bit: the triangle's three normals and local uv scales are equal, so its
+/// shell is a straight prism and a ray's path in its uv and depth is straight.
+const FLAT: u32 = 1;
+/// A flatness bit (shifted by the edge's index): the neighbour across the edge is flat
+/// with the same normal, scale and affine uv map (the two halves of a cube's face), so a
+/// path stays straight across the edge.
+const FLAT_EDGE: u32 = 2;
 /// A triangle with no neighbour across an edge (`WALK_NONE`).
 const NONE: u32 = u32::MAX;
 /// Words of the header (see `walk.glsl`).
@@ -118,6 +126,8 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
                 lo_t = lo_t.min(Vec3::from(v.position));
                 hi_t = hi_t.max(Vec3::from(v.position));
             }
+            let flat = flat_triangle(mesh, tri);
+            let mut flags = u32::from(flat);
             for e in 0..3 {
                 let (a, b) = (
                     ids[tri[(e + 1) % 3] as usize],
@@ -125,11 +135,18 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
                 );
                 let shared = &edges[&(a.min(b), a.max(b))];
                 words[27 + e] = match shared.as_slice() {
-                    [x, y] => (first + if x.0 == t { y.0 } else { x.0 }) as u32,
+                    [x, y] => {
+                        let other = if x.0 == t { y.0 } else { x.0 };
+                        if flat && continues_flat(mesh, tri, &kept[other]) {
+                            flags |= FLAT_EDGE << e;
+                        }
+                        (first + other) as u32
+                    }
                     _ => NONE,
                 };
             }
             words[30] = mesh.vertices[tri[0] as usize].surface.round().max(0.0) as u32;
+            words[33] = flags;
             triangles.push(words);
             bounds.push((lo_t, hi_t));
         }
@@ -208,6 +225,43 @@ fn header(lo: Vec3, inv_cell: f32, dims: [u32; 3], count: u32, tri_base: usize) 
     words[7] = count;
     words[8] = tri_base as u32;
     words
+}
+
+/// Whether the triangle's normals and local uv scales are equal (its shell a straight
+/// prism).
+fn flat_triangle(mesh: &Mesh, tri: &[u32; 3]) -> bool {
+    let v = |k: usize| &mesh.vertices[tri[k] as usize];
+    (1..3).all(|k| {
+        (Vec3::from(v(k).normal) - Vec3::from(v(0).normal)).length() <= 1e-6
+            && (v(k).scale - v(0).scale).abs() <= 1e-6 * v(0).scale.abs().max(1e-30)
+    })
+}
+
+/// Whether `other` (sharing an edge with the flat `tri`) is flat with the same normal and
+/// scale and carries the same affine uv map: its corners' uvs are those `tri`'s map gives
+/// their positions (to 1e-5 of a tile), so a straight path stays straight across.
+fn continues_flat(mesh: &Mesh, tri: &[u32; 3], other: &[u32; 3]) -> bool {
+    let v = |i: u32| &mesh.vertices[i as usize];
+    if !flat_triangle(mesh, other)
+        || (Vec3::from(v(other[0]).normal) - Vec3::from(v(tri[0]).normal)).length() > 1e-6
+        || (v(other[0]).scale - v(tri[0]).scale).abs() > 1e-6 * v(tri[0]).scale.abs().max(1e-30)
+    {
+        return false;
+    }
+    let p = |i: u32| Vec3::from(v(i).position).as_dvec3();
+    let uv = |i: u32| glam::Vec2::from(v(i).uv).as_dvec2();
+    let (p0, e1, e2) = (p(tri[0]), p(tri[1]) - p(tri[0]), p(tri[2]) - p(tri[0]));
+    let n = e1.cross(e2);
+    let area2 = n.length_squared();
+    if area2 <= 0.0 {
+        return false;
+    }
+    other.iter().all(|&i| {
+        let r = p(i) - p0;
+        let (b1, b2) = (r.cross(e2).dot(n) / area2, e1.cross(r).dot(n) / area2);
+        let predicted = uv(tri[0]) + b1 * (uv(tri[1]) - uv(tri[0])) + b2 * (uv(tri[2]) - uv(tri[0]));
+        (predicted - uv(i)).abs().max_element() <= 1e-5 && r.dot(n).abs() <= 1e-6 * area2.sqrt()
+    })
 }
 
 /// One id per position: vertices of `mesh` within `tolerance` of each other (along every
@@ -312,6 +366,20 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_cube_face_is_flat_across_its_diagonal_only() {
+        let words = walk_words(&[&Mesh::cube()]);
+        for t in 0..words[7] as usize {
+            let flags = tri_words(&words, t)[33];
+            assert_eq!(flags & FLAT, FLAT, "triangle {t}");
+            // One edge (the diagonal) continues flat; the face's two outer edges are creases.
+            let continuing = (0..3).filter(|e| flags & (FLAT_EDGE << e) != 0).count();
+            assert_eq!(continuing, 1, "triangle {t}");
+        }
+        let sphere = walk_words(&[&Mesh::sphere()]);
+        assert!((0..sphere[7] as usize).all(|t| tri_words(&sphere, t)[33] & FLAT == 0));
     }
 
     #[test]
