@@ -550,6 +550,53 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
         // within WALK_CHORD_TEXELS and WALK_CHORD_DEPTH of the walked path (a flat
         // triangle's path is straight: one chord to the offset surface), intersected
         // exactly by the pyramid as a straight tangent-space ray.
+        // On a flat triangle the path is straight to where it leaves the triangle's prism
+        // (found exactly, the barycentrics and depth being linear along it): one chord
+        // there, then on into the neighbour, or out of the shell (a miss).
+        if ((at.T.flags & WALK_FLAT) != 0u) {
+            float t_a = walk_t(at.T, at.q);
+            float cos_in = -dot(R, normalize(at.T.n0));
+            float depth = pc.depth_scale * at.T.s.x;
+            if (cos_in > 1e-3 && t_a < 1.0 && depth > 0.0) {
+                float s1 = s + (1.0 - t_a) * depth / cos_in;
+                vec3 q1 = walk_solve(at.T, X0 + s1 * R, at.q, 1);
+                vec3 a = vec3(at.q.xy, t_a);
+                vec3 b = vec3(q1.xy, 1.0);
+                vec2 u = walk_clip(a, b);
+                if (u.x <= 1e-6 && u.y > 0.0) {
+                    float sc = mix(s, s1, u.y);
+                    vec3 c = mix(a, b, u.y);
+                    vec2 uv_a = walk_at_uv(at, tiles);
+                    vec2 uv_c = walk_uv(at.T, c.xy) + at.shift + tiles;
+                    vec2 dir = (uv_c - uv_a) / (c.z - t_a);
+                    float sh = pyramid_segment_hit(Ray(uv_a - t_a * dir, dir), t_a, c.z, top, iterations);
+                    float u_hit = sh >= 0.0 ? (sh - t_a) / (c.z - t_a) : 2.0;
+                    Hit overlap;
+                    if (at.T.overlaps.y > 0u
+                        && walk_overlaps_chord(at, X0, R, s, sc, side, tiles, iterations, u_hit, overlap)) {
+                        overlap.iterations = iterations;
+                        hit = overlap;
+                        return true;
+                    }
+                    if (sh >= 0.0) {
+                        hit = Hit(uv_a + (sh - t_a) * dir, 1.0 - sh, iterations);
+                        return true;
+                    }
+                    if (u.y >= 1.0 || leaves_domain(uv_c)) {
+                        hit.iterations = iterations;
+                        return true;
+                    }
+                    // Past the prism's side: the neighbour's shell, or out of the shell.
+                    s = sc + 1e-4 * (s1 - s);
+                    iterations += 1u;
+                    if (!walk_locate(at, X0 + s * R, side, WALK_NEWTON_ENTER) || walk_t(at.T, at.q) < 0.0) {
+                        hit.iterations = iterations;
+                        return true;
+                    }
+                    continue;
+                }
+            }
+        }
         {
             vec3 rate = walk_rate(at.T, at.q, R);
             float t_rate = walk_t_rate(at.T, at.q, rate);
