@@ -533,11 +533,9 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     }
     // A flat triangle whose straight path to the offset surface stays in it (or in the
     // neighbour that continues it flat) and passes no overlapping shell: the walk is the
-    // tangent-space ray itself, which the pyramid intersects exactly (the flat trace).
+    // tangent-space ray itself, which the caller's flat trace intersects exactly.
     if ((at.T.flags & WALK_FLAT) != 0u && walk_flat_inside(at, X0, R, side)) {
-        float t = pyramid_first_hit(ray, 0.0, 1.0, iterations);
-        hit = t < 0.0 ? miss(ray, iterations) : hit_at_t(ray, t, iterations);
-        return true;
+        return false;
     }
     WalkAt prev = at;
     float s_prev = 0.0;
@@ -546,15 +544,22 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     int top = pyramid_levels() - 1;
     float chord_ds = 1e30;
     for (float i = 0.0; i < WALK_MAX_STEPS; i += 1.0) {
-        // Descending, the path is followed in chords: each as long as its middle stays
-        // within WALK_CHORD_TEXELS and WALK_CHORD_DEPTH of the walked path (a flat
-        // triangle's path is straight: one chord to the offset surface), intersected
-        // exactly by the pyramid as a straight tangent-space ray.
-        // On a flat triangle the path is straight to where it leaves the triangle's prism
-        // (found exactly, the barycentrics and depth being linear along it): one chord
-        // there, then on into the neighbour, or out of the shell (a miss).
+        // Descending, the path is followed in chords, each intersected exactly by the
+        // pyramid as a straight tangent-space ray (one call below). On a flat triangle
+        // the path is straight to where it leaves the triangle's prism (found exactly,
+        // the barycentrics and depth being linear along it): one chord there, then on
+        // into the neighbour or out of the shell. Elsewhere a chord is as long as its
+        // middle stays within WALK_CHORD_TEXELS and WALK_CHORD_DEPTH of the walked path.
+        float t_a = walk_t(at.T, at.q);
+        vec2 uv_a = walk_at_uv(at, tiles);
+        bool chord = false;
+        bool flat_chord = false;
+        float cds = 0.0;
+        float t_b = 0.0;
+        vec2 uv_b = uv_a;
+        WalkAt B = at;
+        float texel_ds = 0.0;
         if ((at.T.flags & WALK_FLAT) != 0u) {
-            float t_a = walk_t(at.T, at.q);
             float cos_in = -dot(R, normalize(at.T.n0));
             float depth = pc.depth_scale * at.T.s.x;
             if (cos_in > 1e-3 && t_a < 1.0 && depth > 0.0) {
@@ -564,51 +569,21 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
                 vec3 b = vec3(q1.xy, 1.0);
                 vec2 u = walk_clip(a, b);
                 if (u.x <= 1e-6 && u.y > 0.0) {
-                    float sc = mix(s, s1, u.y);
                     vec3 c = mix(a, b, u.y);
-                    vec2 uv_a = walk_at_uv(at, tiles);
-                    vec2 uv_c = walk_uv(at.T, c.xy) + at.shift + tiles;
-                    vec2 dir = (uv_c - uv_a) / (c.z - t_a);
-                    float sh = pyramid_segment_hit(Ray(uv_a - t_a * dir, dir), t_a, c.z, top, iterations);
-                    float u_hit = sh >= 0.0 ? (sh - t_a) / (c.z - t_a) : 2.0;
-                    Hit overlap;
-                    if (at.T.overlaps.y > 0u
-                        && walk_overlaps_chord(at, X0, R, s, sc, side, tiles, iterations, u_hit, overlap)) {
-                        overlap.iterations = iterations;
-                        hit = overlap;
-                        return true;
-                    }
-                    if (sh >= 0.0) {
-                        hit = Hit(uv_a + (sh - t_a) * dir, 1.0 - sh, iterations);
-                        return true;
-                    }
-                    if (u.y >= 1.0 || leaves_domain(uv_c)) {
-                        hit.iterations = iterations;
-                        return true;
-                    }
-                    // Past the prism's side: the neighbour's shell, or out of the shell.
-                    s = sc + 1e-4 * (s1 - s);
-                    iterations += 1u;
-                    if (!walk_locate(at, X0 + s * R, side, WALK_NEWTON_ENTER) || walk_t(at.T, at.q) < 0.0) {
-                        hit.iterations = iterations;
-                        return true;
-                    }
-                    continue;
+                    cds = u.y * (s1 - s);
+                    t_b = c.z;
+                    uv_b = walk_uv(at.T, c.xy) + at.shift + tiles;
+                    chord = true;
+                    flat_chord = true;
                 }
             }
         }
-        {
+        if (!chord) {
             vec3 rate = walk_rate(at.T, at.q, R);
             float t_rate = walk_t_rate(at.T, at.q, rate);
-            float t_a = walk_t(at.T, at.q);
             vec2 duv = (rate.x * at.T.du1 + rate.y * at.T.du2) * map;
-            float texel_ds = 1.0 / max(max(abs(duv.x), abs(duv.y)), 1e-30);
-            float cds = t_rate > 0.0 && t_a < 1.0 ? min(2.0 * chord_ds, (1.0 - t_a) / t_rate * 1.0625) : 0.0;
-            vec2 uv_a = walk_at_uv(at, tiles);
-            bool accepted = false;
-            WalkAt B = at;
-            float t_b = 0.0;
-            vec2 uv_b = uv_a;
+            texel_ds = 1.0 / max(max(abs(duv.x), abs(duv.y)), 1e-30);
+            cds = t_rate > 0.0 && t_a < 1.0 ? min(2.0 * chord_ds, (1.0 - t_a) / t_rate * 1.0625) : 0.0;
             for (int k = 0; k < WALK_CHORD_HALVINGS && cds > texel_ds; ++k) {
                 WalkAt M = at;
                 B = at;
@@ -622,43 +597,53 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
                     if (t_m > t_a && t_b > t_m
                         && length((uv_m - 0.5 * (uv_a + uv_b)) * map) <= WALK_CHORD_TEXELS
                         && abs(t_m - 0.5 * (t_a + t_b)) <= WALK_CHORD_DEPTH) {
-                        accepted = true;
+                        chord = true;
                         break;
                     }
                 }
                 cds *= 0.5;
             }
-            if (accepted) {
-                float t_end = min(t_b, 1.0);
-                vec2 dir = (uv_b - uv_a) / (t_b - t_a);
-                float sh = pyramid_segment_hit(Ray(uv_a - t_a * dir, dir), t_a, t_end, top, iterations);
-                float u_hit = sh >= 0.0 ? (sh - t_a) / (t_b - t_a) : 2.0;
-                Hit overlap;
-                if (at.T.overlaps.y > 0u
-                    && walk_overlaps_chord(at, X0, R, s, s + cds, side, tiles, iterations, u_hit, overlap)) {
-                    overlap.iterations = iterations;
-                    hit = overlap;
-                    return true;
-                }
-                if (sh >= 0.0) {
-                    hit = Hit(uv_a + (sh - t_a) * dir, 1.0 - sh, iterations);
-                    return true;
-                }
-                if (t_b >= 1.0 || leaves_domain(uv_b)) {
-                    // Only a clamp-addressed chord that left the decal gets past the offset.
+        }
+        if (chord) {
+            float t_end = min(t_b, 1.0);
+            vec2 dir = (uv_b - uv_a) / (t_b - t_a);
+            float sh = pyramid_segment_hit(Ray(uv_a - t_a * dir, dir), t_a, t_end, top, iterations);
+            float u_hit = sh >= 0.0 ? (sh - t_a) / (t_b - t_a) : 2.0;
+            Hit overlap;
+            if (at.T.overlaps.y > 0u
+                && walk_overlaps_chord(at, X0, R, s, s + cds, side, tiles, iterations, u_hit, overlap)) {
+                overlap.iterations = iterations;
+                hit = overlap;
+                return true;
+            }
+            if (sh >= 0.0) {
+                hit = Hit(uv_a + (sh - t_a) * dir, 1.0 - sh, iterations);
+                return true;
+            }
+            if (t_b >= 1.0 || leaves_domain(uv_b)) {
+                // Only a clamp-addressed chord that left the decal gets past the offset.
+                hit.iterations = iterations;
+                return true;
+            }
+            if (flat_chord) {
+                // Past the prism's side: the neighbour's shell, or out of the shell.
+                s += cds * (1.0 + 1e-4);
+                iterations += 1u;
+                if (!walk_locate(at, X0 + s * R, side, WALK_NEWTON_ENTER) || walk_t(at.T, at.q) < 0.0) {
                     hit.iterations = iterations;
                     return true;
                 }
+            } else {
                 chord_ds = cds;
                 at = B;
                 s += cds;
-                continue;
             }
-            // No chord here (the path turns, leaves the shell or bends within two
-            // texels): the next try starts short, so that sampling past such a place
-            // does not pay a full set of halvings at every sample.
-            chord_ds = texel_ds;
+            continue;
         }
+        // No chord here (the path turns, leaves the shell or bends within two texels):
+        // the next try starts short, so that sampling past such a place does not pay a
+        // full set of halvings at every sample.
+        chord_ds = texel_ds;
         // Else (climbing back, a turning point, an exit, or a chord shorter than a texel)
         // the path is sampled: steps of at most one texel of uv and an eighth of the depth.
         vec3 rate = walk_rate(at.T, at.q, R);

@@ -121,7 +121,8 @@ Hit curved_exact(Ray ray, Curve c) {
 Hit trace_ray(Ray ray, ivec2 pixel) {
 #ifdef CURVED
     // On a walked mesh (src/mesh/walk.rs) the ray follows the mesh's own triangles; the
-    // circle model below is the path of pixels on no walked triangle.
+    // circle model below is the path of pixels on no walked triangle, and the flat trace
+    // that of a flat triangle's pixels whose path stays in its shell (the walk there).
     if ((pc.flags & TRACE_FLAG_CURVED) != 0u) {
         vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
         vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
