@@ -243,13 +243,14 @@ mod tests {
                 .iter()
                 .any(|(f, _)| *f == crate::passes::trace::HIT_UV_FORMAT)
         );
-        // The self-shadowed shade variant pushes the most descriptors (10, reflected; as many
-        // as the iteration variant of `dig-guarded`'s trace).
+        // `exact`'s curved trace with the iteration counts pushes the most descriptors (11,
+        // reflected: the mesh walk's buffer beside the curve image and the pyramid; the
+        // self-shadowed shade variant pushes 10).
         assert_eq!(
             r.max_push_descriptors,
-            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS.bindings.len() as u32
         );
-        assert_eq!(r.max_push_descriptors, 10);
+        assert_eq!(r.max_push_descriptors, 11);
         let largest = [
             std::mem::size_of::<crate::abi::ShadowParams>(),
             std::mem::size_of::<crate::abi::HitDepthParams>(),
@@ -274,9 +275,11 @@ mod tests {
         });
         let largest = passes.map(|s| s.bindings.len() as u32).max();
         assert_eq!(largest, Some(super::PUSH_DESCRIPTORS));
+        // The largest: `exact`'s curved trace with the iteration counts (the mesh walk's
+        // buffer beside the curve image and the pyramid).
         assert_eq!(
             super::PUSH_DESCRIPTORS,
-            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS.bindings.len() as u32
         );
         assert_eq!(
             super::MAX_QUERIES as usize,
