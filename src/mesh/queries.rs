@@ -56,6 +56,18 @@ impl Mesh {
         crossings % 2 == 1
     }
 
+    /// Whether every vertex has the same normal, bit for bit (a quad, a flat-shaded
+    /// plane): the interpolated normal then never changes, so the curvature curved
+    /// tracing reads from the G-buffer is zero everywhere and the mesh traces as its
+    /// tangent planes whether traced curved or not ([`crate::renderer::Renderer::set_curved`]
+    /// leaves such an object's material flat). A mesh without vertices has none.
+    pub fn has_one_normal(&self) -> bool {
+        let bits = |v: &super::Vertex| v.normal.map(f32::to_bits);
+        self.vertices
+            .first()
+            .is_some_and(|first| self.vertices.iter().all(|v| bits(v) == bits(first)))
+    }
+
     /// Whether the mesh is convex: every vertex lies on the inner side of the plane of
     /// every triangle (degenerate ones aside), each plane oriented by its corners'
     /// normals (the side the surface faces, as the G-buffer pass orients a triangle's own

@@ -788,17 +788,20 @@ unsafe fn record_layer(
         ));
     }
     // Opened tiles: the colours are written there before anything reads them (and read
-    // nowhere else), the depth blocks every other pixel.
+    // nowhere else), the depth blocks every other pixel. The curve image is never
+    // cleared: every fragment drawn writes it, and it is read only at pixels of a
+    // material traced curved, which a fragment drew.
     let color_attachments: Vec<_> = target
         .attachments()
         .iter()
-        .map(|image| {
+        .enumerate()
+        .map(|(i, image)| {
             let a = crate::gpu::pipeline::cleared_color_attachment(
                 image.view,
                 vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
                 [0.0; 4],
             );
-            if open.is_some() {
+            if open.is_some() || i >= target.colors().len() {
                 a.load_op(vk::AttachmentLoadOp::DONT_CARE)
             } else {
                 a
