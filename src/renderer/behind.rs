@@ -3,9 +3,12 @@
 //! first record, the renderer marks the 8x8 tiles holding a missed pixel and culls the
 //! layer's draws to them ([`crate::passes::behind_tiles`], on the GPU: each mesh drawn
 //! as its clusters, [`super::behind_draws`], a cluster only where its screen rectangle
-//! meets a missed tile in front of it), rasterises the kept clusters into a second
-//! G-buffer, keeping a fragment only at a pixel whose first-layer trace missed and only
-//! behind the first layer's surface (`glsl/include/dispmap_behind.glsl`; the plane's
+//! meets a missed tile in front of it; one multi-draw command per mesh where the device
+//! has `multiDrawIndirect`), rasterises the kept clusters into a second G-buffer (on
+//! the listed route only its listed tiles cleared, [`crate::passes::behind_open`]; the
+//! rest of its depth blocks them), keeping a fragment only at a pixel whose first-layer
+//! trace missed and only behind the first layer's surface
+//! (`glsl/include/dispmap_behind.glsl`; the plane's
 //! shader tests the pixel first; with [`Renderer::set_behind_mask`], a depth mask of the
 //! missed pixels, [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere
 //! before they are shaded), lights that layer's flat geometry in the missed tiles, and
@@ -376,9 +379,13 @@ impl Renderer {
     /// images cleared to no hit first (`on`), or over the whole frame as the first
     /// layer's is (`off`). The images are the same bit for bit either way; the cost is
     /// not. The default follows the device: on for a CPU driver, where a full-frame
-    /// `classify` is milliseconds (lavapipe at 640x360: the layer 3.6 against about 7 ms),
-    /// off for a GPU, where it is tens of microseconds and the two transfer clears of the
-    /// hit images are not (an NVIDIA H100 at 1920x1080: 0.47 ms; BENCHMARKS.md, run N).
+    /// `classify` is milliseconds (lavapipe at 640x360, the materials scene: the listed
+    /// layer 2.0-2.7 ms, BENCHMARKS.md run V), off for a GPU, where it is tens of
+    /// microseconds and the two transfer clears of the hit images are not (an NVIDIA H100
+    /// at 1920x1080: 0.47 ms; BENCHMARKS.md, run N). Listed, the layer's raster also
+    /// clears only its depth (to 1, blocking every pixel) and then opens the listed tiles
+    /// ([`crate::passes::behind_open`]): its objects' fragments elsewhere fail the early
+    /// depth test, and its colour attachments are never cleared whole.
     /// Refused without a drawn behind layer ([`Renderer::set_behind`]).
     pub fn set_behind_listed(&mut self, on: bool) -> Result<()> {
         let Some(b) = &mut self.behind else {
