@@ -384,7 +384,7 @@ impl Renderer {
     /// microseconds and the two transfer clears of the hit images are not (an NVIDIA H100
     /// at 1920x1080: 0.47 ms; BENCHMARKS.md, run N). Listed, the layer's raster also
     /// clears only its depth (to 1, blocking every pixel) and then opens the listed tiles
-    /// ([`crate::passes::behind_open`]): its objects' fragments elsewhere fail the early
+    /// (`glsl/behind_open.vert`): its objects' fragments elsewhere fail the early
     /// depth test, and its colour attachments are never cleared whole.
     /// Refused without a drawn behind layer ([`Renderer::set_behind`]).
     pub fn set_behind_listed(&mut self, on: bool) -> Result<()> {
