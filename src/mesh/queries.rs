@@ -228,4 +228,27 @@ mod tests {
             "no triangle: nothing lies behind anything"
         );
     }
+
+    /// One normal: the quad, placed anywhere, has it; the cube (six), the sphere and the
+    /// torus do not, nor a quad with one normal nudged by an ulp, nor a mesh without
+    /// vertices.
+    #[test]
+    fn one_normal_of_the_generated_meshes() {
+        assert!(Mesh::quad().has_one_normal());
+        let placement = crate::scene::Placement {
+            position: Vec3::new(-1.0, -0.3, -1.0),
+            scale: 2.0,
+            rotation_deg: Vec3::new(10.0, 30.0, 0.0),
+        };
+        assert!(Mesh::quad().placed(&placement, 1).has_one_normal());
+        for mesh in [Mesh::cube(), Mesh::sphere(), Mesh::torus()] {
+            assert!(!mesh.has_one_normal(), "{}", mesh.label);
+        }
+        let mut nudged = Mesh::quad();
+        nudged.vertices[2].normal[1] = f32::from_bits(nudged.vertices[2].normal[1].to_bits() - 1);
+        assert!(!nudged.has_one_normal());
+        let mut empty = Mesh::quad();
+        empty.vertices.clear();
+        assert!(!empty.has_one_normal());
+    }
 }
