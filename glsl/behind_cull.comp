@@ -9,7 +9,9 @@
 //   front of the draw's farthest point (else none of its fragments is behind a missed
 //   pixel's surface), else the same with no vertices;
 // step 1: one invocation writes the list's dispatch: one workgroup per listed tile, in
-//   rows of MAX_TILE_ROW (glsl/common/tiles.glsl).
+//   rows of MAX_TILE_ROW (glsl/common/tiles.glsl), and after the draws' commands the
+//   listed tiles' VkDrawIndirectCommand (6 vertices, an instance per listed tile:
+//   glsl/behind_open.vert).
 #define DISPMAP_TILES_NO_GBUFFER
 #include "tiles.glsl"
 
@@ -34,7 +36,7 @@ layout(set = 0, binding = 2, std430) readonly buffer Sources {
     uvec4 sources[];
 } u_sources;
 // Per draw a VkDrawIndexedIndirectCommand (5 words; a VkDrawIndirectCommand in the first
-// 4 for a draw that is not indexed).
+// 4 for a draw that is not indexed), then the listed tiles' VkDrawIndirectCommand.
 layout(set = 0, binding = 3, std430) writeonly buffer Draws {
     uint draws[];
 } u_draws;
@@ -78,6 +80,11 @@ void main() {
             u_list.dispatch_x = min(n, MAX_TILE_ROW);
             u_list.dispatch_y = (n + MAX_TILE_ROW - 1u) / MAX_TILE_ROW;
             u_list.dispatch_z = 1u;
+            uint base = 5u * pc.draw_count;
+            u_draws.draws[base] = 6u;
+            u_draws.draws[base + 1u] = n;
+            u_draws.draws[base + 2u] = 0u;
+            u_draws.draws[base + 3u] = 0u;
         }
         return;
     }

@@ -5,9 +5,9 @@
 // a workgroup per listed tile, an invocation per pixel; a pixel counts when its
 // first-layer trace missed on geometry (dispmap_behind_missed,
 // glsl/include/dispmap_behind.glsl). Only displaced pixels are traced, so only the
-// materials' tiles can hold one. Each tile that does sets its bit in its row's mask and
-// keeps the nearest first-layer depth of its missed pixels (reverse-Z: the largest): the
-// behind layer keeps only fragments behind it there.
+// materials' tiles can hold one. Each missed pixel sets its tile's bit in its row's mask
+// and raises the tile's nearest first-layer depth of its missed pixels to its own
+// (reverse-Z: the largest): the behind layer keeps only fragments behind it there.
 #define DISPMAP_TILES_NO_GBUFFER
 #include "tiles.glsl"
 #define DISPMAP_BEHIND_NO_DERIVATIVES
@@ -38,38 +38,31 @@ layout(push_constant) uniform MissParams {
     uint pad1;
 } pc;
 
-shared uint s_missed;
-shared uint s_depth;
-
 void main() {
-    if (gl_LocalInvocationIndex == 0u) {
-        s_missed = 0u;
-        s_depth = 0u;
-    }
-    barrier();
     uint index = gl_WorkGroupID.y * MAX_TILE_ROW + gl_WorkGroupID.x;
-    bool listed = index < u_tiles.tiles[2u * pc.material + 1u];
-    uvec2 tile = uvec2(0u);
-    if (listed) {
-        uint t = u_tiles.tiles[u_tiles.tiles[2u * pc.material] + index];
-        tile = uvec2(t & 0xFFFFu, t >> 16);
-        ivec2 pixel = ivec2(tile * LOCAL_SIZE + gl_LocalInvocationID.xy);
-        // The hit height first: the depth only where the trace missed (few pixels).
-        if (all(lessThan(uvec2(pixel), pc.frame_size))) {
-            float height = imageLoad(u_first_hit_height, pixel).x;
-            if (height == DISPMAP_MISS_HEIGHT) {
-                float depth = texelFetch(u_first_depth, pixel, 0).r;
-                if (dispmap_behind_missed(height, depth)) {
-                    atomicOr(s_missed, 1u);
-                    atomicMax(s_depth, floatBitsToUint(depth));
-                }
-            }
-        }
+    if (index >= u_tiles.tiles[2u * pc.material + 1u]) {
+        return;
     }
-    barrier();
-    if (listed && gl_LocalInvocationIndex == 0u && s_missed != 0u) {
-        atomicOr(u_masks.masks[tile.y * pc.mask_words + (tile.x >> 5)], 1u << (tile.x & 31u));
-        uint tiles_x = (pc.frame_size.x + LOCAL_SIZE - 1u) / LOCAL_SIZE;
-        atomicMax(u_masks.masks[pc.rows * pc.mask_words + tile.y * tiles_x + tile.x], s_depth);
+    uint t = u_tiles.tiles[u_tiles.tiles[2u * pc.material] + index];
+    uvec2 tile = uvec2(t & 0xFFFFu, t >> 16);
+    ivec2 pixel = ivec2(tile * LOCAL_SIZE + gl_LocalInvocationID.xy);
+    if (any(greaterThanEqual(uvec2(pixel), pc.frame_size))) {
+        return;
     }
+    // The hit height first: the depth only where the trace missed (few pixels).
+    float height = imageLoad(u_first_hit_height, pixel).x;
+    if (height != DISPMAP_MISS_HEIGHT) {
+        return;
+    }
+    float depth = texelFetch(u_first_depth, pixel, 0).r;
+    if (!dispmap_behind_missed(height, depth)) {
+        return;
+    }
+    // Only the (few) missed pixels write, straight to the buffer: no barrier or shared
+    // memory in the workgroup (both commute, so the result is the same as one write per
+    // tile).
+    atomicOr(u_masks.masks[tile.y * pc.mask_words + (tile.x >> 5)], 1u << (tile.x & 31u));
+    uint tiles_x = (pc.frame_size.x + LOCAL_SIZE - 1u) / LOCAL_SIZE;
+    atomicMax(u_masks.masks[pc.rows * pc.mask_words + tile.y * tiles_x + tile.x],
+              floatBitsToUint(depth));
 }

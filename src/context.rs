@@ -212,6 +212,8 @@ pub struct Context {
     validation: bool,
     /// [`Context::traversal_rules`].
     traversal_rules: bool,
+    /// [`Context::multi_draw_indirect`].
+    multi_draw_indirect: bool,
 }
 
 impl Context {
@@ -289,7 +291,8 @@ impl Context {
             None
         };
         let result = Self::create_device(&instance, options, device_extensions);
-        let (physical_device, device, queue_family_index, queue) = match result {
+        let (physical_device, device, queue_family_index, queue, multi_draw_indirect) = match result
+        {
             Ok(v) => v,
             Err(e) => {
                 // SAFETY: nothing else was created from this instance yet.
@@ -332,6 +335,7 @@ impl Context {
         let mut ctx = unsafe { Self::assemble(handles, messages, messenger, has_debug_utils) }?;
         ctx.owns_handles = true;
         ctx.validation = validation;
+        ctx.multi_draw_indirect = multi_draw_indirect;
         ctx.set_name(ctx.device.handle(), "dispmap.device");
         ctx.set_name(ctx.queue, "dispmap.queue");
         Ok(ctx)
@@ -415,6 +419,7 @@ impl Context {
             pipeline_cache: vk::PipelineCache::null(),
             validation: false,
             traversal_rules: info.device_type == format!("{:?}", vk::PhysicalDeviceType::CPU),
+            multi_draw_indirect: false,
             info,
         })
     }
@@ -458,6 +463,14 @@ impl Context {
     /// are the same either way.
     pub fn traversal_rules(&self) -> bool {
         self.traversal_rules
+    }
+
+    /// Whether the device was created with the `multiDrawIndirect` feature: dispmap's own
+    /// context ([`Context::headless`]) enables it where the device has it; a host's
+    /// ([`Context::from_handles`]) is taken to lack it. With it the behind layer draws
+    /// each mesh's clusters with one indirect command instead of one per cluster.
+    pub(crate) fn multi_draw_indirect(&self) -> bool {
+        self.multi_draw_indirect
     }
 
     /// Checks a physical device against the [`requirements`]; the error lists what is missing.
@@ -517,7 +530,7 @@ impl Context {
         instance: &ash::Instance,
         options: &ContextOptions,
         extra_extensions: &[&CStr],
-    ) -> Result<(vk::PhysicalDevice, ash::Device, u32, vk::Queue)> {
+    ) -> Result<(vk::PhysicalDevice, ash::Device, u32, vk::Queue, bool)> {
         // SAFETY: `instance` is a valid instance.
         let devices =
             unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
@@ -566,9 +579,16 @@ impl Context {
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
             .synchronization2(true);
+        // SAFETY: `physical_device` was enumerated from `instance`.
+        let available = unsafe { instance.get_physical_device_features(physical_device) };
+        // Optional: the behind layer's draws use it where the device has it.
+        let multi_draw_indirect = available.multi_draw_indirect == vk::TRUE;
+        let features =
+            vk::PhysicalDeviceFeatures::default().multi_draw_indirect(multi_draw_indirect);
         let info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
             .enabled_extension_names(&ext_names)
+            .enabled_features(&features)
             .push_next(&mut f13);
         // SAFETY: the physical device passed `check_device`, so the extensions and
         // features requested exist; all pointers in `info` outlive the call.
@@ -576,7 +596,13 @@ impl Context {
             unsafe { instance.create_device(physical_device, &info, None) }.vk("vkCreateDevice")?;
         // SAFETY: the queue family and index 0 were requested at device creation.
         let queue = unsafe { device.get_device_queue(queue_family_index, 0) };
-        Ok((physical_device, device, queue_family_index, queue))
+        Ok((
+            physical_device,
+            device,
+            queue_family_index,
+            queue,
+            multi_draw_indirect,
+        ))
     }
 
     /// The loader entry.

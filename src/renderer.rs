@@ -320,7 +320,8 @@ impl Renderer {
     /// Traces the displaced meshes as curved geometry (`on`) or as their tangent planes
     /// (the default): [`DisplacementPass::set_material_curved`] on the material of every
     /// displaced mesh object (a single-geometry scene's when it is a mesh). The tiled
-    /// plane and the quad are never curved. On, the G-buffer gets its curve image (4
+    /// plane and the quad are never curved, nor an object whose mesh has one normal
+    /// ([`crate::mesh::Mesh::has_one_normal`]: nothing to bend). On, the G-buffer gets its curve image (4
     /// bytes a pixel, the layers' pipelines rebuilt with their `CURVE` variants), whatever
     /// the methods, so a later method change that traces curved finds it; off, it goes.
     pub fn set_curved(&mut self, on: bool) -> Result<()> {
@@ -329,7 +330,8 @@ impl Renderer {
                 .meshes
                 .iter()
                 .zip(&o.materials)
-                .filter_map(|(mesh, m)| mesh.as_ref().and(*m))
+                .zip(&o.one_normal)
+                .filter_map(|((mesh, m), one)| mesh.as_ref().filter(|_| !one).and(*m))
                 .collect(),
             None if matches!(
                 self.settings.scene.geometry,

@@ -288,30 +288,39 @@ Hit curved_march(Ray ray, Curve c, uint steps, uint refine_steps, bool pom) {
     float s_last = 0.0;
     // The march finds the crossing and stops, carrying only the sample's index and angle;
     // the refinement runs after the loop (not inside it), so a SIMD CPU device (lavapipe)
-    // runs it once per group of lanes.
+    // runs it once per group of lanes. The re-anchoring runs between runs of
+    // CURVE_ANCHOR_STEPS samples, not in the sample loop: such a device runs an `if`'s
+    // body under a mask whether any lane takes it or not (its sine and cosine every
+    // step); the samples and angles are those of re-anchoring inside the loop.
     uint i = 0u;
-    for (; i <= n; ++i) {
-        float f = float(i) * df;
-        if (i % CURVE_ANCHOR_STEPS == 0u && i != 0u) {
-            q = curve_angle(c, f);
+    bool stop = false;
+    while (!stop) {
+        uint run_end = i + CURVE_ANCHOR_STEPS;
+        for (; i < run_end; ++i) {
+            float f = float(i) * df;
+            vec2 uv = ray.uv0 + f * ray.P;
+            if (i > n || leaves_domain(uv)) {
+                stop = true;
+                break;
+            }
+            vec2 nd = curve_fraction(c, q, f);
+            float s = height_at(uv);
+            if (pom) {
+                s_prev = s_last;
+                s_last = s;
+            }
+            if ((1.0 - s) * nd.y <= nd.x || (i == n && c.bottom)) {
+                stop = true;
+                break;
+            }
+            if (pom) {
+                nd_prev = nd;
+            }
+            q = curve_turn(q, turn, a2);
         }
-        vec2 uv = ray.uv0 + f * ray.P;
-        if (leaves_domain(uv)) {
-            break;
+        if (!stop) {
+            q = curve_angle(c, float(i) * df);
         }
-        vec2 nd = curve_fraction(c, q, f);
-        float s = height_at(uv);
-        if (pom) {
-            s_prev = s_last;
-            s_last = s;
-        }
-        if ((1.0 - s) * nd.y <= nd.x || (i == n && c.bottom)) {
-            break;
-        }
-        if (pom) {
-            nd_prev = nd;
-        }
-        q = curve_turn(q, turn, a2);
     }
     // Past the end, or off the decal: a miss (every sample before it a fetch).
     float f = float(i) * df;

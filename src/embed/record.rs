@@ -89,8 +89,9 @@ impl DisplacementPass {
     /// corrected depth are cleared to 0 there.
     ///
     /// # Safety
-    /// As [`DisplacementPass::record`]; in addition the G-buffer has no geometry outside
-    /// the listed tiles, the hit images hold `(0, 0)` and `NO_HIT_HEIGHT` there, and the
+    /// As [`DisplacementPass::record`]; in addition the frame's geometry lies in the
+    /// listed tiles only (the G-buffer outside them is not read: the behind layer's holds
+    /// the blocking depth 1 and undefined colours there), the hit images hold `(0, 0)` and `NO_HIT_HEIGHT` there, and the
     /// list and its dispatch were written and made visible to compute-shader storage
     /// reads and indirect reads by the host, and stay alive until the frame completes.
     pub(crate) unsafe fn record_listed(

@@ -56,6 +56,18 @@ impl Mesh {
         crossings % 2 == 1
     }
 
+    /// Whether every vertex has the same normal, bit for bit (a quad, a flat-shaded
+    /// plane): the interpolated normal then never changes, so the curvature curved
+    /// tracing reads from the G-buffer is zero everywhere and the mesh traces as its
+    /// tangent planes whether traced curved or not ([`crate::renderer::Renderer::set_curved`]
+    /// leaves such an object's material flat). A mesh without vertices has none.
+    pub fn has_one_normal(&self) -> bool {
+        let bits = |v: &super::Vertex| v.normal.map(f32::to_bits);
+        self.vertices
+            .first()
+            .is_some_and(|first| self.vertices.iter().all(|v| bits(v) == bits(first)))
+    }
+
     /// Whether the mesh is convex: every vertex lies on the inner side of the plane of
     /// every triangle (degenerate ones aside), each plane oriented by its corners'
     /// normals (the side the surface faces, as the G-buffer pass orients a triangle's own
@@ -215,5 +227,28 @@ mod tests {
             empty.is_convex(),
             "no triangle: nothing lies behind anything"
         );
+    }
+
+    /// One normal: the quad, placed anywhere, has it; the cube (six), the sphere and the
+    /// torus do not, nor a quad with one normal nudged by an ulp, nor a mesh without
+    /// vertices.
+    #[test]
+    fn one_normal_of_the_generated_meshes() {
+        assert!(Mesh::quad().has_one_normal());
+        let placement = crate::scene::Placement {
+            position: Vec3::new(-1.0, -0.3, -1.0),
+            scale: 2.0,
+            rotation_deg: Vec3::new(10.0, 30.0, 0.0),
+        };
+        assert!(Mesh::quad().placed(&placement, 1).has_one_normal());
+        for mesh in [Mesh::cube(), Mesh::sphere(), Mesh::torus()] {
+            assert!(!mesh.has_one_normal(), "{}", mesh.label);
+        }
+        let mut nudged = Mesh::quad();
+        nudged.vertices[2].normal[1] = f32::from_bits(nudged.vertices[2].normal[1].to_bits() - 1);
+        assert!(!nudged.has_one_normal());
+        let mut empty = Mesh::quad();
+        empty.vertices.clear();
+        assert!(!empty.has_one_normal());
     }
 }

@@ -13,12 +13,14 @@
 //!   conservatively, from the geometry's bounds: [`DrawSource`]) meets a missed tile
 //!   whose nearest missed first-layer depth lies in front of the draw's farthest point,
 //!   else none; step 1: the list's indirect dispatch (one workgroup per listed tile, in
-//!   rows of 65,535), which the layer's background pass runs over.
+//!   rows of 65,535), which the layer's background pass runs over, and the listed tiles'
+//!   indirect draw ([`crate::passes::behind_open`]: an instance per listed tile).
 //!
 //! One buffer holds it all, in sections: the list (a `VkDispatchIndirectCommand`, the
 //! count, the tiles packed `x | y << 16`), the masks and the tiles' depths, the draws' sources (written by
 //! [`BehindTiles::record_reset`] each frame) and their commands (`VkDrawIndexedIndirectCommand`,
-//! or a `VkDrawIndirectCommand` in its first four words).
+//! or a `VkDrawIndirectCommand` in its first four words), then the listed tiles'
+//! `VkDrawIndirectCommand`.
 
 use crate::context::Context;
 use crate::error::{Error, Result};
@@ -37,6 +39,8 @@ const ALIGN: u64 = 256;
 const SOURCE_BYTES: u64 = 32;
 /// Bytes of a draw's command (a `VkDrawIndexedIndirectCommand`).
 pub const DRAW_STRIDE: u64 = 20;
+/// Bytes of the listed tiles' command after the draws' (a `VkDrawIndirectCommand`).
+const OPEN_BYTES: u64 = crate::passes::behind_open::DRAW_BYTES;
 /// The most draws a layer has: their sources are written with `vkCmdUpdateBuffer`
 /// (at most 65,536 bytes).
 pub const MAX_DRAWS: u32 = (65536 / SOURCE_BYTES) as u32;
@@ -116,7 +120,8 @@ impl BehindTiles {
         let masks_offset = align(list_bytes);
         let sources_offset = masks_offset + align(Self::masks_bytes(tiles, mask_words));
         let draws_offset = sources_offset + align(SOURCE_BYTES * u64::from(draws.max(1)));
-        let size = draws_offset + DRAW_STRIDE * u64::from(draws.max(1));
+        // The draws' commands, then the listed tiles' (`glsl/behind_open.vert`).
+        let size = draws_offset + DRAW_STRIDE * u64::from(draws.max(1)) + OPEN_BYTES;
         let buffer = Buffer::new(
             ctx,
             "behind.tiles",
@@ -196,6 +201,18 @@ impl BehindTiles {
     /// The list's `VkDispatchIndirectCommand`: the buffer and offset.
     pub fn list_dispatch(&self) -> (vk::Buffer, u64) {
         (self.buffer.raw, 0)
+    }
+
+    /// The listed tiles' draw ([`crate::passes::behind_open`]): the list and the command
+    /// `behind_cull`'s step 1 writes.
+    pub fn open_tiles(&self) -> crate::passes::behind_open::OpenTiles {
+        crate::passes::behind_open::OpenTiles {
+            list: self.list()[0],
+            command: (
+                self.buffer.raw,
+                self.draws_offset + DRAW_STRIDE * u64::from(self.draws),
+            ),
+        }
     }
 
     /// Draw `i`'s command: the buffer and offset.

@@ -675,17 +675,28 @@ pub(crate) struct IndirectDraws<'a> {
     pub stride: u64,
     /// Per draw, its commands.
     pub ranges: &'a [(u32, u32)],
+    /// The listed tiles opened first ([`crate::passes::behind_open`]): the layer's depth
+    /// cleared to [`crate::passes::behind_mask::BLOCK_DEPTH`] and its colours left
+    /// uncleared, the listed tiles then written with the clear values, so the objects
+    /// draw only there. `None`: every attachment cleared.
+    pub open: Option<(
+        &'a crate::passes::behind_open::BehindOpenPass,
+        crate::passes::behind_open::OpenTiles,
+    )>,
 }
 
 /// As [`record_draws_behind`] (with `mask`, [`record_draws_behind_masked`]), each draw
 /// recorded as its range of indirect commands in `indirect` (the same triangles in the
 /// same order, split into pieces; a piece whose command has no vertices draws nothing).
+/// With `indirect.open`, only its listed tiles are cleared and drawn: outside them the
+/// depth is [`crate::passes::behind_mask::BLOCK_DEPTH`] and the colours undefined.
 ///
 /// # Safety
 /// As [`record_draws_behind`] (and `_masked`); the commands were written before and made
 /// visible to indirect reads (the caller's barrier), their first index (or vertex) and
 /// count inside each draw's own, and `indirect.buffer` stays alive until the command
-/// buffer has executed.
+/// buffer has executed; as [`crate::passes::behind_open::BehindOpenPass::record`] for
+/// `indirect.open`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) unsafe fn record_draws_behind_culled(
     ctx: &Context,
@@ -768,18 +779,44 @@ unsafe fn record_layer(
             unsafe { buffer.record_update(ctx, cmd, rays)? };
         }
     }
+    let open = indirect.and_then(|i| i.open);
+    if let Some((pass, _)) = open
+        && pass.has_curve() != target.curve.is_some()
+    {
+        return Err(crate::error::Error::Internal(
+            "the listed tiles' pipeline and the G-buffer differ on the curve image".into(),
+        ));
+    }
+    // Opened tiles: the colours are written there before anything reads them (and read
+    // nowhere else), the depth blocks every other pixel. The curve image is never
+    // cleared: every fragment drawn writes it, and it is read only at pixels of a
+    // material traced curved, which a fragment drew.
     let color_attachments: Vec<_> = target
         .attachments()
         .iter()
-        .map(|image| {
-            crate::gpu::pipeline::cleared_color_attachment(
+        .enumerate()
+        .map(|(i, image)| {
+            let a = crate::gpu::pipeline::cleared_color_attachment(
                 image.view,
                 vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
                 [0.0; 4],
-            )
+            );
+            if open.is_some() || i >= target.colors().len() {
+                a.load_op(vk::AttachmentLoadOp::DONT_CARE)
+            } else {
+                a
+            }
         })
         .collect();
-    let depth_attachment = crate::gpu::pipeline::cleared_depth_attachment(target.depth.view);
+    let mut depth_attachment = crate::gpu::pipeline::cleared_depth_attachment(target.depth.view);
+    if open.is_some() {
+        depth_attachment = depth_attachment.clear_value(vk::ClearValue {
+            depth_stencil: vk::ClearDepthStencilValue {
+                depth: crate::passes::behind_mask::BLOCK_DEPTH,
+                stencil: 0,
+            },
+        });
+    }
     let area = crate::gpu::pipeline::frame_area(extent);
     let rendering = vk::RenderingInfo::default()
         .render_area(area)
@@ -833,6 +870,10 @@ unsafe fn record_layer(
     // owns, written above; the binding the shaders' reflection gives).
     unsafe {
         dev.cmd_begin_rendering(cmd, &rendering);
+        if let Some((pass, tiles)) = open {
+            // The listed tiles back to the clear values: the objects draw there only.
+            pass.record(ctx, cmd, tiles, extent)?;
+        }
         if let Some((m, f)) = mask {
             // The pixels the layer leaves empty, blocked for the objects' depth test.
             m.record(ctx, cmd, f, BLOCK_DEPTH)?;
@@ -870,14 +911,22 @@ unsafe fn record_layer(
                 (Some(m), None) => dev.cmd_draw_indexed(cmd, m.index_count, 1, 0, 0, 0),
                 (None, None) => dev.cmd_draw(cmd, draw.params.vertex_count(), 1, 0, 0),
                 (mesh, Some(i)) => {
-                    // The draw's pieces, each one command (no multi-draw needed).
+                    // The draw's pieces: one multi-draw command where the device has
+                    // `multiDrawIndirect` (the same draws in the same order), else one
+                    // command each. A CPU driver pays per command: lavapipe spent about
+                    // 1 ms on the materials scene's ~960 commands, most of them empty.
                     let (start, count) = i.ranges[d];
-                    for c in start..start + count {
-                        let at = i.offset + u64::from(c) * i.stride;
+                    let (per, commands) = if ctx.multi_draw_indirect() {
+                        (count, count.min(1))
+                    } else {
+                        (1, count)
+                    };
+                    for c in 0..commands {
+                        let at = i.offset + u64::from(start + c) * i.stride;
                         if mesh.is_some() {
-                            dev.cmd_draw_indexed_indirect(cmd, i.buffer, at, 1, i.stride as u32);
+                            dev.cmd_draw_indexed_indirect(cmd, i.buffer, at, per, i.stride as u32);
                         } else {
-                            dev.cmd_draw_indirect(cmd, i.buffer, at, 1, i.stride as u32);
+                            dev.cmd_draw_indirect(cmd, i.buffer, at, per, i.stride as u32);
                         }
                     }
                 }
@@ -897,7 +946,7 @@ mod tests {
     use super::*;
 
     /// What each graphics pass binds (the G-buffer's plane and meshes, every method's
-    /// forward pass, the depth resolve, the behind mask) is exactly what its shaders declare, numbers and
+    /// forward pass, the depth resolve, the behind mask and listed tiles) is exactly what its shaders declare, numbers and
     /// types reflected from the SPIR-V, and every binding is bound by a name.
     #[test]
     fn graphics_passes_bind_what_their_shaders_declare() {
@@ -918,6 +967,9 @@ mod tests {
         assert!(forward >= 2, "relief and pom have forward paths");
         crate::passes::depth_resolve::raster_set().unwrap();
         crate::passes::behind_mask::raster_set().unwrap();
+        for curve in [false, true] {
+            crate::passes::behind_open::raster_set(curve).unwrap();
+        }
     }
 
     /// A binding the shaders lack, or one they type differently, is refused.

@@ -12,6 +12,7 @@
 
 pub mod background;
 pub mod behind_mask;
+pub(crate) mod behind_open;
 pub(crate) mod behind_tiles;
 pub mod camera_motion;
 pub mod classify;

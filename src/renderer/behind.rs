@@ -3,9 +3,12 @@
 //! first record, the renderer marks the 8x8 tiles holding a missed pixel and culls the
 //! layer's draws to them ([`crate::passes::behind_tiles`], on the GPU: each mesh drawn
 //! as its clusters, [`super::behind_draws`], a cluster only where its screen rectangle
-//! meets a missed tile in front of it), rasterises the kept clusters into a second
-//! G-buffer, keeping a fragment only at a pixel whose first-layer trace missed and only
-//! behind the first layer's surface (`glsl/include/dispmap_behind.glsl`; the plane's
+//! meets a missed tile in front of it; one multi-draw command per mesh where the device
+//! has `multiDrawIndirect`), rasterises the kept clusters into a second G-buffer (on
+//! the listed route only its listed tiles cleared, [`crate::passes::behind_open`]; the
+//! rest of its depth blocks them), keeping a fragment only at a pixel whose first-layer
+//! trace missed and only behind the first layer's surface
+//! (`glsl/include/dispmap_behind.glsl`; the plane's
 //! shader tests the pixel first; with [`Renderer::set_behind_mask`], a depth mask of the
 //! missed pixels, [`crate::passes::behind_mask`], rejects the meshes' fragments elsewhere
 //! before they are shaded), lights that layer's flat geometry in the missed tiles, and
@@ -32,6 +35,15 @@ const COMPUTE_BUFFER_READ_WRITE: Access = Access {
 const COMPUTE_BUFFER_WRITTEN: Access = Access {
     layout: vk::ImageLayout::UNDEFINED,
     ..Access::COMPUTE_STORAGE_WRITE
+};
+
+/// [`Access::INDIRECT_READ`] and reads by the vertex stage (the listed tiles' draw,
+/// [`crate::passes::behind_open`]).
+const INDIRECT_AND_VERTEX_READ: Access = Access {
+    stage: vk::PipelineStageFlags2::from_raw(
+        Access::INDIRECT_READ.stage.as_raw() | vk::PipelineStageFlags2::VERTEX_SHADER.as_raw(),
+    ),
+    ..Access::INDIRECT_READ
 };
 
 /// The frame slot of the pass the behind layer is recorded with (the first layer's is 0).
@@ -65,6 +77,10 @@ pub(super) struct Behind {
     /// Whether the layer's second record is classified over the missed tiles only (its
     /// hit images cleared first) or over the whole frame ([`Renderer::set_behind_listed`]).
     listed: bool,
+    /// On the listed route, the pipeline that opens the listed tiles of the layer's
+    /// raster ([`crate::passes::behind_open`]; built by the first listed record, again
+    /// when the curve image comes or goes).
+    open: Option<crate::passes::behind_open::BehindOpenPass>,
 }
 
 impl Destroy for Behind {
@@ -79,6 +95,7 @@ impl Destroy for Behind {
             self.background.destroy(ctx);
             self.mask.destroy(ctx);
             self.tiles.destroy(ctx);
+            self.open.destroy(ctx);
         }
     }
 }
@@ -141,6 +158,7 @@ impl Behind {
             listed: c.info().device_type == format!("{:?}", vk::PhysicalDeviceType::CPU),
             clusters: within_draws(clusters),
             tiles: None,
+            open: None,
         })
     }
 
@@ -361,9 +379,13 @@ impl Renderer {
     /// images cleared to no hit first (`on`), or over the whole frame as the first
     /// layer's is (`off`). The images are the same bit for bit either way; the cost is
     /// not. The default follows the device: on for a CPU driver, where a full-frame
-    /// `classify` is milliseconds (lavapipe at 640x360: the layer 3.6 against about 7 ms),
-    /// off for a GPU, where it is tens of microseconds and the two transfer clears of the
-    /// hit images are not (an NVIDIA H100 at 1920x1080: 0.47 ms; BENCHMARKS.md, run N).
+    /// `classify` is milliseconds (lavapipe at 640x360, the materials scene: the listed
+    /// layer 2.0-2.7 ms, BENCHMARKS.md run V), off for a GPU, where it is tens of
+    /// microseconds and the two transfer clears of the hit images are not (an NVIDIA H100
+    /// at 1920x1080: 0.47 ms; BENCHMARKS.md, run N). Listed, the layer's raster also
+    /// clears only its depth (to 1, blocking every pixel) and then opens the listed tiles
+    /// (`glsl/behind_open.vert`): its objects' fragments elsewhere fail the early
+    /// depth test, and its colour attachments are never cleared whole.
     /// Refused without a drawn behind layer ([`Renderer::set_behind`]).
     pub fn set_behind_listed(&mut self, on: bool) -> Result<()> {
         let Some(b) = &mut self.behind else {
@@ -463,7 +485,10 @@ impl Renderer {
                 .map(|(c, &d)| {
                     let word = |i: usize| u32::from_le_bytes([c[i], c[i + 1], c[i + 2], c[i + 3]]);
                     let f = crate::passes::gbuffer::frame::unpack([word(0), word(4)]);
-                    (d > 0.0 && f.material_plus_one >= 1).then(|| f.material_plus_one - 1)
+                    // Depth 0: no geometry; the listed route's blocked depth: outside
+                    // its listed tiles (the colours there undefined).
+                    let geometry = d > 0.0 && d < crate::passes::behind_mask::BLOCK_DEPTH;
+                    (geometry && f.material_plus_one >= 1).then(|| f.material_plus_one - 1)
                 })
                 .collect(),
         ))
@@ -541,6 +566,21 @@ impl Renderer {
             {
                 // SAFETY: this function's contract: the layer's previous frame was waited
                 // for, the last user of the old buffer.
+                unsafe { old.destroy(&ctx) };
+            }
+        }
+        // The listed route opens the listed tiles with a pipeline of the layer's attachments.
+        if let Some(b) = &mut self.behind
+            && b.listed
+            && b.open
+                .as_ref()
+                .is_none_or(|o| o.has_curve() != b.gbuffer.curve.is_some())
+        {
+            let open =
+                crate::passes::behind_open::BehindOpenPass::new(&ctx, b.gbuffer.curve.is_some())?;
+            if let Some(mut old) = b.open.replace(open) {
+                // SAFETY: this function's contract: the layer's previous frame was waited
+                // for, the last user of the old pipeline.
                 unsafe { old.destroy(&ctx) };
             }
         }
@@ -707,7 +747,16 @@ impl Renderer {
                     t.flush(&ctx, cmd, images)?;
                     tiles.record_cull(&ctx, cmd, step)?;
                 }
-                t.declare(Layer::Tiles, Access::INDIRECT_READ)?;
+                // The commands read by the draws and the list by the background (on the
+                // listed route also by the vertex stage of the listed tiles' draw).
+                t.declare(
+                    Layer::Tiles,
+                    if listed {
+                        INDIRECT_AND_VERTEX_READ
+                    } else {
+                        Access::INDIRECT_READ
+                    },
+                )?;
                 for (key, access) in [
                     (Layer::Ray, Access::COLOR_ATTACHMENT_WRITE),
                     (Layer::Frame, Access::COLOR_ATTACHMENT_WRITE),
@@ -736,9 +785,20 @@ impl Renderer {
                 }
                 t.flush(&ctx, cmd, images)?;
                 // Each draw as its pieces, those off the missed tiles with no vertices;
-                // with the mask, the objects' raster elsewhere rejected by the depth test
+                // on the listed route only the listed tiles cleared (the rest of the depth
+                // blocks the objects' fragments before they are shaded); with the mask,
+                // the objects' raster off the missed pixels rejected by the depth test
                 // before fragment shading.
                 let (buffer, offset) = tiles.draw(0);
+                let open = match (listed, &behind.open) {
+                    (true, Some(pass)) => Some((pass, tiles.open_tiles())),
+                    (true, None) => {
+                        return Err(Error::Internal(
+                            "no pipeline for the behind layer's listed tiles".into(),
+                        ));
+                    }
+                    (false, _) => None,
+                };
                 crate::passes::gbuffer::record_draws_behind_culled(
                     &ctx,
                     cmd,
@@ -752,6 +812,7 @@ impl Renderer {
                         offset,
                         stride: DRAW_STRIDE,
                         ranges: &ranges,
+                        open,
                     },
                 )?;
                 // The layer's flat geometry, lit by the host (the background's variant).

@@ -235,6 +235,7 @@ impl Renderer {
                     two_sided_pass: None,
                     meshes: Vec::new(),
                     clusters: Vec::new(),
+                    one_normal: Vec::new(),
                     materials: Vec::new(),
                     framing: None,
                 },
@@ -258,6 +259,9 @@ impl Renderer {
                     .map(super::behind_draws::clusters)
                     .unwrap_or_default(),
             );
+            drawn
+                .one_normal
+                .push(mesh.as_ref().is_some_and(|m| m.has_one_normal()));
         }
         drawn.framing = framing;
         // A material's refusal (its loop budget, its maps) names its object.

@@ -47,6 +47,9 @@ pub(super) struct Objects {
     /// ... its clusters, which the behind layer culls (empty for the tiled plane:
     /// `super::behind_draws`) ...
     pub(super) clusters: Vec<Vec<super::behind_draws::Cluster>>,
+    /// ... whether its mesh has one normal ([`crate::mesh::Mesh::has_one_normal`]: a
+    /// quad; `false` for the tiled plane), which curved tracing leaves flat ...
+    pub(super) one_normal: Vec<bool>,
     /// ... and its material (`None`: flat).
     pub(super) materials: Vec<Option<MaterialId>>,
     /// The camera's target and orbit distance (`None`: the tiled plane's camera, when a
