@@ -83,21 +83,21 @@ struct WalkTri {
 };
 
 WalkTri walk_tri(uint t, float side) {
-    uint base = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
-    vec3 p[3];
-    vec3 n[3];
-    vec2 uv[3];
-    float s[3];
-    for (uint c = 0u; c < 3u; ++c) {
-        uint w = base + c * WALK_CORNER_WORDS;
-        p[c] = walk_v3(w);
-        s[c] = walk_f(w + 3u);
-        n[c] = side * walk_v3(w + 4u);
-        uv[c] = vec2(walk_f(w + 7u), walk_f(w + 8u));
-    }
-    uint a = base + 3u * WALK_CORNER_WORDS;
-    return WalkTri(p[0], p[1] - p[0], p[2] - p[0], n[0], n[1] - n[0], n[2] - n[0],
-                   vec3(s[0], s[1] - s[0], s[2] - s[0]), uv[0], uv[1] - uv[0], uv[2] - uv[0],
+    // Corner by corner without local arrays (a CPU driver keeps a dynamically indexed
+    // array in memory).
+    uint w0 = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
+    uint w1 = w0 + WALK_CORNER_WORDS;
+    uint w2 = w1 + WALK_CORNER_WORDS;
+    vec3 p0 = walk_v3(w0);
+    vec3 n0 = side * walk_v3(w0 + 4u);
+    vec2 uv0 = vec2(walk_f(w0 + 7u), walk_f(w0 + 8u));
+    float s0 = walk_f(w0 + 3u);
+    uint a = w0 + 3u * WALK_CORNER_WORDS;
+    return WalkTri(p0, walk_v3(w1) - p0, walk_v3(w2) - p0,
+                   n0, side * walk_v3(w1 + 4u) - n0, side * walk_v3(w2 + 4u) - n0,
+                   vec3(s0, walk_f(w1 + 3u) - s0, walk_f(w2 + 3u) - s0),
+                   uv0, vec2(walk_f(w1 + 7u), walk_f(w1 + 8u)) - uv0,
+                   vec2(walk_f(w2 + 7u), walk_f(w2 + 8u)) - uv0,
                    uvec3(u_walk.words[a], u_walk.words[a + 1u], u_walk.words[a + 2u]),
                    uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]), u_walk.words[a + 6u]);
 }
@@ -207,7 +207,7 @@ bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
             return true;
         }
         uint edge = m == b0 ? 0u : (m == q.x ? 1u : 2u);
-        uint next = at.T.adj[edge];
+        uint next = edge == 0u ? at.T.adj.x : (edge == 1u ? at.T.adj.y : at.T.adj.z);
         if (next == WALK_NONE) {
             return false;
         }
@@ -326,26 +326,26 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
 // taken as linear along the chord: exact on a flat triangle) where the point is inside
 // the triangle's shell (every barycentric >= 0, 0 <= t <= 1): clipped to [u0, u1], empty
 // when u0 > u1.
-vec2 walk_clip(vec3 qa, vec3 qb) {
-    vec4 a = vec4(1.0 - qa.x - qa.y, qa.x, qa.y, qa.z);
-    vec4 d = vec4(1.0 - qb.x - qb.y, qb.x, qb.y, qb.z) - a;
-    vec2 u = vec2(0.0, 1.0);
-    for (int i = 0; i < 4; ++i) {
-        // a + u d >= 0
-        if (d[i] > 0.0) {
-            u.x = max(u.x, -a[i] / d[i]);
-        } else if (d[i] < 0.0) {
-            u.y = min(u.y, -a[i] / d[i]);
-        } else if (a[i] < 0.0) {
-            u.y = -1.0;
-        }
-    }
-    // t <= 1
-    if (d.w > 0.0) {
-        u.y = min(u.y, (1.0 - a.w) / d.w);
-    } else if (a.w > 1.0) {
+// One constraint a + u d >= 0 of walk_clip on the interval u.
+vec2 walk_clip_one(vec2 u, float a, float d) {
+    if (d > 0.0) {
+        u.x = max(u.x, -a / d);
+    } else if (d < 0.0) {
+        u.y = min(u.y, -a / d);
+    } else if (a < 0.0) {
         u.y = -1.0;
     }
+    return u;
+}
+
+vec2 walk_clip(vec3 qa, vec3 qb) {
+    vec2 u = vec2(0.0, 1.0);
+    u = walk_clip_one(u, 1.0 - qa.x - qa.y, (qa.x + qa.y) - (qb.x + qb.y));
+    u = walk_clip_one(u, qa.x, qb.x - qa.x);
+    u = walk_clip_one(u, qa.y, qb.y - qa.y);
+    // 0 <= t <= 1
+    u = walk_clip_one(u, qa.z, qb.z - qa.z);
+    u = walk_clip_one(u, 1.0 - qa.z, qa.z - qb.z);
     return u;
 }
 
@@ -474,7 +474,7 @@ bool walk_flat_inside(WalkAt at, vec3 X0, vec3 R, float side) {
         }
         // The path crosses that edge once (both triangles are convex): the neighbour
         // holds its end.
-        WalkTri N = walk_tri(at.T.adj[edge], side);
+        WalkTri N = walk_tri(edge == 0u ? at.T.adj.x : (edge == 1u ? at.T.adj.y : at.T.adj.z), side);
         vec3 qn = walk_solve(N, X1, vec3(1.0 / 3.0, 1.0 / 3.0, q.z), 1);
         if (min(1.0 - qn.x - qn.y, min(qn.x, qn.y)) < 0.0) {
             return false;
