@@ -278,13 +278,25 @@ impl Method {
         self.curved_shader(false).is_some()
     }
 
+    /// The shader of the method's mesh walk (`glsl/common/walk.glsl`,
+    /// [`crate::embed::DisplacementPass::set_curved_meshes`]), with the iteration output
+    /// or without: a second dispatch after the curved trace that follows a curved pixel's
+    /// ray through the shell of the mesh's own triangles. `exact` only, whose curved trace
+    /// is then exact against the displaced mesh (each sample's foot solved on its
+    /// triangle); `relief` and `pom` keep the per-pixel circle model, which costs a few
+    /// multiply-adds a sample where the walk costs a solve.
+    pub fn walk_shader(self, iterations: bool) -> Option<Shader> {
+        Some(match (self, iterations) {
+            (Method::Exact, false) => shaders::TRACE_EXACT_COMP_CURVED_WALK,
+            (Method::Exact, true) => shaders::TRACE_EXACT_COMP_CURVED_WALK_ITERATIONS,
+            _ => return None,
+        })
+    }
+
     /// Whether the method's curved trace walks the mesh's own triangles where it is given
-    /// them (`glsl/common/walk.glsl`, [`crate::embed::DisplacementPass::set_curved_meshes`]):
-    /// `exact`, whose curved trace is then exact against the displaced mesh (each sample's
-    /// foot solved on its triangle). `relief` and `pom` keep the per-pixel circle model,
-    /// which costs a few multiply-adds a sample where the walk costs a solve.
+    /// them ([`Method::walk_shader`]).
     pub fn walks_meshes(self) -> bool {
-        self == Method::Exact
+        self.walk_shader(false).is_some()
     }
 
     /// Whether the method is in the default method lists: `dispmap bench`'s default

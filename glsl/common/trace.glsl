@@ -139,6 +139,13 @@ Hit bump_hit(Ray ray) {
 }
 
 Hit trace_ray(Ray ray, ivec2 pixel);
+#ifdef WALK
+// The mesh walk's dispatch (exact.comp's WALK variant) defines it.
+bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit);
+#endif
+#ifdef WALK
+bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit);
+#endif
 
 // trace_ray with the LOD blend (TRACE_FLAG_LOD; Tatarchuk 2006 section 3.3: bump mapping
 // beyond a threshold mip level, and near it "the fractional part of the current mip
@@ -191,10 +198,21 @@ void main() {
         // DIG guard) stay on level 0.
         g_height_lod = g_footprint_level;
     }
+#ifndef WALK
     if (CURVED_VARIANT && (pc.flags & TRACE_FLAG_CURVED) != 0u) {
         g_curve = curve_of(pixel, Ray(g.xy, g.zw));
     }
+#endif
+#ifdef WALK
+    // The mesh walk's dispatch (exact.comp's WALK variant): only the pixels it decides;
+    // a level-of-detail blend keeps the curved trace's hits.
+    Hit hit;
+    if ((pc.flags & TRACE_FLAG_LOD) != 0u || !walk_pixel(pixel, Ray(g.xy, g.zw), hit)) {
+        return;
+    }
+#else
     Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);
+#endif
     imageStore(u_hit_uv, pixel, vec4(hit.uv, 0.0, 0.0));
     imageStore(u_hit_height, pixel, vec4(hit.h));
 #ifdef ITERATIONS

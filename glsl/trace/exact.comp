@@ -15,13 +15,34 @@
 // intersects exactly; the part that climbs back to the base surface (k > 1/4, only near
 // outlines) by a march in steps of at most one texel with the exact bilinear height,
 // refined by bisection. No hit before the ray leaves the shell: a miss.
+//
+// The WALK variant (with CURVED) is a second dispatch after the curved trace, for a pass
+// given the meshes (src/mesh/walk.rs): it walks the mesh's own triangles
+// (glsl/common/walk.glsl) and writes the pixels the walk decides, leaving the others (on
+// no walked triangle, or a flat triangle's pixel whose path stays in its shell, where the
+// trace above is the walk) as the curved trace wrote them. A separate pipeline keeps the
+// walk's code out of the curved trace's (on a CPU driver the larger program ran the
+// curved trace about 2.5 times slower, the walk unexecuted).
 // dispmap-variant: ITERATIONS
 // dispmap-variant: CURVED
 // dispmap-variant: CURVED+ITERATIONS
+// dispmap-variant: CURVED+WALK
+// dispmap-variant: CURVED+WALK+ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
-#ifdef CURVED
+#ifdef WALK
 #include "walk.glsl"
+
+// The walk of `pixel` (its G-buffer ray `ray`): true with its hit, false to leave it.
+bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit) {
+    hit = miss(ray, 0u);
+    if ((pc.flags & TRACE_FLAG_CURVED) == 0u) {
+        return false;
+    }
+    vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
+    vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
+    return walk_trace(ray, entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel), hit);
+}
 #endif
 
 // A chord's largest height error, as a fraction of the depth (1 / 1024: a quarter of an
@@ -119,19 +140,6 @@ Hit curved_exact(Ray ray, Curve c) {
 }
 
 Hit trace_ray(Ray ray, ivec2 pixel) {
-#ifdef CURVED
-    // On a walked mesh (src/mesh/walk.rs) the ray follows the mesh's own triangles; the
-    // circle model below is the path of pixels on no walked triangle, and the flat trace
-    // that of a flat triangle's pixels whose path stays in its shell (the walk there).
-    if ((pc.flags & TRACE_FLAG_CURVED) != 0u) {
-        vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
-        vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
-        Hit walked;
-        if (walk_trace(ray, entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel), walked)) {
-            return walked;
-        }
-    }
-#endif
     if (CURVED_VARIANT && g_curve.k != 0.0) {
         return curved_exact(ray, g_curve);
     }

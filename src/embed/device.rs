@@ -248,7 +248,9 @@ mod tests {
         // self-shadowed shade variant pushes 10).
         assert_eq!(
             r.max_push_descriptors,
-            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS.bindings.len() as u32
+            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS
+                .bindings
+                .len() as u32
         );
         assert_eq!(r.max_push_descriptors, 11);
         let largest = [
@@ -279,7 +281,9 @@ mod tests {
         // buffer beside the curve image and the pyramid).
         assert_eq!(
             super::PUSH_DESCRIPTORS,
-            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS.bindings.len() as u32
+            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS
+                .bindings
+                .len() as u32
         );
         assert_eq!(
             super::MAX_QUERIES as usize,

@@ -127,7 +127,7 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
                 hi_t = hi_t.max(Vec3::from(v.position));
             }
             let flat = flat_triangle(mesh, tri);
-            let mut flags = u32::from(flat);
+            let mut flags = if flat { FLAT } else { 0 };
             for e in 0..3 {
                 let (a, b) = (
                     ids[tri[(e + 1) % 3] as usize],
@@ -259,7 +259,8 @@ fn continues_flat(mesh: &Mesh, tri: &[u32; 3], other: &[u32; 3]) -> bool {
     other.iter().all(|&i| {
         let r = p(i) - p0;
         let (b1, b2) = (r.cross(e2).dot(n) / area2, e1.cross(r).dot(n) / area2);
-        let predicted = uv(tri[0]) + b1 * (uv(tri[1]) - uv(tri[0])) + b2 * (uv(tri[2]) - uv(tri[0]));
+        let predicted =
+            uv(tri[0]) + b1 * (uv(tri[1]) - uv(tri[0])) + b2 * (uv(tri[2]) - uv(tri[0]));
         (predicted - uv(i)).abs().max_element() <= 1e-5 && r.dot(n).abs() <= 1e-6 * area2.sqrt()
     })
 }

@@ -121,9 +121,6 @@ fn bindings(
     }
     if curved {
         b.push(("u_curve", SAMPLED));
-        if method.walks_meshes() {
-            b.push(("u_walk", vk::DescriptorType::STORAGE_BUFFER));
-        }
     }
     if needs.pyramid.is_some() {
         b.push(("u_pyramid", SAMPLED));
@@ -134,6 +131,14 @@ fn bindings(
     if needs.cone.is_some() {
         b.push(("u_cone", SAMPLED));
     }
+    b
+}
+
+/// The bindings of `method`'s mesh walk pipeline ([`Method::walk_shader`]): its flat
+/// trace's (the walk reads no curve image) and the walk buffer.
+fn walk_bindings(method: Method, iterations: bool) -> Vec<(&'static str, vk::DescriptorType)> {
+    let mut b = bindings(method, iterations, false);
+    b.push(("u_walk", vk::DescriptorType::STORAGE_BUFFER));
     b
 }
 
@@ -212,12 +217,21 @@ pub struct TracePass {
     curved: bool,
     iterations: bool,
     pipeline: FetchPipeline,
+    /// The mesh walk's pipeline: the second dispatch of a curved method with
+    /// [`Method::walk_shader`] ([`TracePass::record_walk`]).
+    walk: Option<FetchPipeline>,
 }
 
 impl TracePass {
     /// The bindings its shader declares (reflected): what a dispatch reads and writes.
     pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
         self.pipeline.pipeline.bindings
+    }
+
+    /// The bindings of its mesh walk's shader (`None`: no walk dispatch,
+    /// [`TracePass::record_walk`]).
+    pub fn walk_bindings(&self) -> Option<&'static [crate::shaders::ShaderBinding]> {
+        self.walk.as_ref().map(|w| w.pipeline.bindings)
     }
 
     /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`],
@@ -238,7 +252,7 @@ impl TracePass {
             (_, _, true) => method.iterations_shader(),
             (_, _, false) => method.shader(),
         };
-        let pipeline = FetchPipeline::specialized(
+        let mut pipeline = FetchPipeline::specialized(
             ctx,
             &name,
             &shader,
@@ -246,11 +260,30 @@ impl TracePass {
             std::mem::size_of::<TraceParams>() as u32,
             &[],
         )?;
+        let walk = match method.walk_shader(iterations).filter(|_| curved) {
+            Some(shader) => match FetchPipeline::specialized(
+                ctx,
+                &format!("{name}.walk"),
+                &shader,
+                &walk_bindings(method, iterations),
+                std::mem::size_of::<TraceParams>() as u32,
+                &[],
+            ) {
+                Ok(p) => Some(p),
+                Err(e) => {
+                    // SAFETY: just made, never recorded.
+                    unsafe { pipeline.destroy(ctx) };
+                    return Err(e);
+                }
+            },
+            None => None,
+        };
         Ok(TracePass {
             method,
             curved,
             iterations,
             pipeline,
+            walk,
         })
     }
 
@@ -296,6 +329,51 @@ impl TracePass {
         params: &MethodParams,
         depth_scale: f32,
     ) -> Result<()> {
+        // SAFETY: this function's contract, passed on.
+        unsafe { self.record_on(&self.pipeline, ctx, cmd, inputs, params, depth_scale) }
+    }
+
+    /// Records the mesh walk's dispatch over the material's tiles (nothing when the pass
+    /// has no walk, [`TracePass::walk_bindings`]): it rewrites the hits of the pixels the
+    /// walk decides (`glsl/trace/exact.comp`'s `WALK` variant), so it follows
+    /// [`TracePass::record`]'s dispatch with a barrier between their writes of the hit
+    /// images. Fails (recording nothing) when `inputs` lacks the walk buffer.
+    ///
+    /// # Safety
+    /// As [`TracePass::record`], and the hit images' (and iteration image's) writes by
+    /// [`TracePass::record`] ordered before this dispatch's writes.
+    pub unsafe fn record_walk(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: TraceInputs,
+        params: &MethodParams,
+        depth_scale: f32,
+    ) -> Result<()> {
+        match &self.walk {
+            // SAFETY: this function's contract, passed on.
+            Some(walk) => unsafe { self.record_on(walk, ctx, cmd, inputs, params, depth_scale) },
+            None => Ok(()),
+        }
+    }
+
+    /// The dispatch of `pipeline` (the trace's or its walk's) over the material's tiles.
+    ///
+    /// # Safety
+    /// As [`TracePass::record`].
+    unsafe fn record_on(
+        &self,
+        pipeline: &FetchPipeline,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: TraceInputs,
+        params: &MethodParams,
+        depth_scale: f32,
+    ) -> Result<()> {
+        let walks = self
+            .walk
+            .as_ref()
+            .is_some_and(|w| std::ptr::eq(w, pipeline));
         let TraceInputs {
             gbuffer,
             height,
@@ -337,7 +415,7 @@ impl TracePass {
             (true, None) => return Err(missing("the cone map")),
             (false, _) => None,
         };
-        let fetch = |view: vk::ImageView| self.pipeline.fetch_view(view);
+        let fetch = |view: vk::ImageView| pipeline.fetch_view(view);
         let ray = fetch(gbuffer.ray.view);
         let depth = fetch(gbuffer.depth.view);
         let heights = [if params.lod_threshold.is_some() {
@@ -350,7 +428,7 @@ impl TracePass {
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
         let frame = fetch(gbuffer.frame.view);
-        let curve = match (self.curved, gbuffer.curve) {
+        let curve = match (self.curved && !walks, gbuffer.curve) {
             (true, Some(c)) => Some(fetch(c.view)),
             (true, None) => {
                 return Err(Error::invalid(
@@ -364,7 +442,7 @@ impl TracePass {
             }
             (false, _) => None,
         };
-        let pl = &self.pipeline.pipeline;
+        let pl = &pipeline.pipeline;
         let mut writes = vec![
             pl.image("u_ray", &ray)?,
             pl.image("u_depth", &depth)?,
@@ -379,7 +457,6 @@ impl TracePass {
         if let Some(c) = &curve {
             writes.push(pl.image("u_curve", c)?);
         }
-        let walks = self.curved && self.method.walks_meshes();
         let walk_info = match (walks, walk) {
             (true, Some(buffer)) => Some([vk::DescriptorBufferInfo {
                 buffer,
@@ -446,7 +523,7 @@ impl TracePass {
             tiles.dispatch(
                 ctx,
                 cmd,
-                &self.pipeline.pipeline,
+                &pipeline.pipeline,
                 &writes,
                 bytemuck::bytes_of(&push),
             )
@@ -460,6 +537,7 @@ impl Destroy for TracePass {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             self.pipeline.destroy(ctx);
+            self.walk.destroy(ctx);
         }
     }
 }

@@ -208,27 +208,65 @@ impl DisplacementPass {
         // above made every binding ready (the G-buffer in its entry state, the hit images
         // and tile lists ordered after the classification, the maps sampled-readable, the
         // slot's corner grids sampled-readable after `record_corners`).
+        // (A closure whose result borrows its map argument: its lifetime named.)
+        fn borrowing<'a, F>(f: F) -> F
+        where
+            F: Fn(&MaterialTiles, &MaterialEntry, &'a MapEntry) -> TraceInputs<'a>,
+        {
+            f
+        }
+        let inputs_of = borrowing(|tiles: &MaterialTiles, m: &MaterialEntry, map| {
+            let needs = m.settings.method.needs();
+            TraceInputs {
+                gbuffer: inputs.gbuffer,
+                height: &map.texture,
+                hit,
+                iterations,
+                extent: self.frame.extent,
+                pyramid: needs.pyramid.and_then(|k| map.pyramid(k)),
+                corners: self.slots[slot].corner_grid(tiles.material as usize),
+                cone: needs.cone.and_then(|k| map.cone(k)),
+                tiles: *tiles,
+                curved: view.filter(|_| m.curved),
+                walk: Some(self.walk.buffer.raw),
+            }
+        });
+        // The mesh walks (`exact` traced curved on a pass given meshes) rewrite some of
+        // the hits the traces wrote: declared after them, so the graph orders their
+        // writes after the traces'.
+        let walks: Vec<_> = live
+            .iter()
+            .filter(|(_, m, _, trace)| {
+                m.curved && view.is_some() && trace.walk_bindings().is_some()
+            })
+            .collect();
+        // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
+        // queries reset by `begin`). In the body (inside this block): the graph's barriers
+        // above made every binding ready (the G-buffer in its entry state, the hit images
+        // and tile lists ordered after the classification, the maps sampled-readable, the
+        // slot's corner grids sampled-readable after `record_corners`); the second flush
+        // orders the walks' writes of the hit images after the traces'.
         unsafe {
             w.scope(ctx, cmd, PassName::Trace, |cmd| {
                 for (tiles, m, map, trace) in &live {
                     let s = &m.settings;
-                    let needs = s.method.needs();
-                    trace.record(
+                    trace.record(ctx, cmd, inputs_of(tiles, m, map), &s.params, s.depth_scale)?;
+                }
+                if walks.is_empty() {
+                    return Ok(());
+                }
+                for (tiles, _, _, trace) in &walks {
+                    if let Some(bindings) = trace.walk_bindings() {
+                        g.dispatch(bindings, tiles.material, &[])?;
+                    }
+                }
+                g.flush(ctx, cmd, PassName::Trace)?;
+                for (tiles, m, map, trace) in &walks {
+                    let s = &m.settings;
+                    trace.record_walk(
                         ctx,
                         cmd,
-                        TraceInputs {
-                            gbuffer: inputs.gbuffer,
-                            height: &map.texture,
-                            hit,
-                            iterations,
-                            extent: self.frame.extent,
-                            pyramid: needs.pyramid.and_then(|k| map.pyramid(k)),
-                            corners: self.slots[slot].corner_grid(tiles.material as usize),
-                            cone: needs.cone.and_then(|k| map.cone(k)),
-                            tiles: *tiles,
-                            curved: view.filter(|_| m.curved),
-                            walk: Some(self.walk.buffer.raw),
-                        },
+                        inputs_of(tiles, m, map),
                         &s.params,
                         s.depth_scale,
                     )?;
