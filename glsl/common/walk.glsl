@@ -29,17 +29,19 @@
 //   0..3  the grid's lower corner (f32 bits), 3: cells per unit length (f32 bits)
 //   4..6  the grid's cells along x, y, z; 7: the triangle count (0: no walk)
 //   8     the first word of the triangles; 9: of the cells' offsets; 10: of the cells'
-//         lists; 11: of the overlap lists
+//         lists; 11: of the overlap lists; 12: of the plane lists
 // A triangle is WALK_TRIANGLE_WORDS words: per corner (p.xyz, s, n.xyz, uv.xy), then its
 // neighbours across the edges opposite corners 0, 1 and 2 (WALK_NONE: a boundary edge),
 // its surface id, the first and count of the triangles whose shells overlap its own
-// (sharing a corner's position where the normals part: a cube's edges and corners), and
-// its flatness bits.
+// (sharing a corner's position where the normals part: a cube's edges and corners), its
+// flatness bits, and the first and count of those triangles' distinct planes (unit
+// normal, offset, largest local uv scale: WALK_PLANE_WORDS each).
 layout(set = 0, binding = 12, std430) readonly buffer Walk {
     uint words[];
 } u_walk;
 
-const uint WALK_TRIANGLE_WORDS = 34u;
+const uint WALK_TRIANGLE_WORDS = 36u;
+const uint WALK_PLANE_WORDS = 5u;
 // The flatness bits (src/mesh/walk.rs): the triangle is flat; the neighbour across edge e
 // continues it flat (bit 1 << e).
 const uint WALK_FLAT = 1u;
@@ -80,6 +82,7 @@ struct WalkTri {
     uvec3 adj;
     uvec2 overlaps;    // first (in the overlap list), count
     uint flags;        // WALK_FLAT, WALK_FLAT_EDGE << e
+    uvec2 planes;      // first (in the plane list), count
 };
 
 WalkTri walk_tri(uint t, float side) {
@@ -99,7 +102,8 @@ WalkTri walk_tri(uint t, float side) {
                    uv0, vec2(walk_f(w1 + 7u), walk_f(w1 + 8u)) - uv0,
                    vec2(walk_f(w2 + 7u), walk_f(w2 + 8u)) - uv0,
                    uvec3(u_walk.words[a], u_walk.words[a + 1u], u_walk.words[a + 2u]),
-                   uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]), u_walk.words[a + 6u]);
+                   uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]), u_walk.words[a + 6u],
+                   uvec2(u_walk.words[a + 7u], u_walk.words[a + 8u]));
 }
 
 // Triangle t's corner positions (what the start and the overlap tests need first).
@@ -253,6 +257,24 @@ Hit walk_hit_in(WalkAt at, vec3 X, vec2 tiles, uint iterations) {
                iterations);
 }
 
+// Whether the segment from Xa to Xb can meet the shell of an overlapping triangle of T:
+// walk_near's slab test on the distinct planes of T's overlapping triangles (five words
+// each, not a triangle's corners).
+bool walk_planes_near(WalkTri T, vec3 Xa, vec3 Xb, float side) {
+    uint base = u_walk.words[12] + T.planes.x * WALK_PLANE_WORDS;
+    for (uint k = 0u; k < T.planes.y; ++k) {
+        uint w = base + k * WALK_PLANE_WORDS;
+        vec3 n = side * walk_v3(w);
+        float o = side * walk_f(w + 3u);
+        float depth = pc.depth_scale * walk_f(w + 4u);
+        vec2 d = vec2(dot(Xa, n), dot(Xb, n)) - o;
+        if (!(min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth)) {
+            return true;
+        }
+    }
+    return false;
+}
+
 // Whether a point of the neighbour N (solved: q) is in its shell and inside its relief.
 bool walk_in_relief(WalkTri N, vec3 q, vec2 tiles) {
     float t = walk_t(N, q);
@@ -273,6 +295,9 @@ bool walk_in_relief(WalkTri N, vec3 q, vec2 tiles) {
 bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, vec2 tiles,
                    inout uint iterations, out Hit hit) {
     hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
+    if (!walk_planes_near(at.T, X0 + sa * R, X0 + sb * R, side)) {
+        return false;
+    }
     float s_first = sb;
     uint list = u_walk.words[11] + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
@@ -357,6 +382,9 @@ vec2 walk_clip(vec3 qa, vec3 qb) {
 bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, vec2 tiles,
                          inout uint iterations, inout float u_hit, out Hit hit) {
     hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
+    if (!walk_planes_near(at.T, X0 + sa * R, X0 + sb * R, side)) {
+        return false;
+    }
     int top = pyramid_levels() - 1;
     uint list = u_walk.words[11] + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
@@ -403,7 +431,8 @@ bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float s
 // from the grid's cell of X. False when no triangle is near enough (not a walked mesh).
 bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
     at = WalkAt(0u, WalkTri(vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0),
-                            vec3(0.0), vec2(0.0), vec2(0.0), vec2(0.0), uvec3(0u), uvec2(0u), 0u),
+                            vec3(0.0), vec2(0.0), vec2(0.0), vec2(0.0), uvec3(0u), uvec2(0u), 0u,
+                            uvec2(0u)),
                 vec3(0.0), vec2(0.0));
     vec3 lo = walk_v3(0u);
     float inv_cell = walk_f(3u);
@@ -480,20 +509,11 @@ bool walk_flat_inside(WalkAt at, vec3 X0, vec3 R, float side) {
             return false;
         }
         // The neighbour's own overlapping shells too.
-        uint list_n = u_walk.words[11] + N.overlaps.x;
-        for (uint k = 0u; k < N.overlaps.y; ++k) {
-            if (walk_near(u_walk.words[list_n + k], X0, X1, side)) {
-                return false;
-            }
-        }
-    }
-    uint list = u_walk.words[11] + at.T.overlaps.x;
-    for (uint k = 0u; k < at.T.overlaps.y; ++k) {
-        if (walk_near(u_walk.words[list + k], X0, X1, side)) {
+        if (walk_planes_near(N, X0, X1, side)) {
             return false;
         }
     }
-    return true;
+    return !walk_planes_near(at.T, X0, X1, side);
 }
 
 // The curved trace of `ray` (the pixel's tangent-space ray: uv0 and P) on the walked mesh,

@@ -20,9 +20,13 @@ use std::collections::HashMap;
 
 /// Words of a triangle in the buffer (`WALK_TRIANGLE_WORDS` in `walk.glsl`): per corner
 /// its position, local uv scale, normal and uv (9), its three neighbours, its surface id,
-/// the first and count of its overlapping triangles in the overlap list, and its flatness
-/// bits ([`FLAT`], [`FLAT_EDGE`]).
-const TRIANGLE_WORDS: usize = 34;
+/// the first and count of its overlapping triangles in the overlap list, its flatness bits
+/// ([`FLAT`], [`FLAT_EDGE`]), and the first and count of its overlapping triangles' planes
+/// in the plane list ([`PLANE_WORDS`] each).
+const TRIANGLE_WORDS: usize = 36;
+/// Words of a plane of the plane list: its unit normal (along the triangle's vertex
+/// normals), its offset `n . p`, and the largest local uv scale of the triangles on it.
+const PLANE_WORDS: usize = 5;
 /// A flatness bit: the triangle's three normals and local uv scales are equal, so its
 /// shell is a straight prism and a ray's path in its uv and depth is straight.
 const FLAT: u32 = 1;
@@ -189,10 +193,43 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
         words[32] = list.len() as u32;
         offset += list.len() as u32;
     }
+    // The distinct planes of each triangle's overlapping triangles (a cube's face is two
+    // triangles on one plane): what the walk's cheap test of a flat path reads.
+    let f = |t: usize, i: usize| f32::from_bits(triangles[t][i]);
+    let corner = |t: usize, c: usize| Vec3::new(f(t, c * 9), f(t, c * 9 + 1), f(t, c * 9 + 2));
+    let mut planes: Vec<Vec<[f32; PLANE_WORDS]>> = Vec::with_capacity(triangles.len());
+    for list in &overlaps {
+        let mut distinct: Vec<[f32; PLANE_WORDS]> = Vec::new();
+        for &o in list {
+            let o = o as usize;
+            let (p0, p1, p2) = (corner(o, 0), corner(o, 1), corner(o, 2));
+            let mut n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+            if n.dot(Vec3::new(f(o, 4), f(o, 5), f(o, 6))) < 0.0 {
+                n = -n;
+            }
+            let scale = f(o, 3).max(f(o, 12)).max(f(o, 21));
+            let offset = n.dot(p0);
+            match distinct.iter_mut().find(|q| {
+                (Vec3::new(q[0], q[1], q[2]) - n).length() <= 1e-5
+                    && (q[3] - offset).abs() <= 1e-5 * extent
+            }) {
+                Some(q) => q[4] = q[4].max(scale),
+                None => distinct.push([n.x, n.y, n.z, offset, scale]),
+            }
+        }
+        planes.push(distinct);
+    }
+    let mut first_plane = 0u32;
+    for (words, list) in triangles.iter_mut().zip(&planes) {
+        words[34] = first_plane;
+        words[35] = list.len() as u32;
+        first_plane += list.len() as u32;
+    }
     let tri_base = HEADER_WORDS;
     let cell_base = tri_base + triangles.len() * TRIANGLE_WORDS;
     let list_base = cell_base + lists.len() + 1;
     let overlap_base = list_base + lists.iter().map(Vec::len).sum::<usize>();
+    let plane_base = overlap_base + overlaps.iter().map(Vec::len).sum::<usize>();
     let mut words = header(
         lo,
         1.0 / cell,
@@ -203,6 +240,7 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
     words[9] = cell_base as u32;
     words[10] = list_base as u32;
     words[11] = overlap_base as u32;
+    words[12] = plane_base as u32;
     words.extend(triangles.iter().flatten());
     let mut offset = 0u32;
     for list in &lists {
@@ -212,6 +250,7 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
     words.push(offset);
     words.extend(lists.iter().flatten());
     words.extend(overlaps.iter().flatten());
+    words.extend(planes.iter().flatten().flatten().map(|x| x.to_bits()));
     words
 }
 
@@ -374,6 +413,8 @@ mod tests {
         let words = walk_words(&[&Mesh::cube()]);
         for t in 0..words[7] as usize {
             let flags = tri_words(&words, t)[33];
+            // Its overlapping triangles lie on the 4 faces around it.
+            assert_eq!(tri_words(&words, t)[35], 4, "triangle {t}");
             assert_eq!(flags & FLAT, FLAT, "triangle {t}");
             // One edge (the diagonal) continues flat; the face's two outer edges are creases.
             let continuing = (0..3).filter(|e| flags & (FLAT_EDGE << e) != 0).count();
