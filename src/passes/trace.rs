@@ -21,7 +21,7 @@
 //! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
 //!
 //! A method's pipeline declares `u_pyramid`, `u_corners` and `u_cone` only when its
-//! [`Needs`] name them.
+//! [`Needs`](crate::method::Needs) name them.
 //! One dispatch traces one material: a workgroup per tile of its list, an invocation per
 //! pixel of the material (others are left alone).
 //!
