@@ -264,8 +264,8 @@ impl DisplacementPass {
     /// sample's foot solved on its triangle, neighbours across edges matched by position),
     /// which is exact against the displaced mesh; a pixel on none of them (or every
     /// pixel, with no meshes) keeps the per-pixel circle model of the curve image. The
-    /// meshes are copied into one buffer (31 words a triangle and a start grid); moved
-    /// meshes need another call. Takes effect from the next record; the old buffer is
+    /// meshes are copied into one buffer (36 words a triangle, the planes of the faces
+    /// around it, and a start grid); moved meshes need another call. Takes effect from the next record; the old buffer is
     /// retired. Needs no GPU idle. On error the pass is unchanged.
     pub fn set_curved_meshes(&mut self, meshes: &[&crate::mesh::Mesh]) -> Result<()> {
         self.check_alive()?;
