@@ -243,16 +243,20 @@ mod tests {
                 .iter()
                 .any(|(f, _)| *f == crate::passes::trace::HIT_UV_FORMAT)
         );
-        // `exact`'s curved trace with the iteration counts pushes the most descriptors (11,
-        // reflected: the mesh walk's buffer beside the curve image and the pyramid; the
-        // self-shadowed shade variant pushes 10).
+        // The self-shadowed shade variant pushes the most descriptors (10, reflected; as many
+        // as the iteration variants of `dig-guarded`'s trace, `exact`'s curved trace and
+        // its mesh walk).
         assert_eq!(
             r.max_push_descriptors,
-            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS
+            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+        );
+        assert_eq!(
+            r.max_push_descriptors,
+            crate::shaders::TRACE_EXACT_COMP_CURVED_WALK_ITERATIONS
                 .bindings
                 .len() as u32
         );
-        assert_eq!(r.max_push_descriptors, 11);
+        assert_eq!(r.max_push_descriptors, 10);
         let largest = [
             std::mem::size_of::<crate::abi::ShadowParams>(),
             std::mem::size_of::<crate::abi::HitDepthParams>(),
@@ -277,13 +281,9 @@ mod tests {
         });
         let largest = passes.map(|s| s.bindings.len() as u32).max();
         assert_eq!(largest, Some(super::PUSH_DESCRIPTORS));
-        // The largest: `exact`'s curved trace with the iteration counts (the mesh walk's
-        // buffer beside the curve image and the pyramid).
         assert_eq!(
             super::PUSH_DESCRIPTORS,
-            crate::shaders::TRACE_EXACT_COMP_CURVED_ITERATIONS
-                .bindings
-                .len() as u32
+            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
         );
         assert_eq!(
             super::MAX_QUERIES as usize,
