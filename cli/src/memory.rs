@@ -159,12 +159,17 @@ const MESH_LOAD_BYTES_PER_TRIANGLE: u64 = 120;
 const MESH_HEAP_BYTES_PER_VERTEX: u64 = 750;
 /// See [`MESH_HEAP_BYTES_PER_VERTEX`].
 const MESH_HEAP_MAX_BYTES: u64 = 96 << 20;
-/// Bytes per vertex of a loaded mesh while rendering (the mesh, the GPU's vertex buffer
-/// and its staging copy: 56 bytes each).
-const MESH_BYTES_PER_VERTEX: u64 = 192;
-/// Bytes per triangle of a loaded mesh while rendering (indices: the mesh's, the GPU's
-/// and the staging copy).
-const MESH_BYTES_PER_TRIANGLE: u64 = 48;
+/// Bytes per vertex and per triangle of the renderer's copy of a mesh (the vertex and
+/// the indices), which the curved `exact` trace walks once curved tracing is on.
+const MESH_COPY_BYTES_PER_VERTEX: u64 = 56;
+const MESH_COPY_BYTES_PER_TRIANGLE: u64 = 12;
+/// Bytes per vertex of a loaded mesh while rendering (the mesh, the renderer's copy that
+/// the curved `exact` trace walks once curved tracing is on, the GPU's vertex buffer and
+/// its staging copy: 56 bytes each).
+const MESH_BYTES_PER_VERTEX: u64 = 248;
+/// Bytes per triangle of a loaded mesh while rendering (indices: the mesh's, the
+/// renderer's copy, the GPU's and the staging copy).
+const MESH_BYTES_PER_TRIANGLE: u64 = 60;
 
 /// A mesh's size for the estimate: its files' bytes and its vertex and triangle counts
 /// ([`crate::mesh_file::measure`], before it is loaded).
@@ -179,11 +184,13 @@ pub struct MeshSize {
 }
 
 impl MeshSize {
-    /// Bytes held while the mesh is read and built.
+    /// Bytes held while the mesh is read and built (with the renderer's copy that the
+    /// curved `exact` trace walks, made while the parsed mesh is still held: 56 bytes a
+    /// vertex and 12 a triangle).
     pub fn load_bytes(&self) -> u64 {
         self.file_bytes * MESH_LOAD_BYTES_PER_FILE_BYTE
-            + self.vertices * MESH_LOAD_BYTES_PER_VERTEX
-            + self.triangles * MESH_LOAD_BYTES_PER_TRIANGLE
+            + self.vertices * (MESH_LOAD_BYTES_PER_VERTEX + MESH_COPY_BYTES_PER_VERTEX)
+            + self.triangles * (MESH_LOAD_BYTES_PER_TRIANGLE + MESH_COPY_BYTES_PER_TRIANGLE)
             + (self.vertices * MESH_HEAP_BYTES_PER_VERTEX).min(MESH_HEAP_MAX_BYTES)
     }
 
