@@ -257,6 +257,14 @@ Hit walk_hit_in(WalkAt at, vec3 X, vec2 tiles, uint iterations) {
                iterations);
 }
 
+// The whole tiles that move an overlapping triangle N's uv (at its point qa) next to
+// `at`'s continuous uv (repeat addressing; a clamped map reads N's own uv).
+vec2 walk_tiles_in(WalkAt at, WalkTri N, vec3 qa, vec2 tiles) {
+    return pc.addressing == ADDRESSING_REPEAT
+        ? tiles + at.shift + round(walk_uv(at.T, at.q.xy) - walk_uv(N, qa.xy))
+        : vec2(0.0);
+}
+
 // Whether the segment from Xa to Xb can meet the shell of an overlapping triangle of T:
 // walk_near's slab test on the distinct planes of T's overlapping triangles (five words
 // each, not a triangle's corners).
@@ -308,10 +316,7 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
         WalkTri N = walk_tri(t, side);
         vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
         iterations += 1u;
-        // The other chart's uv, moved by the whole tiles between the two at the point.
-        vec2 tiles_n = pc.addressing == ADDRESSING_REPEAT
-            ? tiles + at.shift + round(walk_uv(at.T, at.q.xy) - walk_uv(N, qa.xy))
-            : vec2(0.0);
+        vec2 tiles_n = walk_tiles_in(at, N, qa, tiles);
         // A crossing of its surface: from a point in its shell above its relief (not an
         // entry through the side of its shell, or from below its offset surface).
         float ta = walk_t(N, qa);
@@ -402,9 +407,7 @@ bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float s
         if (!(u.x < u.y) || !(tb.z > ta.z) || u.x >= u_hit) {
             continue;
         }
-        vec2 tiles_n = pc.addressing == ADDRESSING_REPEAT
-            ? tiles + at.shift + round(walk_uv(at.T, at.q.xy) - walk_uv(N, qa.xy))
-            : vec2(0.0);
+        vec2 tiles_n = walk_tiles_in(at, N, qa, tiles);
         vec3 q0 = mix(ta, tb, u.x);
         vec3 q1 = mix(ta, tb, u.y);
         vec2 uv0 = walk_uv(N, q0.xy) + tiles_n;
