@@ -299,7 +299,8 @@ fn reflect_bindings(words: &[u32], rel: &str) -> Result<Vec<Reflected>> {
     let mut member_flags: HashMap<u32, (u32, HashSet<u32>, HashSet<u32>)> = HashMap::new();
     let mut images: HashMap<u32, (u32, u32)> = HashMap::new(); // id -> (dim, sampled)
     let mut samplers: HashSet<u32> = HashSet::new();
-    let mut sampled_images: HashSet<u32> = HashSet::new();
+    // A sampled image type and the image type it samples.
+    let mut sampled_images: HashMap<u32, u32> = HashMap::new();
     let mut arrays: HashMap<u32, (u32, Option<u32>)> = HashMap::new(); // id -> (elem, length id)
     let mut structs: HashSet<u32> = HashSet::new();
     let mut pointers: HashMap<u32, u32> = HashMap::new(); // id -> pointee
@@ -331,8 +332,8 @@ fn reflect_bindings(words: &[u32], rel: &str) -> Result<Vec<Reflected>> {
             OP_TYPE_SAMPLER if !a.is_empty() => {
                 samplers.insert(a[0]);
             }
-            OP_TYPE_SAMPLED_IMAGE if !a.is_empty() => {
-                sampled_images.insert(a[0]);
+            OP_TYPE_SAMPLED_IMAGE if a.len() >= 2 => {
+                sampled_images.insert(a[0], a[1]);
             }
             OP_TYPE_ARRAY if a.len() >= 3 => {
                 arrays.insert(a[0], (a[1], Some(a[2])));
@@ -415,9 +416,13 @@ fn reflect_bindings(words: &[u32], rel: &str) -> Result<Vec<Reflected>> {
         }
         let mut reads = !has(id, DEC_NON_READABLE);
         let mut writes = !has(id, DEC_NON_WRITABLE);
-        let kind = if sampled_images.contains(&ty) {
+        let kind = if let Some(image) = sampled_images.get(&ty) {
             writes = false;
-            "COMBINED_IMAGE_SAMPLER"
+            // A sampled buffer image (`samplerBuffer`) is a uniform texel buffer.
+            match images.get(image) {
+                Some(&(5, _)) => "UNIFORM_TEXEL_BUFFER",
+                _ => "COMBINED_IMAGE_SAMPLER",
+            }
         } else if samplers.contains(&ty) {
             writes = false;
             "SAMPLER"

@@ -137,6 +137,8 @@ pub struct DeviceInfo {
     pub timestamp_valid_bits: u32,
     /// `maxImageDimension2D`.
     pub max_image_dimension_2d: u32,
+    /// `maxTexelBufferElements` (the mesh walk's buffer is a texel buffer).
+    pub max_texel_buffer_elements: u32,
     /// Queue family index used.
     pub queue_family_index: u32,
     /// Loop iterations the driver lets one shader invocation run, when it ends an

@@ -293,6 +293,13 @@ impl Method {
         })
     }
 
+    /// The mesh walk's triage ([`Method::walk_shader`]'s companion): lists the pixels
+    /// whose walk can differ from the curved trace, the pixels the walk then runs on.
+    pub fn walk_triage_shader(self) -> Option<Shader> {
+        self.walks_meshes()
+            .then_some(shaders::TRACE_EXACT_COMP_CURVED_WALK_TRIAGE)
+    }
+
     /// Whether the method's curved trace walks the mesh's own triangles where it is given
     /// them ([`Method::walk_shader`]).
     pub fn walks_meshes(self) -> bool {

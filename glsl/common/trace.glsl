@@ -18,7 +18,29 @@ layout(set = 0, binding = 1) uniform sampler2D u_depth;
 layout(set = 0, binding = 2) uniform sampler2D u_height;
 // The hit images: the hit's uv and its height (< 0: no hit).
 layout(set = 0, binding = 3, rg32f) uniform writeonly image2D u_hit_uv;
+#ifdef TRIAGE
+// The mesh walk's triage reads the curved trace's hit heights (and writes the hits it
+// decides).
+layout(set = 0, binding = 7, r32f) uniform image2D u_hit_height;
+#else
 layout(set = 0, binding = 7, r32f) uniform writeonly image2D u_hit_height;
+#endif
+#ifdef WALK
+// The pixels the walk runs on (src/passes/trace.rs, `WalkList`): the triage (the
+// TRIAGE variant, over the material's tiles) appends each pixel whose curved trace
+// may differ from the walk and counts the walk's workgroups in `args`; the walk (the WALK
+// variant) is an indirect dispatch of `args` over `pixels`. The record resets the header
+// to (0, 1, 1, 0) before each triage.
+layout(set = 0, binding = 13, std430)
+#ifndef TRIAGE
+readonly
+#endif
+buffer WalkList {
+    uint args[3];   // the walk's dispatch: workgroups along x, y, z
+    uint count;     // pixels listed
+    uint pixels[];  // x | y << 16
+} u_walk_list;
+#endif
 #ifdef ITERATIONS
 // The iteration counts (the ITERATIONS variant: the pass's iteration output on).
 layout(set = 0, binding = 9, r32ui) uniform writeonly uimage2D u_iterations;
@@ -140,11 +162,16 @@ Hit bump_hit(Ray ray) {
 
 Hit trace_ray(Ray ray, ivec2 pixel);
 #ifdef WALK
-// The mesh walk's dispatch (exact.comp's WALK variant) defines it.
+// The mesh walk's dispatches (exact.comp's WALK variants) define them.
+#ifdef TRIAGE
+// What the triage decides for a pixel (walk_triage in glsl/common/walk.glsl).
+const int WALK_KEEP = 0;      // the curved trace's hit stands
+const int WALK_LIST = 1;      // the walk runs on it
+const int WALK_OVERLAP = 2;   // an overlapping shell's relief is met first: `hit`
+int walk_pixel_triage(ivec2 pixel, Ray ray, out Hit hit);
+#else
 bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit);
 #endif
-#ifdef WALK
-bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit);
 #endif
 
 // trace_ray with the LOD blend (TRACE_FLAG_LOD; Tatarchuk 2006 section 3.3: bump mapping
@@ -185,9 +212,20 @@ Hit trace_lod(Ray ray, ivec2 pixel) {
 // those without geometry are left alone (`classify` wrote the hits of the last two).
 void main() {
     ivec2 pixel;
+#if defined(WALK) && !defined(TRIAGE)
+    // The walk: one invocation per pixel its triage listed (an indirect dispatch of the
+    // list's own arguments).
+    uint index = gl_WorkGroupID.x * uint(LOCAL_SIZE * LOCAL_SIZE) + gl_LocalInvocationIndex;
+    if (index >= u_walk_list.count) {
+        return;
+    }
+    uint packed = u_walk_list.pixels[index];
+    pixel = ivec2(packed & 0xFFFFu, packed >> 16);
+#else
     if (!material_pixel(pc.material, pc.frame_size, pixel)) {
         return;
     }
+#endif
     vec4 g = texelFetch(u_ray, pixel, 0);
     if ((pc.flags & (TRACE_FLAG_AUTO_LEVEL | TRACE_FLAG_LOD)) != 0u) {
         g_footprint_level = footprint_level(pixel, g.xy);
@@ -203,11 +241,30 @@ void main() {
         g_curve = curve_of(pixel, Ray(g.xy, g.zw));
     }
 #endif
-#ifdef WALK
-    // The mesh walk's dispatch (exact.comp's WALK variant): only the pixels it decides;
-    // a level-of-detail blend keeps the curved trace's hits.
+#if defined(WALK) && defined(TRIAGE)
+    // The mesh walk's triage (exact.comp's WALK+TRIAGE variant): lists the pixels whose
+    // walk can differ from the curved trace, and counts the walk's workgroups (LOCAL_SIZE
+    // squared, a power of two, pixels each); a level-of-detail blend keeps the curved
+    // trace's hits.
     Hit hit;
-    if ((pc.flags & TRACE_FLAG_LOD) != 0u || !walk_pixel(pixel, Ray(g.xy, g.zw), hit)) {
+    int decision = (pc.flags & TRACE_FLAG_LOD) == 0u ? walk_pixel_triage(pixel, Ray(g.xy, g.zw), hit) : WALK_KEEP;
+    if (decision == WALK_OVERLAP) {
+        imageStore(u_hit_uv, pixel, vec4(hit.uv, 0.0, 0.0));
+        imageStore(u_hit_height, pixel, vec4(hit.h));
+    } else if (decision == WALK_LIST) {
+        uint i = atomicAdd(u_walk_list.count, 1u);
+        if (i < uint(u_walk_list.pixels.length())) {
+            u_walk_list.pixels[i] = uint(pixel.x) | (uint(pixel.y) << 16);
+            if ((i & uint(LOCAL_SIZE * LOCAL_SIZE - 1)) == 0u) {
+                atomicAdd(u_walk_list.args[0], 1u);
+            }
+        }
+    }
+#else
+#ifdef WALK
+    // The mesh walk's dispatch (exact.comp's WALK variant) over the listed pixels.
+    Hit hit;
+    if (!walk_pixel(pixel, Ray(g.xy, g.zw), hit)) {
         return;
     }
 #else
@@ -217,6 +274,7 @@ void main() {
     imageStore(u_hit_height, pixel, vec4(hit.h));
 #ifdef ITERATIONS
     imageStore(u_iterations, pixel, uvec4(hit.iterations));
+#endif
 #endif
 }
 

@@ -36,9 +36,17 @@
 // (sharing a corner's position where the normals part: a cube's edges and corners), its
 // flatness bits, and the first and count of those triangles' distinct planes (unit
 // normal, offset, largest local uv scale: WALK_PLANE_WORDS each).
-layout(set = 0, binding = 12, std430) readonly buffer Walk {
-    uint words[];
-} u_walk;
+// The buffer is read as a uniform texel buffer of four words a texel (a CPU driver
+// gathers a texel for its lanes at once, where it reads a storage buffer one lane and one
+// word at a time): walk_word reads one word, walk_v3 three, walk_tri a triangle's nine
+// texels (WALK_TRIANGLE_WORDS is a multiple of four, and so is the header's length).
+layout(set = 0, binding = 12) uniform usamplerBuffer u_walk;
+
+uint walk_word(uint i) {
+    uvec4 t = texelFetch(u_walk, int(i >> 2u));
+    uint c = i & 3u;
+    return c == 0u ? t.x : (c == 1u ? t.y : (c == 2u ? t.z : t.w));
+}
 
 const uint WALK_TRIANGLE_WORDS = 36u;
 const uint WALK_PLANE_WORDS = 5u;
@@ -66,11 +74,16 @@ const float WALK_CHORD_DEPTH = 1.0 / 1024.0;
 const float WALK_INSIDE = -1e-5;
 
 float walk_f(uint i) {
-    return uintBitsToFloat(u_walk.words[i]);
+    return uintBitsToFloat(walk_word(i));
 }
 
+// Words i, i + 1 and i + 2: from the two texels they lie in.
 vec3 walk_v3(uint i) {
-    return vec3(walk_f(i), walk_f(i + 1u), walk_f(i + 2u));
+    uvec4 a = texelFetch(u_walk, int(i >> 2u));
+    uvec4 b = texelFetch(u_walk, int(i >> 2u) + 1);
+    uint c = i & 3u;
+    uvec3 w = c == 0u ? a.xyz : (c == 1u ? a.yzw : (c == 2u ? uvec3(a.zw, b.x) : uvec3(a.w, b.xy)));
+    return uintBitsToFloat(w);
 }
 
 // One triangle, in the form the solve uses: corner 0 and the edges from it.
@@ -85,33 +98,53 @@ struct WalkTri {
     uvec2 planes;      // first (in the plane list), count
 };
 
+// The first texel of triangle t (WALK_TRIANGLE_WORDS / 4 texels from the header's
+// word 8, a multiple of four).
+int walk_tri_texel(uint t) {
+    return int((walk_word(8u) >> 2u) + t * (WALK_TRIANGLE_WORDS / 4u));
+}
+
 WalkTri walk_tri(uint t, float side) {
-    // Corner by corner without local arrays (a CPU driver keeps a dynamically indexed
-    // array in memory).
-    uint w0 = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
-    uint w1 = w0 + WALK_CORNER_WORDS;
-    uint w2 = w1 + WALK_CORNER_WORDS;
-    vec3 p0 = walk_v3(w0);
-    vec3 n0 = side * walk_v3(w0 + 4u);
-    vec2 uv0 = vec2(walk_f(w0 + 7u), walk_f(w0 + 8u));
-    float s0 = walk_f(w0 + 3u);
-    uint a = w0 + 3u * WALK_CORNER_WORDS;
-    return WalkTri(p0, walk_v3(w1) - p0, walk_v3(w2) - p0,
-                   n0, side * walk_v3(w1 + 4u) - n0, side * walk_v3(w2 + 4u) - n0,
-                   vec3(s0, walk_f(w1 + 3u) - s0, walk_f(w2 + 3u) - s0),
-                   uv0, vec2(walk_f(w1 + 7u), walk_f(w1 + 8u)) - uv0,
-                   vec2(walk_f(w2 + 7u), walk_f(w2 + 8u)) - uv0,
-                   uvec3(u_walk.words[a], u_walk.words[a + 1u], u_walk.words[a + 2u]),
-                   uvec2(u_walk.words[a + 4u], u_walk.words[a + 5u]), u_walk.words[a + 6u],
-                   uvec2(u_walk.words[a + 7u], u_walk.words[a + 8u]));
+    // Nine texels, the words picked by constant indices (no local array: a CPU driver
+    // keeps a dynamically indexed array in memory). Words: corner c's p at 9c, s at
+    // 9c + 3, n at 9c + 4, uv at 9c + 7; the neighbours at 27, the overlaps at 31, the
+    // flags at 33, the planes at 34.
+    int b = walk_tri_texel(t);
+    uvec4 t0 = texelFetch(u_walk, b);
+    uvec4 t1 = texelFetch(u_walk, b + 1);
+    uvec4 t2 = texelFetch(u_walk, b + 2);
+    uvec4 t3 = texelFetch(u_walk, b + 3);
+    uvec4 t4 = texelFetch(u_walk, b + 4);
+    uvec4 t5 = texelFetch(u_walk, b + 5);
+    uvec4 t6 = texelFetch(u_walk, b + 6);
+    uvec4 t7 = texelFetch(u_walk, b + 7);
+    uvec4 t8 = texelFetch(u_walk, b + 8);
+    vec3 p0 = uintBitsToFloat(t0.xyz);
+    vec3 p1 = uintBitsToFloat(uvec3(t2.yzw));
+    vec3 p2 = uintBitsToFloat(uvec3(t4.zw, t5.x));
+    float s0 = uintBitsToFloat(t0.w);
+    float s1 = uintBitsToFloat(t3.x);
+    float s2 = uintBitsToFloat(t5.y);
+    vec3 n0 = side * uintBitsToFloat(t1.xyz);
+    vec3 n1 = side * uintBitsToFloat(uvec3(t3.yzw));
+    vec3 n2 = side * uintBitsToFloat(uvec3(t5.zw, t6.x));
+    vec2 uv0 = uintBitsToFloat(uvec2(t1.w, t2.x));
+    vec2 uv1 = uintBitsToFloat(t4.xy);
+    vec2 uv2 = uintBitsToFloat(t6.yz);
+    return WalkTri(p0, p1 - p0, p2 - p0, n0, n1 - n0, n2 - n0, vec3(s0, s1 - s0, s2 - s0),
+                   uv0, uv1 - uv0, uv2 - uv0, uvec3(t6.w, t7.xy), uvec2(t7.w, t8.x), t8.y, t8.zw);
 }
 
 // Triangle t's corner positions (what the start and the overlap tests need first).
 void walk_corners(uint t, out vec3 p0, out vec3 p1, out vec3 p2) {
-    uint base = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
-    p0 = walk_v3(base);
-    p1 = walk_v3(base + WALK_CORNER_WORDS);
-    p2 = walk_v3(base + 2u * WALK_CORNER_WORDS);
+    int b = walk_tri_texel(t);
+    uvec4 t0 = texelFetch(u_walk, b);
+    uvec4 t2 = texelFetch(u_walk, b + 2);
+    uvec4 t4 = texelFetch(u_walk, b + 4);
+    uvec4 t5 = texelFetch(u_walk, b + 5);
+    p0 = uintBitsToFloat(t0.xyz);
+    p1 = uintBitsToFloat(t2.yzw);
+    p2 = uintBitsToFloat(uvec3(t4.zw, t5.x));
 }
 
 vec3 walk_normal(WalkTri T, vec2 b) {
@@ -235,13 +268,21 @@ bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
 // shell whose vertex normals are within a right angle of its plane's normal lies in it;
 // an eighth of the depth is kept to each side), from its corners alone.
 bool walk_near(uint t, vec3 Xa, vec3 Xb, float side) {
-    vec3 p0, p1, p2;
-    walk_corners(t, p0, p1, p2);
+    // Texels 0 to 5 of the triangle (walk_tri's word layout).
+    int b = walk_tri_texel(t);
+    uvec4 t0 = texelFetch(u_walk, b);
+    uvec4 t1 = texelFetch(u_walk, b + 1);
+    uvec4 t2 = texelFetch(u_walk, b + 2);
+    uvec4 t3 = texelFetch(u_walk, b + 3);
+    uvec4 t4 = texelFetch(u_walk, b + 4);
+    uvec4 t5 = texelFetch(u_walk, b + 5);
+    vec3 p0 = uintBitsToFloat(t0.xyz);
+    vec3 p1 = uintBitsToFloat(t2.yzw);
+    vec3 p2 = uintBitsToFloat(uvec3(t4.zw, t5.x));
     vec3 n = cross(p1 - p0, p2 - p0);
-    uint base = u_walk.words[8] + t * WALK_TRIANGLE_WORDS;
-    n *= sign(dot(n, side * walk_v3(base + 4u))) * inversesqrt(max(dot(n, n), 1e-37));
-    float depth = pc.depth_scale * max(walk_f(base + 3u),
-        max(walk_f(base + WALK_CORNER_WORDS + 3u), walk_f(base + 2u * WALK_CORNER_WORDS + 3u)));
+    n *= sign(dot(n, side * uintBitsToFloat(t1.xyz))) * inversesqrt(max(dot(n, n), 1e-37));
+    float depth = pc.depth_scale * max(uintBitsToFloat(t0.w),
+        max(uintBitsToFloat(t3.x), uintBitsToFloat(t5.y)));
     vec2 d = vec2(dot(Xa - p0, n), dot(Xb - p0, n));
     return !(min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth);
 }
@@ -269,7 +310,7 @@ vec2 walk_tiles_in(WalkAt at, WalkTri N, vec3 qa, vec2 tiles) {
 // walk_near's slab test on the distinct planes of T's overlapping triangles (five words
 // each, not a triangle's corners).
 bool walk_planes_near(WalkTri T, vec3 Xa, vec3 Xb, float side) {
-    uint base = u_walk.words[12] + T.planes.x * WALK_PLANE_WORDS;
+    uint base = walk_word(12) + T.planes.x * WALK_PLANE_WORDS;
     for (uint k = 0u; k < T.planes.y; ++k) {
         uint w = base + k * WALK_PLANE_WORDS;
         vec3 n = side * walk_v3(w);
@@ -307,9 +348,9 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
         return false;
     }
     float s_first = sb;
-    uint list = u_walk.words[11] + at.T.overlaps.x;
+    uint list = walk_word(11) + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
-        uint t = u_walk.words[list + k];
+        uint t = walk_word(list + k);
         if (!walk_near(t, X0 + sa * R, X0 + sb * R, side)) {
             continue;
         }
@@ -391,9 +432,9 @@ bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float s
         return false;
     }
     int top = pyramid_levels() - 1;
-    uint list = u_walk.words[11] + at.T.overlaps.x;
+    uint list = walk_word(11) + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
-        uint t = u_walk.words[list + k];
+        uint t = walk_word(list + k);
         if (!walk_near(t, X0 + sa * R, X0 + sb * R, side)) {
             continue;
         }
@@ -439,24 +480,24 @@ bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
                 vec3(0.0), vec2(0.0));
     vec3 lo = walk_v3(0u);
     float inv_cell = walk_f(3u);
-    uvec3 dims = uvec3(u_walk.words[4], u_walk.words[5], u_walk.words[6]);
+    uvec3 dims = uvec3(walk_word(4), walk_word(5), walk_word(6));
     vec3 c = floor((X - lo) * inv_cell);
     if (any(lessThan(c, vec3(0.0))) || any(greaterThanEqual(c, vec3(dims)))) {
         return false;
     }
     uvec3 cell = uvec3(c);
     uint index = (cell.z * dims.y + cell.y) * dims.x + cell.x;
-    uint offsets = u_walk.words[9];
-    uint lists = u_walk.words[10];
-    uint first = u_walk.words[offsets + index];
-    uint last = u_walk.words[offsets + index + 1u];
+    uint offsets = walk_word(9);
+    uint lists = walk_word(10);
+    uint first = walk_word(offsets + index);
+    uint last = walk_word(offsets + index + 1u);
     float best = 1e30;
     // A base point off the triangle's plane by more than this (in cells) is not on it.
     float tolerance = 1e-2 / inv_cell;
     uint chosen = 0u;
     vec2 chosen_b = vec2(0.0);
     for (uint k = first; k < last; ++k) {
-        uint t = u_walk.words[lists + k];
+        uint t = walk_word(lists + k);
         vec3 p0, p1, p2;
         walk_corners(t, p0, p1, p2);
         vec3 e1 = p1 - p0;
@@ -471,7 +512,7 @@ bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
         vec2 b = vec2(dot(cross(r, e2), n), dot(cross(e1, r), n)) / area2;
         float outside = max(0.0, -min(1.0 - b.x - b.y, min(b.x, b.y)));
         float score = dist + outside / inv_cell;
-        uint surface_word = u_walk.words[u_walk.words[8] + t * WALK_TRIANGLE_WORDS + 30u];
+        uint surface_word = walk_word(walk_word(8) + t * WALK_TRIANGLE_WORDS + 30u);
         if (float(surface_word) != surface) {
             score += 1.0 / inv_cell;
         }
@@ -485,81 +526,124 @@ bool walk_start(vec3 X, float surface, float side, out WalkAt at) {
     return best <= tolerance;
 }
 
-// Whether the straight path from `at` (a flat triangle's base point X0) down to its offset
-// surface stays in the triangle or in the neighbour that continues it flat, and no
-// overlapping shell comes near it.
-bool walk_flat_inside(WalkAt at, vec3 X0, vec3 R, float side) {
-    vec3 n = normalize(at.T.n0);
-    float cos_in = -dot(R, n);
-    if (!(cos_in > 1e-3)) {
-        return false;
-    }
-    float depth = pc.depth_scale * at.T.s.x;
-    vec3 X1 = X0 + (depth / cos_in) * R;
+// Where the straight path from `at` (a flat triangle's base point X0) to X1 (down the
+// pixel's ray, in the shell) stays: WALK_PATH_LEAVES (out of the triangle, not into a
+// neighbour that continues it flat), WALK_PATH_IN (in the triangle) or WALK_PATH_ACROSS
+// (into that neighbour, which holds its end); `near`: whether an overlapping shell of
+// the triangles it crosses comes near it.
+const int WALK_PATH_LEAVES = 0;
+const int WALK_PATH_IN = 1;
+const int WALK_PATH_ACROSS = 2;
+int walk_flat_path(WalkAt at, vec3 X0, vec3 X1, float side, out bool near) {
+    near = walk_planes_near(at.T, X0, X1, side);
     vec3 q = walk_solve(at.T, X1, at.q, 1);
     float b0 = 1.0 - q.x - q.y;
     float m = min(b0, min(q.x, q.y));
-    if (m < 0.0) {
-        uint edge = m == b0 ? 0u : (m == q.x ? 1u : 2u);
-        if ((at.T.flags & (WALK_FLAT_EDGE << edge)) == 0u) {
-            return false;
-        }
-        // The path crosses that edge once (both triangles are convex): the neighbour
-        // holds its end.
-        WalkTri N = walk_tri(edge == 0u ? at.T.adj.x : (edge == 1u ? at.T.adj.y : at.T.adj.z), side);
-        vec3 qn = walk_solve(N, X1, vec3(1.0 / 3.0, 1.0 / 3.0, q.z), 1);
-        if (min(1.0 - qn.x - qn.y, min(qn.x, qn.y)) < 0.0) {
-            return false;
-        }
-        // The neighbour's own overlapping shells too.
-        if (walk_planes_near(N, X0, X1, side)) {
-            return false;
-        }
+    if (m >= 0.0) {
+        return WALK_PATH_IN;
     }
-    return !walk_planes_near(at.T, X0, X1, side);
+    uint edge = m == b0 ? 0u : (m == q.x ? 1u : 2u);
+    if ((at.T.flags & (WALK_FLAT_EDGE << edge)) == 0u) {
+        return WALK_PATH_LEAVES;
+    }
+    // The path crosses that edge once (both triangles are convex): the neighbour holds
+    // its end.
+    WalkTri N = walk_tri(edge == 0u ? at.T.adj.x : (edge == 1u ? at.T.adj.y : at.T.adj.z), side);
+    vec3 qn = walk_solve(N, X1, vec3(1.0 / 3.0, 1.0 / 3.0, q.z), 1);
+    if (min(1.0 - qn.x - qn.y, min(qn.x, qn.y)) < 0.0) {
+        return WALK_PATH_LEAVES;
+    }
+    // The neighbour's own overlapping shells too.
+    near = near || walk_planes_near(N, X0, X1, side);
+    return WALK_PATH_ACROSS;
 }
 
-// The curved trace of `ray` (the pixel's tangent-space ray: uv0 and P) on the walked mesh,
-// from the pixel's eye-relative entry point `entry`: true with the hit or miss in `hit`,
-// false where the pixel is on no walked triangle (the caller takes the circle model).
-bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
-                out Hit hit) {
-    hit = miss(ray, 0u);
-    if (u_walk.words[7] == 0u) {
+// The start of a pixel's walk: its triangle and base point under the entry `entry`
+// (eye-relative; `eye`: the eye's world position) on the surface `surface`, the side
+// (`frame_normal`: the G-buffer's normal; a two-sided mesh's back side is displaced the
+// other way), the ray's world direction `R` and the base point `X0`. False where the
+// pixel is on no walked triangle or its ray does not go into the shell (the curved
+// trace's result stands).
+bool walk_begin(vec3 entry, vec3 eye, vec3 frame_normal, float surface, out WalkAt at,
+                out vec3 X0, out vec3 R, out float side) {
+    X0 = entry + eye;
+    R = normalize(entry);
+    side = 1.0;
+    if (walk_word(7) == 0u || !walk_start(X0, surface, 1.0, at)) {
         return false;
     }
-    vec3 X0 = entry + eye;
-    vec3 R = normalize(entry);
-    WalkAt at;
-    // The side: a two-sided mesh's back side is displaced the other way (its G-buffer
-    // normal is the mesh's reversed).
-    if (!walk_start(X0, surface, 1.0, at)) {
-        return false;
-    }
-    float side = dot(frame_normal, walk_normal(at.T, at.q.xy)) < 0.0 ? -1.0 : 1.0;
+    side = dot(frame_normal, walk_normal(at.T, at.q.xy)) < 0.0 ? -1.0 : 1.0;
     if (side < 0.0) {
         at.T = walk_tri(at.tri, side);
     }
-    // The ray goes into the shell from its start on the base.
-    if (!(dot(R, walk_normal(at.T, at.q.xy)) < 0.0)) {
+    // The walk starts on the triangle's own base point under the entry.
+    X0 = at.T.p0 + at.q.x * at.T.e1 + at.q.y * at.T.e2;
+    return dot(R, walk_normal(at.T, at.q.xy)) < 0.0;
+}
+
+#ifdef TRIAGE
+// The mesh walk's triage of a pixel (its tangent-space ray `ray`, the curved trace's hit
+// height `h`: < 0 for a miss). The curved trace's hit stands where the pixel is on no
+// walked triangle, its ray starts in the relief (both give the hit at the entry), or it
+// is on a flat triangle whose straight path down to the trace's hit (to the offset
+// surface where it missed) stays in its prism (or the flat neighbour's) and passes no
+// overlapping shell: the curved trace there is the flat trace, which is the walk's model
+// itself. Where that path stays in its own triangle's prism but passes overlapping
+// shells (along a cube's edges), the walk's first step is done here: the overlapping
+// triangles' relief along the path, intersected exactly (walk_overlaps_chord), gives
+// the hit in `hit` when it comes before the trace's. Every other pixel is listed.
+int walk_triage(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface, float h,
+                out Hit hit) {
+    hit = miss(ray, 0u);
+    WalkAt at;
+    vec3 X0, R;
+    float side;
+    if (!walk_begin(entry, eye, frame_normal, surface, at, X0, R, side)
+        || height_exact(ray.uv0) >= 1.0) {
+        return WALK_KEEP;
+    }
+    if ((at.T.flags & WALK_FLAT) == 0u) {
+        return WALK_LIST;
+    }
+    float cos_in = -dot(R, normalize(at.T.n0));
+    if (!(cos_in > 1e-3)) {
+        return WALK_LIST;
+    }
+    // The depth fraction is linear along a flat triangle's path: 1 - h at the hit.
+    float fraction = h >= 0.0 ? 1.0 - min(h, 1.0) : 1.0;
+    float s1 = fraction * pc.depth_scale * at.T.s.x / cos_in;
+    bool near;
+    int path = walk_flat_path(at, X0, X0 + s1 * R, side, near);
+    if (path == WALK_PATH_LEAVES || (near && path == WALK_PATH_ACROSS)) {
+        return WALK_LIST;
+    }
+    if (!near) {
+        return WALK_KEEP;
+    }
+    vec2 tiles = pc.addressing == ADDRESSING_REPEAT ? round(ray.uv0 - walk_uv(at.T, at.q.xy)) : vec2(0.0);
+    uint iterations = 1u;
+    float u_hit = 1.0;
+    return walk_overlaps_chord(at, X0, R, 0.0, s1, side, tiles, iterations, u_hit, hit)
+        ? WALK_OVERLAP : WALK_KEEP;
+}
+#else
+// The walk of `ray` (the pixel's tangent-space ray: uv0 and P) on the walked mesh, from
+// the pixel's eye-relative entry point `entry`, for a pixel the triage listed
+// (walk_needed): true with the hit or miss in `hit`, false where the pixel is on no
+// walked triangle (the curved trace's result stands).
+bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
+                out Hit hit) {
+    hit = miss(ray, 0u);
+    WalkAt at;
+    vec3 X0, R;
+    float side;
+    if (!walk_begin(entry, eye, frame_normal, surface, at, X0, R, side)) {
         return false;
     }
     vec2 map = vec2(pc.map_size);
     // The G-buffer's uv0 is the entry's uv reduced to [0, 1) (repeat addressing).
     vec2 tiles = pc.addressing == ADDRESSING_REPEAT ? round(ray.uv0 - walk_uv(at.T, at.q.xy)) : vec2(0.0);
-    // The walk starts on the triangle's own base point under the entry.
-    X0 = at.T.p0 + at.q.x * at.T.e1 + at.q.y * at.T.e2;
     uint iterations = 1u;
-    if (height_exact(ray.uv0) >= 1.0) {
-        hit = Hit(ray.uv0, 1.0, iterations);
-        return true;
-    }
-    // A flat triangle whose straight path to the offset surface stays in it (or in the
-    // neighbour that continues it flat) and passes no overlapping shell: the walk is the
-    // tangent-space ray itself, which the caller's flat trace intersects exactly.
-    if ((at.T.flags & WALK_FLAT) != 0u && walk_flat_inside(at, X0, R, side)) {
-        return false;
-    }
     WalkAt prev = at;
     float s_prev = 0.0;
     float s = 0.0;
@@ -784,5 +868,6 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     hit = Hit(uv_hit, 1.0 - t_hit, iterations);
     return true;
 }
+#endif
 
 #endif

@@ -28,11 +28,25 @@
 // dispmap-variant: CURVED+ITERATIONS
 // dispmap-variant: CURVED+WALK
 // dispmap-variant: CURVED+WALK+ITERATIONS
+// dispmap-variant: CURVED+WALK+TRIAGE
 #include "trace.glsl"
 #include "pyramid.glsl"
 #ifdef WALK
 #include "walk.glsl"
 
+#ifdef TRIAGE
+// The mesh walk's triage of `pixel` (its G-buffer ray `ray`): walk_triage's decision.
+int walk_pixel_triage(ivec2 pixel, Ray ray, out Hit hit) {
+    hit = miss(ray, 0u);
+    if ((pc.flags & TRACE_FLAG_CURVED) == 0u) {
+        return WALK_KEEP;
+    }
+    vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
+    vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
+    return walk_triage(ray, entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel),
+                       imageLoad(u_hit_height, pixel).r, hit);
+}
+#else
 // The walk of `pixel` (its G-buffer ray `ray`): true with its hit, false to leave it.
 bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit) {
     hit = miss(ray, 0u);
@@ -43,6 +57,7 @@ bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit) {
     vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
     return walk_trace(ray, entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel), hit);
 }
+#endif
 #endif
 
 // A chord's largest height error, as a fraction of the depth (1 / 1024: a quarter of an

@@ -318,6 +318,7 @@ pub(super) fn device_info(
             .map(|f| f.timestamp_valid_bits)
             .unwrap_or(0),
         max_image_dimension_2d: props.limits.max_image_dimension2_d,
+        max_texel_buffer_elements: props.limits.max_texel_buffer_elements,
         queue_family_index: family,
         loop_limit: (driver.driver_id == vk::DriverId::MESA_LLVMPIPE).then_some(LOOP_LIMIT),
     }

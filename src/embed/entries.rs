@@ -281,6 +281,9 @@ pub(super) struct Slot {
     pub hit_depth: Option<Image>,
     /// The iteration counts (the iteration output on).
     pub iterations: Option<Image>,
+    /// The mesh walk's list of pixels (a material walks the pass's meshes,
+    /// [`crate::passes::trace::walk_list_bytes`]).
+    pub walk_list: Option<crate::gpu::Buffer>,
     /// The DIG corner grid of each DIG material, by material index.
     pub corners: Vec<Option<CornerGrid>>,
     /// The owned-pool timestamp scopes the slot recorded last.
@@ -295,6 +298,7 @@ impl Destroy for Slot {
             self.visibility.destroy(ctx);
             self.hit_depth.destroy(ctx);
             self.iterations.destroy(ctx);
+            self.walk_list.destroy(ctx);
             self.corners.destroy(ctx);
         }
     }
@@ -304,6 +308,7 @@ impl Destroy for Slot {
             + self.visibility.bytes()
             + self.hit_depth.bytes()
             + self.iterations.bytes()
+            + self.walk_list.bytes()
             + self.corners.bytes()
     }
 }

@@ -53,6 +53,9 @@ pub(super) enum Res {
     /// The mesh walk buffer (`DisplacementPass::set_curved_meshes`): written through
     /// its mapping before the submission that first reads it, then only read.
     Walk,
+    /// The slot's mesh walk list: reset by a transfer, appended to by the walk's triage,
+    /// read (and its dispatch arguments) by the walk.
+    WalkList,
 }
 
 /// The resource the binding `name` of a shader is, for a dispatch of `material`.
@@ -75,6 +78,7 @@ fn resource(name: &str, material: u32) -> Option<Res> {
         "u_listed" => Res::Listed,
         "u_height" | "u_pyramid" | "u_cone" | "u_albedo" | "u_normal_map" => Res::Maps,
         "u_walk" => Res::Walk,
+        "u_walk_list" => Res::WalkList,
         _ => return None,
     })
 }
@@ -140,15 +144,15 @@ pub(super) fn owned_entry(res: Res) -> Access {
         // The slot's previous frame (its last reader) has completed: discarded.
         Res::Visibility | Res::Corners(_) => after(vk::PipelineStageFlags2::COMPUTE_SHADER),
         // Last read by the slot's previous frame's indirect dispatches.
-        Res::Tiles | Res::Args => Access {
+        Res::Tiles | Res::Args | Res::WalkList => Access {
             stage: vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER,
             ..Access::UNDEFINED
         },
         // Host-written before any submission (made visible by the submission itself),
-        // then only read by compute shaders.
+        // then only read by compute shaders (a texel buffer).
         Res::Walk => Access {
             stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
-            access: vk::AccessFlags2::SHADER_STORAGE_READ,
+            access: vk::AccessFlags2::SHADER_SAMPLED_READ,
             layout: vk::ImageLayout::UNDEFINED,
         },
         _ => Access::COMPUTE_SAMPLED,
@@ -191,7 +195,7 @@ impl FrameGraph {
                 tracker.enter(res, access);
             }
         }
-        for res in [Res::Maps, Res::Walk, Res::Tiles, Res::Args] {
+        for res in [Res::Maps, Res::Walk, Res::Tiles, Res::Args, Res::WalkList] {
             tracker.enter(res, owned_entry(res));
         }
         FrameGraph {
@@ -240,6 +244,10 @@ impl FrameGraph {
             self.tracker.declare(res, binding_access(b))?;
             if res == Res::Tiles && !b.writes {
                 self.tracker.declare(Res::Args, INDIRECT)?;
+            }
+            // The walk dispatches the walk list's own arguments.
+            if res == Res::WalkList && !b.writes {
+                self.tracker.declare(Res::WalkList, INDIRECT)?;
             }
         }
         Ok(())

@@ -271,6 +271,12 @@ impl DisplacementPass {
         self.check_alive()?;
         let walk = crate::mesh::walk::WalkMeshes::new(self.context()?, meshes)?;
         let old = std::mem::replace(&mut self.walk, walk);
+        // The slots' walk lists follow whether there is anything to walk.
+        if let Err(e) = self.sync() {
+            let new = std::mem::replace(&mut self.walk, old);
+            self.retired.retire(new);
+            return Err(e);
+        }
         self.retired.retire(old);
         Ok(())
     }

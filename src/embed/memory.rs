@@ -38,6 +38,13 @@ pub struct MemoryReport {
     pub hit_depth: u64,
     /// The iteration-count images (the output on): one per frame slot.
     pub iterations: u64,
+    /// The curved meshes the `exact` walk follows
+    /// ([`DisplacementPass::set_curved_meshes`]): their triangles, neighbours and start
+    /// grid in one buffer.
+    pub curved_meshes: u64,
+    /// The mesh walk's lists of pixels (a material walks the curved meshes): one per frame
+    /// slot, 4 bytes a pixel.
+    pub walk_lists: u64,
     /// Replaced resources that frames in flight may still read, freed once every slot
     /// has been recorded again.
     pub retired: u64,
@@ -69,7 +76,7 @@ impl MemoryReport {
     }
 
     /// What follows the content: height textures, pyramids, cone maps, map preparations,
-    /// material maps and pending uploads.
+    /// material maps, pending uploads and the curved meshes.
     pub fn maps(&self) -> u64 {
         self.height_textures
             + self.pyramids
@@ -77,12 +84,18 @@ impl MemoryReport {
             + self.map_preparations
             + self.material_maps
             + self.uploads
+            + self.curved_meshes
     }
 
     /// What follows the frame's size: tile lists, corner grids, visibility, corrected
-    /// depth and iteration counts (every frame slot).
+    /// depth, iteration counts and walk lists (every frame slot).
     pub fn frame(&self) -> u64 {
-        self.tile_lists + self.corner_grids + self.visibility + self.hit_depth + self.iterations
+        self.tile_lists
+            + self.corner_grids
+            + self.visibility
+            + self.hit_depth
+            + self.iterations
+            + self.walk_lists
     }
 }
 
@@ -129,7 +142,9 @@ impl DisplacementPass {
             r.hit_depth += s.hit_depth.bytes();
             r.corner_grids += s.corners.bytes();
             r.iterations += s.iterations.bytes();
+            r.walk_lists += s.walk_list.bytes();
         }
+        r.curved_meshes = self.walk.bytes();
         r.retired = self.retired.bytes();
         r
     }

@@ -72,11 +72,11 @@ impl Destroy for DepthParts {
 }
 
 /// Swaps `new[i]` into `field(slot i)`, returning what it replaced (to retire).
-fn swap_per_slot(
+fn swap_per_slot<T>(
     slots: &mut [Slot],
-    new: Vec<Image>,
-    field: impl Fn(&mut Slot) -> &mut Option<Image>,
-) -> Vec<Image> {
+    new: Vec<T>,
+    field: impl Fn(&mut Slot) -> &mut Option<T>,
+) -> Vec<T> {
     slots
         .iter_mut()
         .zip(new)
@@ -113,6 +113,8 @@ pub(super) struct Plan {
     depth: bool,
     iterations: bool,
     motion: Option<vk::Format>,
+    /// A live material walks the pass's meshes (the slots' walk lists).
+    walk_list: bool,
 }
 
 fn push_unique<T: PartialEq>(v: &mut Vec<T>, x: T) {
@@ -141,6 +143,7 @@ struct Additions {
     depth: Option<DepthParts>,
     motion: Option<MotionPass>,
     tiles: Option<Vec<TileLists>>,
+    walk_list: Option<Vec<crate::gpu::Buffer>>,
 }
 
 impl Destroy for Additions {
@@ -174,6 +177,7 @@ impl Destroy for Additions {
             self.depth.destroy(ctx);
             self.motion.destroy(ctx);
             self.tiles.destroy(ctx);
+            self.walk_list.destroy(ctx);
         }
     }
 }
@@ -232,6 +236,7 @@ impl DisplacementPass {
             if needs.dig_corners {
                 plan.corners[i] = Some(s.params.block);
             }
+            plan.walk_list |= m.curved && s.method.walks_meshes() && self.walk.triangles > 0;
             if self.shadows.is_on() {
                 let trace = ShadowTrace::for_method(self.shadows.mode, s.method);
                 push_unique(&mut plan.shadow_traces, trace);
@@ -397,6 +402,19 @@ impl DisplacementPass {
                 TileLists::new(c, &format!("embed.tiles{s}"), extent)
             })?);
         }
+        if plan.walk_list && (resized || self.slots.iter().all(|s| s.walk_list.is_none())) {
+            add.walk_list = Some(per_slot(c, frames, |s| {
+                crate::gpu::Buffer::new(
+                    c,
+                    &format!("embed.walk_list{s}"),
+                    crate::passes::trace::walk_list_bytes(extent),
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::INDIRECT_BUFFER
+                        | vk::BufferUsageFlags::TRANSFER_DST,
+                    gpu_allocator::MemoryLocation::GpuOnly,
+                )
+            })?);
+        }
         let add = add.keep();
         self.commit(&plan, add);
         Ok(())
@@ -515,6 +533,7 @@ impl DisplacementPass {
                         hit_depth: None,
                         corners: Vec::new(),
                         iterations: None,
+                        walk_list: None,
                         scopes: Vec::new(),
                     })
                     .collect();
@@ -552,6 +571,17 @@ impl DisplacementPass {
                 .slots
                 .iter_mut()
                 .filter_map(|s| s.visibility.take())
+                .collect();
+            retired.retire(old);
+        }
+        if let Some(l) = add.walk_list {
+            retired.retire(swap_per_slot(&mut self.slots, l, |s| &mut s.walk_list));
+        }
+        if !plan.walk_list {
+            let old: Vec<crate::gpu::Buffer> = self
+                .slots
+                .iter_mut()
+                .filter_map(|s| s.walk_list.take())
                 .collect();
             retired.retire(old);
         }

@@ -167,6 +167,16 @@ impl ComputePipeline {
         Ok(write_of(self.named(name)?).buffer_info(info))
     }
 
+    /// A descriptor write of the texel buffer binding named `name` (its number and type
+    /// the shader's, reflected).
+    pub fn texel_buffer<'a>(
+        &self,
+        name: &str,
+        views: &'a [vk::BufferView],
+    ) -> Result<vk::WriteDescriptorSet<'a>> {
+        Ok(write_of(self.named(name)?).texel_buffer_view(views))
+    }
+
     /// Binds the pipeline, pushes `writes` as set 0 and `push` as push constants, and
     /// dispatches enough workgroups to cover `width x height` invocations.
     ///

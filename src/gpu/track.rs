@@ -400,6 +400,11 @@ pub fn binding_access(b: &ShaderBinding) -> Access {
             access: vk::AccessFlags2::UNIFORM_READ,
             layout: vk::ImageLayout::UNDEFINED,
         },
+        vk::DescriptorType::UNIFORM_TEXEL_BUFFER => Access {
+            stage,
+            access: vk::AccessFlags2::SHADER_SAMPLED_READ,
+            layout: vk::ImageLayout::UNDEFINED,
+        },
         _ => Access::COMPUTE_SAMPLED,
     }
 }

@@ -336,25 +336,50 @@ fn welded(mesh: &Mesh, tolerance: f32) -> Vec<u32> {
     ids
 }
 
-/// The walk buffer on the GPU (host-visible: written once when made, then only read).
+/// The walk buffer on the GPU (host-visible: written once when made, then only read), read
+/// by the shaders as a uniform texel buffer of `R32G32B32A32_UINT` texels, four words each:
+/// a CPU driver gathers a texel for its lanes at once where it reads a storage buffer one
+/// lane and one word at a time (lavapipe; every load of the walk's code costs that, run
+/// or not, as its lanes execute in lockstep).
 pub struct WalkMeshes {
-    /// The buffer ([`walk_words`]).
+    /// The buffer ([`walk_words`], padded to whole texels).
     pub buffer: Buffer,
+    /// Its texel view (`R32G32B32A32_UINT`).
+    pub view: vk::BufferView,
     /// How many triangles it holds (0: none, the circle model everywhere).
     pub triangles: u32,
 }
 
+/// The texel format of the walk buffer's view.
+const TEXEL_FORMAT: vk::Format = vk::Format::R32G32B32A32_UINT;
+
 impl WalkMeshes {
     /// The walk buffer of `meshes` (world space), written through its mapping: visible to
     /// every later submission (a queue submission makes earlier host writes available).
+    /// Fails with [`Error::Unsupported`] when it holds more texels than the device's
+    /// `maxTexelBufferElements` (at least 65,536 texels: about 7,000 triangles; 2^27 on
+    /// lavapipe and the common desktop drivers).
     pub fn new(ctx: &Context, meshes: &[&Mesh]) -> Result<Self> {
-        let words = walk_words(meshes);
+        let mut words = walk_words(meshes);
+        words.resize(words.len().div_ceil(4) * 4, 0);
+        let texels = words.len() / 4;
+        let limit = ctx.info().max_texel_buffer_elements;
+        if texels as u64 > u64::from(limit) {
+            return Err(Error::Unsupported {
+                device: ctx.info().name.clone(),
+                what: format!(
+                    "a mesh walk buffer of {texels} texels (the curved meshes' {} triangles; \
+                     maxTexelBufferElements is {limit})",
+                    words[7]
+                ),
+            });
+        }
         let bytes: &[u8] = bytemuck::cast_slice(&words);
         let mut buffer = Buffer::new(
             ctx,
             "walk meshes",
             bytes.len() as u64,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
+            vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER,
             MemoryLocation::CpuToGpu,
         )?;
         let Some(mapped) = buffer.mapped_mut() else {
@@ -365,8 +390,28 @@ impl WalkMeshes {
             ));
         };
         mapped[..bytes.len()].copy_from_slice(bytes);
+        let info = vk::BufferViewCreateInfo::default()
+            .buffer(buffer.raw)
+            .format(TEXEL_FORMAT)
+            .offset(0)
+            .range(vk::WHOLE_SIZE);
+        // SAFETY: a live buffer of this device made with UNIFORM_TEXEL_BUFFER usage; the
+        // format has the uniform texel buffer feature on every device (a format Vulkan
+        // requires it for) and the texel count is within the device's limit (above).
+        let view = match unsafe { ctx.device().create_buffer_view(&info, None) } {
+            Ok(v) => v,
+            Err(e) => {
+                // SAFETY: just made, never used by the GPU.
+                unsafe { buffer.destroy(ctx) };
+                return Err(Error::Vulkan {
+                    call: "vkCreateBufferView",
+                    result: e,
+                });
+            }
+        };
         Ok(WalkMeshes {
             buffer,
+            view,
             triangles: words[7],
         })
     }
@@ -374,8 +419,19 @@ impl WalkMeshes {
 
 impl Destroy for WalkMeshes {
     unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses the buffer), passed on.
-        unsafe { self.buffer.destroy(ctx) };
+        // SAFETY: Destroy's contract (nothing pending uses the view or the buffer); the
+        // view is destroyed before its buffer and nulled.
+        unsafe {
+            if self.view != vk::BufferView::null() {
+                ctx.device().destroy_buffer_view(self.view, None);
+                self.view = vk::BufferView::null();
+            }
+            self.buffer.destroy(ctx);
+        }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.buffer.bytes()
     }
 }
 

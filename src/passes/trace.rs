@@ -15,7 +15,8 @@
 //! | `u_pyramid` | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_corners` | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_curve` | G-buffer `curve` (`R16G16_SFLOAT`; the `CURVED` variant only, [`Method::curved_shader`]) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_walk` | the mesh walk buffer ([`crate::mesh::walk::WalkMeshes`]; the `CURVED` variant of a method with [`Method::walks_meshes`]) | host-written before the first submission that reads it |
+//! | `u_walk` | the mesh walk buffer's texel view (`R32G32B32A32_UINT`, [`crate::mesh::walk::WalkMeshes`]; the walk's triage and walk, [`Method::walks_meshes`]) | host-written before the first submission that reads it |
+//! | `u_walk_list` | the walk list ([`walk_list_bytes`]: reset, appended to by the triage, read and dispatched by the walk) | |
 //! | `u_frame` | G-buffer `frame` (the material; the surface id for the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_cone` | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
@@ -24,6 +25,15 @@
 //! [`Needs`](crate::method::Needs) name them.
 //! One dispatch traces one material: a workgroup per tile of its list, an invocation per
 //! pixel of the material (others are left alone).
+//!
+//! A method that walks the pass's meshes ([`Method::walks_meshes`], traced curved) records
+//! two more dispatches after its curved trace: the triage over the same tiles
+//! ([`TracePass::record_triage`]: keeps the pixels whose trace is the walk, resolves the
+//! flat ones whose path meets only the overlapping shells of a cube's edges, lists the
+//! rest in the walk list) and the walk, an indirect dispatch over the listed pixels only
+//! ([`TracePass::record_walk`]). On a CPU driver, whose lanes run a shader's every
+//! instruction in lockstep whether a lane takes its branch or not, the walk's large
+//! program then costs only the listed pixels.
 //!
 //! Each pixel's hit is its `(u, v)` in the hit uv image and its height in the hit height
 //! image (`height < 0` means no hit); the pipeline built with iterations
@@ -135,11 +145,47 @@ fn bindings(
 }
 
 /// The bindings of `method`'s mesh walk pipeline ([`Method::walk_shader`]): its flat
-/// trace's (the walk reads no curve image) and the walk buffer.
+/// trace's but the tile list (the walk reads no curve image, and its pixels from the
+/// walk list), the walk buffer and the walk list.
 fn walk_bindings(method: Method, iterations: bool) -> Vec<(&'static str, vk::DescriptorType)> {
     let mut b = bindings(method, iterations, false);
-    b.push(("u_walk", vk::DescriptorType::STORAGE_BUFFER));
+    b.retain(|&(name, _)| name != TILES.0);
+    b.push(("u_walk", vk::DescriptorType::UNIFORM_TEXEL_BUFFER));
+    b.push(("u_walk_list", vk::DescriptorType::STORAGE_BUFFER));
     b
+}
+
+/// The bindings of the mesh walk's triage ([`Method::walk_triage_shader`]): the G-buffer,
+/// the height field and its pyramid, the hit images (the curved trace's hit heights read,
+/// the hits the triage decides written), the tile list, the walk buffer and the walk list
+/// (appended to).
+fn triage_bindings() -> Vec<(&'static str, vk::DescriptorType)> {
+    vec![
+        ("u_ray", SAMPLED),
+        ("u_depth", SAMPLED),
+        ("u_height", SAMPLED),
+        ("u_pyramid", SAMPLED),
+        ("u_hit_uv", STORAGE),
+        ("u_hit_height", STORAGE),
+        ("u_frame", SAMPLED),
+        TILES,
+        ("u_walk", vk::DescriptorType::UNIFORM_TEXEL_BUFFER),
+        ("u_walk_list", vk::DescriptorType::STORAGE_BUFFER),
+    ]
+}
+
+/// Bytes of the walk list's header (`WalkList` in `glsl/common/trace.glsl`): the walk's
+/// dispatch arguments and the count of listed pixels.
+pub const WALK_LIST_HEADER: u64 = 16;
+
+/// The walk list's header before a triage: no workgroup along x, one along y and z, no
+/// pixel.
+pub const WALK_LIST_RESET: [u32; 4] = [0, 1, 1, 0];
+
+/// Bytes of a walk list for a frame of `extent` (its header, and a word a pixel: a
+/// material's pixels are at most the frame's).
+pub fn walk_list_bytes(extent: vk::Extent2D) -> u64 {
+    WALK_LIST_HEADER + 4 * u64::from(extent.width) * u64::from(extent.height)
 }
 
 /// The images the trace pass reads and writes (layouts in the module docs).
@@ -168,10 +214,14 @@ pub struct TraceInputs<'a> {
     /// Trace curved macro geometry with these pixel rays (`None`: every pixel's base
     /// surface is its tangent plane). Only methods with [`Method::traces_curved`] use it.
     pub curved: Option<TraceView>,
-    /// The walk buffer of the meshes the curved trace of a method with
-    /// [`Method::walks_meshes`] follows ([`crate::mesh::walk::WalkMeshes`]); needed by
-    /// that trace's curved variant, ignored elsewhere.
-    pub walk: Option<vk::Buffer>,
+    /// The walk buffer's texel view ([`crate::mesh::walk::WalkMeshes::view`]) of the
+    /// meshes the curved trace of a method with [`Method::walks_meshes`] follows; needed
+    /// by the walk's dispatches, ignored elsewhere.
+    pub walk: Option<vk::BufferView>,
+    /// The walk list ([`walk_list_bytes`]): the triage appends the pixels the walk runs
+    /// on, and the walk dispatches its arguments; needed by the walk's dispatches, ignored
+    /// elsewhere.
+    pub walk_list: Option<vk::Buffer>,
 }
 
 /// A frame's pixel rays for curved tracing (`glsl/common/curved.glsl`): the eye-relative
@@ -217,9 +267,34 @@ pub struct TracePass {
     curved: bool,
     iterations: bool,
     pipeline: FetchPipeline,
-    /// The mesh walk's pipeline: the second dispatch of a curved method with
-    /// [`Method::walk_shader`] ([`TracePass::record_walk`]).
-    walk: Option<FetchPipeline>,
+    /// The mesh walk's pipelines: its triage, the second dispatch of a curved method with
+    /// [`Method::walk_shader`] ([`TracePass::record_triage`]), and the walk itself over the
+    /// pixels the triage lists, the third ([`TracePass::record_walk`]).
+    walk: Option<WalkPipelines>,
+}
+
+/// The two pipelines of a mesh walk.
+struct WalkPipelines {
+    triage: FetchPipeline,
+    walk: FetchPipeline,
+}
+
+impl Destroy for WalkPipelines {
+    unsafe fn destroy(&mut self, ctx: &Context) {
+        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
+        unsafe {
+            self.triage.destroy(ctx);
+            self.walk.destroy(ctx);
+        }
+    }
+}
+
+/// Which of a trace pass's dispatches [`TracePass::record_on`] records.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Dispatch {
+    Trace,
+    Triage,
+    Walk,
 }
 
 impl TracePass {
@@ -231,7 +306,13 @@ impl TracePass {
     /// The bindings of its mesh walk's shader (`None`: no walk dispatch,
     /// [`TracePass::record_walk`]).
     pub fn walk_bindings(&self) -> Option<&'static [crate::shaders::ShaderBinding]> {
-        self.walk.as_ref().map(|w| w.pipeline.bindings)
+        self.walk.as_ref().map(|w| w.walk.pipeline.bindings)
+    }
+
+    /// The bindings of its mesh walk's triage (`None`: no walk dispatch,
+    /// [`TracePass::record_triage`]).
+    pub fn triage_bindings(&self) -> Option<&'static [crate::shaders::ShaderBinding]> {
+        self.walk.as_ref().map(|w| w.triage.pipeline.bindings)
     }
 
     /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`],
@@ -260,15 +341,12 @@ impl TracePass {
             std::mem::size_of::<TraceParams>() as u32,
             &[],
         )?;
-        let walk = match method.walk_shader(iterations).filter(|_| curved) {
-            Some(shader) => match FetchPipeline::specialized(
-                ctx,
-                &format!("{name}.walk"),
-                &shader,
-                &walk_bindings(method, iterations),
-                std::mem::size_of::<TraceParams>() as u32,
-                &[],
-            ) {
+        let shaders = method
+            .walk_shader(iterations)
+            .zip(method.walk_triage_shader())
+            .filter(|_| curved);
+        let walk = match shaders {
+            Some((walk, triage)) => match Self::walk_pipelines(ctx, &name, method, iterations, &walk, &triage) {
                 Ok(p) => Some(p),
                 Err(e) => {
                     // SAFETY: just made, never recorded.
@@ -285,6 +363,41 @@ impl TracePass {
             pipeline,
             walk,
         })
+    }
+
+    /// The triage and walk pipelines of `method`'s mesh walk.
+    fn walk_pipelines(
+        ctx: &Context,
+        name: &str,
+        method: Method,
+        iterations: bool,
+        walk: &crate::shaders::Shader,
+        triage: &crate::shaders::Shader,
+    ) -> Result<WalkPipelines> {
+        let size = std::mem::size_of::<TraceParams>() as u32;
+        let mut triage = FetchPipeline::specialized(
+            ctx,
+            &format!("{name}.triage"),
+            triage,
+            &triage_bindings(),
+            size,
+            &[],
+        )?;
+        match FetchPipeline::specialized(
+            ctx,
+            &format!("{name}.walk"),
+            walk,
+            &walk_bindings(method, iterations),
+            size,
+            &[],
+        ) {
+            Ok(walk) => Ok(WalkPipelines { triage, walk }),
+            Err(e) => {
+                // SAFETY: just made, never recorded.
+                unsafe { triage.destroy(ctx) };
+                Err(e)
+            }
+        }
     }
 
     /// The method this pass runs.
@@ -330,18 +443,47 @@ impl TracePass {
         depth_scale: f32,
     ) -> Result<()> {
         // SAFETY: this function's contract, passed on.
-        unsafe { self.record_on(&self.pipeline, ctx, cmd, inputs, params, depth_scale) }
+        unsafe { self.record_on(Dispatch::Trace, ctx, cmd, inputs, params, depth_scale) }
     }
 
-    /// Records the mesh walk's dispatch over the material's tiles (nothing when the pass
-    /// has no walk, [`TracePass::walk_bindings`]): it rewrites the hits of the pixels the
-    /// walk decides (`glsl/trace/exact.comp`'s `WALK` variant), so it follows
-    /// [`TracePass::record`]'s dispatch with a barrier between their writes of the hit
-    /// images. Fails (recording nothing) when `inputs` lacks the walk buffer.
+    /// Records the mesh walk's triage over the material's tiles (nothing when the pass
+    /// has no walk, [`TracePass::triage_bindings`]): it appends to the walk list the
+    /// pixels whose walk can differ from [`TracePass::record`]'s curved trace (reading its
+    /// hit heights) and counts the walk's workgroups in the list's header, which the
+    /// caller reset to [`WALK_LIST_RESET`]. Fails (recording nothing) when `inputs` lacks
+    /// the walk buffer or the walk list.
     ///
     /// # Safety
-    /// As [`TracePass::record`], and the hit images' (and iteration image's) writes by
-    /// [`TracePass::record`] ordered before this dispatch's writes.
+    /// As [`TracePass::record`], and when the command buffer executes: the trace's writes
+    /// of the hit height image are visible to compute-shader storage reads, the walk
+    /// list's reset to its storage reads and writes; the walk buffer holds
+    /// [`crate::mesh::walk::walk_words`]' words, visible to compute-shader storage reads.
+    pub unsafe fn record_triage(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        inputs: TraceInputs,
+        params: &MethodParams,
+        depth_scale: f32,
+    ) -> Result<()> {
+        if self.walk.is_none() {
+            return Ok(());
+        }
+        // SAFETY: this function's contract, passed on.
+        unsafe { self.record_on(Dispatch::Triage, ctx, cmd, inputs, params, depth_scale) }
+    }
+
+    /// Records the mesh walk (nothing when the pass has no walk,
+    /// [`TracePass::walk_bindings`]): an indirect dispatch of the walk list's arguments
+    /// over the pixels [`TracePass::record_triage`] listed, rewriting their hits
+    /// (`glsl/trace/exact.comp`'s `WALK` variant). Fails (recording nothing) when `inputs`
+    /// lacks the walk buffer or the walk list.
+    ///
+    /// # Safety
+    /// As [`TracePass::record_triage`], and when the command buffer executes: the
+    /// triage's writes of the walk list are visible to indirect reads and compute-shader
+    /// storage reads, and the trace's writes of the hit images are ordered before this
+    /// dispatch's.
     pub unsafe fn record_walk(
         &self,
         ctx: &Context,
@@ -350,30 +492,40 @@ impl TracePass {
         params: &MethodParams,
         depth_scale: f32,
     ) -> Result<()> {
-        match &self.walk {
-            // SAFETY: this function's contract, passed on.
-            Some(walk) => unsafe { self.record_on(walk, ctx, cmd, inputs, params, depth_scale) },
-            None => Ok(()),
+        if self.walk.is_none() {
+            return Ok(());
         }
+        // SAFETY: this function's contract, passed on.
+        unsafe { self.record_on(Dispatch::Walk, ctx, cmd, inputs, params, depth_scale) }
     }
 
-    /// The dispatch of `pipeline` (the trace's or its walk's) over the material's tiles.
+    /// The dispatch `which`: the trace's or the triage's over the material's tiles, the
+    /// walk's over its list.
     ///
     /// # Safety
-    /// As [`TracePass::record`].
+    /// As [`TracePass::record`], [`TracePass::record_triage`] or
+    /// [`TracePass::record_walk`] (`which`).
     unsafe fn record_on(
         &self,
-        pipeline: &FetchPipeline,
+        which: Dispatch,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: TraceInputs,
         params: &MethodParams,
         depth_scale: f32,
     ) -> Result<()> {
-        let walks = self
-            .walk
-            .as_ref()
-            .is_some_and(|w| std::ptr::eq(w, pipeline));
+        let pipeline = match (which, &self.walk) {
+            (Dispatch::Trace, _) => &self.pipeline,
+            (Dispatch::Triage, Some(w)) => &w.triage,
+            (Dispatch::Walk, Some(w)) => &w.walk,
+            (_, None) => {
+                return Err(Error::Internal(format!(
+                    "trace[{}] has no mesh walk",
+                    self.method.name()
+                )));
+            }
+        };
+        let walks = which != Dispatch::Trace;
         let TraceInputs {
             gbuffer,
             height,
@@ -386,6 +538,7 @@ impl TracePass {
             tiles,
             curved,
             walk,
+            walk_list,
         } = inputs;
         if iterations.is_some() != self.iterations {
             return Err(Error::invalid(
@@ -447,27 +600,36 @@ impl TracePass {
             pl.image("u_ray", &ray)?,
             pl.image("u_depth", &depth)?,
             pl.image("u_height", &heights)?,
-            pl.image("u_hit_uv", &hit_uv)?,
             pl.image("u_hit_height", &hit_height)?,
             pl.image("u_frame", &frame)?,
         ];
-        if let Some(c) = &counts {
+        writes.push(pl.image("u_hit_uv", &hit_uv)?);
+        // The triage writes no iteration counts (the hits it decides keep the trace's).
+        if let Some(c) = counts.as_ref().filter(|_| which != Dispatch::Triage) {
             writes.push(pl.image("u_iterations", c)?);
         }
         if let Some(c) = &curve {
             writes.push(pl.image("u_curve", c)?);
         }
-        let walk_info = match (walks, walk) {
+        let walk_view = match (walks, walk) {
+            (true, Some(view)) => Some([view]),
+            (true, None) => return Err(missing("the mesh walk buffer")),
+            (false, _) => None,
+        };
+        if let Some(w) = &walk_view {
+            writes.push(pl.texel_buffer("u_walk", w)?);
+        }
+        let list_info = match (walks, walk_list) {
             (true, Some(buffer)) => Some([vk::DescriptorBufferInfo {
                 buffer,
                 offset: 0,
                 range: vk::WHOLE_SIZE,
             }]),
-            (true, None) => return Err(missing("the mesh walk buffer")),
+            (true, None) => return Err(missing("the walk list")),
             (false, _) => None,
         };
-        if let Some(w) = &walk_info {
-            writes.push(pl.buffer("u_walk", w)?);
+        if let Some(l) = &list_info {
+            writes.push(pl.buffer("u_walk_list", l)?);
         }
         if let Some(p) = &pyramids {
             writes.push(pl.image("u_pyramid", p)?);
@@ -520,13 +682,28 @@ impl TracePass {
         // `TraceParams` the layout was built with; the pipeline lives as long as this pass;
         // the list is the classification's (this function's contract).
         unsafe {
-            tiles.dispatch(
-                ctx,
-                cmd,
-                &pipeline.pipeline,
-                &writes,
-                bytemuck::bytes_of(&push),
-            )
+            match (which, walk_list) {
+                // The walk list's own arguments (the triage's count of workgroups); its
+                // pixels, not the tile list, say which pixel an invocation walks.
+                (Dispatch::Walk, Some(list)) => {
+                    pipeline.pipeline.dispatch_indirect(
+                        ctx,
+                        cmd,
+                        &writes,
+                        bytemuck::bytes_of(&push),
+                        list,
+                        0,
+                    );
+                    Ok(())
+                }
+                _ => tiles.dispatch(
+                    ctx,
+                    cmd,
+                    &pipeline.pipeline,
+                    &writes,
+                    bytemuck::bytes_of(&push),
+                ),
+            }
         }
     }
 }
@@ -562,6 +739,15 @@ mod tests {
                         panic!("{} curved, iterations {iterations}: {e}", m.name())
                     });
                 }
+                if let Some(s) = m.walk_shader(iterations) {
+                    check_declared(&s, &walk_bindings(m, iterations)).unwrap_or_else(|e| {
+                        panic!("{} walk, iterations {iterations}: {e}", m.name())
+                    });
+                }
+            }
+            if let Some(s) = m.walk_triage_shader() {
+                check_declared(&s, &triage_bindings())
+                    .unwrap_or_else(|e| panic!("{} walk triage: {e}", m.name()));
             }
         }
     }

@@ -184,6 +184,7 @@ impl DisplacementPass {
         let hit = inputs.hit.views();
         let slot = inputs.frame_slot as usize;
         let iterations = self.slots[slot].iterations.as_ref().map(|i| i.view);
+        let walk_list = self.slots[slot].walk_list.as_ref();
         let mut live = Vec::new();
         for (tiles, m, map) in self.live(inputs.frame_slot) {
             let method = m.settings.method;
@@ -228,16 +229,23 @@ impl DisplacementPass {
                 cone: needs.cone.and_then(|k| map.cone(k)),
                 tiles: *tiles,
                 curved: view.filter(|_| m.curved),
-                walk: Some(self.walk.buffer.raw),
+                walk: Some(self.walk.view),
+                walk_list: walk_list.map(|b| b.raw),
             }
         });
         // The mesh walks (`exact` traced curved on a pass given meshes) rewrite some of
-        // the hits the traces wrote: declared after them, so the graph orders their
-        // writes after the traces'.
+        // the hits the traces wrote: per material, the walk list's reset, the triage
+        // (which reads the traces' hit heights and lists the pixels to walk) and the walk
+        // over them, each declared and flushed after the one before, so the graph orders
+        // them after the traces and after each other.
         let walks: Vec<_> = live
             .iter()
             .filter(|(_, m, _, trace)| {
-                m.curved && view.is_some() && trace.walk_bindings().is_some()
+                m.curved
+                    && view.is_some()
+                    && trace.walk_bindings().is_some()
+                    && self.walk.triangles > 0
+                    && walk_list.is_some()
             })
             .collect();
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
@@ -252,17 +260,35 @@ impl DisplacementPass {
                     let s = &m.settings;
                     trace.record(ctx, cmd, inputs_of(tiles, m, map), &s.params, s.depth_scale)?;
                 }
-                if walks.is_empty() {
+                let Some(list) = walk_list else {
                     return Ok(());
-                }
-                for (tiles, _, _, trace) in &walks {
-                    if let Some(bindings) = trace.walk_bindings() {
-                        g.dispatch(bindings, tiles.material, &[])?;
-                    }
-                }
-                g.flush(ctx, cmd, PassName::Trace)?;
+                };
                 for (tiles, m, map, trace) in &walks {
+                    let (Some(triage), Some(walk)) =
+                        (trace.triage_bindings(), trace.walk_bindings())
+                    else {
+                        continue;
+                    };
                     let s = &m.settings;
+                    g.declare(Res::WalkList, super::super::graph::ARGS_RESET)?;
+                    g.flush(ctx, cmd, PassName::Trace)?;
+                    ctx.device().cmd_update_buffer(
+                        cmd,
+                        list.raw,
+                        0,
+                        bytemuck::cast_slice(&crate::passes::trace::WALK_LIST_RESET),
+                    );
+                    g.dispatch(triage, tiles.material, &[])?;
+                    g.flush(ctx, cmd, PassName::Trace)?;
+                    trace.record_triage(
+                        ctx,
+                        cmd,
+                        inputs_of(tiles, m, map),
+                        &s.params,
+                        s.depth_scale,
+                    )?;
+                    g.dispatch(walk, tiles.material, &[])?;
+                    g.flush(ctx, cmd, PassName::Trace)?;
                     trace.record_walk(
                         ctx,
                         cmd,
