@@ -429,3 +429,51 @@ fn the_iteration_counts_exist_only_when_asked_for() {
     unsafe { pass.destroy() };
     finish(ctx);
 }
+
+/// The mesh walk's lists exist only while a material walks given meshes: an `exact`
+/// material traced curved holds none until the pass is given meshes, then one per slot
+/// (16 + 4 bytes a pixel, `walk_lists`) beside the meshes' buffer (`curved_meshes`),
+/// counted in the report's total; giving no meshes again retires them.
+#[test]
+fn the_walk_lists_exist_only_with_meshes_to_walk() {
+    let ctx = validated_context();
+    let extent = vk::Extent2D {
+        width: 64,
+        height: 32,
+    };
+    let exact = material(Method::Exact);
+    let mut pass =
+        DisplacementPass::new(ctx.clone(), &flat_map(0.5), pass_settings(exact, extent, 2))
+            .unwrap();
+    let m = pass.primary();
+    pass.set_material_curved(m, true).unwrap();
+    assert_eq!(pass.memory().walk_lists, 0, "no meshes: no lists");
+    let cube = dispmap::mesh::Mesh::cube();
+    pass.set_curved_meshes(&[&cube]).unwrap();
+    assert!(pass.curved_mesh_triangles() > 0);
+    let on = pass.memory();
+    let list = 16 + 4 * u64::from(extent.width * extent.height);
+    assert!(
+        (2 * list..=2 * (list + PADDING_PER_ALLOCATION)).contains(&on.walk_lists),
+        "{} bytes of walk lists for two slots of {list} bytes",
+        on.walk_lists
+    );
+    // The cube's triangles at 36 words each, at least.
+    let triangles = u64::from(pass.curved_mesh_triangles());
+    assert!(on.curved_meshes >= 4 * 36 * triangles, "{on:?}");
+    assert!(on.frame() >= on.walk_lists && on.maps() >= on.curved_meshes);
+    check_complete(&ctx, &on);
+    // Not traced curved: nothing walks.
+    pass.set_material_curved(m, false).unwrap();
+    assert_eq!(pass.memory().walk_lists, 0);
+    pass.set_material_curved(m, true).unwrap();
+    assert_eq!(pass.memory().walk_lists, on.walk_lists);
+    pass.set_curved_meshes(&[]).unwrap();
+    let off = pass.memory();
+    assert_eq!((off.walk_lists, pass.curved_mesh_triangles()), (0, 0));
+    assert!(off.retired >= 2 * list, "the lists are retired");
+    check_complete(&ctx, &off);
+    // SAFETY: nothing was recorded with the pass.
+    unsafe { pass.destroy() };
+    finish(ctx);
+}

@@ -346,14 +346,16 @@ impl TracePass {
             .zip(method.walk_triage_shader())
             .filter(|_| curved);
         let walk = match shaders {
-            Some((walk, triage)) => match Self::walk_pipelines(ctx, &name, method, iterations, &walk, &triage) {
-                Ok(p) => Some(p),
-                Err(e) => {
-                    // SAFETY: just made, never recorded.
-                    unsafe { pipeline.destroy(ctx) };
-                    return Err(e);
+            Some((walk, triage)) => {
+                match Self::walk_pipelines(ctx, &name, method, iterations, &walk, &triage) {
+                    Ok(p) => Some(p),
+                    Err(e) => {
+                        // SAFETY: just made, never recorded.
+                        unsafe { pipeline.destroy(ctx) };
+                        return Err(e);
+                    }
                 }
-            },
+            }
             None => None,
         };
         Ok(TracePass {
