@@ -263,26 +263,15 @@ bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
     return false;
 }
 
-// Whether the segment from Xa to Xb can meet triangle t's shell: false when both ends lie
-// on one side of the slab from its base plane to its deepest offset (every point of a
-// shell whose vertex normals are within a right angle of its plane's normal lies in it;
-// an eighth of the depth is kept to each side), from its corners alone.
-bool walk_near(uint t, vec3 Xa, vec3 Xb, float side) {
-    // Texels 0 to 5 of the triangle (walk_tri's word layout).
-    int b = walk_tri_texel(t);
-    uvec4 t0 = texelFetch(u_walk, b);
-    uvec4 t1 = texelFetch(u_walk, b + 1);
-    uvec4 t2 = texelFetch(u_walk, b + 2);
-    uvec4 t3 = texelFetch(u_walk, b + 3);
-    uvec4 t4 = texelFetch(u_walk, b + 4);
-    uvec4 t5 = texelFetch(u_walk, b + 5);
-    vec3 p0 = uintBitsToFloat(t0.xyz);
-    vec3 p1 = uintBitsToFloat(t2.yzw);
-    vec3 p2 = uintBitsToFloat(uvec3(t4.zw, t5.x));
-    vec3 n = cross(p1 - p0, p2 - p0);
-    n *= sign(dot(n, side * uintBitsToFloat(t1.xyz))) * inversesqrt(max(dot(n, n), 1e-37));
-    float depth = pc.depth_scale * max(uintBitsToFloat(t0.w),
-        max(uintBitsToFloat(t3.x), uintBitsToFloat(t5.y)));
+// Whether the segment from Xa to Xb can meet triangle N's shell (N as walk_tri reads it for
+// the side): false when both ends lie on one side of the slab from its base plane to its
+// deepest offset (every point of a shell whose vertex normals are within a right angle of
+// its plane's normal lies in it; an eighth of the depth is kept to each side).
+bool walk_near(WalkTri N, vec3 Xa, vec3 Xb) {
+    vec3 n = cross(N.e1, N.e2);
+    n *= sign(dot(n, N.n0)) * inversesqrt(max(dot(n, n), 1e-37));
+    float depth = pc.depth_scale * max(N.s.x, max(N.s.x + N.s.y, N.s.x + N.s.z));
+    vec3 p0 = N.p0;
     vec2 d = vec2(dot(Xa - p0, n), dot(Xb - p0, n));
     return !(min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth);
 }
@@ -351,10 +340,10 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
     uint list = walk_word(11) + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
         uint t = walk_word(list + k);
-        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side)) {
+        WalkTri N = walk_tri(t, side);
+        if (!walk_near(N, X0 + sa * R, X0 + sb * R)) {
             continue;
         }
-        WalkTri N = walk_tri(t, side);
         vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
         iterations += 1u;
         vec2 tiles_n = walk_tiles_in(at, N, qa, tiles);
@@ -435,10 +424,10 @@ bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float s
     uint list = walk_word(11) + at.T.overlaps.x;
     for (uint k = 0u; k < at.T.overlaps.y; ++k) {
         uint t = walk_word(list + k);
-        if (!walk_near(t, X0 + sa * R, X0 + sb * R, side)) {
+        WalkTri N = walk_tri(t, side);
+        if (!walk_near(N, X0 + sa * R, X0 + sb * R)) {
             continue;
         }
-        WalkTri N = walk_tri(t, side);
         vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
         vec3 qb = walk_solve(N, X0 + sb * R, qa, WALK_NEWTON_ENTER);
         iterations += 2u;

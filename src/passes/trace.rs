@@ -28,10 +28,10 @@
 //!
 //! A method that walks the pass's meshes ([`Method::walks_meshes`], traced curved) records
 //! two more dispatches after its curved trace: the triage over the same tiles
-//! ([`TracePass::record_triage`]: keeps the pixels whose trace is the walk, resolves the
-//! flat ones whose path meets only the overlapping shells of a cube's edges, lists the
-//! rest in the walk list) and the walk, an indirect dispatch over the listed pixels only
-//! ([`TracePass::record_walk`]). On a CPU driver, whose lanes run a shader's every
+//! ([`WalkStep::Triage`]: keeps the pixels whose trace is the walk, resolves the flat
+//! ones whose path meets only the overlapping shells of a cube's edges, lists the rest in
+//! the walk list) and the walk, an indirect dispatch over the listed pixels only
+//! ([`WalkStep::Walk`]; both [`TracePass::record_walk`]). On a CPU driver, whose lanes run a shader's every
 //! instruction in lockstep whether a lane takes its branch or not, the walk's large
 //! program then costs only the listed pixels.
 //!
@@ -268,8 +268,8 @@ pub struct TracePass {
     iterations: bool,
     pipeline: FetchPipeline,
     /// The mesh walk's pipelines: its triage, the second dispatch of a curved method with
-    /// [`Method::walk_shader`] ([`TracePass::record_triage`]), and the walk itself over the
-    /// pixels the triage lists, the third ([`TracePass::record_walk`]).
+    /// [`Method::walk_shader`], and the walk itself over the pixels the triage lists, the
+    /// third ([`TracePass::record_walk`]).
     walk: Option<WalkPipelines>,
 }
 
@@ -289,6 +289,21 @@ impl Destroy for WalkPipelines {
     }
 }
 
+/// The mesh walk's two dispatches after the curved trace, in their order
+/// ([`TracePass::record_walk`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WalkStep {
+    /// Over the material's tiles: keeps, resolves or lists each pixel.
+    Triage,
+    /// Over the listed pixels: the walk itself.
+    Walk,
+}
+
+impl WalkStep {
+    /// The steps in their order.
+    pub const ALL: [WalkStep; 2] = [WalkStep::Triage, WalkStep::Walk];
+}
+
 /// Which of a trace pass's dispatches [`TracePass::record_on`] records.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Dispatch {
@@ -303,16 +318,16 @@ impl TracePass {
         self.pipeline.pipeline.bindings
     }
 
-    /// The bindings of its mesh walk's shader (`None`: no walk dispatch,
+    /// The bindings of the shader of its mesh walk's `step` (`None`: no walk,
     /// [`TracePass::record_walk`]).
-    pub fn walk_bindings(&self) -> Option<&'static [crate::shaders::ShaderBinding]> {
-        self.walk.as_ref().map(|w| w.walk.pipeline.bindings)
-    }
-
-    /// The bindings of its mesh walk's triage (`None`: no walk dispatch,
-    /// [`TracePass::record_triage`]).
-    pub fn triage_bindings(&self) -> Option<&'static [crate::shaders::ShaderBinding]> {
-        self.walk.as_ref().map(|w| w.triage.pipeline.bindings)
+    pub fn walk_bindings(
+        &self,
+        step: WalkStep,
+    ) -> Option<&'static [crate::shaders::ShaderBinding]> {
+        self.walk.as_ref().map(|w| match step {
+            WalkStep::Triage => w.triage.pipeline.bindings,
+            WalkStep::Walk => w.walk.pipeline.bindings,
+        })
     }
 
     /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`],
@@ -448,46 +463,29 @@ impl TracePass {
         unsafe { self.record_on(Dispatch::Trace, ctx, cmd, inputs, params, depth_scale) }
     }
 
-    /// Records the mesh walk's triage over the material's tiles (nothing when the pass
-    /// has no walk, [`TracePass::triage_bindings`]): it appends to the walk list the
-    /// pixels whose walk can differ from [`TracePass::record`]'s curved trace (reading its
-    /// hit heights) and counts the walk's workgroups in the list's header, which the
-    /// caller reset to [`WALK_LIST_RESET`]. Fails (recording nothing) when `inputs` lacks
-    /// the walk buffer or the walk list.
+    /// Records one of the mesh walk's dispatches (nothing when the pass has no walk,
+    /// [`TracePass::walk_bindings`]); both follow [`TracePass::record`]'s curved trace, in
+    /// their order, each after a barrier the caller records. Fails (recording nothing)
+    /// when `inputs` lacks the walk buffer or the walk list.
+    ///
+    /// * [`WalkStep::Triage`], over the material's tiles: keeps the curved trace's hits
+    ///   (reading its hit heights) where they are the walk's, writes those it resolves,
+    ///   and appends the other pixels to the walk list, counting the walk's workgroups in
+    ///   the list's header, which the caller reset to [`WALK_LIST_RESET`].
+    /// * [`WalkStep::Walk`]: an indirect dispatch of the walk list's arguments over the
+    ///   pixels the triage listed, rewriting their hits (`glsl/trace/exact.comp`'s `WALK`
+    ///   variant).
     ///
     /// # Safety
-    /// As [`TracePass::record`], and when the command buffer executes: the trace's writes
-    /// of the hit height image are visible to compute-shader storage reads, the walk
-    /// list's reset to its storage reads and writes; the walk buffer holds
-    /// [`crate::mesh::walk::walk_words`]' words, visible to compute-shader storage reads.
-    pub unsafe fn record_triage(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        inputs: TraceInputs,
-        params: &MethodParams,
-        depth_scale: f32,
-    ) -> Result<()> {
-        if self.walk.is_none() {
-            return Ok(());
-        }
-        // SAFETY: this function's contract, passed on.
-        unsafe { self.record_on(Dispatch::Triage, ctx, cmd, inputs, params, depth_scale) }
-    }
-
-    /// Records the mesh walk (nothing when the pass has no walk,
-    /// [`TracePass::walk_bindings`]): an indirect dispatch of the walk list's arguments
-    /// over the pixels [`TracePass::record_triage`] listed, rewriting their hits
-    /// (`glsl/trace/exact.comp`'s `WALK` variant). Fails (recording nothing) when `inputs`
-    /// lacks the walk buffer or the walk list.
-    ///
-    /// # Safety
-    /// As [`TracePass::record_triage`], and when the command buffer executes: the
-    /// triage's writes of the walk list are visible to indirect reads and compute-shader
-    /// storage reads, and the trace's writes of the hit images are ordered before this
-    /// dispatch's.
+    /// As [`TracePass::record`], and when the command buffer executes: the walk buffer
+    /// holds [`crate::mesh::walk::walk_words`]' words, visible to compute-shader reads; for
+    /// the triage, the trace's writes of the hit images are visible to its storage reads
+    /// and writes and the list's reset to its storage reads and writes; for the walk, the
+    /// triage's writes (the list and hits) are visible to indirect reads and compute-shader
+    /// storage reads and writes.
     pub unsafe fn record_walk(
         &self,
+        step: WalkStep,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: TraceInputs,
@@ -497,16 +495,19 @@ impl TracePass {
         if self.walk.is_none() {
             return Ok(());
         }
+        let which = match step {
+            WalkStep::Triage => Dispatch::Triage,
+            WalkStep::Walk => Dispatch::Walk,
+        };
         // SAFETY: this function's contract, passed on.
-        unsafe { self.record_on(Dispatch::Walk, ctx, cmd, inputs, params, depth_scale) }
+        unsafe { self.record_on(which, ctx, cmd, inputs, params, depth_scale) }
     }
 
     /// The dispatch `which`: the trace's or the triage's over the material's tiles, the
     /// walk's over its list.
     ///
     /// # Safety
-    /// As [`TracePass::record`], [`TracePass::record_triage`] or
-    /// [`TracePass::record_walk`] (`which`).
+    /// As [`TracePass::record`] or [`TracePass::record_walk`] (`which`).
     unsafe fn record_on(
         &self,
         which: Dispatch,

@@ -3,6 +3,7 @@
 //! the frame graph, which records the barriers they need before the stage.
 
 use super::*;
+use crate::passes::trace::WalkStep;
 
 impl DisplacementPass {
     /// The `classify` scope: the slot's tile lists (and, with `write_hits`, the hit
@@ -243,7 +244,7 @@ impl DisplacementPass {
             .filter(|(_, m, _, trace)| {
                 m.curved
                     && view.is_some()
-                    && trace.walk_bindings().is_some()
+                    && trace.walk_bindings(WalkStep::Walk).is_some()
                     && self.walk.triangles > 0
                     && walk_list.is_some()
             })
@@ -264,11 +265,6 @@ impl DisplacementPass {
                     return Ok(());
                 };
                 for (tiles, m, map, trace) in &walks {
-                    let (Some(triage), Some(walk)) =
-                        (trace.triage_bindings(), trace.walk_bindings())
-                    else {
-                        continue;
-                    };
                     let s = &m.settings;
                     g.declare(Res::WalkList, super::super::graph::ARGS_RESET)?;
                     g.flush(ctx, cmd, PassName::Trace)?;
@@ -278,24 +274,20 @@ impl DisplacementPass {
                         0,
                         bytemuck::cast_slice(&crate::passes::trace::WALK_LIST_RESET),
                     );
-                    g.dispatch(triage, tiles.material, &[])?;
-                    g.flush(ctx, cmd, PassName::Trace)?;
-                    trace.record_triage(
-                        ctx,
-                        cmd,
-                        inputs_of(tiles, m, map),
-                        &s.params,
-                        s.depth_scale,
-                    )?;
-                    g.dispatch(walk, tiles.material, &[])?;
-                    g.flush(ctx, cmd, PassName::Trace)?;
-                    trace.record_walk(
-                        ctx,
-                        cmd,
-                        inputs_of(tiles, m, map),
-                        &s.params,
-                        s.depth_scale,
-                    )?;
+                    for step in WalkStep::ALL {
+                        if let Some(bindings) = trace.walk_bindings(step) {
+                            g.dispatch(bindings, tiles.material, &[])?;
+                        }
+                        g.flush(ctx, cmd, PassName::Trace)?;
+                        trace.record_walk(
+                            step,
+                            ctx,
+                            cmd,
+                            inputs_of(tiles, m, map),
+                            &s.params,
+                            s.depth_scale,
+                        )?;
+                    }
                 }
                 Ok(())
             })
