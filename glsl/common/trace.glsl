@@ -208,24 +208,20 @@ Hit trace_lod(Ray ray, ivec2 pixel) {
     return Hit(mix(traced.uv, bump.uv, w), mix(traced.h, bump.h, w), traced.iterations + bump.iterations);
 }
 
-// One workgroup per tile of the material's list; pixels of other materials, flat ones and
-// those without geometry are left alone (`classify` wrote the hits of the last two).
-void main() {
-    ivec2 pixel;
-#if defined(WALK) && !defined(TRIAGE)
-    // The walk: one invocation per pixel its triage listed (an indirect dispatch of the
-    // list's own arguments).
-    uint index = gl_WorkGroupID.x * uint(LOCAL_SIZE * LOCAL_SIZE) + gl_LocalInvocationIndex;
-    if (index >= u_walk_list.count) {
-        return;
-    }
-    uint packed = u_walk_list.pixels[index];
-    pixel = ivec2(packed & 0xFFFFu, packed >> 16);
-#else
-    if (!material_pixel(pc.material, pc.frame_size, pixel)) {
-        return;
-    }
+#ifdef WALK
+// The walk's workgroups at most along x: the least maxComputeWorkGroupCount[0] Vulkan
+// allows (the triage counts no more; the walk's invocations then take the listed pixels a
+// whole dispatch apart). A workgroup is LOCAL_SIZE squared, 64, pixels: 1 << 6.
+const uint WALK_MAX_GROUPS = 65535u;
+const uint WALK_GROUP_SHIFT = 6u;
+#if LOCAL_SIZE != 8
+#error "WALK_GROUP_SHIFT assumes 8x8 workgroups"
 #endif
+#endif
+
+// One pixel of the material: its hit into the hit images (the walk's triage: its
+// decision).
+void trace_pixel(ivec2 pixel) {
     vec4 g = texelFetch(u_ray, pixel, 0);
     if ((pc.flags & (TRACE_FLAG_AUTO_LEVEL | TRACE_FLAG_LOD)) != 0u) {
         g_footprint_level = footprint_level(pixel, g.xy);
@@ -243,9 +239,8 @@ void main() {
 #endif
 #if defined(WALK) && defined(TRIAGE)
     // The mesh walk's triage (exact.comp's WALK+TRIAGE variant): lists the pixels whose
-    // walk can differ from the curved trace, and counts the walk's workgroups (LOCAL_SIZE
-    // squared, a power of two, pixels each); a level-of-detail blend keeps the curved
-    // trace's hits.
+    // walk can differ from the curved trace, and counts the walk's workgroups (at most
+    // WALK_MAX_GROUPS); a level-of-detail blend keeps the curved trace's hits.
     Hit hit;
     int decision = (pc.flags & TRACE_FLAG_LOD) == 0u ? walk_pixel_triage(pixel, Ray(g.xy, g.zw), hit) : WALK_KEEP;
     if (decision == WALK_OVERLAP) {
@@ -255,7 +250,7 @@ void main() {
         uint i = atomicAdd(u_walk_list.count, 1u);
         if (i < uint(u_walk_list.pixels.length())) {
             u_walk_list.pixels[i] = uint(pixel.x) | (uint(pixel.y) << 16);
-            if ((i & uint(LOCAL_SIZE * LOCAL_SIZE - 1)) == 0u) {
+            if ((i & ((1u << WALK_GROUP_SHIFT) - 1u)) == 0u && (i >> WALK_GROUP_SHIFT) < WALK_MAX_GROUPS) {
                 atomicAdd(u_walk_list.args[0], 1u);
             }
         }
@@ -275,6 +270,28 @@ void main() {
 #ifdef ITERATIONS
     imageStore(u_iterations, pixel, uvec4(hit.iterations));
 #endif
+#endif
+}
+
+// One workgroup per tile of the material's list (the walk: per 64 listed pixels); pixels
+// of other materials, flat ones and those without geometry are left alone (`classify`
+// wrote the hits of the last two).
+void main() {
+#if defined(WALK) && !defined(TRIAGE)
+    // The walk: the pixels its triage listed, an invocation each (an indirect dispatch of
+    // the list's own arguments).
+    uint stride = gl_NumWorkGroups.x << WALK_GROUP_SHIFT;
+    for (uint index = (gl_WorkGroupID.x << WALK_GROUP_SHIFT) + gl_LocalInvocationIndex;
+         index < u_walk_list.count; index += stride) {
+        uint packed = u_walk_list.pixels[index];
+        trace_pixel(ivec2(packed & 0xFFFFu, packed >> 16));
+    }
+#else
+    ivec2 pixel;
+    if (!material_pixel(pc.material, pc.frame_size, pixel)) {
+        return;
+    }
+    trace_pixel(pixel);
 #endif
 }
 
