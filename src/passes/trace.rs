@@ -304,14 +304,6 @@ impl WalkStep {
     pub const ALL: [WalkStep; 2] = [WalkStep::Triage, WalkStep::Walk];
 }
 
-/// Which of a trace pass's dispatches [`TracePass::record_on`] records.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Dispatch {
-    Trace,
-    Triage,
-    Walk,
-}
-
 impl TracePass {
     /// The bindings its shader declares (reflected): what a dispatch reads and writes.
     pub fn bindings(&self) -> &'static [crate::shaders::ShaderBinding] {
@@ -460,7 +452,7 @@ impl TracePass {
         depth_scale: f32,
     ) -> Result<()> {
         // SAFETY: this function's contract, passed on.
-        unsafe { self.record_on(Dispatch::Trace, ctx, cmd, inputs, params, depth_scale) }
+        unsafe { self.record_on(None, ctx, cmd, inputs, params, depth_scale) }
     }
 
     /// Records one of the mesh walk's dispatches (nothing when the pass has no walk,
@@ -495,22 +487,18 @@ impl TracePass {
         if self.walk.is_none() {
             return Ok(());
         }
-        let which = match step {
-            WalkStep::Triage => Dispatch::Triage,
-            WalkStep::Walk => Dispatch::Walk,
-        };
         // SAFETY: this function's contract, passed on.
-        unsafe { self.record_on(which, ctx, cmd, inputs, params, depth_scale) }
+        unsafe { self.record_on(Some(step), ctx, cmd, inputs, params, depth_scale) }
     }
 
-    /// The dispatch `which`: the trace's or the triage's over the material's tiles, the
-    /// walk's over its list.
+    /// The dispatch `which`: the trace's (`None`) or the triage's over the material's
+    /// tiles, the walk's over its list.
     ///
     /// # Safety
     /// As [`TracePass::record`] or [`TracePass::record_walk`] (`which`).
     unsafe fn record_on(
         &self,
-        which: Dispatch,
+        which: Option<WalkStep>,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         inputs: TraceInputs,
@@ -518,9 +506,9 @@ impl TracePass {
         depth_scale: f32,
     ) -> Result<()> {
         let pipeline = match (which, &self.walk) {
-            (Dispatch::Trace, _) => &self.pipeline,
-            (Dispatch::Triage, Some(w)) => &w.triage,
-            (Dispatch::Walk, Some(w)) => &w.walk,
+            (None, _) => &self.pipeline,
+            (Some(WalkStep::Triage), Some(w)) => &w.triage,
+            (Some(WalkStep::Walk), Some(w)) => &w.walk,
             (_, None) => {
                 return Err(Error::Internal(format!(
                     "trace[{}] has no mesh walk",
@@ -528,7 +516,7 @@ impl TracePass {
                 )));
             }
         };
-        let walks = which != Dispatch::Trace;
+        let walks = which.is_some();
         let TraceInputs {
             gbuffer,
             height,
@@ -608,7 +596,7 @@ impl TracePass {
         ];
         writes.push(pl.image("u_hit_uv", &hit_uv)?);
         // The triage writes no iteration counts (the hits it decides keep the trace's).
-        if let Some(c) = counts.as_ref().filter(|_| which != Dispatch::Triage) {
+        if let Some(c) = counts.as_ref().filter(|_| which != Some(WalkStep::Triage)) {
             writes.push(pl.image("u_iterations", c)?);
         }
         if let Some(c) = &curve {
@@ -688,7 +676,7 @@ impl TracePass {
             match (which, walk_list) {
                 // The walk list's own arguments (the triage's count of workgroups); its
                 // pixels, not the tile list, say which pixel an invocation walks.
-                (Dispatch::Walk, Some(list)) => {
+                (Some(WalkStep::Walk), Some(list)) => {
                     pipeline.pipeline.dispatch_indirect(
                         ctx,
                         cmd,
