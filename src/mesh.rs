@@ -52,6 +52,7 @@ use glam::Vec3;
 
 mod buffers;
 mod queries;
+mod regions;
 pub mod walk;
 
 pub use buffers::MeshBuffers;

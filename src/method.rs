@@ -293,8 +293,21 @@ impl Method {
         })
     }
 
-    /// The mesh walk's triage ([`Method::walk_shader`]'s companion): lists the pixels
-    /// whose walk can differ from the curved trace, the pixels the walk then runs on.
+    /// The mesh walk's first trace ([`Method::walk_shader`]'s companion), with the
+    /// iteration output or without: the method's flat trace over the material's tiles,
+    /// which lists for the triage the pixels it cannot tell, from the walk buffer's flat
+    /// regions, that its hit is the walk's.
+    pub fn walk_first_shader(self, iterations: bool) -> Option<Shader> {
+        self.walks_meshes().then_some(if iterations {
+            shaders::TRACE_EXACT_COMP_WALK_FIRST_ITERATIONS
+        } else {
+            shaders::TRACE_EXACT_COMP_WALK_FIRST
+        })
+    }
+
+    /// The mesh walk's triage ([`Method::walk_shader`]'s companion): over the pixels the
+    /// first trace listed, lists those whose walk can differ from the first trace, the
+    /// pixels the walk then runs on.
     pub fn walk_triage_shader(self) -> Option<Shader> {
         self.walks_meshes()
             .then_some(shaders::TRACE_EXACT_COMP_CURVED_WALK_TRIAGE)

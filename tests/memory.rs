@@ -432,7 +432,7 @@ fn the_iteration_counts_exist_only_when_asked_for() {
 
 /// The mesh walk's lists exist only while a material walks given meshes: an `exact`
 /// material traced curved holds none until the pass is given meshes, then one per slot
-/// (16 + 4 bytes a pixel, `walk_lists`) beside the meshes' buffer (`curved_meshes`),
+/// (32 + 8 bytes a pixel: the first trace's list and the triage's, `walk_lists`) beside the meshes' buffer (`curved_meshes`),
 /// counted in the report's total; giving no meshes again retires them.
 #[test]
 fn the_walk_lists_exist_only_with_meshes_to_walk() {
@@ -452,7 +452,7 @@ fn the_walk_lists_exist_only_with_meshes_to_walk() {
     pass.set_curved_meshes(&[&cube]).unwrap();
     assert!(pass.curved_mesh_triangles() > 0);
     let on = pass.memory();
-    let list = 16 + 4 * u64::from(extent.width * extent.height);
+    let list = 32 + 8 * u64::from(extent.width * extent.height);
     assert!(
         (2 * list..=2 * (list + PADDING_PER_ALLOCATION)).contains(&on.walk_lists),
         "{} bytes of walk lists for two slots of {list} bytes",

@@ -26,19 +26,21 @@ layout(set = 0, binding = 7, r32f) uniform image2D u_hit_height;
 layout(set = 0, binding = 7, r32f) uniform writeonly image2D u_hit_height;
 #endif
 #ifdef WALK
-// The pixels the walk runs on (src/passes/trace.rs, `WalkList`): the triage (the
-// TRIAGE variant, over the material's tiles) appends each pixel whose curved trace
-// may differ from the walk and counts the walk's workgroups in `args`; the walk (the WALK
-// variant) is an indirect dispatch of `args` over `pixels`. The record resets the header
-// to (0, 1, 1, 0) before each triage.
+// The mesh walk's two lists of pixels (src/passes/trace.rs, `walk_list_bytes`): list 0,
+// appended to by the walked material's first trace (the FIRST variant, over its tiles:
+// the pixels its flat trace may not be the walk's) and run by the triage (the TRIAGE
+// variant, an indirect dispatch of the list's arguments); list 1, appended to by the
+// triage (the pixels whose trace may differ from the walk) and run by the walk (the WALK
+// variant, indirect too). Each list's header: its dispatch's workgroups along x, y and z,
+// then its count of pixels. The record resets both headers to (0, 1, 1, 0) before the
+// first trace.
 layout(set = 0, binding = 13, std430)
-#ifndef TRIAGE
+#if !defined(TRIAGE) && !defined(FIRST)
 readonly
 #endif
 buffer WalkList {
-    uint args[3];   // the walk's dispatch: workgroups along x, y, z
-    uint count;     // pixels listed
-    uint pixels[];  // x | y << 16
+    uint head[8];   // list 0's header, then list 1's
+    uint pixels[];  // list 0's pixels, then list 1's (half each): x | y << 16
 } u_walk_list;
 #endif
 #ifdef ITERATIONS
@@ -163,9 +165,12 @@ Hit bump_hit(Ray ray) {
 Hit trace_ray(Ray ray, ivec2 pixel);
 #ifdef WALK
 // The mesh walk's dispatches (exact.comp's WALK variants) define them.
-#ifdef TRIAGE
+#if defined(FIRST)
+// Whether the first trace's flat hit at `pixel` (its height `h`) is the walk's own.
+bool walk_pixel_first_keep(ivec2 pixel, float h);
+#elif defined(TRIAGE)
 // What the triage decides for a pixel (walk_triage in glsl/common/walk.glsl).
-const int WALK_KEEP = 0;      // the curved trace's hit stands
+const int WALK_KEEP = 0;      // the first trace's hit stands
 const int WALK_LIST = 1;      // the walk runs on it
 const int WALK_OVERLAP = 2;   // an overlapping shell's relief is met first: `hit`
 int walk_pixel_triage(ivec2 pixel, Ray ray, out Hit hit);
@@ -219,6 +224,28 @@ const uint WALK_GROUP_SHIFT = 6u;
 #endif
 #endif
 
+#ifdef WALK
+// Pixels each of the two walk lists holds at most (half the list's array).
+uint walk_list_capacity() {
+    return uint(u_walk_list.pixels.length()) >> 1u;
+}
+
+#if defined(TRIAGE) || defined(FIRST)
+// Appends `pixel` to walk list `list` (0 or 1), counting its dispatch's workgroups (at
+// most WALK_MAX_GROUPS).
+void walk_list_push(uint list, ivec2 pixel) {
+    uint i = atomicAdd(u_walk_list.head[4u * list + 3u], 1u);
+    uint capacity = walk_list_capacity();
+    if (i < capacity) {
+        u_walk_list.pixels[list * capacity + i] = uint(pixel.x) | (uint(pixel.y) << 16);
+        if ((i & ((1u << WALK_GROUP_SHIFT) - 1u)) == 0u && (i >> WALK_GROUP_SHIFT) < WALK_MAX_GROUPS) {
+            atomicAdd(u_walk_list.head[4u * list], 1u);
+        }
+    }
+}
+#endif
+#endif
+
 // One pixel of the material: its hit into the hit images (the walk's triage: its
 // decision).
 void trace_pixel(ivec2 pixel) {
@@ -237,7 +264,19 @@ void trace_pixel(ivec2 pixel) {
         g_curve = curve_of(pixel, Ray(g.xy, g.zw));
     }
 #endif
-#if defined(WALK) && defined(TRIAGE)
+#if defined(WALK) && defined(FIRST)
+    // The walked material's first trace (exact.comp's WALK+FIRST variant): the flat trace,
+    // and the pixels it may not be the walk's listed for the triage.
+    Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);
+    imageStore(u_hit_uv, pixel, vec4(hit.uv, 0.0, 0.0));
+    imageStore(u_hit_height, pixel, vec4(hit.h));
+#ifdef ITERATIONS
+    imageStore(u_iterations, pixel, uvec4(hit.iterations));
+#endif
+    if ((pc.flags & TRACE_FLAG_CURVED) != 0u && !walk_pixel_first_keep(pixel, hit.h)) {
+        walk_list_push(0u, pixel);
+    }
+#elif defined(WALK) && defined(TRIAGE)
     // The mesh walk's triage (exact.comp's WALK+TRIAGE variant): lists the pixels whose
     // walk can differ from the curved trace, and counts the walk's workgroups (at most
     // WALK_MAX_GROUPS); a level-of-detail blend keeps the curved trace's hits.
@@ -247,20 +286,17 @@ void trace_pixel(ivec2 pixel) {
         imageStore(u_hit_uv, pixel, vec4(hit.uv, 0.0, 0.0));
         imageStore(u_hit_height, pixel, vec4(hit.h));
     } else if (decision == WALK_LIST) {
-        uint i = atomicAdd(u_walk_list.count, 1u);
-        if (i < uint(u_walk_list.pixels.length())) {
-            u_walk_list.pixels[i] = uint(pixel.x) | (uint(pixel.y) << 16);
-            if ((i & ((1u << WALK_GROUP_SHIFT) - 1u)) == 0u && (i >> WALK_GROUP_SHIFT) < WALK_MAX_GROUPS) {
-                atomicAdd(u_walk_list.args[0], 1u);
-            }
-        }
+        walk_list_push(1u, pixel);
     }
 #else
 #ifdef WALK
-    // The mesh walk's dispatch (exact.comp's WALK variant) over the listed pixels.
+    // The mesh walk's dispatch (exact.comp's WALK variant) over the listed pixels; a
+    // pixel on no walked triangle (or whose ray does not go into its shell) takes the
+    // curved trace's circle model.
     Hit hit;
     if (!walk_pixel(pixel, Ray(g.xy, g.zw), hit)) {
-        return;
+        g_curve = curve_of(pixel, Ray(g.xy, g.zw));
+        hit = trace_ray(Ray(g.xy, g.zw), pixel);
     }
 #else
     Hit hit = trace_lod(Ray(g.xy, g.zw), pixel);
@@ -277,13 +313,20 @@ void trace_pixel(ivec2 pixel) {
 // of other materials, flat ones and those without geometry are left alone (`classify`
 // wrote the hits of the last two).
 void main() {
-#if defined(WALK) && !defined(TRIAGE)
-    // The walk: the pixels its triage listed, an invocation each (an indirect dispatch of
-    // the list's own arguments).
+#if defined(WALK) && !defined(FIRST)
+    // The triage and the walk: the pixels of their list (0: the first trace's, 1: the
+    // triage's), an invocation each (an indirect dispatch of the list's own arguments).
+#ifdef TRIAGE
+    const uint list = 0u;
+#else
+    const uint list = 1u;
+#endif
+    uint capacity = walk_list_capacity();
+    uint count = min(u_walk_list.head[4u * list + 3u], capacity);
     uint stride = gl_NumWorkGroups.x << WALK_GROUP_SHIFT;
     for (uint index = (gl_WorkGroupID.x << WALK_GROUP_SHIFT) + gl_LocalInvocationIndex;
-         index < u_walk_list.count; index += stride) {
-        uint packed = u_walk_list.pixels[index];
+         index < count; index += stride) {
+        uint packed = u_walk_list.pixels[list * capacity + index];
         trace_pixel(ivec2(packed & 0xFFFFu, packed >> 16));
     }
 #else

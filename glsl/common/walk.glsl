@@ -570,6 +570,70 @@ bool walk_begin(vec3 entry, vec3 eye, vec3 frame_normal, float surface, out Walk
     return dot(R, walk_normal(at.T, at.q.xy)) < 0.0;
 }
 
+#ifdef FIRST
+// The walk's flat regions (src/mesh/regions.rs): the table of surface ids from the
+// header's word 13 (texels; 0: no region), its entries in word 14.
+//
+// Whether the walked material's first trace, flat, has met the walk's own hit: the pixel
+// (eye-relative entry `entry`, `eye` the eye's world position, its G-buffer normal and
+// surface id) lies on the front of a flat region of its surface, and its ray's straight
+// path from the entry down to the trace's hit height `h` (to the offset surface for a
+// miss) stays inside the region's prism (both ends inside its convex outline) and clear
+// of every overlapping plane's slab (walk_planes_near's test): there the walk follows
+// that path in one flat chord, the same straight tangent-space ray the trace intersected.
+// A handful of texel fetches and no solve: the triage's cheap case without its program.
+bool walk_first_keep(vec3 entry, vec3 eye, vec3 frame_normal, float surface, float h) {
+    uint table = walk_word(13u);
+    uint key = uint(surface);
+    if (table == 0u || key >= walk_word(14u)) {
+        return false;
+    }
+    uvec2 bucket = texelFetch(u_walk, int(table + key)).xy;
+    vec3 X = entry + eye;
+    float tolerance = 1e-2 / walk_f(3u);
+    // The region whose plane holds the entry, seen from its front.
+    int found = -1;
+    int b = int(bucket.x);
+    for (uint r = 0u; r < bucket.y; ++r) {
+        vec4 plane = uintBitsToFloat(texelFetch(u_walk, b));
+        uvec4 counts = texelFetch(u_walk, b + 1);
+        if (found < 0 && abs(dot(plane.xyz, X) - plane.w) <= tolerance
+            && dot(frame_normal, plane.xyz) > 0.0) {
+            found = b;
+        }
+        b += 2 + int(counts.y) + 2 * int(counts.z);
+    }
+    if (found < 0) {
+        return false;
+    }
+    vec4 plane = uintBitsToFloat(texelFetch(u_walk, found));
+    uvec4 counts = texelFetch(u_walk, found + 1);
+    vec3 R = normalize(entry);
+    float cos_in = -dot(R, plane.xyz);
+    if (!(cos_in > 1e-3)) {
+        return false;
+    }
+    // The path: from the entry's base point (on the plane) down to the trace's hit.
+    vec3 A = X - (dot(plane.xyz, X) - plane.w) * plane.xyz;
+    float fraction = h >= 0.0 ? 1.0 - min(h, 1.0) : 1.0;
+    vec3 B = A + (fraction * pc.depth_scale * uintBitsToFloat(counts.x) / cos_in) * R;
+    bool keep = true;
+    int e = found + 2;
+    for (uint k = 0u; k < counts.y; ++k) {
+        vec4 edge = uintBitsToFloat(texelFetch(u_walk, e + int(k)));
+        keep = keep && min(dot(edge.xyz, A), dot(edge.xyz, B)) >= edge.w;
+    }
+    int p = e + int(counts.y);
+    for (uint k = 0u; k < counts.z; ++k) {
+        vec4 q = uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k)));
+        float depth = pc.depth_scale * uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k) + 1).x);
+        vec2 d = vec2(dot(A, q.xyz), dot(B, q.xyz)) - q.w;
+        keep = keep && (min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth);
+    }
+    return keep;
+}
+#endif
+
 #ifdef TRIAGE
 // The mesh walk's triage of a pixel (its tangent-space ray `ray`, the curved trace's hit
 // height `h`: < 0 for a miss). The curved trace's hit stands where the pixel is on no
@@ -587,8 +651,12 @@ int walk_triage(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     WalkAt at;
     vec3 X0, R;
     float side;
-    if (!walk_begin(entry, eye, frame_normal, surface, at, X0, R, side)
-        || height_exact(ray.uv0) >= 1.0) {
+    // Off the walked triangles, or a ray that does not go into the shell: the walk's
+    // circle model (the first trace was flat).
+    if (!walk_begin(entry, eye, frame_normal, surface, at, X0, R, side)) {
+        return WALK_LIST;
+    }
+    if (height_exact(ray.uv0) >= 1.0) {
         return WALK_KEEP;
     }
     if ((at.T.flags & WALK_FLAT) == 0u) {

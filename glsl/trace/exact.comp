@@ -29,12 +29,20 @@
 // dispmap-variant: CURVED+WALK
 // dispmap-variant: CURVED+WALK+ITERATIONS
 // dispmap-variant: CURVED+WALK+TRIAGE
+// dispmap-variant: WALK+FIRST
+// dispmap-variant: WALK+FIRST+ITERATIONS
 #include "trace.glsl"
 #include "pyramid.glsl"
 #ifdef WALK
 #include "walk.glsl"
 
-#ifdef TRIAGE
+#if defined(FIRST)
+bool walk_pixel_first_keep(ivec2 pixel, float h) {
+    vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
+    vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
+    return walk_first_keep(entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel), h);
+}
+#elif defined(TRIAGE)
 // The mesh walk's triage of `pixel` (its G-buffer ray `ray`): walk_triage's decision.
 int walk_pixel_triage(ivec2 pixel, Ray ray, out Hit hit) {
     hit = miss(ray, 0u);

@@ -243,20 +243,16 @@ mod tests {
                 .iter()
                 .any(|(f, _)| *f == crate::passes::trace::HIT_UV_FORMAT)
         );
-        // The self-shadowed shade variant pushes the most descriptors (10, reflected; as many
-        // as the iteration variants of `dig-guarded`'s trace, `exact`'s curved trace and
-        // its mesh walk).
-        assert_eq!(
-            r.max_push_descriptors,
-            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
-        );
-        assert_eq!(
-            r.max_push_descriptors,
-            crate::shaders::TRACE_EXACT_COMP_CURVED_WALK_ITERATIONS
-                .bindings
-                .len() as u32
-        );
-        assert_eq!(r.max_push_descriptors, 10);
+        // The iteration variants of `exact`'s mesh walk (its first trace and the walk)
+        // push the most descriptors (11, reflected; the self-shadowed shade 10).
+        for shader in [
+            crate::shaders::TRACE_EXACT_COMP_CURVED_WALK_ITERATIONS,
+            crate::shaders::TRACE_EXACT_COMP_WALK_FIRST_ITERATIONS,
+        ] {
+            assert_eq!(r.max_push_descriptors, shader.bindings.len() as u32);
+        }
+        assert_eq!(crate::shaders::SHADE_COMP_SHADOWS.bindings.len(), 10);
+        assert_eq!(r.max_push_descriptors, 11);
         let largest = [
             std::mem::size_of::<crate::abi::ShadowParams>(),
             std::mem::size_of::<crate::abi::HitDepthParams>(),
@@ -283,7 +279,9 @@ mod tests {
         assert_eq!(largest, Some(super::PUSH_DESCRIPTORS));
         assert_eq!(
             super::PUSH_DESCRIPTORS,
-            crate::shaders::SHADE_COMP_SHADOWS.bindings.len() as u32
+            crate::shaders::TRACE_EXACT_COMP_CURVED_WALK_ITERATIONS
+                .bindings
+                .len() as u32
         );
         assert_eq!(
             super::MAX_QUERIES as usize,

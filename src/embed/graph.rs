@@ -227,13 +227,18 @@ impl FrameGraph {
     /// Declares a dispatch of a shader with `bindings` for `material`: each binding's
     /// resource accessed as the shader declares it ([`binding_access`]), except those in
     /// `skip` (bound but not accessed by this dispatch); a shader that reads the tile
-    /// lists is dispatched indirectly, so its arguments are read too.
+    /// lists is dispatched indirectly, so its arguments are read too, and so is one that
+    /// binds the walk list without the tile lists (the triage and the walk run the
+    /// pixels of a walk list, dispatched from its own arguments).
     pub(super) fn dispatch(
         &mut self,
         bindings: &[ShaderBinding],
         material: u32,
         skip: &[Res],
     ) -> Result<()> {
+        let tiled = bindings
+            .iter()
+            .any(|b| b.name == crate::passes::classify::TILES.0);
         for b in bindings {
             let res = resource(b.name, material).ok_or_else(|| {
                 Error::Internal(format!("binding {} names no resource of the frame", b.name))
@@ -245,8 +250,7 @@ impl FrameGraph {
             if res == Res::Tiles && !b.writes {
                 self.tracker.declare(Res::Args, INDIRECT)?;
             }
-            // The walk dispatches the walk list's own arguments.
-            if res == Res::WalkList && !b.writes {
+            if res == Res::WalkList && !tiled {
                 self.tracker.declare(Res::WalkList, INDIRECT)?;
             }
         }

@@ -42,8 +42,8 @@ pub struct MemoryReport {
     /// ([`DisplacementPass::set_curved_meshes`]): their triangles, neighbours and start
     /// grid in one buffer.
     pub curved_meshes: u64,
-    /// The mesh walk's lists of pixels (a material walks the curved meshes): one per frame
-    /// slot, 4 bytes a pixel.
+    /// The mesh walk's lists of pixels (a material walks the curved meshes): one buffer
+    /// per frame slot, 8 bytes a pixel (the triage's list and the walk's).
     pub walk_lists: u64,
     /// Replaced resources that frames in flight may still read, freed once every slot
     /// has been recorded again.

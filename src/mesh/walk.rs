@@ -23,19 +23,19 @@ use std::collections::HashMap;
 /// the first and count of its overlapping triangles in the overlap list, its flatness bits
 /// ([`FLAT`], [`FLAT_EDGE`]), and the first and count of its overlapping triangles' planes
 /// in the plane list ([`PLANE_WORDS`] each).
-const TRIANGLE_WORDS: usize = 36;
+pub(super) const TRIANGLE_WORDS: usize = 36;
 /// Words of a plane of the plane list: its unit normal (along the triangle's vertex
 /// normals), its offset `n . p`, and the largest local uv scale of the triangles on it.
-const PLANE_WORDS: usize = 5;
+pub(super) const PLANE_WORDS: usize = 5;
 /// A flatness bit: the triangle's three normals and local uv scales are equal, so its
 /// shell is a straight prism and a ray's path in its uv and depth is straight.
-const FLAT: u32 = 1;
+pub(super) const FLAT: u32 = 1;
 /// A flatness bit (shifted by the edge's index): the neighbour across the edge is flat
 /// with the same normal, scale and affine uv map (the two halves of a cube's face), so a
 /// path stays straight across the edge.
-const FLAT_EDGE: u32 = 2;
+pub(super) const FLAT_EDGE: u32 = 2;
 /// A triangle with no neighbour across an edge (`WALK_NONE`).
-const NONE: u32 = u32::MAX;
+pub(super) const NONE: u32 = u32::MAX;
 /// Words of the header (see `walk.glsl`).
 const HEADER_WORDS: usize = 16;
 /// Cells along the grid's longest side at most.
@@ -251,6 +251,15 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
     words.extend(lists.iter().flatten());
     words.extend(overlaps.iter().flatten());
     words.extend(planes.iter().flatten().flatten().map(|x| x.to_bits()));
+    // The flat regions (super::regions), from the next whole texel.
+    words.resize(words.len().div_ceil(4) * 4, 0);
+    let table = words.len() / 4;
+    let (entries, texels) = super::regions::region_texels(&triangles, &planes, extent, table);
+    if entries > 0 {
+        words[13] = table as u32;
+        words[14] = entries as u32;
+        words.extend(texels.iter().flatten());
+    }
     words
 }
 

@@ -144,48 +144,64 @@ fn bindings(
     b
 }
 
-/// The bindings of `method`'s mesh walk pipeline ([`Method::walk_shader`]): its flat
-/// trace's but the tile list (the walk reads no curve image, and its pixels from the
-/// walk list), the walk buffer and the walk list.
-fn walk_bindings(method: Method, iterations: bool) -> Vec<(&'static str, vk::DescriptorType)> {
-    let mut b = bindings(method, iterations, false);
-    b.retain(|&(name, _)| name != TILES.0);
+/// The bindings of the mesh walk's `step` for `method` (with the iteration output or
+/// without):
+/// * the first trace ([`Method::walk_first_shader`]): the flat trace's, the walk buffer and
+///   the walk list (appended to);
+/// * the triage ([`Method::walk_triage_shader`]): the G-buffer, the height field and its
+///   pyramid, the hit images (the first trace's hit heights read, the hits the triage
+///   decides written), the walk buffer and the walk list (its pixels read, appended to);
+/// * the walk ([`Method::walk_shader`]): the flat trace's but the tile list (its pixels
+///   come from the walk list), the curve image (the circle model of a pixel on no walked
+///   triangle), the walk buffer and the walk list.
+fn walk_bindings(
+    method: Method,
+    iterations: bool,
+    step: WalkStep,
+) -> Vec<(&'static str, vk::DescriptorType)> {
+    let mut b = match step {
+        WalkStep::First => bindings(method, iterations, false),
+        WalkStep::Triage => vec![
+            ("u_ray", SAMPLED),
+            ("u_depth", SAMPLED),
+            ("u_height", SAMPLED),
+            ("u_pyramid", SAMPLED),
+            ("u_hit_uv", STORAGE),
+            ("u_hit_height", STORAGE),
+            ("u_frame", SAMPLED),
+        ],
+        WalkStep::Walk => {
+            let mut b = bindings(method, iterations, true);
+            b.retain(|&(name, _)| name != TILES.0);
+            b
+        }
+    };
     b.push(("u_walk", vk::DescriptorType::UNIFORM_TEXEL_BUFFER));
     b.push(("u_walk_list", vk::DescriptorType::STORAGE_BUFFER));
     b
 }
 
-/// The bindings of the mesh walk's triage ([`Method::walk_triage_shader`]): the G-buffer,
-/// the height field and its pyramid, the hit images (the curved trace's hit heights read,
-/// the hits the triage decides written), the tile list, the walk buffer and the walk list
-/// (appended to).
-fn triage_bindings() -> Vec<(&'static str, vk::DescriptorType)> {
-    vec![
-        ("u_ray", SAMPLED),
-        ("u_depth", SAMPLED),
-        ("u_height", SAMPLED),
-        ("u_pyramid", SAMPLED),
-        ("u_hit_uv", STORAGE),
-        ("u_hit_height", STORAGE),
-        ("u_frame", SAMPLED),
-        TILES,
-        ("u_walk", vk::DescriptorType::UNIFORM_TEXEL_BUFFER),
-        ("u_walk_list", vk::DescriptorType::STORAGE_BUFFER),
-    ]
+/// Bytes of the walk list's two headers (`WalkList` in `glsl/common/trace.glsl`): per
+/// list, its dispatch's arguments and its count of pixels.
+pub const WALK_LIST_HEADER: u64 = 32;
+
+/// The walk list's headers before a walked material's first trace: per list, no
+/// workgroup along x, one along y and z, no pixel.
+pub const WALK_LIST_RESET: [u32; 8] = [0, 1, 1, 0, 0, 1, 1, 0];
+
+/// Bytes of a walk list for a frame of `extent`: its headers, and two words a pixel (the
+/// first trace's list and the triage's: a material's pixels are at most the frame's).
+pub fn walk_list_bytes(extent: vk::Extent2D) -> u64 {
+    WALK_LIST_HEADER + 8 * u64::from(extent.width) * u64::from(extent.height)
 }
 
-/// Bytes of the walk list's header (`WalkList` in `glsl/common/trace.glsl`): the walk's
-/// dispatch arguments and the count of listed pixels.
-pub const WALK_LIST_HEADER: u64 = 16;
-
-/// The walk list's header before a triage: no workgroup along x, one along y and z, no
-/// pixel.
-pub const WALK_LIST_RESET: [u32; 4] = [0, 1, 1, 0];
-
-/// Bytes of a walk list for a frame of `extent` (its header, and a word a pixel: a
-/// material's pixels are at most the frame's).
-pub fn walk_list_bytes(extent: vk::Extent2D) -> u64 {
-    WALK_LIST_HEADER + 4 * u64::from(extent.width) * u64::from(extent.height)
+/// The byte offset in the walk list of the dispatch arguments of `step`'s pixels (the
+/// triage's: the first trace's list; the walk's: the triage's).
+fn walk_list_args(step: WalkStep) -> u64 {
+    match step {
+        WalkStep::First | WalkStep::Triage => 0,
+        WalkStep::Walk => 16,
+    }
 }
 
 /// The images the trace pass reads and writes (layouts in the module docs).
@@ -267,41 +283,36 @@ pub struct TracePass {
     curved: bool,
     iterations: bool,
     pipeline: FetchPipeline,
-    /// The mesh walk's pipelines: its triage, the second dispatch of a curved method with
-    /// [`Method::walk_shader`], and the walk itself over the pixels the triage lists, the
-    /// third ([`TracePass::record_walk`]).
-    walk: Option<WalkPipelines>,
+    /// The mesh walk's pipelines, one per [`WalkStep`] in its order, for a curved method
+    /// with [`Method::walk_shader`] ([`TracePass::record_walk`]).
+    walk: Option<Vec<FetchPipeline>>,
 }
 
-/// The two pipelines of a mesh walk.
-struct WalkPipelines {
-    triage: FetchPipeline,
-    walk: FetchPipeline,
-}
-
-impl Destroy for WalkPipelines {
-    unsafe fn destroy(&mut self, ctx: &Context) {
-        // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
-        unsafe {
-            self.triage.destroy(ctx);
-            self.walk.destroy(ctx);
-        }
-    }
-}
-
-/// The mesh walk's two dispatches after the curved trace, in their order
-/// ([`TracePass::record_walk`]).
+/// The mesh walk's three dispatches, in their order ([`TracePass::record_walk`]): they
+/// replace the curved trace of a material whose meshes the pass walks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum WalkStep {
-    /// Over the material's tiles: keeps, resolves or lists each pixel.
+    /// Over the material's tiles: the flat trace, and the pixels whose hit it cannot tell
+    /// is the walk's listed.
+    First,
+    /// Over the pixels the first trace listed: keeps, resolves or lists each one.
     Triage,
-    /// Over the listed pixels: the walk itself.
+    /// Over the pixels the triage listed: the walk itself.
     Walk,
 }
 
 impl WalkStep {
     /// The steps in their order.
-    pub const ALL: [WalkStep; 2] = [WalkStep::Triage, WalkStep::Walk];
+    pub const ALL: [WalkStep; 3] = [WalkStep::First, WalkStep::Triage, WalkStep::Walk];
+
+    /// The step's shader for `method` (`None`: the method does not walk meshes).
+    fn shader(self, method: Method, iterations: bool) -> Option<crate::shaders::Shader> {
+        match self {
+            WalkStep::First => method.walk_first_shader(iterations),
+            WalkStep::Triage => method.walk_triage_shader(),
+            WalkStep::Walk => method.walk_shader(iterations),
+        }
+    }
 }
 
 impl TracePass {
@@ -316,10 +327,9 @@ impl TracePass {
         &self,
         step: WalkStep,
     ) -> Option<&'static [crate::shaders::ShaderBinding]> {
-        self.walk.as_ref().map(|w| match step {
-            WalkStep::Triage => w.triage.pipeline.bindings,
-            WalkStep::Walk => w.walk.pipeline.bindings,
-        })
+        self.walk
+            .as_ref()
+            .map(|w| w[step as usize].pipeline.bindings)
     }
 
     /// Builds the pipeline of `method`: with the curved path ([`TraceInputs::curved`],
@@ -348,22 +358,17 @@ impl TracePass {
             std::mem::size_of::<TraceParams>() as u32,
             &[],
         )?;
-        let shaders = method
-            .walk_shader(iterations)
-            .zip(method.walk_triage_shader())
-            .filter(|_| curved);
-        let walk = match shaders {
-            Some((walk, triage)) => {
-                match Self::walk_pipelines(ctx, &name, method, iterations, &walk, &triage) {
-                    Ok(p) => Some(p),
-                    Err(e) => {
-                        // SAFETY: just made, never recorded.
-                        unsafe { pipeline.destroy(ctx) };
-                        return Err(e);
-                    }
+        let walk = if curved && method.walks_meshes() {
+            match Self::walk_pipelines(ctx, &name, method, iterations) {
+                Ok(p) => Some(p),
+                Err(e) => {
+                    // SAFETY: just made, never recorded.
+                    unsafe { pipeline.destroy(ctx) };
+                    return Err(e);
                 }
             }
-            None => None,
+        } else {
+            None
         };
         Ok(TracePass {
             method,
@@ -374,39 +379,39 @@ impl TracePass {
         })
     }
 
-    /// The triage and walk pipelines of `method`'s mesh walk.
+    /// The pipelines of `method`'s mesh walk, one per [`WalkStep`] in its order.
     fn walk_pipelines(
         ctx: &Context,
         name: &str,
         method: Method,
         iterations: bool,
-        walk: &crate::shaders::Shader,
-        triage: &crate::shaders::Shader,
-    ) -> Result<WalkPipelines> {
+    ) -> Result<Vec<FetchPipeline>> {
         let size = std::mem::size_of::<TraceParams>() as u32;
-        let mut triage = FetchPipeline::specialized(
-            ctx,
-            &format!("{name}.triage"),
-            triage,
-            &triage_bindings(),
-            size,
-            &[],
-        )?;
-        match FetchPipeline::specialized(
-            ctx,
-            &format!("{name}.walk"),
-            walk,
-            &walk_bindings(method, iterations),
-            size,
-            &[],
-        ) {
-            Ok(walk) => Ok(WalkPipelines { triage, walk }),
-            Err(e) => {
-                // SAFETY: just made, never recorded.
-                unsafe { triage.destroy(ctx) };
-                Err(e)
+        let mut made: Vec<FetchPipeline> = Vec::with_capacity(WalkStep::ALL.len());
+        for step in WalkStep::ALL {
+            let made_one = step
+                .shader(method, iterations)
+                .ok_or_else(|| Error::Internal(format!("{} has no {step:?} step", method.name())))
+                .and_then(|shader| {
+                    FetchPipeline::specialized(
+                        ctx,
+                        &format!("{name}.walk.{step:?}").to_lowercase(),
+                        &shader,
+                        &walk_bindings(method, iterations, step),
+                        size,
+                        &[],
+                    )
+                });
+            match made_one {
+                Ok(p) => made.push(p),
+                Err(e) => {
+                    // SAFETY: just made, never recorded.
+                    unsafe { made.destroy(ctx) };
+                    return Err(e);
+                }
             }
         }
+        Ok(made)
     }
 
     /// The method this pass runs.
@@ -455,26 +460,33 @@ impl TracePass {
         unsafe { self.record_on(None, ctx, cmd, inputs, params, depth_scale) }
     }
 
-    /// Records one of the mesh walk's dispatches (nothing when the pass has no walk,
-    /// [`TracePass::walk_bindings`]); both follow [`TracePass::record`]'s curved trace, in
-    /// their order, each after a barrier the caller records. Fails (recording nothing)
-    /// when `inputs` lacks the walk buffer or the walk list.
+    /// Records one of the mesh walk's dispatches, which together replace
+    /// [`TracePass::record`]'s curved trace (nothing when the pass has no walk,
+    /// [`TracePass::walk_bindings`]), in their order, each after a barrier the caller
+    /// records. Fails (recording nothing) when `inputs` lacks the walk buffer, the walk
+    /// list or the view ([`TraceInputs::curved`]).
     ///
-    /// * [`WalkStep::Triage`], over the material's tiles: keeps the curved trace's hits
-    ///   (reading its hit heights) where they are the walk's, writes those it resolves,
-    ///   and appends the other pixels to the walk list, counting the walk's workgroups in
-    ///   the list's header, which the caller reset to [`WALK_LIST_RESET`].
-    /// * [`WalkStep::Walk`]: an indirect dispatch of the walk list's arguments over the
-    ///   pixels the triage listed, rewriting their hits (`glsl/trace/exact.comp`'s `WALK`
-    ///   variant).
+    /// * [`WalkStep::First`], over the material's tiles: the method's flat trace into the
+    ///   hit images (and iteration counts), appending to the walk list's first list the
+    ///   pixels where it cannot tell from the walk buffer's flat regions that the hit is
+    ///   the walk's, and counting their workgroups in the list's first header; the caller
+    ///   reset both headers to [`WALK_LIST_RESET`] before it.
+    /// * [`WalkStep::Triage`], an indirect dispatch of the first list's arguments over its
+    ///   pixels: keeps the first trace's hits (reading its hit heights) where they are the
+    ///   walk's, writes those it resolves, and appends the other pixels to the second list.
+    /// * [`WalkStep::Walk`], an indirect dispatch of the second list's arguments over its
+    ///   pixels: rewrites their hits (`glsl/trace/exact.comp`'s `WALK` variant; the curved
+    ///   trace's circle model for a pixel on no walked triangle).
+    ///
+    /// A level-of-detail blend ([`MethodParams::lod_threshold`]) keeps the curved trace
+    /// ([`TracePass::record`]) and no walk.
     ///
     /// # Safety
     /// As [`TracePass::record`], and when the command buffer executes: the walk buffer
-    /// holds [`crate::mesh::walk::walk_words`]' words, visible to compute-shader reads; for
-    /// the triage, the trace's writes of the hit images are visible to its storage reads
-    /// and writes and the list's reset to its storage reads and writes; for the walk, the
-    /// triage's writes (the list and hits) are visible to indirect reads and compute-shader
-    /// storage reads and writes.
+    /// holds [`crate::mesh::walk::walk_words`]' words, visible to compute-shader reads;
+    /// for the first trace, the list's reset is visible to its storage reads and writes;
+    /// for the triage and the walk, the step before's writes (the list and the hits) are
+    /// visible to indirect reads and compute-shader storage reads and writes.
     pub unsafe fn record_walk(
         &self,
         step: WalkStep,
@@ -491,8 +503,8 @@ impl TracePass {
         unsafe { self.record_on(Some(step), ctx, cmd, inputs, params, depth_scale) }
     }
 
-    /// The dispatch `which`: the trace's (`None`) or the triage's over the material's
-    /// tiles, the walk's over its list.
+    /// The dispatch `which`: the trace's (`None`) or the walk's first trace over the
+    /// material's tiles, the triage's and the walk's over their lists.
     ///
     /// # Safety
     /// As [`TracePass::record`] or [`TracePass::record_walk`] (`which`).
@@ -507,8 +519,7 @@ impl TracePass {
     ) -> Result<()> {
         let pipeline = match (which, &self.walk) {
             (None, _) => &self.pipeline,
-            (Some(WalkStep::Triage), Some(w)) => &w.triage,
-            (Some(WalkStep::Walk), Some(w)) => &w.walk,
+            (Some(step), Some(w)) => &w[step as usize],
             (_, None) => {
                 return Err(Error::Internal(format!(
                     "trace[{}] has no mesh walk",
@@ -572,7 +583,10 @@ impl TracePass {
         let pyramids = pyramid.map(|p| [p.descriptor()]);
         let grid = corners.map(|c| fetch(c.image.view));
         let frame = fetch(gbuffer.frame.view);
-        let curve = match (self.curved && !walks, gbuffer.curve) {
+        // The curved trace and the walk (its circle model off the walked triangles) read
+        // the curve image.
+        let reads_curve = matches!(which, None | Some(WalkStep::Walk));
+        let curve = match (self.curved && reads_curve, gbuffer.curve) {
             (true, Some(c)) => Some(fetch(c.view)),
             (true, None) => {
                 return Err(Error::invalid(
@@ -595,7 +609,8 @@ impl TracePass {
             pl.image("u_frame", &frame)?,
         ];
         writes.push(pl.image("u_hit_uv", &hit_uv)?);
-        // The triage writes no iteration counts (the hits it decides keep the trace's).
+        // The triage writes no iteration counts (the hits it decides keep the first
+        // trace's).
         if let Some(c) = counts.as_ref().filter(|_| which != Some(WalkStep::Triage)) {
             writes.push(pl.image("u_iterations", c)?);
         }
@@ -642,6 +657,8 @@ impl TracePass {
         let curved = curved.filter(|_| self.curved);
         if curved.is_some() {
             flags |= TRACE_FLAG_CURVED;
+        } else if walks {
+            return Err(missing("the frame's view (the mesh walk's pixel rays)"));
         }
         // w: the eye's world position, x, y and z (the mesh walk).
         let view = |v: glam::Vec3, w: f32| v.extend(w).to_array();
@@ -674,16 +691,16 @@ impl TracePass {
         // the list is the classification's (this function's contract).
         unsafe {
             match (which, walk_list) {
-                // The walk list's own arguments (the triage's count of workgroups); its
-                // pixels, not the tile list, say which pixel an invocation walks.
-                (Some(WalkStep::Walk), Some(list)) => {
+                // The walk list's own arguments (the step before's count of workgroups);
+                // its pixels, not the tile list, say which pixel an invocation runs.
+                (Some(step @ (WalkStep::Triage | WalkStep::Walk)), Some(list)) => {
                     pipeline.pipeline.dispatch_indirect(
                         ctx,
                         cmd,
                         &writes,
                         bytemuck::bytes_of(&push),
                         list,
-                        0,
+                        walk_list_args(step),
                     );
                     Ok(())
                 }
@@ -730,15 +747,13 @@ mod tests {
                         panic!("{} curved, iterations {iterations}: {e}", m.name())
                     });
                 }
-                if let Some(s) = m.walk_shader(iterations) {
-                    check_declared(&s, &walk_bindings(m, iterations)).unwrap_or_else(|e| {
-                        panic!("{} walk, iterations {iterations}: {e}", m.name())
-                    });
+                for step in WalkStep::ALL {
+                    if let Some(s) = step.shader(m, iterations) {
+                        check_declared(&s, &walk_bindings(m, iterations, step)).unwrap_or_else(
+                            |e| panic!("{} walk {step:?}, iterations {iterations}: {e}", m.name()),
+                        );
+                    }
                 }
-            }
-            if let Some(s) = m.walk_triage_shader() {
-                check_declared(&s, &triage_bindings())
-                    .unwrap_or_else(|e| panic!("{} walk triage: {e}", m.name()));
             }
         }
     }

@@ -187,6 +187,7 @@ impl DisplacementPass {
         let iterations = self.slots[slot].iterations.as_ref().map(|i| i.view);
         let walk_list = self.slots[slot].walk_list.as_ref();
         let mut live = Vec::new();
+        let mut walks = Vec::new();
         for (tiles, m, map) in self.live(inputs.frame_slot) {
             let method = m.settings.method;
             let key = (
@@ -200,6 +201,19 @@ impl DisplacementPass {
                     method.name()
                 )));
             };
+            // A material whose meshes the pass walks (`exact` traced curved, given meshes)
+            // is traced by the walk's three steps below instead (unless a level-of-detail
+            // blend keeps its curved trace).
+            let walked = m.curved
+                && view.is_some()
+                && trace.walk_bindings(WalkStep::First).is_some()
+                && self.walk.triangles > 0
+                && walk_list.is_some()
+                && m.settings.params.lod_threshold.is_none();
+            if walked {
+                walks.push((tiles, m, map, trace));
+                continue;
+            }
             g.dispatch(trace.bindings(), tiles.material, &[])?;
             live.push((tiles, m, map, trace));
         }
@@ -234,27 +248,18 @@ impl DisplacementPass {
                 walk_list: walk_list.map(|b| b.raw),
             }
         });
-        // The mesh walks (`exact` traced curved on a pass given meshes) rewrite some of
-        // the hits the traces wrote: per material, the walk list's reset, the triage
-        // (which reads the traces' hit heights and lists the pixels to walk) and the walk
+        // The mesh walks, after the other traces: per material, the walk list's reset,
+        // the first trace (flat, listing the pixels it cannot tell are the walk's), the
+        // triage (which reads its hit heights and lists the pixels to walk) and the walk
         // over them, each declared and flushed after the one before, so the graph orders
-        // them after the traces and after each other.
-        let walks: Vec<_> = live
-            .iter()
-            .filter(|(_, m, _, trace)| {
-                m.curved
-                    && view.is_some()
-                    && trace.walk_bindings(WalkStep::Walk).is_some()
-                    && self.walk.triangles > 0
-                    && walk_list.is_some()
-            })
-            .collect();
+        // them after each other (and the walk list's reuse by the next material after
+        // the walk before).
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
         // queries reset by `begin`). In the body (inside this block): the graph's barriers
         // above made every binding ready (the G-buffer in its entry state, the hit images
         // and tile lists ordered after the classification, the maps sampled-readable, the
-        // slot's corner grids sampled-readable after `record_corners`); the second flush
-        // orders the walks' writes of the hit images after the traces'.
+        // slot's corner grids sampled-readable after `record_corners`); each walk step's
+        // flush orders it after the steps before.
         unsafe {
             w.scope(ctx, cmd, PassName::Trace, |cmd| {
                 for (tiles, m, map, trace) in &live {
@@ -275,9 +280,10 @@ impl DisplacementPass {
                         bytemuck::cast_slice(&crate::passes::trace::WALK_LIST_RESET),
                     );
                     for step in WalkStep::ALL {
-                        if let Some(bindings) = trace.walk_bindings(step) {
-                            g.dispatch(bindings, tiles.material, &[])?;
-                        }
+                        let Some(bindings) = trace.walk_bindings(step) else {
+                            continue;
+                        };
+                        g.dispatch(bindings, tiles.material, &[])?;
                         g.flush(ctx, cmd, PassName::Trace)?;
                         trace.record_walk(
                             step,
