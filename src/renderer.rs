@@ -27,6 +27,8 @@ mod forward;
 mod frame;
 mod objects;
 mod readback;
+#[cfg(test)]
+mod walk_tests;
 
 pub use objects::{MAX_OBJECTS, ObjectAssets, ObjectMaterial, SceneAssets, SceneObject};
 use objects::{Objects, bounding_sphere, check_eye, objects_settings};

@@ -1,0 +1,67 @@
+//! The mesh walk's fallback, seen through the renderer's own pass: the pixels of a walked
+//! material on none of the walked triangles take the per-pixel circle model, the hits of
+//! the curved trace without a walk.
+
+use super::*;
+use crate::context::ContextOptions;
+use crate::mesh::Mesh;
+use crate::scene::Geometry;
+
+#[test]
+fn pixels_off_the_walked_meshes_take_the_circle_model() {
+    let ctx = Arc::new(
+        Context::headless(&ContextOptions {
+            validation: Some(true),
+            device: None,
+        })
+        .expect("a validated Vulkan context (./scripts/setup-debian.sh)"),
+    );
+    let field = HeightField::from_fn(64, 64, "bumps", |u, v| {
+        0.5 + 0.5 * (u * 6.0 * std::f32::consts::TAU).sin() * (v * 5.0 * std::f32::consts::TAU).cos()
+    })
+    .unwrap();
+    let settings = RenderSettings {
+        width: 96,
+        height: 64,
+        method: Method::Exact,
+        params: MethodParams::for_method(Method::Exact),
+        scene: Scene {
+            geometry: Geometry::Sphere,
+            depth_scale: 0.15,
+            ..Scene::default()
+        },
+        shadows: ShadowSettings::default(),
+    };
+    let mut r = Renderer::new(&ctx, &field, settings).unwrap();
+    r.set_curved(true).unwrap();
+    assert!(r.pass.curved_mesh_triangles() > 0, "the sphere is walked");
+    r.render().unwrap();
+    let walked = r.read_hits().unwrap();
+    // The walk buffer of a cube far from the sphere: no pixel is on its triangles.
+    let mut away = Mesh::cube();
+    for v in &mut away.vertices {
+        v.position[0] += 100.0;
+    }
+    r.pass.set_curved_meshes(&[&away]).unwrap();
+    r.render().unwrap();
+    let off = r.read_hits().unwrap();
+    // No meshes: the curved trace alone (its circle model everywhere).
+    r.pass.set_curved_meshes(&[]).unwrap();
+    r.render().unwrap();
+    let circle = r.read_hits().unwrap();
+    let differ = |a: &[HitTexel], b: &[HitTexel], tolerance: f32| {
+        a.iter()
+            .zip(b)
+            .filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > tolerance))
+            .count()
+    };
+    assert_eq!(differ(&off, &circle, 1e-6), 0, "off the meshes: the circle model");
+    // The walk changes hits where the circle model drifts from the mesh (so the first
+    // check can fail: a first trace's flat hit kept off the meshes would differ too).
+    let changed = differ(&walked, &circle, 1e-4);
+    assert!(changed > 20, "the walk changed {changed} hits");
+    drop(r);
+    let m = ctx.messages().clone();
+    drop(ctx);
+    assert_eq!((m.errors(), m.warnings()), (0, 0), "validation messages");
+}
