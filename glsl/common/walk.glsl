@@ -325,6 +325,36 @@ bool walk_in_relief(WalkTri N, vec3 q, vec2 tiles) {
     return !leaves_domain(uv) && height_exact(uv) >= 1.0 - t;
 }
 
+// The overlapping triangles of T (the first 32 of its list) whose shell the segment from Xa
+// to Xb can meet (walk_near), as bits: the loops below then run their solves and
+// traversals once per such triangle, not once per overlapping triangle (a CPU driver's
+// lanes run a loop's body as often as the lane that needs it most).
+uint walk_overlap_mask(WalkTri T, vec3 Xa, vec3 Xb, float side) {
+    uint mask = 0u;
+    uint list = walk_word(11) + T.overlaps.x;
+    uint n = min(T.overlaps.y, 32u);
+    for (uint k = 0u; k < n; ++k) {
+        if (walk_near(walk_tri(walk_word(list + k), side), Xa, Xb)) {
+            mask |= 1u << k;
+        }
+    }
+    return mask;
+}
+
+// The next overlapping triangle to test, its index in T's overlap list: the lowest bit of
+// `mask` (cleared), then those past the first 32 (`beyond` counts them); false when none
+// is left.
+bool walk_next_overlap(WalkTri T, inout uint mask, inout uint beyond, out uint k) {
+    if (mask != 0u) {
+        k = uint(findLSB(mask));
+        mask &= mask - 1u;
+        return true;
+    }
+    k = 32u + beyond;
+    beyond += 1u;
+    return k < T.overlaps.y;
+}
+
 // Where the shells of two triangles overlap (inside the solid along a crease, where their
 // normals part), the ray can meet the other's relief while it walks this one's shell: the
 // surface is every piece's, as the reference's. Tests the triangles overlapping `at`'s
@@ -338,10 +368,13 @@ bool walk_overlaps(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, v
     }
     float s_first = sb;
     uint list = walk_word(11) + at.T.overlaps.x;
-    for (uint k = 0u; k < at.T.overlaps.y; ++k) {
+    uint mask = walk_overlap_mask(at.T, X0 + sa * R, X0 + sb * R, side);
+    uint beyond = 0u;
+    uint k;
+    while (walk_next_overlap(at.T, mask, beyond, k)) {
         uint t = walk_word(list + k);
         WalkTri N = walk_tri(t, side);
-        if (!walk_near(N, X0 + sa * R, X0 + sb * R)) {
+        if (k >= 32u && !walk_near(N, X0 + sa * R, X0 + sb * R)) {
             continue;
         }
         vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
@@ -422,10 +455,13 @@ bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float s
     }
     int top = pyramid_levels() - 1;
     uint list = walk_word(11) + at.T.overlaps.x;
-    for (uint k = 0u; k < at.T.overlaps.y; ++k) {
+    uint mask = walk_overlap_mask(at.T, X0 + sa * R, X0 + sb * R, side);
+    uint beyond = 0u;
+    uint k;
+    while (walk_next_overlap(at.T, mask, beyond, k)) {
         uint t = walk_word(list + k);
         WalkTri N = walk_tri(t, side);
-        if (!walk_near(N, X0 + sa * R, X0 + sb * R)) {
+        if (k >= 32u && !walk_near(N, X0 + sa * R, X0 + sb * R)) {
             continue;
         }
         vec3 qa = walk_solve(N, X0 + sa * R, vec3(1.0 / 3.0, 1.0 / 3.0, at.q.z), WALK_NEWTON_ENTER);
