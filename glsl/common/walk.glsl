@@ -615,7 +615,8 @@ bool walk_begin(vec3 entry, vec3 eye, vec3 frame_normal, float surface, out Walk
 // surface id) lies on the front of a flat region of its surface, and its ray's straight
 // path from the entry down to the trace's hit height `h` (to the offset surface for a
 // miss) stays inside the region's prism (both ends inside its convex outline) and clear
-// of every overlapping plane's slab (walk_planes_near's test): there the walk follows
+// of every overlapping plane's slab (walk_planes_near's test, exact for a plane of flat
+// triangles: their shells are straight prisms): there the walk follows
 // that path in one flat chord, the same straight tangent-space ray the trace intersected.
 // A handful of texel fetches and no solve: the triage's cheap case without its program.
 bool walk_first_keep(vec3 entry, vec3 eye, vec3 frame_normal, float surface, float h) {
@@ -662,9 +663,11 @@ bool walk_first_keep(vec3 entry, vec3 eye, vec3 frame_normal, float surface, flo
     int p = e + int(counts.y);
     for (uint k = 0u; k < counts.z; ++k) {
         vec4 q = uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k)));
-        float depth = pc.depth_scale * uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k) + 1).x);
+        // The slab's depth, and its reach above the plane and below it in depths.
+        vec3 reach = uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k) + 1).xyz);
+        float depth = pc.depth_scale * reach.x;
         vec2 d = vec2(dot(A, q.xyz), dot(B, q.xyz)) - q.w;
-        keep = keep && (min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth);
+        keep = keep && (min(d.x, d.y) > reach.y * depth || max(d.x, d.y) < -reach.z * depth);
     }
     return keep;
 }

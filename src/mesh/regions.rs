@@ -19,7 +19,10 @@
 //! * a region: `(n, o)` its unit normal and offset `n . p`, `(s, E, P, 0)` its local uv
 //!   scale (bits) and counts, `E` edge texels `(m, c)` (inside: `m . X >= c`, `m` in the
 //!   plane, so the test holds for the whole column under a point), then `P` plane pairs
-//!   `(n, o)`, `(scale, 0, 0, 0)` as the plane list's.
+//!   `(n, o)`, `(scale, above, below, 0)`: the plane list's, with the slab's reach above
+//!   the plane and below it in depths (a 1024th past the exact `[-1, 0]` where every
+//!   overlapping triangle on the plane is flat, its shell a straight prism; else the
+//!   walk's eighth of a depth to each side).
 
 use super::walk::{FLAT, FLAT_EDGE, NONE, PLANE_WORDS, TRIANGLE_WORDS};
 use glam::{DVec2, DVec3};
@@ -35,10 +38,12 @@ pub const MAX_PLANES: usize = 16;
 const MAX_SURFACE: u32 = 2048;
 
 /// The table and the regions' texels for the walk buffer's `triangles` (its words) with
-/// their plane lists `planes`; `first` is the texel the table will start at, `extent`
-/// the meshes' size: the table's entries (0 when no region is kept) and every texel.
+/// their overlap lists `overlaps` and plane lists `planes`; `first` is the texel the table
+/// will start at, `extent` the meshes' size: the table's entries (0 when no region is
+/// kept) and every texel.
 pub(super) fn region_texels(
     triangles: &[[u32; TRIANGLE_WORDS]],
+    overlaps: &[Vec<u32>],
     planes: &[Vec<[f32; PLANE_WORDS]>],
     extent: f32,
     first: usize,
@@ -73,7 +78,19 @@ pub(super) fn region_texels(
     // Per surface id, its regions' texels.
     let mut by_surface: Vec<Vec<Vec<[u32; 4]>>> = Vec::new();
     for list in members.iter().filter(|l| !l.is_empty()) {
-        let Some(region) = region(list, &corner, &f, planes, extent) else {
+        let flat = |p: &[f32; PLANE_WORDS]| {
+            let n = DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+            list.iter()
+                .flat_map(|&t| &overlaps[t])
+                .map(|&o| o as usize)
+                .filter(|&o| {
+                    let (p0, p1, p2) = (corner(o, 0), corner(o, 1), corner(o, 2));
+                    (p1 - p0).cross(p2 - p0).normalize_or_zero().dot(n).abs() > 1.0 - 1e-9
+                        && (n.dot(p0) - f64::from(p[3])).abs() <= 1e-5 * f64::from(extent)
+                })
+                .all(|o| triangles[o][33] & FLAT != 0)
+        };
+        let Some(region) = region(list, &corner, &f, planes, &flat, extent) else {
             continue;
         };
         let mut surfaces: Vec<u32> = list.iter().map(|&t| triangles[t][30]).collect();
@@ -119,6 +136,7 @@ fn region(
     corner: &impl Fn(usize, usize) -> DVec3,
     f: &impl Fn(usize, usize) -> f64,
     planes: &[Vec<[f32; PLANE_WORDS]>],
+    flat: &impl Fn(&[f32; PLANE_WORDS]) -> bool,
     extent: f32,
 ) -> Option<Vec<[u32; 4]>> {
     let t0 = list[0];
@@ -178,8 +196,13 @@ fn region(
         texels.push([bits(m.x), bits(m.y), bits(m.z), bits(m2.dot(a))]);
     }
     for p in &distinct {
+        let (above, below) = if flat(p) {
+            (1.0 / 1024.0, 1.0 + 1.0 / 1024.0)
+        } else {
+            (0.125, 1.125)
+        };
         texels.push([p[0], p[1], p[2], p[3]].map(f32::to_bits));
-        texels.push([p[4].to_bits(), 0, 0, 0]);
+        texels.push([p[4], above, below, 0.0].map(f32::to_bits));
     }
     Some(texels)
 }
@@ -245,8 +268,16 @@ mod tests {
             let regions = regions_of(&words, face);
             assert_eq!(regions.len(), 1, "face {face}");
             let r = &regions[0];
-            // Its outline is the face's square, and the 4 faces around it overlap it.
+            // Its outline is the face's square, and the 4 faces around it overlap it, each
+            // flat: their slabs reach a 1024th of a depth past their prisms.
             assert_eq!((r[1][1], r[1][2]), (4, 4), "face {face}");
+            for plane in 0..4 {
+                let reach = &r[6 + 2 * plane + 1][1..3];
+                assert_eq!(
+                    reach,
+                    [1.0f32 / 1024.0, 1.0 + 1.0 / 1024.0].map(f32::to_bits)
+                );
+            }
             let n = DVec3::from([0, 1, 2].map(|k| f64::from(f32::from_bits(r[0][k]))));
             // Every edge's inward normal lies in the face's plane.
             for e in &r[2..6] {

@@ -254,7 +254,8 @@ pub fn walk_words(meshes: &[&Mesh]) -> Vec<u32> {
     // The flat regions (super::regions), from the next whole texel.
     words.resize(words.len().div_ceil(4) * 4, 0);
     let table = words.len() / 4;
-    let (entries, texels) = super::regions::region_texels(&triangles, &planes, extent, table);
+    let (entries, texels) =
+        super::regions::region_texels(&triangles, &overlaps, &planes, extent, table);
     if entries > 0 {
         words[13] = table as u32;
         words[14] = entries as u32;

@@ -17,7 +17,9 @@ fn pixels_off_the_walked_meshes_take_the_circle_model() {
         .expect("a validated Vulkan context (./scripts/setup-debian.sh)"),
     );
     let field = HeightField::from_fn(64, 64, "bumps", |u, v| {
-        0.5 + 0.5 * (u * 6.0 * std::f32::consts::TAU).sin() * (v * 5.0 * std::f32::consts::TAU).cos()
+        0.5 + 0.5
+            * (u * 6.0 * std::f32::consts::TAU).sin()
+            * (v * 5.0 * std::f32::consts::TAU).cos()
     })
     .unwrap();
     let settings = RenderSettings {
@@ -55,7 +57,11 @@ fn pixels_off_the_walked_meshes_take_the_circle_model() {
             .filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > tolerance))
             .count()
     };
-    assert_eq!(differ(&off, &circle, 1e-6), 0, "off the meshes: the circle model");
+    assert_eq!(
+        differ(&off, &circle, 1e-6),
+        0,
+        "off the meshes: the circle model"
+    );
     // The walk changes hits where the circle model drifts from the mesh (so the first
     // check can fail: a first trace's flat hit kept off the meshes would differ too).
     let changed = differ(&walked, &circle, 1e-4);
