@@ -19,7 +19,7 @@ layout(set = 0, binding = 2) uniform sampler2D u_height;
 // The hit images: the hit's uv and its height (< 0: no hit).
 layout(set = 0, binding = 3, rg32f) uniform writeonly image2D u_hit_uv;
 #ifdef TRIAGE
-// The mesh walk's triage reads the curved trace's hit heights (and writes the hits it
+// The mesh walk's triage reads the first trace's hit heights (and writes the hits it
 // decides).
 layout(set = 0, binding = 7, r32f) uniform image2D u_hit_height;
 #else
@@ -246,8 +246,8 @@ void walk_list_push(uint list, ivec2 pixel) {
 #endif
 #endif
 
-// One pixel of the material: its hit into the hit images (the walk's triage: its
-// decision).
+// One pixel of the material: its hit into the hit images (the walk's first trace: and
+// whether to list it; the triage: its decision).
 void trace_pixel(ivec2 pixel) {
     vec4 g = texelFetch(u_ray, pixel, 0);
     if ((pc.flags & (TRACE_FLAG_AUTO_LEVEL | TRACE_FLAG_LOD)) != 0u) {
@@ -278,8 +278,9 @@ void trace_pixel(ivec2 pixel) {
     }
 #elif defined(WALK) && defined(TRIAGE)
     // The mesh walk's triage (exact.comp's WALK+TRIAGE variant): lists the pixels whose
-    // walk can differ from the curved trace, and counts the walk's workgroups (at most
-    // WALK_MAX_GROUPS); a level-of-detail blend keeps the curved trace's hits.
+    // walk can differ from the first trace, and counts the walk's workgroups (at most
+    // WALK_MAX_GROUPS). (A level-of-detail blend records the curved trace instead, no
+    // triage.)
     Hit hit;
     int decision = (pc.flags & TRACE_FLAG_LOD) == 0u ? walk_pixel_triage(pixel, Ray(g.xy, g.zw), hit) : WALK_KEEP;
     if (decision == WALK_OVERLAP) {

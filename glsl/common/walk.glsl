@@ -674,16 +674,17 @@ bool walk_first_keep(vec3 entry, vec3 eye, vec3 frame_normal, float surface, flo
 #endif
 
 #ifdef TRIAGE
-// The mesh walk's triage of a pixel (its tangent-space ray `ray`, the curved trace's hit
-// height `h`: < 0 for a miss). The curved trace's hit stands where the pixel is on no
-// walked triangle, its ray starts in the relief (both give the hit at the entry), or it
-// is on a flat triangle whose straight path down to the trace's hit (to the offset
+// The mesh walk's triage of a pixel the first trace listed (its tangent-space ray `ray`,
+// the first trace's hit height `h`: < 0 for a miss). The first trace's flat hit stands
+// where the ray starts in the relief (every trace gives the hit at the entry), or the
+// pixel is on a flat triangle whose straight path down to the trace's hit (to the offset
 // surface where it missed) stays in its prism (or the flat neighbour's) and passes no
-// overlapping shell: the curved trace there is the flat trace, which is the walk's model
-// itself. Where that path stays in its own triangle's prism but passes overlapping
-// shells (along a cube's edges), the walk's first step is done here: the overlapping
-// triangles' relief along the path, intersected exactly (walk_overlaps_chord), gives
-// the hit in `hit` when it comes before the trace's. Every other pixel is listed.
+// overlapping shell: the flat trace is the walk's model itself there. Where that path
+// stays in its own triangle's prism but passes overlapping shells (along a cube's
+// edges), the walk's first step is done here: the overlapping triangles' relief along the
+// path, intersected exactly (walk_overlaps_chord), gives the hit in `hit` when it comes
+// before the trace's. Every other pixel is listed, those on no walked triangle too (the
+// walk gives them the circle model).
 int walk_triage(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface, float h,
                 out Hit hit) {
     hit = miss(ray, 0u);
@@ -724,9 +725,8 @@ int walk_triage(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
 }
 #else
 // The walk of `ray` (the pixel's tangent-space ray: uv0 and P) on the walked mesh, from
-// the pixel's eye-relative entry point `entry`, for a pixel the triage listed
-// (walk_needed): true with the hit or miss in `hit`, false where the pixel is on no
-// walked triangle (the curved trace's result stands).
+// the pixel's eye-relative entry point `entry`, for a pixel the triage listed: true with the hit or miss in `hit`, false where the pixel is on no
+// walked triangle or its ray does not go into the shell (the caller's circle model).
 bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
                 out Hit hit) {
     hit = miss(ray, 0u);

@@ -16,13 +16,15 @@
 // outlines) by a march in steps of at most one texel with the exact bilinear height,
 // refined by bisection. No hit before the ray leaves the shell: a miss.
 //
-// The WALK variant (with CURVED) is a second dispatch after the curved trace, for a pass
-// given the meshes (src/mesh/walk.rs): it walks the mesh's own triangles
-// (glsl/common/walk.glsl) and writes the pixels the walk decides, leaving the others (on
-// no walked triangle, or a flat triangle's pixel whose path stays in its shell, where the
-// trace above is the walk) as the curved trace wrote them. A separate pipeline keeps the
-// walk's code out of the curved trace's (on a CPU driver the larger program ran the
-// curved trace about 2.5 times slower, the walk unexecuted).
+// For a pass given the meshes (src/mesh/walk.rs), a curved material is traced in three
+// dispatches that walk the mesh's own triangles (glsl/common/walk.glsl) instead of the
+// curved trace: the WALK+FIRST variant over the material's tiles (the flat trace, listing
+// the pixels it cannot tell from the meshes' convex flat regions are the walk's), the
+// CURVED+WALK+TRIAGE variant over those (keeping, resolving or listing each) and the
+// CURVED+WALK variant over the pixels the triage listed (the walk; the circle model for
+// a pixel on no walked triangle). Separate pipelines keep each program to the pixels that
+// need it (a CPU driver runs every instruction of a program for every group of lanes,
+// taken or not: the walk's code in the curved trace ran it about 2.5 times slower).
 // dispmap-variant: ITERATIONS
 // dispmap-variant: CURVED
 // dispmap-variant: CURVED+ITERATIONS

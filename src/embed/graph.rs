@@ -53,8 +53,9 @@ pub(super) enum Res {
     /// The mesh walk buffer (`DisplacementPass::set_curved_meshes`): written through
     /// its mapping before the submission that first reads it, then only read.
     Walk,
-    /// The slot's mesh walk list: reset by a transfer, appended to by the walk's triage,
-    /// read (and its dispatch arguments) by the walk.
+    /// The slot's mesh walk list: reset by a transfer; its first list appended to by the
+    /// walk's first trace and read (and its dispatch arguments) by the triage, its second
+    /// appended to by the triage and read (and its arguments) by the walk.
     WalkList,
 }
 

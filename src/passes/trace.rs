@@ -15,8 +15,8 @@
 //! | `u_pyramid` | max-height pyramid (methods that need one; `texelFetch` per level) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_corners` | DIG corner grid (`dig`, `dig-guarded`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_curve` | G-buffer `curve` (`R16G16_SFLOAT`; the `CURVED` variant only, [`Method::curved_shader`]) | `SHADER_READ_ONLY_OPTIMAL` |
-//! | `u_walk` | the mesh walk buffer's texel view (`R32G32B32A32_UINT`, [`crate::mesh::walk::WalkMeshes`]; the walk's triage and walk, [`Method::walks_meshes`]) | host-written before the first submission that reads it |
-//! | `u_walk_list` | the walk list ([`walk_list_bytes`]: reset, appended to by the triage, read and dispatched by the walk) | |
+//! | `u_walk` | the mesh walk buffer's texel view (`R32G32B32A32_UINT`, [`crate::mesh::walk::WalkMeshes`]; the walk's three steps, [`Method::walks_meshes`]) | host-written before the first submission that reads it |
+//! | `u_walk_list` | the walk list ([`walk_list_bytes`]: reset; its first list appended to by the first trace, read and dispatched by the triage; its second appended to by the triage, read and dispatched by the walk) | |
 //! | `u_frame` | G-buffer `frame` (the material; the surface id for the DIG corner test and the footprint level's neighbours) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_cone` | cone map (`cone`, `cone-exact`, `relaxed-cone`; `texelFetch`) | `SHADER_READ_ONLY_OPTIMAL` |
 //! | `u_tiles` | the material's tile list ([`crate::passes::classify`]) | |
@@ -26,14 +26,17 @@
 //! One dispatch traces one material: a workgroup per tile of its list, an invocation per
 //! pixel of the material (others are left alone).
 //!
-//! A method that walks the pass's meshes ([`Method::walks_meshes`], traced curved) records
-//! two more dispatches after its curved trace: the triage over the same tiles
-//! ([`WalkStep::Triage`]: keeps the pixels whose trace is the walk, resolves the flat
-//! ones whose path meets only the overlapping shells of a cube's edges, lists the rest in
-//! the walk list) and the walk, an indirect dispatch over the listed pixels only
-//! ([`WalkStep::Walk`]; both [`TracePass::record_walk`]). On a CPU driver, whose lanes run a shader's every
-//! instruction in lockstep whether a lane takes its branch or not, the walk's large
-//! program then costs only the listed pixels.
+//! A method that walks the pass's meshes ([`Method::walks_meshes`], traced curved, given
+//! meshes) traces such a material in three dispatches instead of its curved trace (all
+//! [`TracePass::record_walk`]): the first trace over the material's tiles
+//! ([`WalkStep::First`]: the flat trace, which lists the pixels it cannot tell from the
+//! meshes' convex flat regions are the walk's), the triage over those
+//! ([`WalkStep::Triage`]: keeps the pixels whose trace is the walk, resolves the flat ones
+//! whose path meets only the overlapping shells of a cube's edges, lists the rest) and the
+//! walk over those ([`WalkStep::Walk`]), the last two indirect dispatches of the lists'
+//! own arguments. On a CPU driver, whose lanes run a shader's every instruction in
+//! lockstep whether a lane takes its branch or not, each program then costs only the
+//! pixels that need it.
 //!
 //! Each pixel's hit is its `(u, v)` in the hit uv image and its height in the hit height
 //! image (`height < 0` means no hit); the pipeline built with iterations
