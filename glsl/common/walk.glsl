@@ -263,6 +263,13 @@ bool walk_locate(inout WalkAt at, vec3 X, float side, int newton) {
     return false;
 }
 
+// Whether a segment whose ends lie `d` above a plane (signed distances) can meet the slab
+// from `above` depths above the plane to `below` depths under it (`depth` the depth):
+// false when both ends lie on one side of it.
+bool walk_slab_near(vec2 d, float depth, float above, float below) {
+    return !(min(d.x, d.y) > above * depth || max(d.x, d.y) < -below * depth);
+}
+
 // Whether the segment from Xa to Xb can meet triangle N's shell (N as walk_tri reads it for
 // the side): false when both ends lie on one side of the slab from its base plane to its
 // deepest offset (every point of a shell whose vertex normals are within a right angle of
@@ -272,8 +279,7 @@ bool walk_near(WalkTri N, vec3 Xa, vec3 Xb) {
     n *= sign(dot(n, N.n0)) * inversesqrt(max(dot(n, n), 1e-37));
     float depth = pc.depth_scale * max(N.s.x, max(N.s.x + N.s.y, N.s.x + N.s.z));
     vec3 p0 = N.p0;
-    vec2 d = vec2(dot(Xa - p0, n), dot(Xb - p0, n));
-    return !(min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth);
+    return walk_slab_near(vec2(dot(Xa - p0, n), dot(Xb - p0, n)), depth, 0.125, 1.125);
 }
 
 // The hit at ray parameter s met in an overlapping triangle's relief, written in `at`'s
@@ -306,7 +312,7 @@ bool walk_planes_near(WalkTri T, vec3 Xa, vec3 Xb, float side) {
         float o = side * walk_f(w + 3u);
         float depth = pc.depth_scale * walk_f(w + 4u);
         vec2 d = vec2(dot(Xa, n), dot(Xb, n)) - o;
-        if (!(min(d.x, d.y) > 0.125 * depth || max(d.x, d.y) < -1.125 * depth)) {
+        if (walk_slab_near(d, depth, 0.125, 1.125)) {
             return true;
         }
     }
@@ -667,7 +673,7 @@ bool walk_first_keep(vec3 entry, vec3 eye, vec3 frame_normal, float surface, flo
         vec3 reach = uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k) + 1).xyz);
         float depth = pc.depth_scale * reach.x;
         vec2 d = vec2(dot(A, q.xyz), dot(B, q.xyz)) - q.w;
-        keep = keep && (min(d.x, d.y) > reach.y * depth || max(d.x, d.y) < -reach.z * depth);
+        keep = keep && !walk_slab_near(d, depth, reach.y, reach.z);
     }
     return keep;
 }
