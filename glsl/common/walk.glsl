@@ -731,8 +731,9 @@ int walk_triage(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
 }
 #else
 // The walk of `ray` (the pixel's tangent-space ray: uv0 and P) on the walked mesh, from
-// the pixel's eye-relative entry point `entry`, for a pixel the triage listed: true with the hit or miss in `hit`, false where the pixel is on no
-// walked triangle or its ray does not go into the shell (the caller's circle model).
+// the pixel's eye-relative entry point `entry`, for a pixel the triage listed: true with
+// the hit or miss in `hit`, false where the pixel is on no walked triangle or its ray does
+// not go into the shell (the caller's circle model).
 bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
                 out Hit hit) {
     hit = miss(ray, 0u);
