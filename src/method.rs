@@ -280,11 +280,13 @@ impl Method {
 
     /// The shader of the method's mesh walk (`glsl/common/walk.glsl`,
     /// [`crate::embed::DisplacementPass::set_curved_meshes`]), with the iteration output
-    /// or without: a second dispatch after the curved trace that follows a curved pixel's
-    /// ray through the shell of the mesh's own triangles. `exact` only, whose curved trace
-    /// is then exact against the displaced mesh (each sample's foot solved on its
-    /// triangle); `relief` and `pom` keep the per-pixel circle model, which costs a few
-    /// multiply-adds a sample where the walk costs a solve.
+    /// or without: the last of the three dispatches that replace the curved trace (after
+    /// [`Method::walk_first_shader`] and [`Method::walk_triage_shader`]), which follows a
+    /// listed pixel's ray through the shell of the mesh's own triangles (the circle model
+    /// for a pixel on none of them). `exact` only, whose curved trace is then exact
+    /// against the displaced mesh (each sample's foot solved on its triangle); `relief`
+    /// and `pom` keep the per-pixel circle model, which costs a few multiply-adds a sample
+    /// where the walk costs a solve.
     pub fn walk_shader(self, iterations: bool) -> Option<Shader> {
         Some(match (self, iterations) {
             (Method::Exact, false) => shaders::TRACE_EXACT_COMP_CURVED_WALK,
