@@ -38,11 +38,20 @@
 #ifdef WALK
 #include "walk.glsl"
 
+// The eye-relative entry point of `pixel` (its macro surface point) and the eye's world
+// position: where every walk step starts.
+vec3 walk_pixel_entry(ivec2 pixel) {
+    return curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
+}
+vec3 walk_pixel_eye() {
+    return vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
+}
+
 #if defined(FIRST)
+// Whether the first trace's flat hit at `pixel` (its height `h`) is the walk's own.
 bool walk_pixel_first_keep(ivec2 pixel, float h) {
-    vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
-    vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
-    return walk_first_keep(entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel), h);
+    return walk_first_keep(walk_pixel_entry(pixel), walk_pixel_eye(), gbuffer_frame(pixel).normal,
+                           gbuffer_surface(pixel), h);
 }
 #elif defined(TRIAGE)
 // The mesh walk's triage of `pixel` (its G-buffer ray `ray`): walk_triage's decision.
@@ -51,21 +60,19 @@ int walk_pixel_triage(ivec2 pixel, Ray ray, out Hit hit) {
     if ((pc.flags & TRACE_FLAG_CURVED) == 0u) {
         return WALK_KEEP;
     }
-    vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
-    vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
-    return walk_triage(ray, entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel),
-                       imageLoad(u_hit_height, pixel).r, hit);
+    return walk_triage(ray, walk_pixel_entry(pixel), walk_pixel_eye(), gbuffer_frame(pixel).normal,
+                       gbuffer_surface(pixel), imageLoad(u_hit_height, pixel).r, hit);
 }
 #else
-// The walk of `pixel` (its G-buffer ray `ray`): true with its hit, false to leave it.
+// The walk of `pixel` (its G-buffer ray `ray`): true with its hit, false where the
+// pixel takes the circle model (on no walked triangle).
 bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit) {
     hit = miss(ray, 0u);
     if ((pc.flags & TRACE_FLAG_CURVED) == 0u) {
         return false;
     }
-    vec3 entry = curve_position(pixel, texelFetch(u_depth, pixel, 0).r);
-    vec3 eye = vec3(pc.view_origin.w, pc.view_dx.w, pc.view_dy.w);
-    return walk_trace(ray, entry, eye, gbuffer_frame(pixel).normal, gbuffer_surface(pixel), hit);
+    return walk_trace(ray, walk_pixel_entry(pixel), walk_pixel_eye(), gbuffer_frame(pixel).normal,
+                      gbuffer_surface(pixel), hit);
 }
 #endif
 #endif
