@@ -7,7 +7,9 @@
 //   its screen rectangle in tiles (projected on the CPU from the geometry's bounds,
 //   conservatively) meets a missed tile whose nearest missed first-layer depth lies in
 //   front of the draw's farthest point (else none of its fragments is behind a missed
-//   pixel's surface), else the same with no vertices;
+//   pixel's surface) and which holds a missed pixel of a material not among the draw's
+//   own (a one-sided convex mesh's: nothing of it lies behind its own surface), else the
+//   same with no vertices;
 // step 1: one invocation writes the list's dispatch: one workgroup per listed tile, in
 //   rows of MAX_TILE_ROW (glsl/common/tiles.glsl), and after the draws' commands the
 //   listed tiles' VkDrawIndirectCommand (6 vertices, an instance per listed tile:
@@ -17,7 +19,8 @@
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
-// The missed tiles' masks, then their depths (glsl/behind_misses.comp).
+// The missed tiles' masks, then their depths, then their materials
+// (glsl/behind_misses.comp).
 layout(set = 0, binding = 0, std430) readonly buffer Masks {
     uint masks[];
 } u_masks;
@@ -31,12 +34,14 @@ layout(set = 0, binding = 1, std430) buffer List {
 } u_list;
 // Per draw: its rectangle in tiles (x0, y0, x1, y1, inclusive; x0 > x1: off the frame),
 // its vertex or index count, first index or vertex, the reverse-Z depth of its farthest
-// point, lowered conservatively (float bits), and a pad.
+// point, lowered conservatively (float bits), and the materials whose misses it cannot
+// show (src/passes/behind_tiles.rs DrawSource::own).
 layout(set = 0, binding = 2, std430) readonly buffer Sources {
     uvec4 sources[];
 } u_sources;
-// Per draw a VkDrawIndexedIndirectCommand (5 words; a VkDrawIndirectCommand in the first
-// 4 for a draw that is not indexed), then the listed tiles' VkDrawIndirectCommand.
+// Per piece a VkDrawIndexedIndirectCommand (5 words; a VkDrawIndirectCommand in the first
+// 4 for a piece that is not indexed: the count in word 0, the first index or vertex in
+// word 2 either way), then the listed tiles' VkDrawIndirectCommand (4 words).
 layout(set = 0, binding = 3, std430) writeonly buffer Draws {
     uint draws[];
 } u_draws;
@@ -53,8 +58,8 @@ layout(push_constant) uniform CullParams {
 } pc;
 
 // Whether a tile of columns [x0, x1] of row y is missed with its nearest missed depth in
-// front of `depth` (reverse-Z: larger).
-bool row_meets(uint y, uint x0, uint x1, float depth) {
+// front of `depth` (reverse-Z: larger) and a missed pixel of a material not in `own`.
+bool row_meets(uint y, uint x0, uint x1, float depth, uint own) {
     for (uint w = x0 >> 5; w <= (x1 >> 5); ++w) {
         uint bits = u_masks.masks[y * pc.mask_words + w];
         uint lo = max(x0, w * 32u) - w * 32u;
@@ -64,7 +69,9 @@ bool row_meets(uint y, uint x0, uint x1, float depth) {
             uint b = uint(findLSB(bits));
             bits &= bits - 1u;
             uint tile = y * pc.tiles_x + w * 32u + b;
-            if (uintBitsToFloat(u_masks.masks[pc.rows * pc.mask_words + tile]) > depth) {
+            uint depths = pc.rows * pc.mask_words;
+            if (uintBitsToFloat(u_masks.masks[depths + tile]) > depth
+                && (u_masks.masks[depths + pc.rows * pc.tiles_x + tile] & ~own) != 0u) {
                 return true;
             }
         }
@@ -108,7 +115,7 @@ void main() {
         bool meets = false;
         if (rect.x <= rect.z) {
             for (uint y = rect.y; y <= rect.w && !meets; ++y) {
-                meets = row_meets(y, rect.x, rect.z, uintBitsToFloat(source.z));
+                meets = row_meets(y, rect.x, rect.z, uintBitsToFloat(source.z), source.w);
             }
         }
         uint count = meets ? source.x : 0u;

@@ -5,26 +5,33 @@
 // a workgroup per listed tile, an invocation per pixel; a pixel counts when its
 // first-layer trace missed on geometry (dispmap_behind_missed,
 // glsl/include/dispmap_behind.glsl). Only displaced pixels are traced, so only the
-// materials' tiles can hold one. Each missed pixel sets its tile's bit in its row's mask
-// and raises the tile's nearest first-layer depth of its missed pixels to its own
-// (reverse-Z: the largest): the behind layer keeps only fragments behind it there.
+// materials' tiles can hold one, and each is counted by its own material's dispatch. Each
+// missed pixel sets its tile's bit in its row's mask,
+// raises the tile's nearest first-layer depth of its missed pixels to its own
+// (reverse-Z: the largest): the behind layer keeps only fragments behind it there, and
+// marks its material in the tile's mask of materials (a one-sided convex mesh's draw
+// skips a tile whose misses are all its own: glsl/behind_cull.comp).
 #define DISPMAP_TILES_NO_GBUFFER
 #include "tiles.glsl"
 #define DISPMAP_BEHIND_NO_DERIVATIVES
 #include "include/dispmap_behind.glsl"
+#include "include/dispmap_gbuffer.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 
-// The first layer's G-buffer depth and hit height.
+// The first layer's G-buffer depth and hit height, and its frame (the pixel's material).
 layout(set = 0, binding = 0) uniform sampler2D u_first_depth;
 layout(set = 0, binding = 1, r32f) uniform readonly image2D u_first_hit_height;
+layout(set = 0, binding = 4) uniform usampler2D u_first_frame;
 // The first layer's tile lists (glsl/common/tiles.glsl).
 layout(set = 0, binding = 2, std430) readonly buffer Tiles {
     uint tiles[];
 } u_tiles;
 // Per row of tiles, `mask_words` words: bit x of the row's mask = tile x holds a missed
 // pixel; then per tile (row-major) the largest first-layer depth of its missed pixels, as
-// float bits (zeroed before the pass; depths are positive, so their bits order as they do).
+// float bits (zeroed before the pass; depths are positive, so their bits order as they do);
+// then per tile the materials of its missed pixels (bit m for material m, bit 31 for every
+// material from 31 on).
 layout(set = 0, binding = 3, std430) buffer Masks {
     uint masks[];
 } u_masks;
@@ -58,11 +65,18 @@ void main() {
     if (!dispmap_behind_missed(height, depth)) {
         return;
     }
+    // Each missed pixel once, by its own material's dispatch (a tile of several materials
+    // is in each one's list): its material's bit is then its own.
+    if (dispmap_frame_material_plus_one(texelFetch(u_first_frame, pixel, 0).xy) != pc.material + 1u) {
+        return;
+    }
     // Only the (few) missed pixels write, straight to the buffer: no barrier or shared
     // memory in the workgroup (both commute, so the result is the same as one write per
     // tile).
     atomicOr(u_masks.masks[tile.y * pc.mask_words + (tile.x >> 5)], 1u << (tile.x & 31u));
     uint tiles_x = (pc.frame_size.x + LOCAL_SIZE - 1u) / LOCAL_SIZE;
-    atomicMax(u_masks.masks[pc.rows * pc.mask_words + tile.y * tiles_x + tile.x],
-              floatBitsToUint(depth));
+    uint depths = pc.rows * pc.mask_words;
+    uint at = tile.y * tiles_x + tile.x;
+    atomicMax(u_masks.masks[depths + at], floatBitsToUint(depth));
+    atomicOr(u_masks.masks[depths + pc.rows * tiles_x + at], 1u << min(pc.material, 31u));
 }

@@ -4,7 +4,9 @@
 //! scene of several objects) those pixels show the rocks floor: the behind layer's
 //! G-buffer has the floor's material there, its trace hits, and the colour is the lit
 //! stone (red above blue), where without the layer it is the sky (blue above red).
-//! The opt-in depth mask of the layer's raster gives the same images bit for bit.
+//! The opt-in depth mask of the layer's raster, the whole-frame classification and the
+//! convex meshes drawn where only their own pixels missed give the same images bit for
+//! bit.
 //! Validation (core + synchronization) on: zero messages, nothing left allocated.
 
 #[path = "../../tests/common/mod.rs"]
@@ -82,6 +84,22 @@ fn the_floor_shows_under_the_cubes_carved_bottom_edge() {
             !listed
         );
         renderer.set_behind_listed(listed).unwrap();
+        // The one-sided convex displaced meshes (the cube, the mountains sphere) drawn
+        // where only their own pixels missed too (the skip off): the same colour and
+        // behind hits, bit for bit (nothing of a convex mesh lies behind its own surface).
+        renderer.set_behind_convex_skip(false).unwrap();
+        renderer.render().unwrap();
+        assert_eq!(
+            renderer.read_color().unwrap(),
+            with,
+            "colour, convex skip off"
+        );
+        assert_eq!(
+            renderer.read_behind_hits().unwrap().unwrap(),
+            behind_hits,
+            "behind hits, convex skip off"
+        );
+        renderer.set_behind_convex_skip(true).unwrap();
         renderer.set_behind(false).unwrap();
         assert!(
             renderer.set_behind_listed(true).is_err(),

@@ -6,18 +6,21 @@
 //!   over the first layer's tile list of that material (only displaced pixels are traced,
 //!   so only they can miss): each 8x8 tile holding a missed pixel
 //!   (`dispmap_behind_missed`, `glsl/include/dispmap_behind.glsl`) sets its bit in its
-//!   row's mask and keeps the nearest first-layer depth of its missed pixels.
+//!   row's mask, keeps the nearest first-layer depth of its missed pixels and marks
+//!   their material in its mask of materials.
 //! * `behind_cull` (`glsl/behind_cull.comp`), step 0: the missed tiles into a list, and
 //!   each of the layer's draws (a mesh's cluster of triangles, a plane) its indirect draw
 //!   command: its own where its screen rectangle in tiles (projected on the CPU,
 //!   conservatively, from the geometry's bounds: [`DrawSource`]) meets a missed tile
-//!   whose nearest missed first-layer depth lies in front of the draw's farthest point,
-//!   else none; step 1: the list's indirect dispatch (one workgroup per listed tile, in
+//!   whose nearest missed first-layer depth lies in front of the draw's farthest point
+//!   and which holds a missed pixel of a material other than the draw's
+//!   [`DrawSource::own`] (a one-sided convex mesh cannot show its own misses), else none;
+//!   step 1: the list's indirect dispatch (one workgroup per listed tile, in
 //!   rows of 65,535), which the layer's background pass runs over, and the listed tiles'
 //!   indirect draw ([`crate::passes::behind_open`]: an instance per listed tile).
 //!
 //! One buffer holds it all, in sections: the list (a `VkDispatchIndirectCommand`, the
-//! count, the tiles packed `x | y << 16`), the masks and the tiles' depths, the draws' sources (written by
+//! count, the tiles packed `x | y << 16`), the masks, the tiles' depths and materials, the draws' sources (written by
 //! [`BehindTiles::record_reset`] each frame) and their commands (`VkDrawIndexedIndirectCommand`,
 //! or a `VkDrawIndirectCommand` in its first four words), then the listed tiles'
 //! `VkDrawIndirectCommand`.
@@ -58,6 +61,18 @@ pub struct DrawSource {
     /// A reverse-Z depth at or below (behind) every point it can draw (0: anywhere): it is
     /// drawn only where a missed tile's nearest missed first-layer depth lies in front.
     pub depth: f32,
+    /// Materials (bit `m` for material `m` below 31) whose missed pixels it cannot show:
+    /// it is drawn only where a tile holds a missed pixel of another material. A one-sided
+    /// convex mesh's own material where no other object has it (nothing of the mesh lies
+    /// behind its own surface); 0: every missed pixel counts.
+    pub own: u32,
+}
+
+/// The bit of material `material` in [`DrawSource::own`]: `1 << material` below 31, else
+/// 0 (in the tiles' masks of the materials whose pixels missed, `behind_misses`, the
+/// materials from 31 on share bit 31, so no draw may claim it as its own).
+pub fn material_bit(material: u32) -> u32 {
+    if material < 31 { 1 << material } else { 0 }
 }
 
 /// The rectangle of no tile.
@@ -143,6 +158,7 @@ impl BehindTiles {
                 ("u_first_hit_height", vk::DescriptorType::STORAGE_IMAGE),
                 ("u_tiles", storage),
                 ("u_masks", storage),
+                ("u_first_frame", vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
             ],
             std::mem::size_of::<MissParams>() as u32,
         )?;
@@ -174,9 +190,9 @@ impl BehindTiles {
         })
     }
 
-    /// Bytes of the masks and the tiles' depths.
+    /// Bytes of the masks, the tiles' depths and the tiles' materials.
     fn masks_bytes(tiles: [u32; 2], mask_words: u32) -> u64 {
-        4 * (u64::from(mask_words * tiles[1]) + u64::from(tiles[0]) * u64::from(tiles[1]))
+        4 * (u64::from(mask_words * tiles[1]) + 2 * u64::from(tiles[0]) * u64::from(tiles[1]))
     }
 
     /// The frame size and number of draws it was made for.
@@ -215,7 +231,7 @@ impl BehindTiles {
         }
     }
 
-    /// Draw `i`'s command: the buffer and offset.
+    /// Piece `i`'s command: the buffer and offset.
     pub fn draw(&self, i: u32) -> (vk::Buffer, u64) {
         (
             self.buffer.raw,
@@ -255,7 +271,7 @@ impl BehindTiles {
                     s.count,
                     s.first,
                     s.depth.max(0.0).to_bits(),
-                    0,
+                    s.own,
                 ]
             })
             .collect();
@@ -284,11 +300,12 @@ impl BehindTiles {
     }
 
     /// Records `behind_misses` over each of `tiles` (the first layer's live materials'
-    /// lists, [`crate::embed::DisplacementPass`]'s slot 0).
+    /// lists, [`crate::embed::DisplacementPass`]'s slot 0); `first_frame` is the first
+    /// layer's G-buffer frame (`R32G32_UINT`, each pixel's material).
     ///
     /// # Safety
-    /// As [`BehindTiles::record_reset`]; when the command buffer executes `first.depth` is
-    /// in `SHADER_READ_ONLY_OPTIMAL` and `first.hit_height` in `GENERAL`, their writes,
+    /// As [`BehindTiles::record_reset`]; when the command buffer executes `first.depth` and
+    /// `first_frame` are in `SHADER_READ_ONLY_OPTIMAL` and `first.hit_height` in `GENERAL`, their writes,
     /// the lists' and the reset's visible to compute-shader reads (the caller's
     /// barriers); everything stays alive until it has executed.
     pub unsafe fn record_misses(
@@ -296,9 +313,11 @@ impl BehindTiles {
         ctx: &Context,
         cmd: vk::CommandBuffer,
         first: FirstLayer,
+        first_frame: vk::ImageView,
         tiles: &[MaterialTiles],
     ) -> Result<()> {
         let depth = self.misses.fetch_view(first.depth);
+        let frame = self.misses.fetch_view(first_frame);
         let hit = storage_view(first.hit_height);
         let masks = self.section(self.masks_offset, self.sources_offset - self.masks_offset);
         let p = &self.misses.pipeline;
@@ -306,6 +325,7 @@ impl BehindTiles {
             p.image("u_first_depth", &depth)?,
             p.image("u_first_hit_height", &hit)?,
             p.buffer("u_masks", &masks)?,
+            p.image("u_first_frame", &frame)?,
         ];
         for t in tiles {
             let push = MissParams {

@@ -3,7 +3,8 @@
 //! first record, the renderer marks the 8x8 tiles holding a missed pixel and culls the
 //! layer's draws to them ([`crate::passes::behind_tiles`], on the GPU: each mesh drawn
 //! as its clusters, [`super::behind_draws`], a cluster only where its screen rectangle
-//! meets a missed tile in front of it; one multi-draw command per mesh where the device
+//! meets a missed tile in front of it, for a one-sided convex displaced mesh only a tile
+//! where another material's pixels missed; one multi-draw command per mesh where the device
 //! has `multiDrawIndirect`), rasterises the kept clusters into a second G-buffer (on
 //! the listed route only its listed tiles cleared, [`crate::passes::behind_open`]; the
 //! rest of its depth blocks them), keeping a fragment only at a pixel whose first-layer
@@ -105,6 +106,7 @@ impl Destroy for Behind {
 enum Layer {
     FirstHitHeight,
     FirstDepth,
+    FirstFrame,
     Ray,
     Frame,
     Depth,
@@ -359,8 +361,11 @@ impl Renderer {
     /// Whether a one-sided convex mesh drawn alone has its behind layer drawn empty (`on`,
     /// the default: [`Renderer::behind_empty`]) or drawn as any mesh's, every object
     /// rasterised again and traced where it lies behind a miss (`off`: the same images
-    /// bit for bit, at the layer's cost; for measuring and testing the skip). Takes effect
-    /// at once when the layer is on.
+    /// bit for bit, at the layer's cost; for measuring and testing the skip). In a frame
+    /// of several objects, `on` also spares each one-sided convex displaced mesh whose
+    /// material no other object has the tiles where only its own pixels missed (its
+    /// pieces are culled there; `off`: drawn and rejected fragment by fragment, the same
+    /// images). Takes effect at once when the layer is on.
     pub fn set_behind_convex_skip(&mut self, on: bool) -> Result<()> {
         self.convex_skip = on;
         if self.behind() {
@@ -494,6 +499,25 @@ impl Renderer {
         ))
     }
 
+    /// Per draw of the behind layer (`draws` of them), the materials whose misses it
+    /// cannot show ([`DrawSource::own`]): a one-sided convex displaced mesh's own material
+    /// where no other object has it (nothing of a convex mesh lies behind its own
+    /// surface, and its back faces are culled), unless
+    /// [`Renderer::set_behind_convex_skip`] turned the skip off; else none.
+    fn own_misses(&self, draws: usize) -> Vec<u32> {
+        let Some(objects) = self.objects.as_ref().filter(|_| self.convex_skip) else {
+            return vec![0; draws];
+        };
+        let materials: Vec<Option<u32>> = objects
+            .materials
+            .iter()
+            .map(|m| m.map(MaterialId::index))
+            .collect();
+        let mut own = super::behind_draws::own_bits(&materials, &objects.convex);
+        own.resize(draws, 0);
+        own
+    }
+
     /// Records the behind layer after the frame's first record, in one timestamp scope
     /// ([`PassName::Behind`]) of the renderer's pool: the layer's raster, its flat
     /// geometry's light, and the pass's second record (slot [`BEHIND_SLOT`], its own hit
@@ -534,9 +558,10 @@ impl Renderer {
                 "the behind layer's clusters do not match its draws".into(),
             ));
         }
+        let own = self.own_misses(params.len());
         let mut sources = Vec::new();
         let mut ranges = Vec::new();
-        for (p, clusters) in params.iter().zip(&behind.clusters) {
+        for ((p, clusters), &own) in params.iter().zip(&behind.clusters).zip(&own) {
             let start = sources.len() as u32;
             match clusters {
                 Some(c) => sources.extend(mesh_sources(
@@ -544,23 +569,25 @@ impl Renderer {
                     p.view_proj,
                     p.camera_pos.truncate(),
                     extent,
+                    own,
                 )),
                 None => sources.push(DrawSource {
                     rect: whole_frame(extent),
                     count: p.vertex_count(),
                     first: 0,
                     depth: 0.0,
+                    own,
                 }),
             }
             ranges.push((start, sources.len() as u32 - start));
         }
-        let pieces = sources.len() as u32;
+        let piece_count = sources.len() as u32;
         if !behind
             .tiles
             .as_ref()
-            .is_some_and(|t| t.fits(extent, pieces))
+            .is_some_and(|t| t.fits(extent, piece_count))
         {
-            let tiles = BehindTiles::new(&ctx, extent, pieces)?;
+            let tiles = BehindTiles::new(&ctx, extent, piece_count)?;
             if let Some(b) = &mut self.behind
                 && let Some(mut old) = b.tiles.replace(tiles)
             {
@@ -626,6 +653,7 @@ impl Renderer {
             let image = match key {
                 Layer::FirstHitHeight => &self.hit.height,
                 Layer::FirstDepth => &self.gbuffer.depth,
+                Layer::FirstFrame => &self.gbuffer.frame,
                 Layer::Ray => &behind.gbuffer.ray,
                 Layer::Frame => &behind.gbuffer.frame,
                 Layer::Depth => &behind.gbuffer.depth,
@@ -642,8 +670,9 @@ impl Renderer {
         };
         let mut t = Tracker::new();
         // The first record's exit states (the pass's module docs): the hit height, colour
-        // and motion last written by compute-shader storage writes; the G-buffer depth
-        // sampled by compute (the renderer's entry barrier made its writes visible there).
+        // and motion last written by compute-shader storage writes; the G-buffer depth and
+        // frame sampled by compute (the renderer's entry barrier made their writes visible
+        // there).
         for (key, written) in [
             (Layer::FirstHitHeight, true),
             (Layer::Color, true),
@@ -660,6 +689,7 @@ impl Renderer {
             ));
         }
         t.enter(Layer::FirstDepth, Access::COMPUTE_SAMPLED);
+        t.enter(Layer::FirstFrame, Access::COMPUTE_SAMPLED);
         // The lists, last written by the first record's classify; the missed tiles' buffer
         // last read by the layer's previous frame (waited for).
         t.enter(Layer::FirstTiles, COMPUTE_BUFFER_WRITTEN);
@@ -740,8 +770,9 @@ impl Renderer {
                 t.declare(Layer::FirstTiles, Access::INDIRECT_READ)?;
                 t.declare(Layer::FirstHitHeight, Access::COMPUTE_STORAGE_READ)?;
                 t.declare(Layer::FirstDepth, Access::COMPUTE_SAMPLED)?;
+                t.declare(Layer::FirstFrame, Access::COMPUTE_SAMPLED)?;
                 t.flush(&ctx, cmd, images)?;
-                tiles.record_misses(&ctx, cmd, first, &first_tiles)?;
+                tiles.record_misses(&ctx, cmd, first, self.gbuffer.frame.view, &first_tiles)?;
                 for step in [0, 1] {
                     t.declare(Layer::Tiles, COMPUTE_BUFFER_READ_WRITE)?;
                     t.flush(&ctx, cmd, images)?;

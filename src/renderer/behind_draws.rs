@@ -140,12 +140,14 @@ pub(super) fn tile_rect(
     )
 }
 
-/// The sources of one mesh draw's clusters this frame.
+/// The sources of one mesh draw's clusters this frame, `own` the materials whose misses
+/// it cannot show ([`DrawSource::own`]).
 pub(super) fn mesh_sources(
     clusters: &[Cluster],
     view_proj: Mat4,
     eye: Vec3,
     extent: vk::Extent2D,
+    own: u32,
 ) -> impl Iterator<Item = DrawSource> + '_ {
     clusters.iter().map(move |c| {
         let (rect, depth) = tile_rect(view_proj, eye, c.min, c.max, extent);
@@ -154,6 +156,45 @@ pub(super) fn mesh_sources(
             count: c.count,
             first: c.first,
             depth,
+            own,
         }
     })
+}
+
+/// Per object (its material index, `None`: flat; whether it is a one-sided convex mesh),
+/// the materials whose misses its draw cannot show ([`DrawSource::own`]): a convex
+/// object's own material where no other object has it (another object of the same
+/// material could lie behind its misses), else none.
+pub(super) fn own_bits(materials: &[Option<u32>], convex: &[bool]) -> Vec<u32> {
+    materials
+        .iter()
+        .zip(convex.iter().chain(std::iter::repeat(&false)))
+        .map(|(m, &convex)| match m {
+            Some(m) if convex && materials.iter().filter(|&&o| o == Some(*m)).count() == 1 => {
+                crate::passes::behind_tiles::material_bit(*m)
+            }
+            _ => 0,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Only a convex object whose material no other object shares is spared its own
+    /// misses, by the bit of its material; from material 31 on no bit can be its own.
+    #[test]
+    fn only_a_convex_object_with_its_own_material_skips_its_own_misses() {
+        let materials = [Some(0), Some(1), Some(2), Some(2), None, Some(3), Some(31)];
+        let convex = [true, false, true, true, true, true, true];
+        assert_eq!(
+            own_bits(&materials, &convex),
+            [1, 0, 0, 0, 0, 1 << 3, 0],
+            "floor (convex), torus (not), two spheres sharing material 2, a flat cube, \
+             a convex mesh of material 3, one of material 31"
+        );
+        // Missing convexity flags count as not convex.
+        assert_eq!(own_bits(&[Some(0), Some(1)], &[true]), [1, 0]);
+    }
 }

@@ -161,6 +161,7 @@ impl Renderer {
         let settings = objects_settings(settings, first, &primary.settings);
         settings.validate()?;
         let mut placed = Vec::with_capacity(objects.len());
+        let mut convex = Vec::with_capacity(objects.len());
         let mut surface_offset = 0u32;
         for (i, o) in objects.iter().enumerate() {
             let name = |e: Error| match e {
@@ -194,6 +195,13 @@ impl Renderer {
                 ),
                 g => g.generated_mesh(),
             };
+            // Only a displaced object's pixels miss: only its convexity can spare a draw
+            // of the behind layer. Tested before placing (an affine map keeps it; the
+            // placed vertices' rounding can fail the test's tolerance).
+            convex.push(
+                o.material.is_some()
+                    && mesh.as_ref().is_some_and(|m| !m.two_sided && m.is_convex()),
+            );
             placed.push(mesh.map(|m| {
                 let m = m.placed(&o.placement, surface_offset);
                 surface_offset += m.max_surface_id().max(1);
@@ -236,6 +244,7 @@ impl Renderer {
                     meshes: Vec::new(),
                     clusters: Vec::new(),
                     one_normal: Vec::new(),
+                    convex: Vec::new(),
                     materials: Vec::new(),
                     framing: None,
                 },
@@ -263,6 +272,7 @@ impl Renderer {
                 .one_normal
                 .push(mesh.as_ref().is_some_and(|m| m.has_one_normal()));
         }
+        drawn.convex = convex;
         drawn.framing = framing;
         // A material's refusal (its loop budget, its maps) names its object.
         let of_object = |i: usize| {

@@ -50,6 +50,10 @@ pub(super) struct Objects {
     /// ... whether its mesh has one normal ([`crate::mesh::Mesh::has_one_normal`]: a
     /// quad; `false` for the tiled plane), which curved tracing leaves flat ...
     pub(super) one_normal: Vec<bool>,
+    /// ... whether it is a one-sided convex displaced mesh
+    /// ([`crate::mesh::Mesh::is_convex`]; nothing of it lies behind its own surface, so
+    /// the behind layer need not draw it where only its own pixels missed) ...
+    pub(super) convex: Vec<bool>,
     /// ... and its material (`None`: flat).
     pub(super) materials: Vec<Option<MaterialId>>,
     /// The camera's target and orbit distance (`None`: the tiled plane's camera, when a
