@@ -54,6 +54,16 @@ pub(crate) fn bench_command(options: &ContextOptions, args: &BenchArgs) -> Resul
         maps: memory::MethodMaps::together(&config.methods),
         mesh: memory::MeshSize::default(),
         images: memory::MaterialMaps::default(),
+        // The silhouettes' scenes: generated meshes (a sphere at most) traced curved.
+        curved: memory::Curved {
+            on: config.silhouettes,
+            walked_triangles: memory::Curved::object_triangles(
+                config.silhouettes,
+                dispmap::scene::Geometry::Sphere,
+                Some(Method::Exact),
+                &memory::MeshSize::default(),
+            ),
+        },
     };
     let sweep_extras = memory::Extras {
         maps: memory::MethodMaps::together(&config.size_methods),

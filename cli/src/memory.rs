@@ -65,6 +65,75 @@ pub struct Extras {
     pub mesh: MeshSize,
     /// The albedo and normal maps ([`MaterialMaps`]); all zero for none.
     pub images: MaterialMaps,
+    /// Curved tracing (`--curved`): the curve images and the mesh walk; off for none.
+    pub curved: Curved,
+}
+
+/// Bytes per triangle of the meshes the curved `exact` trace walks, at the peak of making
+/// the walk buffer (its packed words, the buffer they are written into, the neighbour
+/// and grid maps of the build): the peak resident memory with `--curved` less the peak
+/// without, 64x64 frame, OBJ UV spheres: 496 on 423,200 triangles (467 MB against 257
+/// MB), 441 on 845,000 (679 MB against 306 MB). Counted as 640: with the mesh's other
+/// render-time bytes, which [`MESH_BYTES_PER_VERTEX`] and [`MESH_BYTES_PER_TRIANGLE`]
+/// undercount at these sizes, the estimate is then 5% and 20% above those two peaks.
+const WALK_BYTES_PER_TRIANGLE: u64 = 640;
+/// Bytes per pixel of the G-buffer's curve image (`R16G16_SFLOAT`), in each of the two
+/// layers (the first and the behind layer).
+const CURVE_BYTES_PER_PIXEL: u64 = 8;
+/// Frame slots a curved render may have (the first layer's and the behind layer's),
+/// each with its walk list.
+const WALK_LIST_SLOTS: u64 = 2;
+
+/// What curved tracing adds to a run, for the estimate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Curved {
+    /// Whether displaced meshes are traced curved (`--curved`): the G-buffers get their
+    /// curve images.
+    pub on: bool,
+    /// Triangles of the meshes a material walks (its method [`Method::walks_meshes`] on a
+    /// mesh, with `on`): the walk buffer, and a walk list per frame slot.
+    pub walked_triangles: u64,
+}
+
+impl Curved {
+    /// The triangles one object adds to [`Curved::walked_triangles`]: its mesh's (`loaded`
+    /// for `geometry = "mesh"`, else the generated one's) when `curved` is on and its
+    /// material's `method` walks meshes; none for the tiled plane and the quad.
+    pub fn object_triangles(
+        curved: bool,
+        geometry: dispmap::scene::Geometry,
+        method: Option<Method>,
+        loaded: &MeshSize,
+    ) -> u64 {
+        if !curved || !method.is_some_and(Method::walks_meshes) {
+            return 0;
+        }
+        match geometry {
+            dispmap::scene::Geometry::Mesh => loaded.triangles,
+            g => g
+                .generated_mesh()
+                .map_or(0, |m| (m.indices.len() / 3) as u64),
+        }
+    }
+
+    /// Bytes while rendering `frame` pixels.
+    pub fn render_bytes(&self, frame: [u32; 2]) -> u64 {
+        if !self.on {
+            return 0;
+        }
+        let pixels = u64::from(frame[0]) * u64::from(frame[1]);
+        let walk = if self.walked_triangles > 0 {
+            self.walked_triangles * WALK_BYTES_PER_TRIANGLE
+                + WALK_LIST_SLOTS
+                    * dispmap::passes::trace::walk_list_bytes(ash::vk::Extent2D {
+                        width: frame[0],
+                        height: frame[1],
+                    })
+        } else {
+            0
+        };
+        pixels * CURVE_BYTES_PER_PIXEL + walk
+    }
 }
 
 /// Bytes per texel of an albedo or normal map on the CPU while rendering: its RGBA8
@@ -345,8 +414,16 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
     let images = extras.images.render_bytes();
     let image_load = field + mesh_render + extras.images.held + extras.images.load;
     let load_peak = (map.load_bytes.max(mesh_load) + field).max(image_load);
-    let render_peak =
-        field + gpu + method_maps + frame_bytes + ref_map + ref_frame + mesh_render + images;
+    let curved = extras.curved.render_bytes(frame);
+    let render_peak = field
+        + gpu
+        + method_maps
+        + frame_bytes
+        + ref_map
+        + ref_frame
+        + mesh_render
+        + images
+        + curved;
     let mut parts = vec![("process", BASE_BYTES)];
     if load_peak > render_peak {
         if image_load > map.load_bytes.max(mesh_load) + field {
@@ -370,6 +447,9 @@ pub fn estimate(map: MapSize, frame: [u32; 2], extras: Extras) -> Estimate {
             parts.push(("pyramids and cone maps", method_maps));
         }
         parts.push(("frame", frame_bytes));
+        if curved > 0 {
+            parts.push(("curve images and mesh walk (--curved)", curved));
+        }
         if extras.reference {
             parts.push(("reference texels and pyramid", ref_map));
             parts.push(("reference rays and hits", ref_frame));
@@ -445,6 +525,7 @@ pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: E
         .max(fields + extras.mesh.load_bytes() + extras.images.held + extras.images.load);
     let mesh_render = extras.mesh.render_bytes();
     let images = extras.images.render_bytes();
+    let curved = extras.curved.render_bytes(frame);
     let render_peak = fields
         + gpu
         + method_maps
@@ -453,7 +534,8 @@ pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: E
         + ref_maps
         + ref_frame
         + mesh_render
-        + images;
+        + images
+        + curved;
     let mut parts = vec![("process", BASE_BYTES)];
     parts.push(("height fields", fields));
     if mesh_render > 0 {
@@ -470,6 +552,9 @@ pub fn estimate_objects(materials: &[MaterialMemory], frame: [u32; 2], extras: E
         parts.push(("DIG corner grids", grids));
     }
     parts.push(("frame", frame_bytes));
+    if curved > 0 {
+        parts.push(("curve images and mesh walk (--curved)", curved));
+    }
     if extras.reference {
         parts.push(("reference texels and pyramids", ref_maps));
         parts.push(("reference rays and hits", ref_frame));
@@ -587,6 +672,7 @@ pub fn check(estimate: &Estimate, max: Option<u64>, what: &str) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dispmap::mesh::Mesh;
 
     #[test]
     fn materials_share_one_set_of_frame_images() {
@@ -675,6 +761,86 @@ mod tests {
             "{err}"
         );
         assert!(check(&small, Some(u64::MAX), "x").is_ok());
+    }
+
+    /// Curved tracing adds the two layers' curve images and, for a material that walks
+    /// a mesh, its triangles' walk buffer and a walk list per frame slot; nothing for a
+    /// method that does not walk or a geometry with nothing to walk.
+    #[test]
+    fn curved_tracing_adds_the_curve_images_and_the_mesh_walk() {
+        use dispmap::scene::Geometry;
+        let frame = [640, 360];
+        let pixels = 640 * 360;
+        let loaded = MeshSize {
+            file_bytes: 1 << 20,
+            vertices: 10_000,
+            triangles: 20_000,
+        };
+        let walked = Curved::object_triangles(true, Geometry::Mesh, Some(Method::Exact), &loaded);
+        assert_eq!(walked, 20_000);
+        let sphere = Curved::object_triangles(true, Geometry::Sphere, Some(Method::Exact), &loaded);
+        assert_eq!(sphere, (Mesh::sphere().indices.len() / 3) as u64);
+        for (curved, geometry, method) in [
+            (false, Geometry::Mesh, Some(Method::Exact)),
+            (true, Geometry::Mesh, Some(Method::Relief)),
+            (true, Geometry::Mesh, None),
+            (true, Geometry::Quad, Some(Method::Exact)),
+            (true, Geometry::TiledPlane, Some(Method::Exact)),
+        ] {
+            assert_eq!(
+                Curved::object_triangles(curved, geometry, method, &loaded),
+                0,
+                "{curved} {geometry:?} {method:?}"
+            );
+        }
+        let list = dispmap::passes::trace::walk_list_bytes(ash::vk::Extent2D {
+            width: 640,
+            height: 360,
+        });
+        let on = Curved {
+            on: true,
+            walked_triangles: walked,
+        };
+        assert_eq!(
+            on.render_bytes(frame),
+            8 * pixels + 20_000 * WALK_BYTES_PER_TRIANGLE + 2 * list
+        );
+        assert_eq!(
+            Curved {
+                on: true,
+                walked_triangles: 0
+            }
+            .render_bytes(frame),
+            8 * pixels
+        );
+        assert_eq!(Curved::default().render_bytes(frame), 0);
+        let map = MapSize {
+            size: [1024, 1024],
+            texel_bytes: 1,
+            load_bytes: 0,
+        };
+        let plain = Extras {
+            mesh: loaded,
+            ..Extras::default()
+        };
+        let base = estimate(map, frame, plain);
+        let curved = estimate(
+            map,
+            frame,
+            Extras {
+                curved: on,
+                ..plain
+            },
+        );
+        assert_eq!(curved.bytes - base.bytes, on.render_bytes(frame));
+        assert!(
+            curved
+                .parts
+                .iter()
+                .any(|(name, _)| name.contains("mesh walk")),
+            "{:?}",
+            curved.parts
+        );
     }
 
     #[test]

@@ -139,6 +139,15 @@ pub(crate) fn render_inputs(
             ),
             mesh,
             images,
+            curved: memory::Curved {
+                on: args.curved,
+                walked_triangles: memory::Curved::object_triangles(
+                    args.curved,
+                    settings.scene.geometry,
+                    Some(settings.method),
+                    &mesh,
+                ),
+            },
         };
         let estimate = memory::estimate(map, frame, extras);
         memory::check(&estimate, args.common.max_memory, &what)

@@ -133,13 +133,24 @@ pub fn inputs(
         .override_scene(&mut settings, file, None, matches);
     settings.validate()?;
     let specs = scene_objects::specs(file, path)?;
-    // Every mesh's size, summed (each measured before it is loaded).
+    // Every mesh's size, summed (each measured before it is loaded), and the triangles
+    // curved tracing walks.
     let mut meshes = memory::MeshSize::default();
-    for m in specs.iter().filter_map(|o| o.mesh.as_ref()) {
-        let size = dispmap_cli::mesh_file::measure(m)?;
+    let mut walked_triangles = 0;
+    for o in &specs {
+        let size = match &o.mesh {
+            Some(m) => dispmap_cli::mesh_file::measure(m)?,
+            None => memory::MeshSize::default(),
+        };
         meshes.file_bytes += size.file_bytes;
         meshes.vertices += size.vertices;
         meshes.triangles += size.triangles;
+        walked_triangles += memory::Curved::object_triangles(
+            args.curved,
+            o.geometry,
+            o.material.as_ref().map(|m| m.settings.method),
+            &size,
+        );
     }
     // The albedo and normal maps (each file once, each material's GPU copy).
     let images = scene_objects::measure_images(
@@ -177,6 +188,10 @@ pub fn inputs(
             depth: args.depth_out.is_some(),
             maps: memory::MethodMaps::default(),
             images,
+            curved: memory::Curved {
+                on: args.curved,
+                walked_triangles,
+            },
         };
         let what = format!(
             "rendering {}x{} with {} materials of {}{}",
