@@ -12,14 +12,15 @@
 //! Bindings (set 0, push descriptors): `u_first_depth` (the first layer's G-buffer depth,
 //! sampled, `SHADER_READ_ONLY_OPTIMAL`), `u_first_hit_height` (its hit height, a storage
 //! image read, `GENERAL`). Push constant: the triangle's depth. The pipeline's attachments are
-//! the G-buffer's ([`RAY_FORMAT`], [`FRAME_FORMAT`], [`DEPTH_FORMAT`]), depth test
-//! `ALWAYS` with writes.
+//! the G-buffer's ([`RAY_FORMAT`], [`FRAME_FORMAT`], with the curve image [`CURVE_FORMAT`]
+//! for a curved frame, written as zero; [`DEPTH_FORMAT`]), depth test `ALWAYS` with
+//! writes.
 
 use crate::context::Context;
 use crate::error::{Result, VkContext};
 use crate::gpu::owned::Destroy;
 use crate::gpu::pipeline::{RasterDesc, RasterSet, raster_pipeline};
-use crate::passes::gbuffer::{DEPTH_FORMAT, FRAME_FORMAT, FirstLayer, RAY_FORMAT};
+use crate::passes::gbuffer::{CURVE_FORMAT, DEPTH_FORMAT, FRAME_FORMAT, FirstLayer, RAY_FORMAT};
 use crate::shaders;
 use ash::vk;
 
@@ -33,18 +34,27 @@ pub const BLOCK_DEPTH: f32 = 1.0;
 /// The depth the mask restores after the objects (the G-buffer's clear value).
 pub const CLEAR_DEPTH: f32 = 0.0;
 
-/// Set 0 as the shaders declare it.
-pub(crate) fn raster_set() -> Result<RasterSet> {
+/// Set 0 as the shaders declare it (the curve variant's fragment stage binds nothing
+/// more).
+pub(crate) fn raster_set(curve: bool) -> Result<RasterSet> {
     RasterSet::new(
         &[
             (&shaders::BEHIND_MASK_VERT, vk::ShaderStageFlags::VERTEX),
-            (&shaders::BEHIND_MASK_FRAG, vk::ShaderStageFlags::FRAGMENT),
+            (fragment(curve), vk::ShaderStageFlags::FRAGMENT),
         ],
         &[
             (FIRST_DEPTH, vk::DescriptorType::COMBINED_IMAGE_SAMPLER),
             (FIRST_HIT, vk::DescriptorType::STORAGE_IMAGE),
         ],
     )
+}
+
+fn fragment(curve: bool) -> &'static shaders::Shader {
+    if curve {
+        &shaders::BEHIND_MASK_FRAG_CURVE
+    } else {
+        &shaders::BEHIND_MASK_FRAG
+    }
 }
 
 /// The mask's pipeline.
@@ -54,12 +64,14 @@ pub struct BehindMaskPass {
     set_layout: vk::DescriptorSetLayout,
     set: RasterSet,
     sampler: vk::Sampler,
+    curve: bool,
 }
 
 impl BehindMaskPass {
-    /// Builds the pipeline (dynamic rendering with the G-buffer's attachments).
-    pub fn new(ctx: &Context) -> Result<Self> {
-        let set = raster_set()?;
+    /// Builds the pipeline (dynamic rendering with the G-buffer's attachments, the curve
+    /// image among them when `curve`).
+    pub fn new(ctx: &Context, curve: bool) -> Result<Self> {
+        let set = raster_set(curve)?;
         let sampler = crate::gpu::pipeline::sampler(
             ctx,
             "behind_mask.sampler",
@@ -72,6 +84,7 @@ impl BehindMaskPass {
             set_layout: vk::DescriptorSetLayout::null(),
             set,
             sampler,
+            curve,
         };
         // On failure `pass` is destroyed with what exists.
         match pass.build(ctx) {
@@ -82,6 +95,11 @@ impl BehindMaskPass {
                 Err(e)
             }
         }
+    }
+
+    /// Whether it draws into a G-buffer with the curve image.
+    pub fn has_curve(&self) -> bool {
+        self.curve
     }
 
     fn build(&mut self, ctx: &Context) -> Result<()> {
@@ -102,12 +120,13 @@ impl BehindMaskPass {
             ctx,
             &RasterDesc {
                 vert: &shaders::BEHIND_MASK_VERT,
-                frag: &shaders::BEHIND_MASK_FRAG,
+                frag: fragment(self.curve),
                 layout: self.layout,
                 vertex_bindings: &[],
                 vertex_attributes: &[],
                 depth_compare: vk::CompareOp::ALWAYS,
-                color_formats: &[RAY_FORMAT, FRAME_FORMAT],
+                color_formats: &[RAY_FORMAT, FRAME_FORMAT, CURVE_FORMAT]
+                    [..2 + usize::from(self.curve)],
                 depth_format: DEPTH_FORMAT,
                 name: "behind_mask.pipeline",
             },

@@ -779,6 +779,13 @@ unsafe fn record_layer(
             unsafe { buffer.record_update(ctx, cmd, rays)? };
         }
     }
+    if let Some((m, _)) = mask
+        && m.has_curve() != target.curve.is_some()
+    {
+        return Err(crate::error::Error::Internal(
+            "the behind mask's pipeline and the G-buffer differ on the curve image".into(),
+        ));
+    }
     let open = indirect.and_then(|i| i.open);
     if let Some((pass, _)) = open
         && pass.has_curve() != target.curve.is_some()
@@ -966,7 +973,9 @@ mod tests {
         }
         assert!(forward >= 2, "relief and pom have forward paths");
         crate::passes::depth_resolve::raster_set().unwrap();
-        crate::passes::behind_mask::raster_set().unwrap();
+        for curve in [false, true] {
+            crate::passes::behind_mask::raster_set(curve).unwrap();
+        }
         for curve in [false, true] {
             crate::passes::behind_open::raster_set(curve).unwrap();
         }

@@ -164,9 +164,10 @@ impl Behind {
         })
     }
 
-    /// Rebuilds the layer's G-buffer of `extent` and its pipelines with or without the
-    /// curve image (`curve`: the first layer's, [`Renderer::set_curved`]); the hit images,
-    /// the background and the mask stay. On error the layer is unchanged.
+    /// Rebuilds the layer's G-buffer of `extent` and its pipelines (the mask's too, when it
+    /// has one) with or without the curve image (`curve`: the first layer's,
+    /// [`Renderer::set_curved`]); the hit images and the background stay. On error the
+    /// layer is unchanged.
     ///
     /// # Safety
     /// No pending GPU work uses the layer (the renderer waits for every frame).
@@ -194,11 +195,19 @@ impl Behind {
         let mesh = unsafe { Guard::new(c, pipeline(&self.mesh)?) };
         // SAFETY: as above.
         let two_sided = unsafe { Guard::new(c, pipeline(&self.two_sided)?) };
+        let mask = self
+            .mask
+            .as_ref()
+            .map(|_| crate::passes::behind_mask::BehindMaskPass::new(c, curve))
+            .transpose()?;
+        // SAFETY: as above.
+        let mask = unsafe { Guard::new(c, mask) };
         let mut old = (
             std::mem::replace(&mut self.gbuffer, gbuffer.keep()),
             std::mem::replace(&mut self.plane, plane.keep()),
             std::mem::replace(&mut self.mesh, mesh.keep()),
             std::mem::replace(&mut self.two_sided, two_sided.keep()),
+            std::mem::replace(&mut self.mask, mask.keep()),
         );
         // SAFETY: this function's contract: nothing pending uses the old objects.
         unsafe {
@@ -206,6 +215,7 @@ impl Behind {
             old.1.destroy(c);
             old.2.destroy(c);
             old.3.destroy(c);
+            old.4.destroy(c);
         }
         Ok(())
     }
@@ -430,7 +440,12 @@ impl Renderer {
             ));
         };
         match (on, &b.mask) {
-            (true, None) => b.mask = Some(crate::passes::behind_mask::BehindMaskPass::new(c)?),
+            (true, None) => {
+                b.mask = Some(crate::passes::behind_mask::BehindMaskPass::new(
+                    c,
+                    b.gbuffer.curve.is_some(),
+                )?)
+            }
             // SAFETY: every frame of this renderer was waited for (`render` submits and waits).
             (false, Some(_)) => unsafe { b.mask.destroy(c) },
             _ => {}
