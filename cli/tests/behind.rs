@@ -244,7 +244,7 @@ fn the_curved_behind_layer_is_the_same_by_every_route() {
             let shown = behind.iter().filter(|h| h[2] >= 0.0).count();
             eprintln!("{name}: {shown} pixels show a hit behind a miss");
             assert!(shown >= least, "{name}: {shown} pixels shown behind");
-            let mut same = |what: &str, r: &mut Renderer| {
+            let same = |what: &str, r: &mut Renderer| {
                 r.render().unwrap();
                 assert_eq!(r.read_color().unwrap(), color, "{name}: colour, {what}");
                 assert_eq!(
