@@ -596,13 +596,13 @@ impl Renderer {
             }
             ranges.push((start, sources.len() as u32 - start));
         }
-        let piece_count = sources.len() as u32;
+        let pieces = sources.len() as u32;
         if !behind
             .tiles
             .as_ref()
-            .is_some_and(|t| t.fits(extent, piece_count))
+            .is_some_and(|t| t.fits(extent, pieces))
         {
-            let tiles = BehindTiles::new(&ctx, extent, piece_count)?;
+            let tiles = BehindTiles::new(&ctx, extent, pieces)?;
             if let Some(b) = &mut self.behind
                 && let Some(mut old) = b.tiles.replace(tiles)
             {
