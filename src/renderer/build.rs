@@ -161,6 +161,16 @@ impl Renderer {
         let settings = objects_settings(settings, first, &primary.settings);
         settings.validate()?;
         let mut placed = Vec::with_capacity(objects.len());
+        // The behind layer (a miss shows what is behind it): for several objects of which
+        // a displaced one can miss, a mesh (curved tracing) or a clamp-addressed object (a
+        // ray that leaves its decal). Its second record uses the pass's frame slot 1.
+        let behind = objects.len() > 1
+            && objects.iter().any(|o| {
+                o.material.is_some_and(|m| {
+                    o.geometry != Geometry::TiledPlane
+                        || m.settings.addressing == crate::heightfield::Addressing::Clamp
+                })
+            });
         let mut convex = Vec::with_capacity(objects.len());
         let mut surface_offset = 0u32;
         for (i, o) in objects.iter().enumerate() {
@@ -196,10 +206,12 @@ impl Renderer {
                 g => g.generated_mesh(),
             };
             // Only a displaced object's pixels miss: only its convexity can spare a draw
-            // of the behind layer. Tested before placing (an affine map keeps it; the
-            // placed vertices' rounding can fail the test's tolerance).
+            // of the behind layer (tested only when there is one). Tested before placing
+            // (an affine map keeps it; the placed vertices' rounding can fail the test's
+            // tolerance).
             convex.push(
-                o.material.is_some()
+                behind
+                    && o.material.is_some()
                     && mesh.as_ref().is_some_and(|m| !m.two_sided && m.is_convex()),
             );
             placed.push(mesh.map(|m| {
@@ -287,16 +299,6 @@ impl Renderer {
             .iter()
             .position(|o| o.material.is_some())
             .unwrap_or(0);
-        // The behind layer (a miss shows what is behind it): for several objects of which
-        // a displaced one can miss, a mesh (curved tracing) or a clamp-addressed object (a
-        // ray that leaves its decal). Its second record uses the pass's frame slot 1.
-        let behind = objects.len() > 1
-            && objects.iter().any(|o| {
-                o.material.is_some_and(|m| {
-                    o.geometry != Geometry::TiledPlane
-                        || m.settings.addressing == crate::heightfield::Addressing::Clamp
-                })
-            });
         // The renderer measures its methods: its frames always write the iteration counts.
         let mut pass = DisplacementPass::with_iterations(
             ctx.clone(),
