@@ -6,7 +6,8 @@
 // BEHIND variant: the behind layer (glsl/include/dispmap_behind.glsl): a fragment is kept
 // only at a pixel whose first-layer trace missed, behind the first layer's surface.
 // CURVE variant: also writes the curve target (location 2, dispmap_gbuffer_curve), for a
-// frame with materials traced curved.
+// frame with materials traced curved; with CURVE_COMPUTED false (a draw whose material is
+// not traced curved, where nothing reads it) it writes 0 there without computing it.
 // dispmap-variant: BEHIND
 // dispmap-variant: CURVE
 // dispmap-variant: BEHIND+CURVE
@@ -35,6 +36,9 @@ layout(location = 6) in float v_scale;
 // plane (from the derivatives of the eye-relative position, oriented by the interpolated
 // normal), not the winding, so it holds for any index order.
 layout(constant_id = 0) const bool TWO_SIDED = false;
+// Whether the CURVE variant computes the curve output (src/passes/gbuffer.rs: the
+// pipeline of the draws whose material is traced curved) or writes 0.
+layout(constant_id = 1) const bool CURVE_COMPUTED = true;
 
 layout(location = 0) out vec4 out_ray;
 layout(location = 1) out uvec2 out_frame;
@@ -45,7 +49,10 @@ layout(location = 2) out vec2 out_curve;
 void main() {
 #ifdef CURVE
     // Before any discard: derivatives need the whole quad.
-    DispmapCurveInputs curve = dispmap_curve_inputs(v_uv, v_normal, v_scale);
+    DispmapCurveInputs curve;
+    if (CURVE_COMPUTED) {
+        curve = dispmap_curve_inputs(v_uv, v_normal, v_scale);
+    }
     out_curve = vec2(0.0);
 #endif
 #ifdef BEHIND
@@ -86,7 +93,7 @@ void main() {
     float stretch = clamp(v_stretch, 1.0 / 64.0, 64.0);
     out_ray.zw *= vec2(inversesqrt(stretch), sqrt(stretch));
 #ifdef CURVE
-    if (material_plus_one != 0u) {
+    if (CURVE_COMPUTED && material_plus_one != 0u) {
         out_curve = dispmap_gbuffer_curve(s, curve, out_ray.zw);
     }
 #endif

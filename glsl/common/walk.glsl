@@ -453,10 +453,12 @@ vec2 walk_clip(vec3 qa, vec3 qb) {
 // depth) intersected exactly by the pyramid: the first crossing into an overlapping
 // triangle's relief through its surface (not at the clipped start, where the chord enters
 // its shell through a side or starts inside its relief), as the chord's fraction `u_hit`.
+// `near`: the caller has found that the chord comes near the overlapping planes
+// (walk_planes_near, true), which is then not tested again.
 bool walk_overlaps_chord(WalkAt at, vec3 X0, vec3 R, float sa, float sb, float side, vec2 tiles,
-                         inout uint iterations, inout float u_hit, out Hit hit) {
+                         bool near, inout uint iterations, inout float u_hit, out Hit hit) {
     hit = Hit(vec2(0.0), NO_HIT_HEIGHT, 0u);
-    if (!walk_planes_near(at.T, X0 + sa * R, X0 + sb * R, side)) {
+    if (!near && !walk_planes_near(at.T, X0 + sa * R, X0 + sb * R, side)) {
         return false;
     }
     int top = pyramid_levels() - 1;
@@ -726,7 +728,8 @@ int walk_triage(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
     vec2 tiles = pc.addressing == ADDRESSING_REPEAT ? round(ray.uv0 - walk_uv(at.T, at.q.xy)) : vec2(0.0);
     uint iterations = 1u;
     float u_hit = 1.0;
-    return walk_overlaps_chord(at, X0, R, 0.0, s1, side, tiles, iterations, u_hit, hit)
+    // The path stays in the triangle (WALK_PATH_IN), so `near` is its planes' test.
+    return walk_overlaps_chord(at, X0, R, 0.0, s1, side, tiles, true, iterations, u_hit, hit)
         ? WALK_OVERLAP : WALK_KEEP;
 }
 #else
@@ -821,7 +824,8 @@ bool walk_trace(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
             float u_hit = sh >= 0.0 ? (sh - t_a) / (t_b - t_a) : 2.0;
             Hit overlap;
             if (at.T.overlaps.y > 0u
-                && walk_overlaps_chord(at, X0, R, s, s + cds, side, tiles, iterations, u_hit, overlap)) {
+                && walk_overlaps_chord(at, X0, R, s, s + cds, side, tiles, false, iterations, u_hit,
+                                       overlap)) {
                 overlap.iterations = iterations;
                 hit = overlap;
                 return true;

@@ -267,6 +267,11 @@ pub(crate) fn raster_set(mesh: bool, behind: bool) -> Result<RasterSet> {
 /// uniform buffer of the frame's pixel rays).
 pub struct GBufferPass {
     pipeline: vk::Pipeline,
+    /// A mesh pipeline drawing into a G-buffer with the curve image: the same pipeline
+    /// writing 0 there without computing the curve (the fragment stage's `CURVE_COMPUTED`
+    /// false), for the draws whose material is not traced curved ([`GBufferDraw::curve`]);
+    /// null otherwise.
+    zero_curve: vk::Pipeline,
     layout: vk::PipelineLayout,
     set_layout: vk::DescriptorSetLayout,
     /// Set 0 as the shaders declare it (the plane's pixel rays; empty for meshes).
@@ -358,6 +363,12 @@ impl GBufferPass {
         let name = name.as_str();
         let (vert, frag) = layer_shaders(mesh, behind, curve);
         let set = raster_set(mesh, behind)?;
+        // The mesh fragment stage's specialization constants' ids (read before anything
+        // is built: an error leaves nothing to free).
+        let mut ids = Vec::new();
+        for name in ["TWO_SIDED", "CURVE_COMPUTED"] {
+            ids.push(frag.spec_constant_id(name)?);
+        }
         let has_set = !set.is_empty();
         let (set_layout, rays) = if !has_set {
             (vk::DescriptorSetLayout::null(), None)
@@ -383,6 +394,7 @@ impl GBufferPass {
             .push_constant_ranges(&ranges);
         let mut owned = GBufferPass {
             pipeline: vk::Pipeline::null(),
+            zero_curve: vk::Pipeline::null(),
             layout: vk::PipelineLayout::null(),
             set_layout,
             set,
@@ -437,34 +449,48 @@ impl GBufferPass {
         } else {
             (&[], &[])
         };
-        // The fragment stage's TWO_SIDED (constant_id 0, a 32-bit bool).
-        let two_sided_value = vk::Bool32::from(two_sided).to_ne_bytes();
-        let entries = [vk::SpecializationMapEntry {
-            constant_id: 0,
-            offset: 0,
-            size: std::mem::size_of::<vk::Bool32>(),
-        }];
-        let spec = vk::SpecializationInfo::default()
-            .map_entries(&entries)
-            .data(&two_sided_value);
-        let pipeline = match raster_pipeline_culled(
-            ctx,
-            &RasterDesc {
-                vert: &vert,
-                frag: &frag,
-                layout,
-                vertex_bindings,
-                vertex_attributes,
-                depth_compare: vk::CompareOp::GREATER,
-                color_formats: &[RAY_FORMAT, FRAME_FORMAT, CURVE_FORMAT][..2 + usize::from(curve)],
-                depth_format: DEPTH_FORMAT,
-                name: &format!("{name}.pipeline"),
-            },
-            two_sided.then_some(&spec),
-            // A one-sided mesh's faces turned away are discarded by the fragment shader
-            // anyway: culled before they are shaded.
-            mesh && !two_sided,
-        ) {
+        // The mesh fragment stage's TWO_SIDED and CURVE_COMPUTED (32-bit bools), by the
+        // ids the SPIR-V gives them (a variant may leave one out).
+        let bool_size = std::mem::size_of::<vk::Bool32>();
+        let entries: Vec<_> = (0u32..)
+            .zip(&ids)
+            .filter_map(|(i, id)| {
+                id.map(|constant_id| vk::SpecializationMapEntry {
+                    constant_id,
+                    offset: i * bool_size as u32,
+                    size: bool_size,
+                })
+            })
+            .collect();
+        let build = |computed: bool, suffix: &str| {
+            let values: Vec<u8> = [two_sided, computed]
+                .iter()
+                .flat_map(|&b| vk::Bool32::from(b).to_ne_bytes())
+                .collect();
+            let spec = vk::SpecializationInfo::default()
+                .map_entries(&entries)
+                .data(&values);
+            raster_pipeline_culled(
+                ctx,
+                &RasterDesc {
+                    vert: &vert,
+                    frag: &frag,
+                    layout,
+                    vertex_bindings,
+                    vertex_attributes,
+                    depth_compare: vk::CompareOp::GREATER,
+                    color_formats: &[RAY_FORMAT, FRAME_FORMAT, CURVE_FORMAT]
+                        [..2 + usize::from(curve)],
+                    depth_format: DEPTH_FORMAT,
+                    name: &format!("{name}{suffix}.pipeline"),
+                },
+                mesh.then_some(&spec),
+                // A one-sided mesh's faces turned away are discarded by the fragment shader
+                // anyway: culled before they are shaded.
+                mesh && !two_sided,
+            )
+        };
+        owned.pipeline = match build(true, "") {
             Ok(p) => p,
             Err(e) => {
                 // SAFETY: built above and never used by a command.
@@ -472,8 +498,17 @@ impl GBufferPass {
                 return Err(e);
             }
         };
+        if mesh && curve {
+            owned.zero_curve = match build(false, "_zero_curve") {
+                Ok(p) => p,
+                Err(e) => {
+                    // SAFETY: built above and never used by a command.
+                    unsafe { owned.destroy(ctx) };
+                    return Err(e);
+                }
+            };
+        }
         ctx.set_name(layout, &format!("{name}.layout"));
-        owned.pipeline = pipeline;
         Ok(owned)
     }
 
@@ -550,6 +585,7 @@ impl GBufferPass {
             pass: self,
             params: *params,
             mesh,
+            curve: true,
         };
         // SAFETY: this function's # Safety contract is `record_draws`'s for one draw.
         unsafe { record_draws(ctx, cmd, target, std::slice::from_ref(&draw), rays) }
@@ -563,6 +599,8 @@ impl Destroy for GBufferPass {
         // SAFETY: Destroy's contract (nothing pending uses these objects), passed on.
         unsafe {
             ctx.device().destroy_pipeline(self.pipeline, None);
+            ctx.device().destroy_pipeline(self.zero_curve, None);
+            self.zero_curve = vk::Pipeline::null();
             ctx.device().destroy_pipeline_layout(self.layout, None);
             ctx.device()
                 .destroy_descriptor_set_layout(self.set_layout, None);
@@ -588,6 +626,11 @@ pub struct GBufferDraw<'a> {
     pub params: GBufferParams,
     /// The object's vertex and index buffers (mesh pipeline only).
     pub mesh: Option<&'a crate::mesh::MeshBuffers>,
+    /// Whether its fragments compute the curve output (its material is traced curved).
+    /// `false` writes 0 in a G-buffer's curve image without computing it, where nothing
+    /// reads it (a mesh drawn into a G-buffer with the curve image: a flat object, a
+    /// material traced as tangent planes); no effect without the curve image.
+    pub curve: bool,
 }
 
 /// Records the G-buffer pass of several objects: clears the G-buffer once and draws every
@@ -893,7 +936,12 @@ unsafe fn record_layer(
                 "behind pipeline vs layer"
             );
 
-            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, draw.pass.pipeline);
+            let pipeline = if draw.curve || draw.pass.zero_curve == vk::Pipeline::null() {
+                draw.pass.pipeline
+            } else {
+                draw.pass.zero_curve
+            };
+            dev.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, pipeline);
             if !write.is_empty() {
                 ctx.push_descriptor().cmd_push_descriptor_set(
                     cmd,

@@ -643,16 +643,17 @@ impl Renderer {
                     .object_draws(camera)?
                     .unwrap_or_default()
                     .iter()
-                    .map(|d| (d.params, d.pass.is_mesh(), d.pass.is_two_sided()))
+                    .map(|d| (d.params, d.pass.is_mesh(), d.pass.is_two_sided(), d.curve))
                     .collect();
                 kinds
                     .into_iter()
                     .zip(&objects.meshes)
-                    .map(|((params, mesh, two_sided), buffers)| {
+                    .map(|((params, mesh, two_sided, curve), buffers)| {
                         Ok(GBufferDraw {
                             pass: behind.pass_of(mesh, two_sided)?,
                             params,
                             mesh: buffers.as_ref(),
+                            curve,
                         })
                     })
                     .collect::<Result<Vec<_>>>()?
@@ -661,6 +662,7 @@ impl Renderer {
                 pass: behind.pass_of(true, mesh.two_sided)?,
                 params: self.settings.scene.gbuffer_params(camera),
                 mesh: Some(mesh),
+                curve: true,
             }],
             (None, None) => return Ok(None),
         };

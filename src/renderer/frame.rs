@@ -191,8 +191,12 @@ impl Renderer {
         for (buffers, material) in objects.meshes.iter().zip(&objects.materials) {
             let mut params = if buffers.is_some() { mesh } else { plane };
             params.camera_pos.w = 0.0;
+            // Only a material traced curved reads the curve image (a method with a curved
+            // path, the material set curved).
+            let mut curve = false;
             if let Some(id) = material {
                 let m = self.pass.material_settings(*id)?;
+                curve = m.method.traces_curved() && self.pass.material_curved(*id)?;
                 params.camera_pos.w = (id.index() + 1) as f32;
                 params.depth_scale = m.depth_scale;
                 params.addressing = crate::scene::addressing_code(m.addressing);
@@ -206,6 +210,7 @@ impl Renderer {
                 pass,
                 params,
                 mesh: buffers.as_ref(),
+                curve,
             });
         }
         Ok(Some(draws))
