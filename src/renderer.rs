@@ -23,6 +23,8 @@
 mod behind;
 mod behind_draws;
 mod build;
+#[cfg(test)]
+mod curve_draw_tests;
 mod forward;
 mod frame;
 mod objects;
