@@ -389,14 +389,24 @@ impl Renderer {
         };
         // SAFETY: no command has used the guarded values yet; they are kept below.
         let gbuffer = unsafe { Guard::new(c, gbuffer) };
-        let pipeline =
-            |p: &GBufferPass| GBufferPass::new_layer(c, p.is_mesh(), p.is_two_sided(), false, on);
+        // The objects' mesh pipelines also get the twin that leaves the curve uncomputed
+        // where a draw can use it (a mesh drawn alone is always curved).
+        let zero = on && self.draws_skip_curve()?;
+        let pipeline = |p: &GBufferPass, zero: bool| {
+            GBufferPass::new_layer_with(c, p.is_mesh(), p.is_two_sided(), false, on, zero)
+        };
         // SAFETY: as above.
-        let gbuffer_pass = unsafe { Guard::new(c, pipeline(&self.gbuffer_pass)?) };
+        let gbuffer_pass = unsafe { Guard::new(c, pipeline(&self.gbuffer_pass, false)?) };
         let (mesh_pass, two_sided_pass) = match &self.objects {
             Some(o) => (
-                o.mesh_pass.as_ref().map(pipeline).transpose()?,
-                o.two_sided_pass.as_ref().map(pipeline).transpose()?,
+                o.mesh_pass
+                    .as_ref()
+                    .map(|p| pipeline(p, zero))
+                    .transpose()?,
+                o.two_sided_pass
+                    .as_ref()
+                    .map(|p| pipeline(p, zero))
+                    .transpose()?,
             ),
             None => (None, None),
         };
@@ -406,7 +416,7 @@ impl Renderer {
         if let Some(b) = &mut self.behind {
             // SAFETY: every frame of this renderer was waited for (`render` submits and
             // waits): nothing pending uses the layer.
-            unsafe { b.set_curve(c, extent, on)? };
+            unsafe { b.set_curve(c, extent, on, zero)? };
         }
         let mut old_gbuffer = std::mem::replace(&mut self.gbuffer, gbuffer.keep());
         let mut old_pass = std::mem::replace(&mut self.gbuffer_pass, gbuffer_pass.keep());
@@ -426,6 +436,29 @@ impl Renderer {
             old_two_sided.destroy(c);
         }
         Ok(())
+    }
+
+    /// Whether a G-buffer draw of a curved frame can leave the curve uncomputed
+    /// ([`GBufferDraw::curve`] false): a scene of several objects with a mesh that is not
+    /// displaced, drawn with one normal (never traced curved) or of a method without a
+    /// curved path.
+    fn draws_skip_curve(&self) -> Result<bool> {
+        let Some(o) = &self.objects else {
+            return Ok(false);
+        };
+        for ((mesh, material), &one) in o.meshes.iter().zip(&o.materials).zip(&o.one_normal) {
+            if mesh.is_none() {
+                continue;
+            }
+            match material {
+                None => return Ok(true),
+                Some(id) if one || !self.pass.material_settings(*id)?.method.traces_curved() => {
+                    return Ok(true);
+                }
+                Some(_) => {}
+            }
+        }
+        Ok(false)
     }
 
     /// Switches self-shadowing (builds or drops the `shadow` pass and its image).

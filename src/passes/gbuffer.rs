@@ -267,7 +267,8 @@ pub(crate) fn raster_set(mesh: bool, behind: bool) -> Result<RasterSet> {
 /// uniform buffer of the frame's pixel rays).
 pub struct GBufferPass {
     pipeline: vk::Pipeline,
-    /// A mesh pipeline drawing into a G-buffer with the curve image: the same pipeline
+    /// A mesh pipeline drawing into a G-buffer with the curve image, built for a frame
+    /// with draws that do not read it ([`GBufferPass::new_layer_with`]): the same pipeline
     /// writing 0 there without computing the curve (the fragment stage's `CURVE_COMPUTED`
     /// false), for the draws whose material is not traced curved ([`GBufferDraw::curve`]);
     /// null otherwise.
@@ -347,6 +348,21 @@ impl GBufferPass {
         two_sided: bool,
         behind: bool,
         curve: bool,
+    ) -> Result<Self> {
+        Self::new_layer_with(ctx, mesh, two_sided, behind, curve, false)
+    }
+
+    /// [`GBufferPass::new_layer`]; a mesh pipeline with the curve image (`curve`) also
+    /// builds, with `zero_curve`, its twin that writes 0 there without computing it, for
+    /// the draws whose material is not traced curved ([`GBufferDraw::curve`]; without the
+    /// twin such a draw computes the curve, which nothing reads).
+    pub(crate) fn new_layer_with(
+        ctx: &Context,
+        mesh: bool,
+        two_sided: bool,
+        behind: bool,
+        curve: bool,
+        zero_curve: bool,
     ) -> Result<Self> {
         let two_sided = two_sided && mesh;
         let dev = ctx.device();
@@ -498,7 +514,7 @@ impl GBufferPass {
                 return Err(e);
             }
         };
-        if mesh && curve {
+        if mesh && curve && zero_curve {
             owned.zero_curve = match build(false, "_zero_curve") {
                 Ok(p) => p,
                 Err(e) => {

@@ -124,7 +124,9 @@ enum Layer {
 
 impl Behind {
     /// The layer's images for `extent` and the pipelines of `objects`' kinds: the tiled
-    /// plane (`plane`), one-sided and two-sided meshes.
+    /// plane (`plane`), one-sided and two-sided meshes, with the curve image (`curve`) and
+    /// the mesh pipelines' twins that leave it uncomputed (`zero_curve`,
+    /// [`GBufferPass::new_layer_with`]).
     /// `clusters`: per object its mesh's clusters (`None`: the tiled plane).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
@@ -134,13 +136,14 @@ impl Behind {
         mesh: bool,
         two_sided: bool,
         curve: bool,
+        zero_curve: bool,
         clusters: Vec<Option<Vec<Cluster>>>,
     ) -> Result<Self> {
         let (gbuffer, hit) = layer_images(c, extent, curve)?;
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
         let background = unsafe { Guard::new(c, BackgroundPass::new_behind(c)?) };
         let pipeline = |on: bool, mesh: bool, two_sided: bool| -> Result<Option<GBufferPass>> {
-            on.then(|| GBufferPass::new_layer(c, mesh, two_sided, true, curve))
+            on.then(|| GBufferPass::new_layer_with(c, mesh, two_sided, true, curve, zero_curve))
                 .transpose()
         };
         // SAFETY: no command has used the guarded value yet; it is kept before any frame records it.
@@ -166,8 +169,9 @@ impl Behind {
 
     /// Rebuilds the layer's G-buffer of `extent` and its pipelines (the mask's too, when it
     /// has one) with or without the curve image (`curve`: the first layer's,
-    /// [`Renderer::set_curved`]); the hit images and the background stay. On error the
-    /// layer is unchanged.
+    /// [`Renderer::set_curved`]; `zero_curve`: the mesh pipelines' twins that leave it
+    /// uncomputed, [`GBufferPass::new_layer_with`]); the hit images and the background
+    /// stay. On error the layer is unchanged.
     ///
     /// # Safety
     /// No pending GPU work uses the layer (the renderer waits for every frame).
@@ -176,6 +180,7 @@ impl Behind {
         c: &Context,
         extent: vk::Extent2D,
         curve: bool,
+        zero_curve: bool,
     ) -> Result<()> {
         let gbuffer = if curve {
             GBuffer::new_curved(c, extent)?
@@ -186,7 +191,16 @@ impl Behind {
         let gbuffer = unsafe { Guard::new(c, gbuffer) };
         let pipeline = |old: &Option<GBufferPass>| -> Result<Option<GBufferPass>> {
             old.as_ref()
-                .map(|p| GBufferPass::new_layer(c, p.is_mesh(), p.is_two_sided(), true, curve))
+                .map(|p| {
+                    GBufferPass::new_layer_with(
+                        c,
+                        p.is_mesh(),
+                        p.is_two_sided(),
+                        true,
+                        curve,
+                        zero_curve,
+                    )
+                })
                 .transpose()
         };
         // SAFETY: as above.
@@ -356,6 +370,7 @@ impl Renderer {
                     mesh,
                     two_sided,
                     self.gbuffer.curve.is_some(),
+                    self.gbuffer.curve.is_some() && self.draws_skip_curve()?,
                     clusters,
                 )?);
             }
