@@ -30,6 +30,8 @@ mod frame;
 mod objects;
 mod readback;
 #[cfg(test)]
+mod test_support;
+#[cfg(test)]
 mod walk_tests;
 
 pub use objects::{MAX_OBJECTS, ObjectAssets, ObjectMaterial, SceneAssets, SceneObject};

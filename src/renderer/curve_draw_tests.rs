@@ -1,8 +1,8 @@
 //! Which of the renderer's G-buffer draws compute the curve output: only those of a
 //! material traced curved (the pipeline with `CURVE_COMPUTED`); the others write 0.
 
+use super::test_support::{assert_no_validation_messages, bumps, validated_context};
 use super::*;
-use crate::context::ContextOptions;
 use crate::embed::MaterialSettings;
 use crate::gpu::commands::read_image;
 use crate::heightfield::Addressing;
@@ -17,19 +17,8 @@ use glam::Vec3;
 /// their curvature too).
 #[test]
 fn only_the_draws_of_curved_materials_compute_the_curve() {
-    let ctx = Arc::new(
-        Context::headless(&ContextOptions {
-            validation: Some(true),
-            device: None,
-        })
-        .expect("a validated Vulkan context (./scripts/setup-debian.sh)"),
-    );
-    let field = HeightField::from_fn(64, 64, "bumps", |u, v| {
-        0.5 + 0.5
-            * (u * 4.0 * std::f32::consts::TAU).sin()
-            * (v * 3.0 * std::f32::consts::TAU).cos()
-    })
-    .unwrap();
+    let ctx = validated_context();
+    let field = bumps(4.0, 3.0);
     let images = MaterialImages::default();
     let material = |method: Method| ObjectMaterial {
         field: &field,
@@ -116,7 +105,5 @@ fn only_the_draws_of_curved_materials_compute_the_curve() {
         "the secant sphere's and the torus's pixels ({others}) have no curve"
     );
     drop(r);
-    let m = ctx.messages().clone();
-    drop(ctx);
-    assert_eq!((m.errors(), m.warnings()), (0, 0), "validation messages");
+    assert_no_validation_messages(ctx);
 }

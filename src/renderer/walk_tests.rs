@@ -2,26 +2,15 @@
 //! material on none of the walked triangles take the per-pixel circle model, the hits of
 //! the curved trace without a walk.
 
+use super::test_support::{assert_no_validation_messages, bumps, validated_context};
 use super::*;
-use crate::context::ContextOptions;
 use crate::mesh::Mesh;
 use crate::scene::Geometry;
 
 #[test]
 fn pixels_off_the_walked_meshes_take_the_circle_model() {
-    let ctx = Arc::new(
-        Context::headless(&ContextOptions {
-            validation: Some(true),
-            device: None,
-        })
-        .expect("a validated Vulkan context (./scripts/setup-debian.sh)"),
-    );
-    let field = HeightField::from_fn(64, 64, "bumps", |u, v| {
-        0.5 + 0.5
-            * (u * 6.0 * std::f32::consts::TAU).sin()
-            * (v * 5.0 * std::f32::consts::TAU).cos()
-    })
-    .unwrap();
+    let ctx = validated_context();
+    let field = bumps(6.0, 5.0);
     let settings = RenderSettings {
         width: 96,
         height: 64,
@@ -67,7 +56,5 @@ fn pixels_off_the_walked_meshes_take_the_circle_model() {
     let changed = differ(&walked, &circle, 1e-4);
     assert!(changed > 20, "the walk changed {changed} hits");
     drop(r);
-    let m = ctx.messages().clone();
-    drop(ctx);
-    assert_eq!((m.errors(), m.warnings()), (0, 0), "validation messages");
+    assert_no_validation_messages(ctx);
 }
