@@ -315,6 +315,14 @@ impl Method {
             .then_some(shaders::TRACE_EXACT_COMP_CURVED_WALK_TRIAGE)
     }
 
+    /// The mesh walk's overlap step ([`Method::walk_shader`]'s companion): over the pixels
+    /// the first trace found on a flat region whose path passes overlapping flat regions'
+    /// shells (a cube's edges), those regions' relief along the path.
+    pub fn walk_overlap_shader(self) -> Option<Shader> {
+        self.walks_meshes()
+            .then_some(shaders::TRACE_EXACT_COMP_CURVED_WALK_OVERLAP)
+    }
+
     /// Whether the method's curved trace walks the mesh's own triangles where it is given
     /// them ([`Method::walk_shader`]).
     pub fn walks_meshes(self) -> bool {

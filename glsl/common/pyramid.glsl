@@ -590,6 +590,22 @@ float pyramid_segment_hit(Ray ray, float t_start, float t_stop, int start_level,
     return segment_hit(origin, dir, t_start, t_stop, start_level, false, iterations);
 }
 
+// Whether `ray` is short in texel space (texel_ray_at's g_long_ray is false for it).
+bool pyramid_ray_short(Ray ray) {
+    vec2 dir = ray.P * vec2(pc.map_size);
+    return max(abs(dir.x), abs(dir.y)) <= SHORT_RAY_TEXELS;
+}
+
+// pyramid_segment_hit for a short ray (pyramid_ray_short): its short copy alone, the same
+// result, so that a program whose rays are all short holds no long-ray traversal (a CPU
+// driver runs both copies' instructions for every group of lanes wherever both are
+// called).
+float pyramid_short_segment_hit(Ray ray, float t_start, float t_stop, int start_level, inout uint iterations) {
+    vec2 origin, dir;
+    texel_ray(ray, origin, dir);
+    return segment_hit(origin, dir, t_start, t_stop, start_level, false, iterations);
+}
+
 // The exact first intersection of `ray` along t in [t_start, t_stop] (t = 1 - h):
 // returns t, or -1 when there is none (a clamp-addressed ray leaving the decal, or no
 // crossing before t_stop < 1). The traversal starts at level `start_level` (any level

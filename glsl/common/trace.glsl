@@ -18,29 +18,33 @@ layout(set = 0, binding = 1) uniform sampler2D u_depth;
 layout(set = 0, binding = 2) uniform sampler2D u_height;
 // The hit images: the hit's uv and its height (< 0: no hit).
 layout(set = 0, binding = 3, rg32f) uniform writeonly image2D u_hit_uv;
-#ifdef TRIAGE
-// The mesh walk's triage reads the first trace's hit heights (and writes the hits it
-// decides).
+#if defined(TRIAGE) || defined(OVERLAP)
+// The mesh walk's triage and overlap step read the first trace's hit heights (and write
+// the hits they decide).
 layout(set = 0, binding = 7, r32f) uniform image2D u_hit_height;
 #else
 layout(set = 0, binding = 7, r32f) uniform writeonly image2D u_hit_height;
 #endif
 #ifdef WALK
-// The mesh walk's two lists of pixels (src/passes/trace.rs, `walk_list_bytes`): list 0,
-// appended to by the walked material's first trace (the FIRST variant, over its tiles:
-// the pixels its flat trace may not be the walk's) and run by the triage (the TRIAGE
-// variant, an indirect dispatch of the list's arguments); list 1, appended to by the
-// triage (the pixels whose trace may differ from the walk) and run by the walk (the WALK
-// variant, indirect too). Each list's header: its dispatch's workgroups along x, y and z,
-// then its count of pixels. The record resets both headers to (0, 1, 1, 0) before the
-// first trace.
+// The mesh walk's three lists of pixels (src/passes/trace.rs, `walk_list_bytes`): lists
+// 0 and 2, appended to by the walked material's first trace (the FIRST variant, over its
+// tiles: the pixels its flat trace may not be the walk's; list 2 those whose flat path
+// only passes overlapping flat regions) and run by the triage (the TRIAGE variant, an
+// indirect dispatch of the list's arguments) and the overlap step (the OVERLAP variant,
+// indirect too); list 1, appended to by the first trace (the pixels the triage would list)
+// and the triage (the pixels whose trace may differ from the walk) and run by the walk
+// (the WALK variant, indirect too). Each list's header: its dispatch's workgroups along x,
+// y and z, then its count of pixels. The record resets the headers to (0, 1, 1, 0) before
+// the first trace.
 layout(set = 0, binding = 13, std430)
-#if !defined(TRIAGE) && !defined(FIRST)
+#if !defined(TRIAGE) && !defined(FIRST) && !defined(OVERLAP)
 readonly
 #endif
 buffer WalkList {
-    uint head[8];   // list 0's header, then list 1's
-    uint pixels[];  // list 0's pixels, then list 1's (half each): x | y << 16
+    uint head[12];  // list 0's header, list 1's, list 2's
+    // The first half: list 0 from its start, list 2 from its end (the first trace lists a
+    // pixel in one of them at most); the second half: list 1. Each pixel x | y << 16.
+    uint pixels[];
 } u_walk_list;
 #endif
 #ifdef ITERATIONS
@@ -166,14 +170,26 @@ Hit trace_ray(Ray ray, ivec2 pixel);
 #ifdef WALK
 // The mesh walk's dispatches (exact.comp's WALK variants) define them.
 #if defined(FIRST)
-// Whether the first trace's flat hit at `pixel` (its height `h`) is the walk's own.
-bool walk_pixel_first_keep(ivec2 pixel, float h);
+// What the first trace decides for `pixel` (its flat hit's height `h`): walk_first in
+// glsl/common/walk.glsl. Where it is listed: the walk list's number.
+const int WALK_FIRST_KEEP = -1;    // its flat hit is the walk's
+const int WALK_FIRST_TRIAGE = 0;   // the triage runs on it (walk list 0)
+const int WALK_FIRST_WALK = 1;     // the walk runs on it (walk list 1)
+const int WALK_FIRST_OVERLAP = 2;  // the overlap step runs on it (walk list 2)
+int walk_pixel_first(ivec2 pixel, float h);
 #elif defined(TRIAGE)
 // What the triage decides for a pixel (walk_triage in glsl/common/walk.glsl).
 const int WALK_KEEP = 0;      // the first trace's hit stands
 const int WALK_LIST = 1;      // the walk runs on it
 const int WALK_OVERLAP = 2;   // an overlapping shell's relief is met first: `hit`
 int walk_pixel_triage(ivec2 pixel, Ray ray, out Hit hit);
+#elif defined(OVERLAP)
+// What the overlap step decides for a pixel the first trace listed for it: the first
+// trace's hit stands, `hit` replaces it, or the walk runs on it (list 1).
+const int WALK_OVERLAP_KEEP = 0;
+const int WALK_OVERLAP_HIT = 1;
+const int WALK_OVERLAP_WALK = 2;
+int walk_pixel_overlap(ivec2 pixel, Ray ray, out Hit hit);
 #else
 bool walk_pixel(ivec2 pixel, Ray ray, out Hit hit);
 #endif
@@ -225,19 +241,24 @@ const uint WALK_GROUP_SHIFT = 6u;
 #endif
 
 #ifdef WALK
-// Pixels each of the two walk lists holds at most (half the list's array).
+// Pixels each half of the walk lists' array holds: lists 0 and 2 together, list 1.
 uint walk_list_capacity() {
     return uint(u_walk_list.pixels.length()) >> 1u;
 }
 
-#if defined(TRIAGE) || defined(FIRST)
-// Appends `pixel` to walk list `list` (0 or 1), counting its dispatch's workgroups (at
-// most WALK_MAX_GROUPS).
+// Where the `i`th pixel of list `list` is in the array (`capacity`: walk_list_capacity).
+uint walk_list_slot(uint list, uint i, uint capacity) {
+    return list == 2u ? capacity - 1u - i : list * capacity + i;
+}
+
+#if defined(TRIAGE) || defined(FIRST) || defined(OVERLAP)
+// Appends `pixel` to walk list `list` (0, 1 or 2), counting its dispatch's workgroups
+// (at most WALK_MAX_GROUPS).
 void walk_list_push(uint list, ivec2 pixel) {
     uint i = atomicAdd(u_walk_list.head[4u * list + 3u], 1u);
     uint capacity = walk_list_capacity();
     if (i < capacity) {
-        u_walk_list.pixels[list * capacity + i] = uint(pixel.x) | (uint(pixel.y) << 16);
+        u_walk_list.pixels[walk_list_slot(list, i, capacity)] = uint(pixel.x) | (uint(pixel.y) << 16);
         if ((i & ((1u << WALK_GROUP_SHIFT) - 1u)) == 0u && (i >> WALK_GROUP_SHIFT) < WALK_MAX_GROUPS) {
             atomicAdd(u_walk_list.head[4u * list], 1u);
         }
@@ -273,8 +294,13 @@ void trace_pixel(ivec2 pixel) {
 #ifdef ITERATIONS
     imageStore(u_iterations, pixel, uvec4(hit.iterations));
 #endif
-    if ((pc.flags & TRACE_FLAG_CURVED) != 0u && !walk_pixel_first_keep(pixel, hit.h)) {
-        walk_list_push(0u, pixel);
+    if ((pc.flags & TRACE_FLAG_CURVED) != 0u) {
+        // One append for the three lists (each call site of an atomic costs a CPU
+        // driver's every group of lanes).
+        int list = walk_pixel_first(pixel, hit.h);
+        if (list != WALK_FIRST_KEEP) {
+            walk_list_push(uint(list), pixel);
+        }
     }
 #elif defined(WALK) && defined(TRIAGE)
     // The mesh walk's triage (exact.comp's WALK+TRIAGE variant): lists the pixels whose
@@ -287,6 +313,18 @@ void trace_pixel(ivec2 pixel) {
         imageStore(u_hit_uv, pixel, vec4(hit.uv, 0.0, 0.0));
         imageStore(u_hit_height, pixel, vec4(hit.h));
     } else if (decision == WALK_LIST) {
+        walk_list_push(1u, pixel);
+    }
+#elif defined(WALK) && defined(OVERLAP)
+    // The mesh walk's overlap step (exact.comp's WALK+OVERLAP variant): the hits in the
+    // overlapping regions' relief it finds replace the first trace's (whose iteration
+    // counts they keep, as the triage's do); a pixel it leaves to the walk is listed.
+    Hit hit;
+    int decision = walk_pixel_overlap(pixel, Ray(g.xy, g.zw), hit);
+    if (decision == WALK_OVERLAP_HIT) {
+        imageStore(u_hit_uv, pixel, vec4(hit.uv, 0.0, 0.0));
+        imageStore(u_hit_height, pixel, vec4(hit.h));
+    } else if (decision == WALK_OVERLAP_WALK) {
         walk_list_push(1u, pixel);
     }
 #else
@@ -315,10 +353,13 @@ void trace_pixel(ivec2 pixel) {
 // wrote the hits of the last two).
 void main() {
 #if defined(WALK) && !defined(FIRST)
-    // The triage and the walk: the pixels of their list (0: the first trace's, 1: the
-    // triage's), an invocation each (an indirect dispatch of the list's own arguments).
-#ifdef TRIAGE
+    // The triage, the overlap step and the walk: the pixels of their list (0 and 2: the
+    // first trace's, 1: the triage's), an invocation each (an indirect dispatch of the
+    // list's own arguments).
+#if defined(TRIAGE)
     const uint list = 0u;
+#elif defined(OVERLAP)
+    const uint list = 2u;
 #else
     const uint list = 1u;
 #endif
@@ -327,7 +368,7 @@ void main() {
     uint stride = gl_NumWorkGroups.x << WALK_GROUP_SHIFT;
     for (uint index = (gl_WorkGroupID.x << WALK_GROUP_SHIFT) + gl_LocalInvocationIndex;
          index < count; index += stride) {
-        uint packed = u_walk_list.pixels[list * capacity + index];
+        uint packed = u_walk_list.pixels[walk_list_slot(list, index, capacity)];
         trace_pixel(ivec2(packed & 0xFFFFu, packed >> 16));
     }
 #else

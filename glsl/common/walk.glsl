@@ -614,60 +614,103 @@ bool walk_begin(vec3 entry, vec3 eye, vec3 frame_normal, float surface, out Walk
     return dot(R, walk_normal(at.T, at.q.xy)) < 0.0;
 }
 
-#ifdef FIRST
+#if defined(FIRST) || defined(OVERLAP)
 // The walk's flat regions (src/mesh/regions.rs): the table of surface ids from the
-// header's word 13 (texels; 0: no region), its entries in word 14.
-//
+// header's word 13 (texels; 0: no region), its entries in word 14. A region's texels:
+// (n, o) its plane, (s, E, P, O) its local uv scale (bits) and counts, its affine uv map
+// (two texels: u = U . X + u0, v = V . X + v0), E edge texels (inside: m . X >= c), P
+// plane pairs, then its O overlapping regions' first texels, four a texel. O's bit
+// WALK_REGION_UNLISTED: an overlapping triangle is in no listed region.
+const uint WALK_REGION_UNLISTED = 0x80000000u;
+// A table entry's word 2: the surface has no flat triangle.
+const uint WALK_SURFACE_CURVED = 1u;
+
+// The table entry of the surface `surface`: its regions' first texel and count, and its
+// flags (zero where the table has none).
+uvec4 walk_surface_entry(float surface) {
+    uint table = walk_word(13u);
+    uint key = uint(surface);
+    if (table == 0u || key >= walk_word(14u)) {
+        return uvec4(0u);
+    }
+    return texelFetch(u_walk, int(table + key));
+}
+
+// The texels of the region whose first texel is `r`.
+int walk_region_texels(int r) {
+    uvec4 counts = texelFetch(u_walk, r + 1);
+    return 4 + int(counts.y) + 2 * int(counts.z) + int(((counts.w & 0xffffu) + 3u) >> 2u);
+}
+
+// The region of a surface (its table entry `bucket`, walk_surface_entry) whose plane holds
+// the point X (world), seen from its front (`frame_normal`: the G-buffer's normal): its
+// first texel, -1 for none.
+int walk_region_of(vec3 X, vec3 frame_normal, uvec4 bucket) {
+    float tolerance = 1e-2 / walk_f(3u);
+    int found = -1;
+    int b = int(bucket.x);
+    for (uint r = 0u; r < bucket.y; ++r) {
+        vec4 plane = uintBitsToFloat(texelFetch(u_walk, b));
+        if (found < 0 && abs(dot(plane.xyz, X) - plane.w) <= tolerance
+            && dot(frame_normal, plane.xyz) > 0.0) {
+            found = b;
+        }
+        b += walk_region_texels(b);
+    }
+    return found;
+}
+
+// The straight path of the pixel's ray (direction R) in region `r` from its entry X's base
+// point A (on the plane) down to the first trace's hit height `h` (the offset surface for
+// a miss), B: false where the ray does not go down into the region's shell.
+bool walk_region_path(int r, vec3 X, vec3 R, float h, out vec3 A, out vec3 B) {
+    vec4 plane = uintBitsToFloat(texelFetch(u_walk, r));
+    float cos_in = -dot(R, plane.xyz);
+    A = X - (dot(plane.xyz, X) - plane.w) * plane.xyz;
+    B = A;
+    if (!(cos_in > 1e-3)) {
+        return false;
+    }
+    float fraction = h >= 0.0 ? 1.0 - min(h, 1.0) : 1.0;
+    B = A + (fraction * pc.depth_scale * uintBitsToFloat(texelFetch(u_walk, r + 1).x) / cos_in) * R;
+    return true;
+}
+#endif
+
+#ifdef FIRST
 // Whether the walked material's first trace, flat, has met the walk's own hit: the pixel
 // (eye-relative entry `entry`, `eye` the eye's world position, its G-buffer normal and
 // surface id) lies on the front of a flat region of its surface, and its ray's straight
 // path from the entry down to the trace's hit height `h` (to the offset surface for a
 // miss) stays inside the region's prism (both ends inside its convex outline) and clear
 // of every overlapping plane's slab (walk_planes_near's test, exact for a plane of flat
-// triangles: their shells are straight prisms): there the walk follows
-// that path in one flat chord, the same straight tangent-space ray the trace intersected.
-// A handful of texel fetches and no solve: the triage's cheap case without its program.
-bool walk_first_keep(vec3 entry, vec3 eye, vec3 frame_normal, float surface, float h) {
-    uint table = walk_word(13u);
-    uint key = uint(surface);
-    if (table == 0u || key >= walk_word(14u)) {
-        return false;
-    }
-    uvec2 bucket = texelFetch(u_walk, int(table + key)).xy;
+// triangles: their shells are straight prisms): there the walk follows that path in one
+// flat chord, the same straight tangent-space ray the trace intersected (WALK_FIRST_KEEP).
+// A path inside the prism that comes near an overlapping slab, in a region whose
+// overlapping triangles are all in listed regions, goes to the overlap step
+// (WALK_FIRST_OVERLAP); a path that leaves the prism, and a pixel of a surface without a
+// flat triangle, to the walk (WALK_FIRST_WALK: the triage would list them); every other
+// pixel to the triage. A handful of texel fetches and no solve: the triage's cheap cases
+// without its program.
+int walk_first(vec3 entry, vec3 eye, vec3 frame_normal, float surface, float h) {
     vec3 X = entry + eye;
-    float tolerance = 1e-2 / walk_f(3u);
-    // The region whose plane holds the entry, seen from its front.
-    int found = -1;
-    int b = int(bucket.x);
-    for (uint r = 0u; r < bucket.y; ++r) {
-        vec4 plane = uintBitsToFloat(texelFetch(u_walk, b));
-        uvec4 counts = texelFetch(u_walk, b + 1);
-        if (found < 0 && abs(dot(plane.xyz, X) - plane.w) <= tolerance
-            && dot(frame_normal, plane.xyz) > 0.0) {
-            found = b;
-        }
-        b += 2 + int(counts.y) + 2 * int(counts.z);
+    uvec4 bucket = walk_surface_entry(surface);
+    if ((bucket.z & WALK_SURFACE_CURVED) != 0u) {
+        return WALK_FIRST_WALK;
     }
-    if (found < 0) {
-        return false;
+    int found = walk_region_of(X, frame_normal, bucket);
+    vec3 A, B;
+    if (found < 0 || !walk_region_path(found, X, normalize(entry), h, A, B)) {
+        return WALK_FIRST_TRIAGE;
     }
-    vec4 plane = uintBitsToFloat(texelFetch(u_walk, found));
     uvec4 counts = texelFetch(u_walk, found + 1);
-    vec3 R = normalize(entry);
-    float cos_in = -dot(R, plane.xyz);
-    if (!(cos_in > 1e-3)) {
-        return false;
-    }
-    // The path: from the entry's base point (on the plane) down to the trace's hit.
-    vec3 A = X - (dot(plane.xyz, X) - plane.w) * plane.xyz;
-    float fraction = h >= 0.0 ? 1.0 - min(h, 1.0) : 1.0;
-    vec3 B = A + (fraction * pc.depth_scale * uintBitsToFloat(counts.x) / cos_in) * R;
-    bool keep = true;
-    int e = found + 2;
+    bool inside = true;
+    int e = found + 4;
     for (uint k = 0u; k < counts.y; ++k) {
         vec4 edge = uintBitsToFloat(texelFetch(u_walk, e + int(k)));
-        keep = keep && min(dot(edge.xyz, A), dot(edge.xyz, B)) >= edge.w;
+        inside = inside && min(dot(edge.xyz, A), dot(edge.xyz, B)) >= edge.w;
     }
+    bool near = false;
     int p = e + int(counts.y);
     for (uint k = 0u; k < counts.z; ++k) {
         vec4 q = uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k)));
@@ -675,9 +718,141 @@ bool walk_first_keep(vec3 entry, vec3 eye, vec3 frame_normal, float surface, flo
         vec3 reach = uintBitsToFloat(texelFetch(u_walk, p + 2 * int(k) + 1).xyz);
         float depth = pc.depth_scale * reach.x;
         vec2 d = vec2(dot(A, q.xyz), dot(B, q.xyz)) - q.w;
-        keep = keep && !walk_slab_near(d, depth, reach.y, reach.z);
+        near = near || walk_slab_near(d, depth, reach.y, reach.z);
     }
-    return keep;
+    if (!inside) {
+        // The path leaves the region's prism, out of its flat triangles' (the triage
+        // would list it).
+        return WALK_FIRST_WALK;
+    }
+    if (!near) {
+        return WALK_FIRST_KEEP;
+    }
+    return (counts.w & WALK_REGION_UNLISTED) == 0u ? WALK_FIRST_OVERLAP : WALK_FIRST_TRIAGE;
+}
+#endif
+
+#ifdef OVERLAP
+// Region `o`'s uv at the point X (its affine map; the foot of X on its plane).
+vec2 walk_region_uv(int o, vec3 X) {
+    vec4 mu = uintBitsToFloat(texelFetch(u_walk, o + 2));
+    vec4 mv = uintBitsToFloat(texelFetch(u_walk, o + 3));
+    return vec2(dot(mu.xyz, X) + mu.w, dot(mv.xyz, X) + mv.w);
+}
+
+// Region `o`'s depth fraction at the point X: its depth under the plane over the depth.
+float walk_region_t(int o, vec3 X) {
+    vec4 plane = uintBitsToFloat(texelFetch(u_walk, o));
+    float depth = pc.depth_scale * uintBitsToFloat(texelFetch(u_walk, o + 1).x);
+    return (plane.w - dot(plane.xyz, X)) / max(depth, 1e-30);
+}
+
+// The part [u.x, u.y] of the segment from A to B (as fractions of it) inside region o's
+// shell (its prism, 0 <= t <= 1) where the segment goes down into it; empty (u.x >= u.y)
+// elsewhere. `t`: the depth fractions at A and B.
+vec2 walk_region_clip(int o, vec3 A, vec3 B, out vec2 t) {
+    t = vec2(walk_region_t(o, A), walk_region_t(o, B));
+    vec2 u = vec2(0.0, 1.0);
+    if (!(t.y > t.x)) {
+        return vec2(1.0, 0.0);
+    }
+    u = walk_clip_one(u, t.x, t.y - t.x);
+    u = walk_clip_one(u, 1.0 - t.x, t.x - t.y);
+    uint edges = texelFetch(u_walk, o + 1).y;
+    for (uint k = 0u; k < edges; ++k) {
+        vec4 edge = uintBitsToFloat(texelFetch(u_walk, o + 4 + int(k)));
+        float ea = dot(edge.xyz, A) - edge.w;
+        u = walk_clip_one(u, ea, (dot(edge.xyz, B) - edge.w) - ea);
+    }
+    return u;
+}
+
+// The first texel of the `k`th overlapping region of the region at `r` (its list from
+// texel `list`).
+int walk_region_overlap(int list, uint k) {
+    uvec4 four = texelFetch(u_walk, list + int(k >> 2u));
+    uint c = k & 3u;
+    return int(c == 0u ? four.x : (c == 1u ? four.y : (c == 2u ? four.z : four.w)));
+}
+
+// The overlap step of a pixel the first trace sent it (WALK_FIRST_OVERLAP): its straight
+// path in its flat region down to the first trace's hit (height `h`) passes overlapping
+// shells; each overlapping region's part of the path (clipped to its prism and depth,
+// straight in its uv and depth: its map is affine) is intersected exactly by the pyramid.
+// True with the first crossing into such a region's relief through its surface (not at
+// the clipped start, where the path enters its shell through a side) in `hit`, written in
+// the pixel's own region's frame (as walk_hit_in: its foot and depth there); false: the
+// first trace's hit stands. The same model as the triage's per-triangle test
+// (walk_overlaps_chord), a region at a time: no solve, one clip and one traversal per
+// overlapping face. The traversals are the pyramid's short-ray copy alone (half the
+// code): a pixel whose part of a region is a long ray in texel space goes to the walk
+// (WALK_OVERLAP_WALK, glsl/common/trace.glsl).
+int walk_region_overlaps(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float surface,
+                         float h, out Hit hit) {
+    hit = miss(ray, 0u);
+    vec3 X = entry + eye;
+    int r = walk_region_of(X, frame_normal, walk_surface_entry(surface));
+    vec3 A, B;
+    if (r < 0 || !walk_region_path(r, X, normalize(entry), h, A, B)) {
+        return WALK_OVERLAP_KEEP;
+    }
+    uvec4 counts = texelFetch(u_walk, r + 1);
+    int list = r + 4 + int(counts.y) + 2 * int(counts.z);
+    uint n = min(counts.w & 0xffffu, 32u);
+    // The regions whose shell the path enters, as bits: the traversal's loop below then
+    // runs once per such region (a CPU driver's lanes run a loop's body as often as the
+    // lane that needs it most).
+    uint mask = 0u;
+    for (uint k = 0u; k < n; ++k) {
+        vec2 t;
+        vec2 u = walk_region_clip(walk_region_overlap(list, k), A, B, t);
+        if (u.x < u.y) {
+            mask |= 1u << k;
+        }
+    }
+    int top = pyramid_levels() - 1;
+    uint iterations = 0u;
+    float u_hit = 1.0;
+    bool found = false;
+    while (mask != 0u) {
+        uint k = uint(findLSB(mask));
+        mask &= mask - 1u;
+        int o = walk_region_overlap(list, k);
+        vec2 t;
+        vec2 u = walk_region_clip(o, A, B, t);
+        if (!(u.x < u.y) || u.x >= u_hit) {
+            continue;
+        }
+        vec3 X0 = mix(A, B, u.x);
+        vec3 X1 = mix(A, B, u.y);
+        float t0 = mix(t.x, t.y, u.x);
+        float t1 = mix(t.x, t.y, u.y);
+        // Its uv moved by whole tiles next to the pixel's (repeat addressing).
+        vec2 tiles = pc.addressing == ADDRESSING_REPEAT ? round(ray.uv0 - walk_region_uv(o, A)) : vec2(0.0);
+        vec2 uv0 = walk_region_uv(o, X0) + tiles;
+        vec2 uv1 = walk_region_uv(o, X1) + tiles;
+        vec2 dir = (uv1 - uv0) / (t1 - t0);
+        Ray segment = Ray(uv0 - t0 * dir, dir);
+        if (!pyramid_ray_short(segment)) {
+            return WALK_OVERLAP_WALK;
+        }
+        float sh = pyramid_short_segment_hit(segment, t0, t1, top, iterations);
+        if (!(sh > t0 + 1e-6)) {
+            continue;
+        }
+        float uh = mix(u.x, u.y, (sh - t0) / (t1 - t0));
+        if (uh < u_hit) {
+            u_hit = uh;
+            found = true;
+        }
+    }
+    if (!found) {
+        return WALK_OVERLAP_KEEP;
+    }
+    vec3 Xh = mix(A, B, u_hit);
+    vec2 tiles = pc.addressing == ADDRESSING_REPEAT ? round(ray.uv0 - walk_region_uv(r, A)) : vec2(0.0);
+    hit = Hit(walk_region_uv(r, Xh) + tiles, 1.0 - clamp(walk_region_t(r, Xh), 0.0, 1.0), iterations);
+    return WALK_OVERLAP_HIT;
 }
 #endif
 

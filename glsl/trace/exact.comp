@@ -16,13 +16,15 @@
 // outlines) by a march in steps of at most one texel with the exact bilinear height,
 // refined by bisection. No hit before the ray leaves the shell: a miss.
 //
-// For a pass given the meshes (src/mesh/walk.rs), a curved material is traced in three
+// For a pass given the meshes (src/mesh/walk.rs), a curved material is traced in four
 // dispatches that walk the mesh's own triangles (glsl/common/walk.glsl) instead of the
 // curved trace: the WALK+FIRST variant over the material's tiles (the flat trace, listing
 // the pixels it cannot tell from the meshes' convex flat regions are the walk's), the
-// CURVED+WALK+TRIAGE variant over those (keeping, resolving or listing each) and the
-// CURVED+WALK variant over the pixels the triage listed (the walk; the circle model for
-// a pixel on no walked triangle). Separate pipelines keep each program to the pixels that
+// CURVED+WALK+OVERLAP variant over those of them whose straight path in their flat region
+// only passes the shells of overlapping flat regions (a cube's edges: those regions'
+// relief intersected along it), the CURVED+WALK+TRIAGE variant over the others (keeping,
+// resolving or listing each) and the CURVED+WALK variant over the pixels the triage
+// listed (the walk; the circle model for a pixel on no walked triangle). Separate pipelines keep each program to the pixels that
 // need it (a CPU driver runs every instruction of a program for every group of lanes,
 // taken or not: the walk's code in the curved trace ran it about 2.5 times slower).
 // dispmap-variant: ITERATIONS
@@ -31,6 +33,7 @@
 // dispmap-variant: CURVED+WALK
 // dispmap-variant: CURVED+WALK+ITERATIONS
 // dispmap-variant: CURVED+WALK+TRIAGE
+// dispmap-variant: CURVED+WALK+OVERLAP
 // dispmap-variant: WALK+FIRST
 // dispmap-variant: WALK+FIRST+ITERATIONS
 #include "trace.glsl"
@@ -48,10 +51,20 @@ vec3 walk_pixel_eye() {
 }
 
 #if defined(FIRST)
-// Whether the first trace's flat hit at `pixel` (its height `h`) is the walk's own.
-bool walk_pixel_first_keep(ivec2 pixel, float h) {
-    return walk_first_keep(walk_pixel_entry(pixel), walk_pixel_eye(), gbuffer_frame(pixel).normal,
-                           gbuffer_surface(pixel), h);
+// What the first trace decides for `pixel` (its flat hit's height `h`).
+int walk_pixel_first(ivec2 pixel, float h) {
+    return walk_first(walk_pixel_entry(pixel), walk_pixel_eye(), gbuffer_frame(pixel).normal,
+                      gbuffer_surface(pixel), h);
+}
+#elif defined(OVERLAP)
+// The overlap step of `pixel` (its G-buffer ray `ray`): walk_region_overlaps' decision.
+int walk_pixel_overlap(ivec2 pixel, Ray ray, out Hit hit) {
+    hit = miss(ray, 0u);
+    if ((pc.flags & TRACE_FLAG_CURVED) == 0u) {
+        return WALK_OVERLAP_KEEP;
+    }
+    return walk_region_overlaps(ray, walk_pixel_entry(pixel), walk_pixel_eye(), gbuffer_frame(pixel).normal,
+                                gbuffer_surface(pixel), imageLoad(u_hit_height, pixel).r, hit);
 }
 #elif defined(TRIAGE)
 // The mesh walk's triage of `pixel` (its G-buffer ray `ray`): walk_triage's decision.

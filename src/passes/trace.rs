@@ -27,13 +27,15 @@
 //! pixel of the material (others are left alone).
 //!
 //! A method that walks the pass's meshes ([`Method::walks_meshes`], traced curved, given
-//! meshes) traces such a material in three dispatches instead of its curved trace (all
+//! meshes) traces such a material in four dispatches instead of its curved trace (all
 //! [`TracePass::record_walk`]): the first trace over the material's tiles
 //! ([`WalkStep::First`]: the flat trace, which lists the pixels it cannot tell from the
-//! meshes' convex flat regions are the walk's), the triage over those
-//! ([`WalkStep::Triage`]: keeps the pixels whose trace is the walk, resolves the flat ones
-//! whose path meets only the overlapping shells of a cube's edges, lists the rest) and the
-//! walk over those ([`WalkStep::Walk`]), the last two indirect dispatches of the lists'
+//! meshes' convex flat regions are the walk's), the overlap step over those of them whose
+//! path in their flat region only passes overlapping flat regions' shells, a cube's edges
+//! ([`WalkStep::Overlap`]: those regions' relief along the path), the triage over the
+//! others ([`WalkStep::Triage`]: keeps the pixels whose trace is the walk, resolves the
+//! flat ones whose path meets only overlapping triangles' shells, lists the rest) and the
+//! walk over those ([`WalkStep::Walk`]), the last three indirect dispatches of the lists'
 //! own arguments. On a CPU driver, whose lanes run a shader's every instruction in
 //! lockstep whether a lane takes its branch or not, each program then costs only the
 //! pixels that need it.
@@ -151,9 +153,11 @@ fn bindings(
 /// without):
 /// * the first trace ([`Method::walk_first_shader`]): the flat trace's, the walk buffer and
 ///   the walk list (appended to);
-/// * the triage ([`Method::walk_triage_shader`]): the G-buffer, the height field and its
-///   pyramid, the hit images (the first trace's hit heights read, the hits the triage
-///   decides written), the walk buffer and the walk list (its pixels read, appended to);
+/// * the triage ([`Method::walk_triage_shader`]) and the overlap step
+///   ([`Method::walk_overlap_shader`]): the G-buffer, the height field and its pyramid,
+///   the hit images (the first trace's hit heights read, the hits the step decides
+///   written), the walk buffer and the walk list (its pixels read; the triage appends to
+///   the walk's);
 /// * the walk ([`Method::walk_shader`]): the flat trace's but the tile list (its pixels
 ///   come from the walk list), the curve image (the circle model of a pixel on no walked
 ///   triangle), the walk buffer and the walk list.
@@ -164,7 +168,7 @@ fn walk_bindings(
 ) -> Vec<(&'static str, vk::DescriptorType)> {
     let mut b = match step {
         WalkStep::First => bindings(method, iterations, false),
-        WalkStep::Triage => vec![
+        WalkStep::Triage | WalkStep::Overlap => vec![
             ("u_ray", SAMPLED),
             ("u_depth", SAMPLED),
             ("u_height", SAMPLED),
@@ -184,27 +188,19 @@ fn walk_bindings(
     b
 }
 
-/// Bytes of the walk list's two headers (`WalkList` in `glsl/common/trace.glsl`): per
+/// Bytes of the walk list's three headers (`WalkList` in `glsl/common/trace.glsl`): per
 /// list, its dispatch's arguments and its count of pixels.
-pub const WALK_LIST_HEADER: u64 = 32;
+pub const WALK_LIST_HEADER: u64 = 48;
 
 /// The walk list's headers before a walked material's first trace: per list, no
 /// workgroup along x, one along y and z, no pixel.
-pub const WALK_LIST_RESET: [u32; 8] = [0, 1, 1, 0, 0, 1, 1, 0];
+pub const WALK_LIST_RESET: [u32; 12] = [0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0];
 
 /// Bytes of a walk list for a frame of `extent`: its headers, and two words a pixel (the
-/// first trace's list and the triage's: a material's pixels are at most the frame's).
+/// first trace's two lists, which share one: it lists a pixel in one of them at most, and
+/// a material's pixels are at most the frame's; the triage's list).
 pub fn walk_list_bytes(extent: vk::Extent2D) -> u64 {
     WALK_LIST_HEADER + 8 * u64::from(extent.width) * u64::from(extent.height)
-}
-
-/// The byte offset in the walk list of the dispatch arguments of `step`'s pixels (the
-/// triage's: the first trace's list; the walk's: the triage's).
-fn walk_list_args(step: WalkStep) -> u64 {
-    match step {
-        WalkStep::First | WalkStep::Triage => 0,
-        WalkStep::Walk => 16,
-    }
 }
 
 /// The images the trace pass reads and writes (layouts in the module docs).
@@ -298,7 +294,10 @@ pub enum WalkStep {
     /// Over the material's tiles: the flat trace, and the pixels whose hit it cannot tell
     /// is the walk's listed.
     First,
-    /// Over the pixels the first trace listed: keeps, resolves or lists each one.
+    /// Over the pixels the first trace listed whose straight path in their flat region
+    /// only passes overlapping flat regions' shells: those regions' relief along it.
+    Overlap,
+    /// Over the other pixels the first trace listed: keeps, resolves or lists each one.
     Triage,
     /// Over the pixels the triage listed: the walk itself.
     Walk,
@@ -306,15 +305,46 @@ pub enum WalkStep {
 
 impl WalkStep {
     /// The steps in their order.
-    pub const ALL: [WalkStep; 3] = [WalkStep::First, WalkStep::Triage, WalkStep::Walk];
+    pub const ALL: [WalkStep; 4] = [
+        WalkStep::First,
+        WalkStep::Overlap,
+        WalkStep::Triage,
+        WalkStep::Walk,
+    ];
 
     /// The step's shader for `method` (`None`: the method does not walk meshes).
     fn shader(self, method: Method, iterations: bool) -> Option<crate::shaders::Shader> {
         match self {
             WalkStep::First => method.walk_first_shader(iterations),
+            WalkStep::Overlap => method.walk_overlap_shader(),
             WalkStep::Triage => method.walk_triage_shader(),
             WalkStep::Walk => method.walk_shader(iterations),
         }
+    }
+
+    /// The byte offset in the walk list of the dispatch arguments of the step's pixels
+    /// (`None`: the first trace, over the material's tiles): the triage's are the first
+    /// list's, the walk's the second's, the overlap step's the third's.
+    fn list_args(self) -> Option<u64> {
+        match self {
+            WalkStep::First => None,
+            WalkStep::Triage => Some(0),
+            WalkStep::Walk => Some(16),
+            WalkStep::Overlap => Some(32),
+        }
+    }
+
+    /// Whether the step writes the pixels' iteration counts (the pipeline built with
+    /// iterations): the first trace and the walk; the hits the triage and the overlap
+    /// step decide keep the first trace's counts.
+    fn writes_iterations(self) -> bool {
+        matches!(self, WalkStep::First | WalkStep::Walk)
+    }
+
+    /// Whether the step reads the G-buffer's curve image: the walk (its circle model for
+    /// a pixel on no walked triangle).
+    fn reads_curve(self) -> bool {
+        self == WalkStep::Walk
     }
 }
 
@@ -472,8 +502,12 @@ impl TracePass {
     /// * [`WalkStep::First`], over the material's tiles: the method's flat trace into the
     ///   hit images (and iteration counts), appending to the walk list's first list the
     ///   pixels where it cannot tell from the walk buffer's flat regions that the hit is
-    ///   the walk's, and counting their workgroups in the list's first header; the caller
-    ///   reset both headers to [`WALK_LIST_RESET`] before it.
+    ///   the walk's (to the third those whose path in their flat region only passes
+    ///   overlapping flat regions' shells), and counting their workgroups in the lists'
+    ///   headers; the caller reset the headers to [`WALK_LIST_RESET`] before it.
+    /// * [`WalkStep::Overlap`], an indirect dispatch of the third list's arguments over its
+    ///   pixels: writes the hits in the overlapping regions' relief it finds before the
+    ///   first trace's (`glsl/trace/exact.comp`'s `OVERLAP` variant).
     /// * [`WalkStep::Triage`], an indirect dispatch of the first list's arguments over its
     ///   pixels: keeps the first trace's hits (reading its hit heights) where they are the
     ///   walk's, writes those it resolves, and appends the other pixels to the second list.
@@ -588,7 +622,7 @@ impl TracePass {
         let frame = fetch(gbuffer.frame.view);
         // The curved trace and the walk (its circle model off the walked triangles) read
         // the curve image.
-        let reads_curve = matches!(which, None | Some(WalkStep::Walk));
+        let reads_curve = which.is_none_or(WalkStep::reads_curve);
         let curve = match (self.curved && reads_curve, gbuffer.curve) {
             (true, Some(c)) => Some(fetch(c.view)),
             (true, None) => {
@@ -612,9 +646,12 @@ impl TracePass {
             pl.image("u_frame", &frame)?,
         ];
         writes.push(pl.image("u_hit_uv", &hit_uv)?);
-        // The triage writes no iteration counts (the hits it decides keep the first
-        // trace's).
-        if let Some(c) = counts.as_ref().filter(|_| which != Some(WalkStep::Triage)) {
+        // The triage and the overlap step write no iteration counts (the hits they decide
+        // keep the first trace's).
+        if let Some(c) = counts
+            .as_ref()
+            .filter(|_| which.is_none_or(WalkStep::writes_iterations))
+        {
             writes.push(pl.image("u_iterations", c)?);
         }
         if let Some(c) = &curve {
@@ -693,17 +730,17 @@ impl TracePass {
         // `TraceParams` the layout was built with; the pipeline lives as long as this pass;
         // the list is the classification's (this function's contract).
         unsafe {
-            match (which, walk_list) {
+            match (which.and_then(WalkStep::list_args), walk_list) {
                 // The walk list's own arguments (the step before's count of workgroups);
                 // its pixels, not the tile list, say which pixel an invocation runs.
-                (Some(step @ (WalkStep::Triage | WalkStep::Walk)), Some(list)) => {
+                (Some(args), Some(list)) => {
                     pipeline.pipeline.dispatch_indirect(
                         ctx,
                         cmd,
                         &writes,
                         bytemuck::bytes_of(&push),
                         list,
-                        walk_list_args(step),
+                        args,
                     );
                     Ok(())
                 }
