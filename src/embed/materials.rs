@@ -270,6 +270,23 @@ impl DisplacementPass {
     pub fn set_curved_meshes(&mut self, meshes: &[&crate::mesh::Mesh]) -> Result<()> {
         self.check_alive()?;
         let walk = crate::mesh::walk::WalkMeshes::new(self.context()?, meshes)?;
+        self.replace_walk(walk)
+    }
+
+    /// [`DisplacementPass::set_curved_meshes`] without the walk buffer's flat regions
+    /// ([`crate::mesh::walk::WalkMeshes::without_regions`]).
+    #[cfg(test)]
+    pub(crate) fn set_curved_meshes_without_regions(
+        &mut self,
+        meshes: &[&crate::mesh::Mesh],
+    ) -> Result<()> {
+        self.check_alive()?;
+        let walk = crate::mesh::walk::WalkMeshes::without_regions(self.context()?, meshes)?;
+        self.replace_walk(walk)
+    }
+
+    /// Makes `walk` the pass's walk buffer, the old one retired (restored on failure).
+    fn replace_walk(&mut self, walk: crate::mesh::walk::WalkMeshes) -> Result<()> {
         let old = std::mem::replace(&mut self.walk, walk);
         // The slots' walk lists follow whether there is anything to walk.
         if let Err(e) = self.sync() {

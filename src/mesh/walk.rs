@@ -370,7 +370,22 @@ impl WalkMeshes {
     /// `maxTexelBufferElements` (at least 65,536 texels: about 7,000 triangles; 2^27 on
     /// lavapipe and the common desktop drivers).
     pub fn new(ctx: &Context, meshes: &[&Mesh]) -> Result<Self> {
+        Self::from_words(ctx, walk_words(meshes))
+    }
+
+    /// The walk buffer of `meshes` without its flat regions' table (the first trace then
+    /// sends every pixel it cannot keep to the triage, the per-triangle path): what the
+    /// tests compare the regions' steps with.
+    #[cfg(test)]
+    pub(crate) fn without_regions(ctx: &Context, meshes: &[&Mesh]) -> Result<Self> {
         let mut words = walk_words(meshes);
+        words[13] = 0;
+        words[14] = 0;
+        Self::from_words(ctx, words)
+    }
+
+    /// The walk buffer holding `words` ([`WalkMeshes::new`]).
+    fn from_words(ctx: &Context, mut words: Vec<u32>) -> Result<Self> {
         words.resize(words.len().div_ceil(4) * 4, 0);
         let texels = words.len() / 4;
         let limit = ctx.info().max_texel_buffer_elements;

@@ -287,7 +287,7 @@ pub struct TracePass {
     walk: Option<Vec<FetchPipeline>>,
 }
 
-/// The mesh walk's three dispatches, in their order ([`TracePass::record_walk`]): they
+/// The mesh walk's four dispatches, in their order ([`TracePass::record_walk`]): they
 /// replace the curved trace of a material whose meshes the pass walks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum WalkStep {
@@ -503,11 +503,14 @@ impl TracePass {
     ///   hit images (and iteration counts), appending to the walk list's first list the
     ///   pixels where it cannot tell from the walk buffer's flat regions that the hit is
     ///   the walk's (to the third those whose path in their flat region only passes
-    ///   overlapping flat regions' shells), and counting their workgroups in the lists'
-    ///   headers; the caller reset the headers to [`WALK_LIST_RESET`] before it.
+    ///   overlapping flat regions' shells, to the second those whose path leaves their
+    ///   region and those of surfaces without a flat triangle), and counting their
+    ///   workgroups in the lists' headers; the caller reset the headers to
+    ///   [`WALK_LIST_RESET`] before it.
     /// * [`WalkStep::Overlap`], an indirect dispatch of the third list's arguments over its
     ///   pixels: writes the hits in the overlapping regions' relief it finds before the
-    ///   first trace's (`glsl/trace/exact.comp`'s `OVERLAP` variant).
+    ///   first trace's (`glsl/trace/exact.comp`'s `OVERLAP` variant), and appends to the
+    ///   second list a pixel whose part of a region is a long ray in texel space.
     /// * [`WalkStep::Triage`], an indirect dispatch of the first list's arguments over its
     ///   pixels: keeps the first trace's hits (reading its hit heights) where they are the
     ///   walk's, writes those it resolves, and appends the other pixels to the second list.
@@ -522,8 +525,9 @@ impl TracePass {
     /// As [`TracePass::record`], and when the command buffer executes: the walk buffer
     /// holds [`crate::mesh::walk::walk_words`]' words, visible to compute-shader reads;
     /// for the first trace, the list's reset is visible to its storage reads and writes;
-    /// for the triage and the walk, the step before's writes (the list and the hits) are
-    /// visible to indirect reads and compute-shader storage reads and writes.
+    /// for the overlap step, the triage and the walk, the steps before's writes (the list
+    /// and the hits) are visible to indirect reads and compute-shader storage reads and
+    /// writes.
     pub unsafe fn record_walk(
         &self,
         step: WalkStep,

@@ -58,3 +58,56 @@ fn pixels_off_the_walked_meshes_take_the_circle_model() {
     drop(r);
     assert_no_validation_messages(ctx);
 }
+
+/// The overlap step (each overlapping flat region's relief along a cube face's straight
+/// path, clipped and intersected once per region, no solve) gives the hits of the
+/// triage's per-triangle test of the same model (the walk buffer without its flat regions
+/// sends every pixel the first trace cannot keep there), to f32; and the paths it takes
+/// are many and change hits, so that the comparison can fail.
+#[test]
+fn the_overlap_step_meets_the_per_triangle_model() {
+    let ctx = validated_context();
+    let field = bumps(6.0, 5.0);
+    let settings = RenderSettings {
+        width: 96,
+        height: 64,
+        method: Method::Exact,
+        params: MethodParams::for_method(Method::Exact),
+        scene: Scene {
+            geometry: Geometry::Cube,
+            depth_scale: 0.15,
+            ..Scene::default()
+        },
+        shadows: ShadowSettings::default(),
+    };
+    let mut r = Renderer::new(&ctx, &field, settings).unwrap();
+    r.render().unwrap();
+    let flat = r.read_hits().unwrap();
+    r.set_curved(true).unwrap();
+    assert!(r.pass.curved_mesh_triangles() > 0, "the cube is walked");
+    r.render().unwrap();
+    let regions = r.read_hits().unwrap();
+    let meshes: Vec<Mesh> = r.curved_meshes.clone();
+    let meshes: Vec<&Mesh> = meshes.iter().collect();
+    r.pass.set_curved_meshes_without_regions(&meshes).unwrap();
+    r.render().unwrap();
+    let per_triangle = r.read_hits().unwrap();
+    let differ = |a: &[HitTexel], b: &[HitTexel], tolerance: f32| {
+        a.iter()
+            .zip(b)
+            .filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > tolerance))
+            .count()
+    };
+    // Where the overlapping faces' relief is met before the face's own (and where paths
+    // leave a face), the curved hits are not the flat trace's.
+    let curved = differ(&per_triangle, &flat, 1e-3);
+    assert!(curved > 40, "the walk changed {curved} hits");
+    let apart = differ(&regions, &per_triangle, 1e-3);
+    assert!(
+        apart <= 2,
+        "{apart} hits of the overlap step differ from the per-triangle test's ({curved} \
+         curved hits)"
+    );
+    drop(r);
+    assert_no_validation_messages(ctx);
+}
