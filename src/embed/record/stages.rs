@@ -202,7 +202,7 @@ impl DisplacementPass {
                 )));
             };
             // A material whose meshes the pass walks (`exact` traced curved, given meshes)
-            // is traced by the walk's three steps below instead (unless a level-of-detail
+            // is traced by the walk's four steps below instead (unless a level-of-detail
             // blend keeps its curved trace).
             let walked = m.curved
                 && view.is_some()
@@ -250,8 +250,8 @@ impl DisplacementPass {
         });
         // The mesh walks, after the other traces: per material, the walk list's reset,
         // the first trace (flat, listing the pixels it cannot tell are the walk's), the
-        // triage (which reads its hit heights and lists the pixels to walk) and the walk
-        // over them, each declared and flushed after the one before, so the graph orders
+        // overlap step and the triage (which read its hit heights; the triage lists the
+        // pixels to walk) and the walk over the pixels listed for it, each declared and flushed after the one before, so the graph orders
         // them after each other (and the walk list's reuse by the next material after
         // the walk before).
         // SAFETY: `record`'s contract (`cmd` recording outside a render pass; the writer's
