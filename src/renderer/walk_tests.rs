@@ -1,29 +1,34 @@
-//! The mesh walk's fallback, seen through the renderer's own pass: the pixels of a walked
+//! The mesh walk seen through the renderer's own pass: its fallback (the pixels of a walked
 //! material on none of the walked triangles take the per-pixel circle model, the hits of
-//! the curved trace without a walk.
+//! the curved trace without a walk) and its overlap step per flat region against the
+//! triage's per-triangle test.
 
 use super::test_support::{assert_no_validation_messages, bumps, validated_context};
 use super::*;
 use crate::mesh::Mesh;
 use crate::scene::Geometry;
 
-#[test]
-fn pixels_off_the_walked_meshes_take_the_circle_model() {
-    let ctx = validated_context();
-    let field = bumps(6.0, 5.0);
+/// A 96 x 64 renderer of `geometry` with `exact`, a depth of 0.15 and the bumpy field.
+fn exact_renderer(ctx: &Arc<Context>, geometry: Geometry) -> Renderer {
     let settings = RenderSettings {
         width: 96,
         height: 64,
         method: Method::Exact,
         params: MethodParams::for_method(Method::Exact),
         scene: Scene {
-            geometry: Geometry::Sphere,
+            geometry,
             depth_scale: 0.15,
             ..Scene::default()
         },
         shadows: ShadowSettings::default(),
     };
-    let mut r = Renderer::new(&ctx, &field, settings).unwrap();
+    Renderer::new(ctx, &bumps(6.0, 5.0), settings).unwrap()
+}
+
+#[test]
+fn pixels_off_the_walked_meshes_take_the_circle_model() {
+    let ctx = validated_context();
+    let mut r = exact_renderer(&ctx, Geometry::Sphere);
     r.set_curved(true).unwrap();
     assert!(r.pass.curved_mesh_triangles() > 0, "the sphere is walked");
     r.render().unwrap();
@@ -67,20 +72,7 @@ fn pixels_off_the_walked_meshes_take_the_circle_model() {
 #[test]
 fn the_overlap_step_meets_the_per_triangle_model() {
     let ctx = validated_context();
-    let field = bumps(6.0, 5.0);
-    let settings = RenderSettings {
-        width: 96,
-        height: 64,
-        method: Method::Exact,
-        params: MethodParams::for_method(Method::Exact),
-        scene: Scene {
-            geometry: Geometry::Cube,
-            depth_scale: 0.15,
-            ..Scene::default()
-        },
-        shadows: ShadowSettings::default(),
-    };
-    let mut r = Renderer::new(&ctx, &field, settings).unwrap();
+    let mut r = exact_renderer(&ctx, Geometry::Cube);
     r.render().unwrap();
     let flat = r.read_hits().unwrap();
     r.set_curved(true).unwrap();
