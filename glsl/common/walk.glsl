@@ -636,10 +636,16 @@ uvec4 walk_surface_entry(float surface) {
     return texelFetch(u_walk, int(table + key));
 }
 
+// The first texel of the overlapping regions' list of the region whose first texel is
+// `r` and whose counts are `counts` (past its plane, counts, uv map, edges and planes).
+int walk_region_list(int r, uvec4 counts) {
+    return r + 4 + int(counts.y) + 2 * int(counts.z);
+}
+
 // The texels of the region whose first texel is `r`.
 int walk_region_texels(int r) {
     uvec4 counts = texelFetch(u_walk, r + 1);
-    return 4 + int(counts.y) + 2 * int(counts.z) + int(((counts.w & 0xffffu) + 3u) >> 2u);
+    return walk_region_list(r, counts) - r + int(((counts.w & 0xffffu) + 3u) >> 2u);
 }
 
 // The region of a surface (its table entry `bucket`, walk_surface_entry) whose plane holds
@@ -797,7 +803,7 @@ int walk_region_overlaps(Ray ray, vec3 entry, vec3 eye, vec3 frame_normal, float
         return WALK_OVERLAP_KEEP;
     }
     uvec4 counts = texelFetch(u_walk, r + 1);
-    int list = r + 4 + int(counts.y) + 2 * int(counts.z);
+    int list = walk_region_list(r, counts);
     uint n = min(counts.w & 0xffffu, 32u);
     // The regions whose shell the path enters, as bits: the traversal's loop below then
     // runs once per such region (a CPU driver's lanes run a loop's body as often as the

@@ -8,6 +8,14 @@ use super::*;
 use crate::mesh::Mesh;
 use crate::scene::Geometry;
 
+/// How many pixels' hits (uv and height) of `a` and `b` differ by more than `tolerance`.
+fn differ(a: &[HitTexel], b: &[HitTexel], tolerance: f32) -> usize {
+    a.iter()
+        .zip(b)
+        .filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > tolerance))
+        .count()
+}
+
 /// A 96 x 64 renderer of `geometry` with `exact`, a depth of 0.15 and the bumpy field.
 fn exact_renderer(ctx: &Arc<Context>, geometry: Geometry) -> Renderer {
     let settings = RenderSettings {
@@ -45,12 +53,6 @@ fn pixels_off_the_walked_meshes_take_the_circle_model() {
     r.pass.set_curved_meshes(&[]).unwrap();
     r.render().unwrap();
     let circle = r.read_hits().unwrap();
-    let differ = |a: &[HitTexel], b: &[HitTexel], tolerance: f32| {
-        a.iter()
-            .zip(b)
-            .filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > tolerance))
-            .count()
-    };
     assert_eq!(
         differ(&off, &circle, 1e-6),
         0,
@@ -84,12 +86,6 @@ fn the_overlap_step_meets_the_per_triangle_model() {
     r.pass.set_curved_meshes_without_regions(&meshes).unwrap();
     r.render().unwrap();
     let per_triangle = r.read_hits().unwrap();
-    let differ = |a: &[HitTexel], b: &[HitTexel], tolerance: f32| {
-        a.iter()
-            .zip(b)
-            .filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > tolerance))
-            .count()
-    };
     // Where the overlapping faces' relief is met before the face's own (and where paths
     // leave a face), the curved hits are not the flat trace's.
     let curved = differ(&per_triangle, &flat, 1e-3);
